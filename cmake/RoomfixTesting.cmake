@@ -1,0 +1,36 @@
+# Test helpers shared by every folder.
+#
+# Tests find the source tree, the build tree and the real reference data
+# through these environment variables, never through paths baked into code.
+set(ROOMFIX_TEST_ENVIRONMENT
+  "ROOMFIX_SOURCE_DIR=${CMAKE_SOURCE_DIR}"
+  "ROOMFIX_BUILD_DIR=${CMAKE_BINARY_DIR}"
+  "ROOMFIX_SHARED_DATA_DIR=${ROOMFIX_SHARED_DATA_DIR}")
+
+# Exit code with which a test says "could not run here" (ctest: Skipped).
+set(ROOMFIX_SKIP_CODE 77)
+
+# roomfix_add_gtest(<name> SOURCES ... LIBS ...): a GoogleTest binary beside
+# the code it tests; each TEST becomes its own ctest entry.
+function(roomfix_add_gtest name)
+  cmake_parse_arguments(ARG "" "" "SOURCES;LIBS" ${ARGN})
+  add_executable(${name} ${ARG_SOURCES})
+  target_link_libraries(${name} PRIVATE ${ARG_LIBS} roomfix_testing GTest::gtest_main)
+  gtest_discover_tests(${name}
+    DISCOVERY_TIMEOUT 60
+    PROPERTIES ENVIRONMENT "${ROOMFIX_TEST_ENVIRONMENT}" TIMEOUT 300)
+endfunction()
+
+# roomfix_add_netns_test(<name> COMMAND <cmd> [args...]): runs the command in
+# a private network namespace (scripts/netns_run), so UDP multicast stays on
+# this host. Skipped (not failed) where user namespaces are not allowed.
+function(roomfix_add_netns_test name)
+  cmake_parse_arguments(ARG "" "" "COMMAND" ${ARGN})
+  add_test(NAME ${name}
+    COMMAND ${CMAKE_SOURCE_DIR}/scripts/netns_run ${ARG_COMMAND})
+  set_tests_properties(${name} PROPERTIES
+    ENVIRONMENT "${ROOMFIX_TEST_ENVIRONMENT}"
+    SKIP_RETURN_CODE ${ROOMFIX_SKIP_CODE}
+    LABELS netns
+    TIMEOUT 300)
+endfunction()

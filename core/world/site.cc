@@ -1,0 +1,675 @@
+#include "core/world/site.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+#include <tuple>
+#include <utility>
+
+namespace roomfix {
+namespace {
+
+// Thrown inside the parser only, and turned into the one-line error at the
+// API boundary; it never escapes ParseSite.
+struct SiteError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// Reads typed values out of the YAML tree, naming the file, the line and the
+// key path in every failure.
+class Reader {
+ public:
+  explicit Reader(std::string file) : file_(std::move(file)) {}
+
+  [[noreturn]] void Fail(const YAML::Node& near, const std::string& key,
+                         const std::string& what) const {
+    std::ostringstream s;
+    s << file_;
+    if (near.IsDefined() && !near.Mark().is_null()) s << ":" << near.Mark().line + 1;
+    s << ": " << key << ": " << what;
+    throw SiteError(s.str());
+  }
+
+  void ExpectMap(const YAML::Node& node, const std::string& key) const {
+    if (!node.IsMap()) Fail(node, key, "expected a mapping of keys, got " + Kind(node));
+  }
+
+  void ExpectSequence(const YAML::Node& node, const std::string& key) const {
+    if (!node.IsSequence()) Fail(node, key, "expected a list, got " + Kind(node));
+  }
+
+  // Rejects keys the schema does not know, so a typo cannot silently leave a
+  // default in place.
+  void OnlyKeys(const YAML::Node& map, const std::string& key,
+                std::initializer_list<const char*> allowed) const {
+    for (const auto& kv : map) {
+      const std::string name = kv.first.as<std::string>();
+      bool known = false;
+      for (const char* a : allowed) known = known || name == a;
+      if (!known) Fail(kv.first, Join(key, name), "unknown key");
+    }
+  }
+
+  YAML::Node Required(const YAML::Node& map, const std::string& key,
+                      const std::string& name) const {
+    YAML::Node child = map[name];
+    if (!child.IsDefined() || child.IsNull()) Fail(map, Join(key, name), "missing key");
+    return child;
+  }
+
+  double Double(const YAML::Node& node, const std::string& key) const {
+    if (!node.IsScalar()) Fail(node, key, "expected a number, got " + Kind(node));
+    double value = 0.0;
+    if (!YAML::convert<double>::decode(node, value)) {
+      Fail(node, key, "expected a number, got '" + node.Scalar() + "'");
+    }
+    if (!std::isfinite(value)) Fail(node, key, "must be a finite number");
+    return value;
+  }
+
+  double Positive(const YAML::Node& node, const std::string& key) const {
+    const double value = Double(node, key);
+    if (value <= 0.0) Fail(node, key, "must be positive");
+    return value;
+  }
+
+  int Int(const YAML::Node& node, const std::string& key) const {
+    if (!node.IsScalar()) Fail(node, key, "expected an integer, got " + Kind(node));
+    int value = 0;
+    if (!YAML::convert<int>::decode(node, value)) {
+      Fail(node, key, "expected an integer, got '" + node.Scalar() + "'");
+    }
+    return value;
+  }
+
+  bool Bool(const YAML::Node& node, const std::string& key) const {
+    bool value = false;
+    if (!node.IsScalar() || !YAML::convert<bool>::decode(node, value)) {
+      Fail(node, key, "expected true or false");
+    }
+    return value;
+  }
+
+  std::string String(const YAML::Node& node, const std::string& key) const {
+    if (!node.IsScalar()) Fail(node, key, "expected a string, got " + Kind(node));
+    return node.Scalar();
+  }
+
+  template <size_t N>
+  std::array<double, N> Doubles(const YAML::Node& node, const std::string& key) const {
+    if (!node.IsSequence() || node.size() != N) {
+      Fail(node, key, "expected a list of " + std::to_string(N) + " numbers");
+    }
+    std::array<double, N> out{};
+    for (size_t i = 0; i < N; ++i) out[i] = Double(node[i], Index(key, i));
+    return out;
+  }
+
+  template <size_t N>
+  std::array<int, N> Ints(const YAML::Node& node, const std::string& key) const {
+    if (!node.IsSequence() || node.size() != N) {
+      Fail(node, key, "expected a list of " + std::to_string(N) + " integers");
+    }
+    std::array<int, N> out{};
+    for (size_t i = 0; i < N; ++i) out[i] = Int(node[i], Index(key, i));
+    return out;
+  }
+
+  uint64_t Address(const YAML::Node& node, const std::string& key) const {
+    uint64_t address = 0;
+    if (!node.IsScalar() || !ParseRadioAddress(node.Scalar(), &address)) {
+      Fail(node, key, "expected a 64-bit radio address of 16 hex digits, e.g. 0x0013A20040A1B2C3");
+    }
+    return address;
+  }
+
+  static std::string Join(const std::string& key, const std::string& name) {
+    return key.empty() ? name : key + "." + name;
+  }
+  static std::string Index(const std::string& key, size_t i) {
+    return key + "[" + std::to_string(i) + "]";
+  }
+
+ private:
+  static std::string Kind(const YAML::Node& node) {
+    switch (node.Type()) {
+      case YAML::NodeType::Map:
+        return "a mapping";
+      case YAML::NodeType::Sequence:
+        return "a list";
+      case YAML::NodeType::Scalar:
+        return "'" + node.Scalar() + "'";
+      default:
+        return "nothing";
+    }
+  }
+
+  std::string file_;
+};
+
+using K = Reader;  // K::Join / K::Index build key paths.
+
+Room ParseRoom(const Reader& r, const YAML::Node& node) {
+  const std::string key = "room";
+  r.ExpectMap(node, key);
+  r.OnlyKeys(node, key, {"size_m", "height_m", "grid_m", "origin"});
+  Room room;
+  const YAML::Node size = r.Required(node, key, "size_m");
+  const auto xy = r.Doubles<2>(size, "room.size_m");
+  if (xy[0] <= 0.0 || xy[1] <= 0.0) r.Fail(size, "room.size_m", "sizes must be positive");
+  room.size_x_m = xy[0];
+  room.size_y_m = xy[1];
+  room.height_m = r.Positive(r.Required(node, key, "height_m"), "room.height_m");
+  if (node["grid_m"]) room.grid_m = r.Positive(node["grid_m"], "room.grid_m");
+  if (node["origin"]) room.origin = r.String(node["origin"], "room.origin");
+  return room;
+}
+
+// Positions may sit on the walls and ceiling, so a small tolerance allows for
+// surveying error; anything further out is a typo or a wrong unit.
+constexpr double kOutsideRoomTolerance_m = 0.05;
+
+void CheckInsideRoom(const Reader& r, const YAML::Node& node, const std::string& key,
+                     const Room& room, const std::array<double, 3>& p) {
+  const double t = kOutsideRoomTolerance_m;
+  if (p[0] < -t || p[0] > room.size_x_m + t || p[1] < -t || p[1] > room.size_y_m + t || p[2] < -t ||
+      p[2] > room.height_m + t) {
+    std::ostringstream s;
+    s << "position (" << p[0] << ", " << p[1] << ", " << p[2] << ") m is outside the room ("
+      << room.size_x_m << " x " << room.size_y_m << " x " << room.height_m << " m)";
+    r.Fail(node, key, s.str());
+  }
+}
+
+// Receivers on one line (in the floor plane) cannot fix a position in 2D: the
+// mirror image across the line fits the ranges equally well. The test is the
+// smaller principal spread of the receivers' (x, y): the square root of the
+// smaller eigenvalue of their 2x2 covariance, compared with a centimetre.
+constexpr double kCollinearSpread_m = 0.01;
+
+double SmallerPrincipalSpread(const std::vector<Receiver>& receivers) {
+  double mx = 0, my = 0;
+  for (const auto& rc : receivers) {
+    mx += rc.position_m[0];
+    my += rc.position_m[1];
+  }
+  const double n = static_cast<double>(receivers.size());
+  mx /= n;
+  my /= n;
+  double sxx = 0, syy = 0, sxy = 0;
+  for (const auto& rc : receivers) {
+    const double dx = rc.position_m[0] - mx;
+    const double dy = rc.position_m[1] - my;
+    sxx += dx * dx;
+    syy += dy * dy;
+    sxy += dx * dy;
+  }
+  sxx /= n;
+  syy /= n;
+  sxy /= n;
+  const double mean = 0.5 * (sxx + syy);
+  const double diff = std::sqrt(0.25 * (sxx - syy) * (sxx - syy) + sxy * sxy);
+  return std::sqrt(std::max(0.0, mean - diff));
+}
+
+void ParseRadios(const Reader& r, const YAML::Node& root, Site* site) {
+  std::map<uint64_t, std::string> address_owner;
+  auto claim_address = [&](const YAML::Node& node, const std::string& key, uint64_t address) {
+    auto [it, fresh] = address_owner.emplace(address, key);
+    if (!fresh) {
+      r.Fail(node, key,
+             "duplicate address " + FormatRadioAddress(address) + " (also " + it->second + ")");
+    }
+  };
+
+  const YAML::Node receivers = r.Required(root, "", "receivers");
+  r.ExpectSequence(receivers, "receivers");
+  std::set<int> receiver_ids;
+  for (size_t i = 0; i < receivers.size(); ++i) {
+    const YAML::Node node = receivers[i];
+    const std::string key = K::Index("receivers", i);
+    r.ExpectMap(node, key);
+    r.OnlyKeys(node, key, {"id", "address", "position_m", "range_offset_m"});
+    Receiver rc;
+    const YAML::Node id = r.Required(node, key, "id");
+    rc.id = r.Int(id, key + ".id");
+    if (!receiver_ids.insert(rc.id).second) {
+      r.Fail(id, key + ".id", "duplicate receiver id " + std::to_string(rc.id));
+    }
+    const YAML::Node address = r.Required(node, key, "address");
+    rc.address = r.Address(address, key + ".address");
+    claim_address(address, key + ".address", rc.address);
+    const YAML::Node position = r.Required(node, key, "position_m");
+    rc.position_m = r.Doubles<3>(position, key + ".position_m");
+    CheckInsideRoom(r, position, key + ".position_m", site->room, rc.position_m);
+    if (node["range_offset_m"]) {
+      rc.range_offset_m = r.Double(node["range_offset_m"], key + ".range_offset_m");
+    }
+    site->receivers.push_back(rc);
+  }
+  if (site->receivers.size() < 3) {
+    r.Fail(receivers, "receivers",
+           "at least 3 receivers are needed to fix a position, got " +
+               std::to_string(site->receivers.size()));
+  }
+  if (SmallerPrincipalSpread(site->receivers) < kCollinearSpread_m) {
+    r.Fail(receivers, "receivers",
+           "all receivers lie on one line in the floor plane; the position would be ambiguous");
+  }
+
+  const YAML::Node beacons = root["beacons"];
+  if (!beacons) return;
+  r.ExpectSequence(beacons, "beacons");
+  std::set<int> beacon_ids;
+  for (size_t i = 0; i < beacons.size(); ++i) {
+    const YAML::Node node = beacons[i];
+    const std::string key = K::Index("beacons", i);
+    r.ExpectMap(node, key);
+    r.OnlyKeys(node, key, {"id", "address", "height_m"});
+    Beacon b;
+    const YAML::Node id = r.Required(node, key, "id");
+    b.id = r.Int(id, key + ".id");
+    if (!beacon_ids.insert(b.id).second) {
+      r.Fail(id, key + ".id", "duplicate beacon id " + std::to_string(b.id));
+    }
+    const YAML::Node address = r.Required(node, key, "address");
+    b.address = r.Address(address, key + ".address");
+    claim_address(address, key + ".address", b.address);
+    const YAML::Node height = r.Required(node, key, "height_m");
+    b.height_m = r.Double(height, key + ".height_m");
+    if (b.height_m < 0.0 || b.height_m > site->room.height_m) {
+      r.Fail(height, key + ".height_m", "must be between the floor and the ceiling");
+    }
+    site->beacons.push_back(b);
+  }
+}
+
+void ParseRobots(const Reader& r, const YAML::Node& root, Site* site) {
+  const YAML::Node robots = root["robots"];
+  if (!robots) return;
+  r.ExpectSequence(robots, "robots");
+  std::set<int> ids;
+  std::set<int> beacons_used;
+  for (size_t i = 0; i < robots.size(); ++i) {
+    const YAML::Node node = robots[i];
+    const std::string key = K::Index("robots", i);
+    r.ExpectMap(node, key);
+    r.OnlyKeys(node, key, {"id", "name", "beacon_id"});
+    Robot robot;
+    const YAML::Node id = r.Required(node, key, "id");
+    robot.id = r.Int(id, key + ".id");
+    if (!ids.insert(robot.id).second) {
+      r.Fail(id, key + ".id", "duplicate robot id " + std::to_string(robot.id));
+    }
+    if (node["name"]) robot.name = r.String(node["name"], key + ".name");
+    if (const YAML::Node beacon = node["beacon_id"]) {
+      robot.beacon_id = r.Int(beacon, key + ".beacon_id");
+      if (site->FindBeacon(*robot.beacon_id) == nullptr) {
+        r.Fail(beacon, key + ".beacon_id", "no beacon with id " + std::to_string(*robot.beacon_id));
+      }
+      if (!beacons_used.insert(*robot.beacon_id).second) {
+        r.Fail(beacon, key + ".beacon_id", "beacon already carried by another robot");
+      }
+    }
+    site->robots.push_back(robot);
+  }
+}
+
+MarkerClass ParseMarkerClass(const Reader& r, const YAML::Node& node, const std::string& key) {
+  r.ExpectMap(node, key);
+  r.OnlyKeys(node, key, {"name", "hsv_min", "hsv_max", "diameter_m"});
+  MarkerClass mc;
+  mc.name = r.String(r.Required(node, key, "name"), key + ".name");
+  const YAML::Node lo = r.Required(node, key, "hsv_min");
+  const YAML::Node hi = r.Required(node, key, "hsv_max");
+  mc.hsv_min = r.Ints<3>(lo, key + ".hsv_min");
+  mc.hsv_max = r.Ints<3>(hi, key + ".hsv_max");
+  const std::array<int, 3> upper = {179, 255, 255};
+  for (const auto& [n, v, k] : {std::make_tuple(lo, mc.hsv_min, key + ".hsv_min"),
+                                std::make_tuple(hi, mc.hsv_max, key + ".hsv_max")}) {
+    for (size_t c = 0; c < 3; ++c) {
+      if (v[c] < 0 || v[c] > upper[c]) {
+        r.Fail(n, k, "OpenCV HSV bounds are H 0-179, S 0-255, V 0-255");
+      }
+    }
+  }
+  // Hue may wrap (min > max covers reds); saturation and value may not.
+  if (mc.hsv_min[1] > mc.hsv_max[1] || mc.hsv_min[2] > mc.hsv_max[2]) {
+    r.Fail(lo, key + ".hsv_min", "saturation and value minimums must not exceed the maximums");
+  }
+  mc.diameter_m = r.Positive(r.Required(node, key, "diameter_m"), key + ".diameter_m");
+  return mc;
+}
+
+void ParseCameras(const Reader& r, const YAML::Node& root, const std::string& base_dir,
+                  Site* site) {
+  const YAML::Node cameras = root["cameras"];
+  if (!cameras) return;
+  r.ExpectSequence(cameras, "cameras");
+  std::set<int> ids;
+  static const std::set<std::string> kProperties = {
+      "brightness", "contrast", "saturation", "hue",           "gamma",
+      "sharpness",  "exposure", "gain",       "white_balance", "focus"};
+  for (size_t i = 0; i < cameras.size(); ++i) {
+    const YAML::Node node = cameras[i];
+    const std::string key = K::Index("cameras", i);
+    r.ExpectMap(node, key);
+    r.OnlyKeys(node, key,
+               {"id", "device", "resolution", "fps", "pixel_format", "mount_position_m",
+                "field_of_view_deg", "properties", "calibration", "marker_classes", "robots"});
+    Camera cam;
+    const YAML::Node id = r.Required(node, key, "id");
+    cam.id = r.Int(id, key + ".id");
+    if (!ids.insert(cam.id).second) {
+      r.Fail(id, key + ".id", "duplicate camera id " + std::to_string(cam.id));
+    }
+    cam.device = r.String(r.Required(node, key, "device"), key + ".device");
+    const YAML::Node resolution = r.Required(node, key, "resolution");
+    const auto wh = r.Ints<2>(resolution, key + ".resolution");
+    if (wh[0] <= 0 || wh[1] <= 0) r.Fail(resolution, key + ".resolution", "must be positive");
+    cam.width_px = wh[0];
+    cam.height_px = wh[1];
+    cam.fps = r.Positive(r.Required(node, key, "fps"), key + ".fps");
+    if (node["pixel_format"]) {
+      cam.pixel_format = r.String(node["pixel_format"], key + ".pixel_format");
+      if (cam.pixel_format.size() != 4) {
+        r.Fail(node["pixel_format"], key + ".pixel_format",
+               "expected a four-character code such as MJPG or YUYV");
+      }
+    }
+    const YAML::Node mount = r.Required(node, key, "mount_position_m");
+    cam.mount_position_m = r.Doubles<3>(mount, key + ".mount_position_m");
+    CheckInsideRoom(r, mount, key + ".mount_position_m", site->room, cam.mount_position_m);
+    if (const YAML::Node fov = node["field_of_view_deg"]) {
+      cam.field_of_view_deg = r.Positive(fov, key + ".field_of_view_deg");
+      if (cam.field_of_view_deg >= 200.0) {
+        r.Fail(fov, key + ".field_of_view_deg", "must be below 200 degrees");
+      }
+    }
+    if (const YAML::Node props = node["properties"]) {
+      r.ExpectMap(props, key + ".properties");
+      for (const auto& kv : props) {
+        const std::string name = kv.first.as<std::string>();
+        const std::string pkey = key + ".properties." + name;
+        if (kProperties.count(name) == 0) {
+          r.Fail(kv.first, pkey, "unknown camera property");
+        }
+        cam.properties[name] = r.Double(kv.second, pkey);
+      }
+    }
+    if (const YAML::Node cal = node["calibration"]) {
+      std::string file = r.String(cal, key + ".calibration");
+      if (!file.empty() && file[0] != '/' && !base_dir.empty()) file = base_dir + "/" + file;
+      cam.calibration_file = file;
+    }
+    const YAML::Node classes = r.Required(node, key, "marker_classes");
+    r.ExpectSequence(classes, key + ".marker_classes");
+    for (size_t c = 0; c < classes.size(); ++c) {
+      const std::string ckey = K::Index(key + ".marker_classes", c);
+      MarkerClass mc = ParseMarkerClass(r, classes[c], ckey);
+      for (const auto& other : cam.marker_classes) {
+        if (other.name == mc.name) {
+          r.Fail(classes[c], ckey + ".name", "duplicate marker class '" + mc.name + "'");
+        }
+      }
+      cam.marker_classes.push_back(mc);
+    }
+    auto has_class = [&](const std::string& name) {
+      return std::any_of(cam.marker_classes.begin(), cam.marker_classes.end(),
+                         [&](const MarkerClass& mc) { return mc.name == name; });
+    };
+    const YAML::Node robots = r.Required(node, key, "robots");
+    r.ExpectSequence(robots, key + ".robots");
+    std::set<int> robot_ids;
+    for (size_t k = 0; k < robots.size(); ++k) {
+      const YAML::Node rn = robots[k];
+      const std::string rkey = K::Index(key + ".robots", k);
+      r.ExpectMap(rn, rkey);
+      r.OnlyKeys(rn, rkey, {"robot_id", "position_marker", "heading_marker", "marker_height_m"});
+      CameraRobot cr;
+      const YAML::Node rid = r.Required(rn, rkey, "robot_id");
+      cr.robot_id = r.Int(rid, rkey + ".robot_id");
+      if (site->FindRobot(cr.robot_id) == nullptr) {
+        r.Fail(rid, rkey + ".robot_id", "no robot with id " + std::to_string(cr.robot_id));
+      }
+      if (!robot_ids.insert(cr.robot_id).second) {
+        r.Fail(rid, rkey + ".robot_id", "robot listed twice for this camera");
+      }
+      for (auto [field, out] : {std::make_pair("position_marker", &cr.position_marker),
+                                std::make_pair("heading_marker", &cr.heading_marker)}) {
+        const YAML::Node m = r.Required(rn, rkey, field);
+        *out = r.String(m, rkey + "." + field);
+        if (!has_class(*out)) {
+          r.Fail(m, rkey + "." + field, "no marker class named '" + *out + "'");
+        }
+      }
+      if (cr.position_marker == cr.heading_marker) {
+        r.Fail(rn, rkey + ".heading_marker", "must differ from position_marker");
+      }
+      const YAML::Node h = r.Required(rn, rkey, "marker_height_m");
+      cr.marker_height_m = r.Double(h, rkey + ".marker_height_m");
+      if (cr.marker_height_m < 0.0 || cr.marker_height_m >= site->room.height_m) {
+        r.Fail(h, rkey + ".marker_height_m", "must be between the floor and the ceiling");
+      }
+      cam.robots.push_back(cr);
+    }
+    site->cameras.push_back(cam);
+  }
+}
+
+std::shared_ptr<const Trajectory> ParseTrajectory(const Reader& r, const YAML::Node& node,
+                                                  const std::string& key) {
+  r.ExpectMap(node, key);
+  const YAML::Node type_node = r.Required(node, key, "type");
+  const std::string type = r.String(type_node, key + ".type");
+  auto num = [&](const char* name, double* out) {
+    if (node[name]) *out = r.Double(node[name], key + "." + name);
+  };
+  auto xy = [&](const char* name, double* x, double* y) {
+    if (node[name]) {
+      const auto v = r.Doubles<2>(node[name], key + "." + name);
+      *x = v[0];
+      *y = v[1];
+    }
+  };
+  std::string error;
+  std::unique_ptr<Trajectory> t;
+  if (type == "static") {
+    r.OnlyKeys(node, key, {"type", "position_m", "heading_rad"});
+    StaticTrajectoryOptions o;
+    r.Required(node, key, "position_m");
+    xy("position_m", &o.x_m, &o.y_m);
+    num("heading_rad", &o.heading_rad);
+    t = MakeStaticTrajectory(o, &error);
+  } else if (type == "circle" || type == "reference_circle") {
+    // reference_circle is circle with every default taken from the paper.
+    r.OnlyKeys(
+        node, key,
+        {"type", "radius_m", "centre_m", "centre_drift_mps", "angular_speed_radps", "phase_rad"});
+    CircleTrajectoryOptions o;
+    num("radius_m", &o.radius_m);
+    xy("centre_m", &o.cx_m, &o.cy_m);
+    xy("centre_drift_mps", &o.drift_x_mps, &o.drift_y_mps);
+    num("angular_speed_radps", &o.angular_speed_radps);
+    num("phase_rad", &o.phase_rad);
+    t = MakeCircleTrajectory(o, &error);
+  } else if (type == "waypoints") {
+    r.OnlyKeys(node, key, {"type", "points_m", "speed_mps", "loop"});
+    WaypointTrajectoryOptions o;
+    const YAML::Node points = r.Required(node, key, "points_m");
+    r.ExpectSequence(points, key + ".points_m");
+    for (size_t i = 0; i < points.size(); ++i) {
+      const auto p = r.Doubles<2>(points[i], K::Index(key + ".points_m", i));
+      o.points_m.emplace_back(p[0], p[1]);
+    }
+    num("speed_mps", &o.speed_mps);
+    if (node["loop"]) o.loop = r.Bool(node["loop"], key + ".loop");
+    t = MakeWaypointTrajectory(o, &error);
+  } else if (type == "figure_eight") {
+    r.OnlyKeys(node, key, {"type", "centre_m", "half_size_m", "period_s"});
+    FigureEightTrajectoryOptions o;
+    xy("centre_m", &o.cx_m, &o.cy_m);
+    xy("half_size_m", &o.half_width_m, &o.half_height_m);
+    num("period_s", &o.period_s);
+    t = MakeFigureEightTrajectory(o, &error);
+  } else {
+    r.Fail(type_node, key + ".type",
+           "unknown trajectory type '" + type +
+               "' (static, circle, reference_circle, waypoints, figure_eight)");
+  }
+  if (t == nullptr) r.Fail(node, key, error);
+  return t;
+}
+
+void ParseSimulation(const Reader& r, const YAML::Node& root, Site* site) {
+  const YAML::Node sim = root["simulation"];
+  if (!sim) return;
+  r.ExpectMap(sim, "simulation");
+  r.OnlyKeys(sim, "simulation", {"temperature_c", "robots"});
+  if (sim["temperature_c"]) {
+    site->simulation.temperature_c = r.Double(sim["temperature_c"], "simulation.temperature_c");
+  }
+  const YAML::Node robots = sim["robots"];
+  if (!robots) return;
+  r.ExpectSequence(robots, "simulation.robots");
+  std::set<int> ids;
+  for (size_t i = 0; i < robots.size(); ++i) {
+    const std::string key = K::Index("simulation.robots", i);
+    const YAML::Node node = robots[i];
+    r.ExpectMap(node, key);
+    r.OnlyKeys(node, key, {"robot_id", "trajectory"});
+    SimulatedRobot sr;
+    const YAML::Node id = r.Required(node, key, "robot_id");
+    sr.robot_id = r.Int(id, key + ".robot_id");
+    if (site->FindRobot(sr.robot_id) == nullptr) {
+      r.Fail(id, key + ".robot_id", "no robot with id " + std::to_string(sr.robot_id));
+    }
+    if (!ids.insert(sr.robot_id).second) {
+      r.Fail(id, key + ".robot_id", "robot simulated twice");
+    }
+    sr.trajectory = ParseTrajectory(r, r.Required(node, key, "trajectory"), key + ".trajectory");
+    site->simulation.robots.push_back(sr);
+  }
+}
+
+std::string DirName(const std::string& path) {
+  const size_t slash = path.find_last_of('/');
+  if (slash == std::string::npos) return ".";
+  return slash == 0 ? "/" : path.substr(0, slash);
+}
+
+}  // namespace
+
+const Receiver* Site::FindReceiver(int id) const {
+  for (const auto& r : receivers) {
+    if (r.id == id) return &r;
+  }
+  return nullptr;
+}
+const Receiver* Site::FindReceiverByAddress(uint64_t address) const {
+  for (const auto& r : receivers) {
+    if (r.address == address) return &r;
+  }
+  return nullptr;
+}
+const Beacon* Site::FindBeacon(int id) const {
+  for (const auto& b : beacons) {
+    if (b.id == id) return &b;
+  }
+  return nullptr;
+}
+const Beacon* Site::FindBeaconByAddress(uint64_t address) const {
+  for (const auto& b : beacons) {
+    if (b.address == address) return &b;
+  }
+  return nullptr;
+}
+const Robot* Site::FindRobot(int id) const {
+  for (const auto& r : robots) {
+    if (r.id == id) return &r;
+  }
+  return nullptr;
+}
+
+bool ParseRadioAddress(const std::string& text, uint64_t* address) {
+  std::string digits;
+  size_t start = 0;
+  if (text.size() >= 2 && text[0] == '0' && (text[1] == 'x' || text[1] == 'X')) start = 2;
+  for (size_t i = start; i < text.size(); ++i) {
+    const char c = text[i];
+    if (c == ' ' || c == ':' || c == '-') continue;
+    if (!std::isxdigit(static_cast<unsigned char>(c))) return false;
+    digits.push_back(c);
+  }
+  if (digits.size() != 16) return false;
+  *address = std::stoull(digits, nullptr, 16);
+  return true;
+}
+
+std::string FormatRadioAddress(uint64_t address) {
+  char buffer[19];
+  std::snprintf(buffer, sizeof(buffer), "0x%016llX", static_cast<unsigned long long>(address));
+  return buffer;
+}
+
+bool ParseSite(const std::string& yaml_text, const std::string& name, const std::string& base_dir,
+               Site* site, std::string* error) {
+  Reader r(name);
+  Site parsed;
+  try {
+    YAML::Node root;
+    try {
+      root = YAML::Load(yaml_text);
+    } catch (const YAML::Exception& e) {
+      std::ostringstream s;
+      s << name << ":" << e.mark.line + 1 << ": YAML syntax: " << e.msg;
+      throw SiteError(s.str());
+    }
+    if (!root.IsMap()) r.Fail(root, "(document)", "expected a mapping of keys at the top level");
+    r.OnlyKeys(root, "",
+               {"name", "room", "receivers", "beacons", "robots", "cameras", "simulation"});
+    parsed.name = r.String(r.Required(root, "", "name"), "name");
+    parsed.room = ParseRoom(r, r.Required(root, "", "room"));
+    ParseRadios(r, root, &parsed);
+    ParseRobots(r, root, &parsed);
+    ParseCameras(r, root, base_dir, &parsed);
+    ParseSimulation(r, root, &parsed);
+  } catch (const SiteError& e) {
+    if (error != nullptr) *error = e.what();
+    return false;
+  } catch (const YAML::Exception& e) {
+    // A value of the wrong shape that a typed read did not anticipate.
+    if (error != nullptr) *error = name + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg;
+    return false;
+  }
+  *site = std::move(parsed);
+  return true;
+}
+
+bool LoadSite(const std::string& path, Site* site, std::string* error) {
+  std::string text;
+  {
+    FILE* f = std::fopen(path.c_str(), "rb");
+    if (f == nullptr) {
+      if (error != nullptr) *error = path + ": cannot open: " + std::strerror(errno);
+      return false;
+    }
+    char buffer[65536];
+    size_t n;
+    while ((n = std::fread(buffer, 1, sizeof(buffer), f)) > 0) text.append(buffer, n);
+    std::fclose(f);
+  }
+  if (!ParseSite(text, path, DirName(path), site, error)) return false;
+  site->path = path;
+  return true;
+}
+
+}  // namespace roomfix

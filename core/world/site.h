@@ -1,0 +1,151 @@
+#ifndef ROOMFIX_CORE_WORLD_SITE_H_
+#define ROOMFIX_CORE_WORLD_SITE_H_
+
+#include <array>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/world/trajectory.h"
+
+namespace roomfix {
+
+// The site: one room, its ultrasonic receivers, the beacons on the robots,
+// the ceiling cameras and, for the simulator, how the robots move. Room frame:
+// x and y on the floor, z up, metres, origin at the surveyed point named in
+// `origin`. Loaded from one YAML file (config/sites/*.yaml); see
+// docs/site_file.md for every key.
+
+struct Room {
+  double size_x_m = 0.0;
+  double size_y_m = 0.0;
+  double height_m = 0.0;
+  // Spacing of the floor grid the reference calibrated on.
+  double grid_m = 0.5;
+  // Where the origin is, in words (a surveyed floor mark).
+  std::string origin;
+};
+
+struct Receiver {
+  int id = 0;
+  // 64-bit IEEE address of the receiver's radio.
+  uint64_t address = 0;
+  std::array<double, 3> position_m{};
+  // Subtracted from every range this receiver measures (calibration).
+  double range_offset_m = 0.0;
+};
+
+struct Beacon {
+  int id = 0;
+  uint64_t address = 0;
+  // Height of the ultrasonic emitter above the floor; the 2D solver holds it.
+  double height_m = 0.0;
+};
+
+// A colour class in OpenCV's HSV: H in [0, 179], S and V in [0, 255]. A hue
+// range with hue_min > hue_max wraps through 0 (reds).
+struct MarkerClass {
+  std::string name;
+  std::array<int, 3> hsv_min{};
+  std::array<int, 3> hsv_max{};
+  double diameter_m = 0.0;
+};
+
+// A robot as the camera sees it: a large marker for its position and a small
+// one for its heading, each naming a marker class.
+struct CameraRobot {
+  int robot_id = 0;
+  std::string position_marker;
+  std::string heading_marker;
+  // Height of the marker tops above the floor.
+  double marker_height_m = 0.0;
+};
+
+struct Camera {
+  int id = 0;
+  // "/dev/video0", a video file, an image glob or "sim:<scenario>".
+  std::string device;
+  int width_px = 0;
+  int height_px = 0;
+  double fps = 0.0;
+  // FOURCC such as "MJPG" or "YUYV".
+  std::string pixel_format;
+  // Nominal position of the lens in the room frame and its full field of
+  // view: the starting guess for calibration and the simulated camera's pose.
+  // The calibrated model, once there, supersedes both.
+  std::array<double, 3> mount_position_m{};
+  double field_of_view_deg = 120.0;
+  // Properties preset at start-up (brightness, contrast, saturation, hue,
+  // gamma, sharpness, exposure), by name.
+  std::map<std::string, double> properties;
+  // Path of a calibration YAML file, resolved against the site file's folder;
+  // empty when the camera is not calibrated yet.
+  std::string calibration_file;
+  std::vector<MarkerClass> marker_classes;
+  std::vector<CameraRobot> robots;
+};
+
+// A robot in the site, tying its beacon to its camera markers.
+struct Robot {
+  int id = 0;
+  std::string name;
+  // Beacon carried by the robot; nullopt when it has none.
+  std::optional<int> beacon_id;
+};
+
+// How a simulated robot moves.
+struct SimulatedRobot {
+  int robot_id = 0;
+  std::shared_ptr<const Trajectory> trajectory;
+};
+
+struct Simulation {
+  double temperature_c = 20.0;
+  std::vector<SimulatedRobot> robots;
+};
+
+struct Site {
+  std::string name;
+  // The file the site was loaded from (empty when parsed from text).
+  std::string path;
+  Room room;
+  std::vector<Receiver> receivers;
+  std::vector<Beacon> beacons;
+  std::vector<Robot> robots;
+  std::vector<Camera> cameras;
+  Simulation simulation;
+
+  const Receiver* FindReceiver(int id) const;
+  const Receiver* FindReceiverByAddress(uint64_t address) const;
+  const Beacon* FindBeacon(int id) const;
+  const Beacon* FindBeaconByAddress(uint64_t address) const;
+  const Robot* FindRobot(int id) const;
+};
+
+// Reads and validates a site file. On failure returns false and sets *error
+// to one line "<file>:<line>: <key>: <what is wrong>", where key is the path
+// into the document (e.g. "receivers[2].address"). Checks: YAML syntax, every
+// required key present with the right type, finite numbers, positive sizes,
+// unique ids and radio addresses (receivers and beacons share one address
+// space), at least 3 receivers, receivers not all on one line in the floor
+// plane, receivers and beacon heights inside the room, robot and marker
+// references that resolve, HSV ranges in OpenCV's bounds, and no unknown keys
+// (a typo must not silently fall back to a default).
+bool LoadSite(const std::string& path, Site* site, std::string* error);
+
+// As LoadSite, from text; `name` stands for the file in messages and
+// relative paths resolve against `base_dir`.
+bool ParseSite(const std::string& yaml_text, const std::string& name, const std::string& base_dir,
+               Site* site, std::string* error);
+
+// Parses "0x0013A20040A1B2C3", "0013A200 40A1B2C3" or "00:13:a2:...":
+// 16 hex digits with optional 0x prefix and space, colon or dash separators.
+bool ParseRadioAddress(const std::string& text, uint64_t* address);
+std::string FormatRadioAddress(uint64_t address);
+
+}  // namespace roomfix
+
+#endif  // ROOMFIX_CORE_WORLD_SITE_H_

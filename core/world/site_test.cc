@@ -1,0 +1,168 @@
+#include "core/world/site.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "tests/testing/test_paths.h"
+
+namespace roomfix {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::SourceDir;
+
+std::vector<std::string> YamlFilesIn(const std::string& dir) {
+  std::vector<std::string> files;
+  for (const auto& entry : fs::directory_iterator(dir)) {
+    if (entry.path().extension() == ".yaml") files.push_back(entry.path().string());
+  }
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+TEST(Site, LoadsEveryShippedSiteFile) {
+  const auto files = YamlFilesIn(SourceDir() + "/config/sites");
+  ASSERT_FALSE(files.empty());
+  for (const auto& path : files) {
+    Site site;
+    std::string error;
+    EXPECT_TRUE(LoadSite(path, &site, &error)) << error;
+    EXPECT_EQ(site.path, path);
+  }
+}
+
+TEST(Site, DemoRoomMatchesTheReferenceSetup) {
+  Site site;
+  std::string error;
+  ASSERT_TRUE(LoadSite(SourceDir() + "/config/sites/demo_room.yaml", &site, &error)) << error;
+  EXPECT_DOUBLE_EQ(site.room.size_x_m, 4.0);
+  EXPECT_DOUBLE_EQ(site.room.size_y_m, 3.0);
+  EXPECT_DOUBLE_EQ(site.room.grid_m, 0.5);
+
+  ASSERT_EQ(site.receivers.size(), 4u);
+  // One receiver in each corner of the floor rectangle, all at one height.
+  std::set<std::pair<double, double>> corners;
+  for (const auto& r : site.receivers) {
+    corners.insert({r.position_m[0], r.position_m[1]});
+    EXPECT_DOUBLE_EQ(r.position_m[2], site.receivers[0].position_m[2]);
+  }
+  EXPECT_EQ(corners, (std::set<std::pair<double, double>>{{0, 0}, {4, 0}, {4, 3}, {0, 3}}));
+
+  ASSERT_EQ(site.beacons.size(), 1u);
+  EXPECT_DOUBLE_EQ(site.beacons[0].height_m, 1.3);
+
+  ASSERT_EQ(site.cameras.size(), 1u);
+  const Camera& cam = site.cameras[0];
+  EXPECT_DOUBLE_EQ(cam.mount_position_m[2], 3.1);
+  EXPECT_DOUBLE_EQ(cam.mount_position_m[0], 2.0);
+  EXPECT_DOUBLE_EQ(cam.mount_position_m[1], 1.5);
+  EXPECT_EQ(cam.width_px, 1920);
+  EXPECT_EQ(cam.height_px, 1080);
+  ASSERT_EQ(cam.robots.size(), 1u);
+  EXPECT_EQ(cam.robots[0].position_marker, "orange");
+  EXPECT_EQ(cam.robots[0].heading_marker, "green");
+
+  ASSERT_EQ(site.simulation.robots.size(), 1u);
+  ASSERT_NE(site.FindRobot(1), nullptr);
+  EXPECT_EQ(*site.FindRobot(1)->beacon_id, 1);
+}
+
+TEST(Site, FindsReceiversAndBeaconsByIdAndAddress) {
+  Site site;
+  std::string error;
+  ASSERT_TRUE(LoadSite(SourceDir() + "/config/sites/demo_room.yaml", &site, &error)) << error;
+  const Receiver* r3 = site.FindReceiver(3);
+  ASSERT_NE(r3, nullptr);
+  EXPECT_EQ(site.FindReceiverByAddress(r3->address), r3);
+  EXPECT_EQ(site.FindReceiver(99), nullptr);
+  EXPECT_EQ(site.FindBeaconByAddress(0x0013A20042000001ull), site.FindBeacon(1));
+  EXPECT_EQ(site.FindReceiverByAddress(0x0013A20042000001ull), nullptr);
+}
+
+// Each file in tests/data/broken_sites starts with "# expect: <text>", the
+// error the loader must give. The error is one line that names the file, the
+// key and the problem.
+TEST(Site, RejectsEveryBrokenSiteWithOneLineNamingFileAndKey) {
+  const auto files = YamlFilesIn(SourceDir() + "/tests/data/broken_sites");
+  ASSERT_GE(files.size(), 20u);
+  for (const auto& path : files) {
+    std::ifstream in(path);
+    std::string first_line;
+    std::getline(in, first_line);
+    const std::string prefix = "# expect: ";
+    ASSERT_EQ(first_line.rfind(prefix, 0), 0u) << path << " lacks an '# expect:' line";
+    const std::string expected = first_line.substr(prefix.size());
+
+    Site site;
+    std::string error;
+    EXPECT_FALSE(LoadSite(path, &site, &error)) << path << " loaded";
+    EXPECT_EQ(error.rfind(path + ":", 0), 0u) << "error does not start with the file: " << error;
+    EXPECT_NE(error.find(expected), std::string::npos)
+        << path << "\n  expected: " << expected << "\n  got:      " << error;
+    EXPECT_EQ(error.find('\n'), std::string::npos) << "more than one line: " << error;
+  }
+}
+
+TEST(Site, ErrorNamesTheLineOfTheOffendingKey) {
+  const std::string text =
+      "name: x\n"
+      "room: {size_m: [4, 3], height_m: 3}\n"
+      "receivers:\n"
+      "  - {id: 1, address: '0x0000000000000001', position_m: [0, 0, 2]}\n"
+      "  - {id: 2, address: '0x0000000000000002', position_m: [4, 0, 2]}\n"
+      "  - {id: 3, address: '0x0000000000000003', position_m: [4, 3, nope]}\n";
+  Site site;
+  std::string error;
+  ASSERT_FALSE(ParseSite(text, "inline.yaml", "", &site, &error));
+  EXPECT_EQ(error, "inline.yaml:6: receivers[2].position_m[2]: expected a number, got 'nope'");
+}
+
+TEST(Site, MissingFileGivesOneLine) {
+  Site site;
+  std::string error;
+  EXPECT_FALSE(LoadSite("/nonexistent/site.yaml", &site, &error));
+  EXPECT_EQ(error, "/nonexistent/site.yaml: cannot open: No such file or directory");
+}
+
+TEST(Site, ResolvesCalibrationRelativeToTheSiteFile) {
+  const std::string text =
+      "name: x\n"
+      "room: {size_m: [4, 3], height_m: 3}\n"
+      "receivers:\n"
+      "  - {id: 1, address: '0x0000000000000001', position_m: [0, 0, 2]}\n"
+      "  - {id: 2, address: '0x0000000000000002', position_m: [4, 0, 2]}\n"
+      "  - {id: 3, address: '0x0000000000000003', position_m: [4, 3, 2]}\n"
+      "cameras:\n"
+      "  - {id: 0, device: /dev/video0, resolution: [640, 480], fps: 30,\n"
+      "     mount_position_m: [2, 1.5, 2.9], calibration: cal/cam0.yaml,\n"
+      "     marker_classes: [], robots: []}\n";
+  Site site;
+  std::string error;
+  ASSERT_TRUE(ParseSite(text, "inline.yaml", "/etc/roomfix", &site, &error)) << error;
+  EXPECT_EQ(site.cameras[0].calibration_file, "/etc/roomfix/cal/cam0.yaml");
+}
+
+TEST(RadioAddress, ParsesTheCommonSpellings) {
+  uint64_t a = 0;
+  ASSERT_TRUE(ParseRadioAddress("0x0013A20040A1B2C3", &a));
+  EXPECT_EQ(a, 0x0013A20040A1B2C3ull);
+  ASSERT_TRUE(ParseRadioAddress("0013A200 40A1B2C3", &a));
+  EXPECT_EQ(a, 0x0013A20040A1B2C3ull);
+  ASSERT_TRUE(ParseRadioAddress("00:13:a2:00:40:a1:b2:c3", &a));
+  EXPECT_EQ(a, 0x0013A20040A1B2C3ull);
+  EXPECT_EQ(FormatRadioAddress(a), "0x0013A20040A1B2C3");
+}
+
+TEST(RadioAddress, RejectsWrongLengthAndNonHex) {
+  uint64_t a = 0;
+  EXPECT_FALSE(ParseRadioAddress("0x13A2", &a));
+  EXPECT_FALSE(ParseRadioAddress("0x0013A20040A1B2C3FF", &a));
+  EXPECT_FALSE(ParseRadioAddress("0x0013A20040A1B2CG", &a));
+  EXPECT_FALSE(ParseRadioAddress("", &a));
+}
+
+}  // namespace
+}  // namespace roomfix

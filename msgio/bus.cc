@@ -1,0 +1,182 @@
+#include "msgio/bus.h"
+
+#include <regex.h>
+
+#include <algorithm>
+#include <exception>
+#include <lcm/lcm-cpp.hpp>
+#include <utility>
+
+namespace roomfix {
+
+struct ChannelPattern::Compiled {
+  regex_t re;
+};
+
+// LCM compiles subscriptions as POSIX extended expressions anchored at both
+// ends; doing the same here keeps LoopbackBus and LcmBus in agreement.
+ChannelPattern::ChannelPattern(const std::string& channel_regex)
+    : compiled_(std::make_unique<Compiled>()) {
+  const std::string anchored = "^(" + channel_regex + ")$";
+  valid_ = regcomp(&compiled_->re, anchored.c_str(), REG_EXTENDED | REG_NOSUB) == 0;
+}
+
+ChannelPattern::~ChannelPattern() {
+  if (valid_) regfree(&compiled_->re);
+}
+
+bool ChannelPattern::Matches(const std::string& channel) const {
+  return valid_ && regexec(&compiled_->re, channel.c_str(), 0, nullptr, 0) == 0;
+}
+
+bool ChannelMatches(const std::string& channel_regex, const std::string& channel) {
+  return ChannelPattern(channel_regex).Matches(channel);
+}
+
+BusStats Bus::stats() const {
+  std::lock_guard<std::mutex> lock(stats_mutex_);
+  return stats_;
+}
+
+void Bus::Deliver(const RawHandler& handler, const MessageInfo& info, const void* data, int size) {
+  {
+    std::lock_guard<std::mutex> lock(stats_mutex_);
+    ++stats_.received;
+  }
+  try {
+    handler(info, data, size);
+  } catch (const std::exception& e) {
+    std::lock_guard<std::mutex> lock(stats_mutex_);
+    ++stats_.handler_exceptions;
+    stats_.last_error = "handler for " + info.channel + " threw: " + e.what();
+  } catch (...) {
+    std::lock_guard<std::mutex> lock(stats_mutex_);
+    ++stats_.handler_exceptions;
+    stats_.last_error = "handler for " + info.channel + " threw a non-standard exception";
+  }
+}
+
+void Bus::CountPublished(bool ok, const std::string& channel) {
+  std::lock_guard<std::mutex> lock(stats_mutex_);
+  if (ok) {
+    ++stats_.published;
+  } else {
+    ++stats_.publish_failures;
+    stats_.last_error = "publish on " + channel + " failed";
+  }
+}
+
+void Bus::CountDecodeFailure(const std::string& channel, const char* type_name) {
+  std::lock_guard<std::mutex> lock(stats_mutex_);
+  ++stats_.decode_failures;
+  stats_.last_error = "message on " + channel + " does not decode as " + type_name;
+}
+
+// ---------------------------------------------------------------------------
+
+struct LcmBus::Subscription {
+  SubscriptionId id = 0;
+  LcmBus* bus = nullptr;
+  RawHandler handler;
+  lcm::Subscription* lcm_subscription = nullptr;
+
+  void OnMessage(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+    MessageInfo info{channel, rbuf->recv_utime};
+    bus->Deliver(handler, info, rbuf->data, static_cast<int>(rbuf->data_size));
+  }
+};
+
+std::unique_ptr<LcmBus> LcmBus::Create(const std::string& url, std::string* error) {
+  auto lcm = std::make_unique<lcm::LCM>(url);
+  if (!lcm->good()) {
+    if (error != nullptr) {
+      *error = "cannot start LCM on '" + url +
+               "' (bad URL, or no multicast route: see docs/operations.md)";
+    }
+    return nullptr;
+  }
+  return std::unique_ptr<LcmBus>(new LcmBus(std::move(lcm), url));
+}
+
+LcmBus::LcmBus(std::unique_ptr<lcm::LCM> lcm, std::string url)
+    : lcm_(std::move(lcm)), url_(std::move(url)) {}
+
+LcmBus::~LcmBus() {
+  for (auto& s : subscriptions_) lcm_->unsubscribe(s->lcm_subscription);
+}
+
+bool LcmBus::PublishRaw(const std::string& channel, const void* data, int size) {
+  const bool ok = lcm_->publish(channel, data, static_cast<unsigned int>(size)) == 0;
+  CountPublished(ok, channel);
+  return ok;
+}
+
+SubscriptionId LcmBus::SubscribeRaw(const std::string& channel_regex, RawHandler handler) {
+  auto s = std::make_unique<Subscription>();
+  s->id = next_id_++;
+  s->bus = this;
+  s->handler = std::move(handler);
+  s->lcm_subscription = lcm_->subscribe(channel_regex, &Subscription::OnMessage, s.get());
+  const SubscriptionId id = s->id;
+  subscriptions_.push_back(std::move(s));
+  return id;
+}
+
+void LcmBus::Unsubscribe(SubscriptionId id) {
+  auto it = std::find_if(subscriptions_.begin(), subscriptions_.end(),
+                         [id](const auto& s) { return s->id == id; });
+  if (it == subscriptions_.end()) return;
+  lcm_->unsubscribe((*it)->lcm_subscription);
+  subscriptions_.erase(it);
+}
+
+int LcmBus::Handle(int timeout_ms) { return lcm_->handleTimeout(timeout_ms); }
+
+int LcmBus::Fileno() const { return lcm_->getFileno(); }
+
+// ---------------------------------------------------------------------------
+
+struct LoopbackBus::Subscription {
+  Subscription(SubscriptionId id_in, const std::string& regex, RawHandler handler_in)
+      : id(id_in), pattern(regex), handler(std::move(handler_in)) {}
+  SubscriptionId id;
+  ChannelPattern pattern;
+  RawHandler handler;
+  bool active = true;
+};
+
+bool LoopbackBus::PublishRaw(const std::string& channel, const void* data, int size) {
+  CountPublished(true, channel);
+  Inject(channel, data, size, now_utime_);
+  return true;
+}
+
+void LoopbackBus::Inject(const std::string& channel, const void* data, int size,
+                         int64_t recv_utime) {
+  now_utime_ = recv_utime;
+  // A handler may publish (a node's output reaching a recorder) or
+  // unsubscribe; iterate over a snapshot so either is safe.
+  const auto snapshot = subscriptions_;
+  const MessageInfo info{channel, recv_utime};
+  for (const auto& s : snapshot) {
+    if (s->active && s->pattern.Matches(channel)) Deliver(s->handler, info, data, size);
+  }
+}
+
+SubscriptionId LoopbackBus::SubscribeRaw(const std::string& channel_regex, RawHandler handler) {
+  auto s = std::make_shared<Subscription>(next_id_++, channel_regex, std::move(handler));
+  subscriptions_.push_back(s);
+  return s->id;
+}
+
+void LoopbackBus::Unsubscribe(SubscriptionId id) {
+  for (auto it = subscriptions_.begin(); it != subscriptions_.end(); ++it) {
+    if ((*it)->id == id) {
+      (*it)->active = false;
+      subscriptions_.erase(it);
+      return;
+    }
+  }
+}
+
+}  // namespace roomfix

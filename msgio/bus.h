@@ -1,0 +1,181 @@
+#ifndef ROOMFIX_MSGIO_BUS_H_
+#define ROOMFIX_MSGIO_BUS_H_
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+namespace lcm {
+class LCM;
+}
+
+namespace roomfix {
+
+// How a message reached a handler.
+struct MessageInfo {
+  std::string channel;
+  // Host clock when the message was received, microseconds since the Unix
+  // epoch; during a replay, the event's timestamp from the log. Nodes take
+  // this as "now", which makes a replay deterministic.
+  int64_t recv_utime = 0;
+};
+
+using RawHandler = std::function<void(const MessageInfo& info, const void* data, int size)>;
+using SubscriptionId = int;
+
+// What a bus has seen go wrong, for the process's STATUS.
+struct BusStats {
+  int64_t published = 0;
+  int64_t publish_failures = 0;
+  int64_t received = 0;
+  // Messages on a subscribed channel whose payload did not decode as the
+  // subscribed type (wrong type, truncated, corrupt).
+  int64_t decode_failures = 0;
+  // Handlers that threw; the exception is caught at the bus so it never
+  // unwinds into LCM's C code.
+  int64_t handler_exceptions = 0;
+  std::string last_error;
+};
+
+// The message transport a node talks to (after Drake's DrakeLcmInterface):
+// raw publish and subscribe by channel regular expression, with typed helpers
+// on top that encode and decode LCM types. Channel patterns follow LCM: a
+// POSIX extended regular expression that must match the whole channel name.
+//
+// Implementations: LcmBus (lcm::LCM: udpm://, memq://, file://) for
+// processes, and LoopbackBus (synchronous, in process) for log replay.
+class Bus {
+ public:
+  virtual ~Bus() = default;
+
+  virtual bool PublishRaw(const std::string& channel, const void* data, int size) = 0;
+  virtual SubscriptionId SubscribeRaw(const std::string& channel_regex, RawHandler handler) = 0;
+  virtual void Unsubscribe(SubscriptionId id) = 0;
+
+  // Encodes and publishes an LCM type. Returns false (counted) when encoding
+  // or sending fails.
+  template <class Msg>
+  bool Publish(const std::string& channel, const Msg& msg);
+
+  // Subscribes a typed handler. A message that does not decode is counted in
+  // decode_failures and dropped; the handler only ever sees whole messages.
+  template <class Msg>
+  SubscriptionId Subscribe(const std::string& channel_regex,
+                           std::function<void(const Msg& msg, const MessageInfo& info)> handler);
+
+  BusStats stats() const;
+
+ protected:
+  // Calls the handler, catching and counting anything it throws.
+  void Deliver(const RawHandler& handler, const MessageInfo& info, const void* data, int size);
+  void CountPublished(bool ok, const std::string& channel);
+  void CountDecodeFailure(const std::string& channel, const char* type_name);
+
+ private:
+  mutable std::mutex stats_mutex_;
+  BusStats stats_;
+};
+
+// A bus over lcm::LCM. Received messages are dispatched from Handle() on the
+// calling thread.
+class LcmBus final : public Bus {
+ public:
+  // Returns nullptr with a one-line reason in *error when LCM cannot start
+  // (bad URL, no multicast route, unreadable log file).
+  static std::unique_ptr<LcmBus> Create(const std::string& url, std::string* error);
+  ~LcmBus() override;
+
+  bool PublishRaw(const std::string& channel, const void* data, int size) override;
+  SubscriptionId SubscribeRaw(const std::string& channel_regex, RawHandler handler) override;
+  void Unsubscribe(SubscriptionId id) override;
+
+  // Waits up to timeout_ms for messages and dispatches those that arrived.
+  // Returns the number handled (0 on time-out), or -1 on an LCM error.
+  int Handle(int timeout_ms);
+  // File descriptor that becomes readable when a message is waiting.
+  int Fileno() const;
+  const std::string& url() const { return url_; }
+
+ private:
+  LcmBus(std::unique_ptr<lcm::LCM> lcm, std::string url);
+  struct Subscription;
+  std::unique_ptr<lcm::LCM> lcm_;
+  std::string url_;
+  std::vector<std::unique_ptr<Subscription>> subscriptions_;
+  SubscriptionId next_id_ = 1;
+};
+
+// A synchronous in-process bus: Publish delivers at once to every matching
+// subscriber, stamped with the bus's clock. The log replayer drives nodes
+// through it, so replay runs the same node code as live, with no network and
+// no threads.
+class LoopbackBus final : public Bus {
+ public:
+  bool PublishRaw(const std::string& channel, const void* data, int size) override;
+  SubscriptionId SubscribeRaw(const std::string& channel_regex, RawHandler handler) override;
+  void Unsubscribe(SubscriptionId id) override;
+
+  // Delivers a message as if it arrived at recv_utime (also sets the clock).
+  void Inject(const std::string& channel, const void* data, int size, int64_t recv_utime);
+  void set_now_utime(int64_t utime) { now_utime_ = utime; }
+  int64_t now_utime() const { return now_utime_; }
+
+ private:
+  struct Subscription;
+  std::vector<std::shared_ptr<Subscription>> subscriptions_;
+  SubscriptionId next_id_ = 1;
+  int64_t now_utime_ = 0;
+};
+
+// LCM's channel rule: a POSIX extended regular expression that must match the
+// whole channel name. Compiled once; an invalid expression matches nothing.
+class ChannelPattern {
+ public:
+  explicit ChannelPattern(const std::string& channel_regex);
+  ~ChannelPattern();
+  ChannelPattern(const ChannelPattern&) = delete;
+  ChannelPattern& operator=(const ChannelPattern&) = delete;
+  bool valid() const { return valid_; }
+  bool Matches(const std::string& channel) const;
+
+ private:
+  struct Compiled;
+  std::unique_ptr<Compiled> compiled_;
+  bool valid_ = false;
+};
+
+bool ChannelMatches(const std::string& channel_regex, const std::string& channel);
+
+template <class Msg>
+bool Bus::Publish(const std::string& channel, const Msg& msg) {
+  const int size = msg.getEncodedSize();
+  std::vector<uint8_t> buffer(static_cast<size_t>(size));
+  if (msg.encode(buffer.data(), 0, size) != size) {
+    CountPublished(false, channel);
+    return false;
+  }
+  return PublishRaw(channel, buffer.data(), size);
+}
+
+template <class Msg>
+SubscriptionId Bus::Subscribe(const std::string& channel_regex,
+                              std::function<void(const Msg&, const MessageInfo&)> handler) {
+  return SubscribeRaw(channel_regex, [this, handler = std::move(handler)](
+                                         const MessageInfo& info, const void* data, int size) {
+    Msg msg{};
+    // decode() checks the 8-byte fingerprint first, so a message of another
+    // type on the channel fails here instead of being misread.
+    if (msg.decode(data, 0, size) != size) {
+      CountDecodeFailure(info.channel, Msg::getTypeName());
+      return;
+    }
+    handler(msg, info);
+  });
+}
+
+}  // namespace roomfix
+
+#endif  // ROOMFIX_MSGIO_BUS_H_

@@ -1,0 +1,148 @@
+#include "msgio/bus.h"
+
+#include <gtest/gtest.h>
+
+#include <stdexcept>
+#include <vector>
+
+#include "msgio/test_messages.h"
+#include "roomfix/process_status_t.hpp"
+
+namespace roomfix {
+namespace {
+
+using testing::MakeTestPose;
+
+std::unique_ptr<LcmBus> MemqBus() {
+  std::string error;
+  auto bus = LcmBus::Create("memq://", &error);
+  EXPECT_NE(bus, nullptr) << error;
+  return bus;
+}
+
+TEST(LcmBus, DeliversATypedMessageOverMemq) {
+  auto bus = MemqBus();
+  std::vector<pose2d_t> got;
+  std::vector<std::string> channels;
+  bus->Subscribe<pose2d_t>("POSE_.*", [&](const pose2d_t& p, const MessageInfo& info) {
+    got.push_back(p);
+    channels.push_back(info.channel);
+  });
+  ASSERT_TRUE(bus->Publish("POSE_ULTRASOUND", MakeTestPose(1000, 7, 1.5, 2.25)));
+  ASSERT_TRUE(bus->Publish("OTHER", MakeTestPose(2000, 8, 0, 0)));
+  while (bus->Handle(0) > 0) {
+  }
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(channels[0], "POSE_ULTRASOUND");
+  EXPECT_EQ(got[0].robot_id, 7);
+  EXPECT_EQ(got[0].x_m, 1.5);
+  EXPECT_EQ(got[0].y_m, 2.25);
+  EXPECT_TRUE(std::isnan(got[0].heading_rad));
+  EXPECT_EQ(bus->stats().published, 2);
+}
+
+TEST(LcmBus, CountsAMessageOfTheWrongTypeInsteadOfDeliveringIt) {
+  auto bus = MemqBus();
+  int delivered = 0;
+  bus->Subscribe<pose2d_t>("POSE", [&](const pose2d_t&, const MessageInfo&) { ++delivered; });
+  process_status_t status{};
+  status.utime = 1;
+  ASSERT_TRUE(bus->Publish("POSE", status));
+  const uint8_t garbage[5] = {1, 2, 3, 4, 5};
+  ASSERT_TRUE(bus->PublishRaw("POSE", garbage, sizeof(garbage)));
+  while (bus->Handle(0) > 0) {
+  }
+  EXPECT_EQ(delivered, 0);
+  EXPECT_EQ(bus->stats().decode_failures, 2);
+  EXPECT_EQ(bus->stats().last_error, "message on POSE does not decode as pose2d_t");
+}
+
+TEST(LcmBus, CountsATruncatedMessage) {
+  auto bus = MemqBus();
+  int delivered = 0;
+  bus->Subscribe<pose2d_t>("POSE", [&](const pose2d_t&, const MessageInfo&) { ++delivered; });
+  const pose2d_t pose = MakeTestPose(1, 1, 1, 1);
+  std::vector<uint8_t> bytes(pose.getEncodedSize());
+  pose.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+  bus->PublishRaw("POSE", bytes.data(), static_cast<int>(bytes.size()) - 3);
+  while (bus->Handle(0) > 0) {
+  }
+  EXPECT_EQ(delivered, 0);
+  EXPECT_EQ(bus->stats().decode_failures, 1);
+}
+
+TEST(LcmBus, AThrowingHandlerIsCountedAndDoesNotUnwindIntoLcm) {
+  auto bus = MemqBus();
+  int after = 0;
+  bus->Subscribe<pose2d_t>(
+      "POSE", [](const pose2d_t&, const MessageInfo&) { throw std::runtime_error("boom"); });
+  bus->Subscribe<pose2d_t>("POSE", [&](const pose2d_t&, const MessageInfo&) { ++after; });
+  bus->Publish("POSE", MakeTestPose(1, 1, 1, 1));
+  while (bus->Handle(0) > 0) {
+  }
+  EXPECT_EQ(bus->stats().handler_exceptions, 1);
+  EXPECT_EQ(after, 1);
+  EXPECT_EQ(bus->stats().last_error, "handler for POSE threw: boom");
+}
+
+TEST(LcmBus, StopsDeliveringAfterUnsubscribe) {
+  auto bus = MemqBus();
+  int delivered = 0;
+  const SubscriptionId id =
+      bus->Subscribe<pose2d_t>("POSE", [&](const pose2d_t&, const MessageInfo&) { ++delivered; });
+  bus->Publish("POSE", MakeTestPose(1, 1, 1, 1));
+  while (bus->Handle(0) > 0) {
+  }
+  bus->Unsubscribe(id);
+  bus->Publish("POSE", MakeTestPose(2, 1, 1, 1));
+  while (bus->Handle(0) > 0) {
+  }
+  EXPECT_EQ(delivered, 1);
+}
+
+TEST(LcmBus, RefusesAnUnknownUrlWithOneLine) {
+  std::string error;
+  EXPECT_EQ(LcmBus::Create("carrier-pigeon://", &error), nullptr);
+  EXPECT_NE(error.find("cannot start LCM on 'carrier-pigeon://'"), std::string::npos) << error;
+}
+
+TEST(ChannelPattern, MatchesTheWholeNameLikeLcm) {
+  EXPECT_TRUE(ChannelMatches("POSE", "POSE"));
+  EXPECT_FALSE(ChannelMatches("POSE", "POSE_CAMERA"));
+  EXPECT_TRUE(ChannelMatches("POSE_.*", "POSE_CAMERA"));
+  EXPECT_TRUE(ChannelMatches("POSE_CAMERA|RANGES", "RANGES"));
+  EXPECT_FALSE(ChannelMatches("POSE_CAMERA|RANGES", "XRANGES"));
+  EXPECT_FALSE(ChannelMatches("(", "("));  // An invalid expression matches nothing.
+}
+
+TEST(LoopbackBus, DeliversSynchronouslyWithTheGivenReceiveTime) {
+  LoopbackBus bus;
+  std::vector<int64_t> times;
+  bus.Subscribe<pose2d_t>(
+      ".*", [&](const pose2d_t&, const MessageInfo& info) { times.push_back(info.recv_utime); });
+  const pose2d_t pose = MakeTestPose(5, 1, 1, 1);
+  std::vector<uint8_t> bytes(pose.getEncodedSize());
+  pose.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+  bus.Inject("A", bytes.data(), static_cast<int>(bytes.size()), 123);
+  EXPECT_EQ(bus.now_utime(), 123);
+  // A node publishing from a handler is stamped with the bus clock.
+  bus.Publish("B", pose);
+  EXPECT_EQ(times, (std::vector<int64_t>{123, 123}));
+}
+
+TEST(LoopbackBus, AHandlerMayPublishAndUnsubscribeWhileBeingCalled) {
+  LoopbackBus bus;
+  int outputs = 0;
+  SubscriptionId self = 0;
+  self = bus.Subscribe<pose2d_t>("IN", [&](const pose2d_t& p, const MessageInfo&) {
+    bus.Publish("OUT", p);
+    bus.Unsubscribe(self);
+  });
+  bus.Subscribe<pose2d_t>("OUT", [&](const pose2d_t&, const MessageInfo&) { ++outputs; });
+  bus.Publish("IN", MakeTestPose(1, 1, 1, 1));
+  bus.Publish("IN", MakeTestPose(2, 1, 1, 1));
+  EXPECT_EQ(outputs, 1);
+}
+
+}  // namespace
+}  // namespace roomfix

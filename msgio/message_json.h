@@ -1,0 +1,24 @@
+#ifndef ROOMFIX_MSGIO_MESSAGE_JSON_H_
+#define ROOMFIX_MSGIO_MESSAGE_JSON_H_
+
+#include <cstdint>
+#include <string>
+
+namespace roomfix {
+
+// The roomfix type whose LCM fingerprint the payload starts with
+// ("roomfix.pose2d_t"), or nullptr when it is not one of ours.
+const char* RoomfixTypeName(const void* data, int size);
+
+// The fingerprint of every top-level roomfix message type, by name.
+int64_t RoomfixTypeFingerprint(const std::string& type_name);
+
+// Decodes any top-level roomfix message into one line of JSON with every
+// field ({"type": "roomfix.pose2d_t", "utime": ..., ...}); NaN and infinities
+// become null. False, with the reason, for an unknown type or a payload that
+// does not decode.
+bool MessageToJson(const void* data, int size, std::string* json, std::string* error);
+
+}  // namespace roomfix
+
+#endif  // ROOMFIX_MSGIO_MESSAGE_JSON_H_

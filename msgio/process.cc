@@ -1,0 +1,255 @@
+#include "msgio/process.h"
+
+#include <fcntl.h>
+#include <poll.h>
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <atomic>
+#include <cerrno>
+#include <chrono>
+#include <csignal>
+#include <cstdint>
+#include <cstring>
+
+namespace roomfix {
+
+int64_t NowUtime() {
+  using namespace std::chrono;
+  return duration_cast<microseconds>(system_clock::now().time_since_epoch()).count();
+}
+
+void AddProcessFlags(CLI::App* app, ProcessOptions* options, bool config_required) {
+  app->add_option("--lcm-url", options->lcm_url,
+                  "LCM URL: udpm://GROUP:PORT?ttl=N (ttl=0 stays on this host), memq://, "
+                  "file://LOG?speed=1")
+      ->capture_default_str();
+  auto* config = app->add_option("--config", options->config_path, "Site file (YAML)")
+                     ->check(CLI::ExistingFile);
+  if (config_required) config->required();
+  app->add_option("--log-level", options->log_level, "trace, debug, info, warn or error")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}));
+  app->add_flag("--check", options->check,
+                "Validate the flags and the site file, print what would run, and exit");
+}
+
+bool SetUpLogging(const std::string& process_name, const std::string& level) {
+  const auto parsed = spdlog::level::from_str(level);
+  if (parsed == spdlog::level::off && level != "off") return false;
+  auto logger = spdlog::stderr_color_mt(process_name);
+  logger->set_level(parsed);
+  logger->set_pattern("%Y-%m-%d %H:%M:%S.%e %n %^%l%$: %v");
+  spdlog::set_default_logger(logger);
+  return true;
+}
+
+// ---------------------------------------------------------------------------
+
+StatusReporter::StatusReporter(std::string process_name, int64_t start_utime)
+    : process_(std::move(process_name)),
+      pid_(static_cast<int32_t>(::getpid())),
+      start_utime_(start_utime) {
+  char host[256] = {0};
+  if (::gethostname(host, sizeof(host) - 1) == 0) host_ = host;
+}
+
+void StatusReporter::AddInputs(int64_t n) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  inputs_ += n;
+}
+void StatusReporter::AddOutputs(int64_t n) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  outputs_ += n;
+}
+void StatusReporter::AddDropped(int64_t n) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  dropped_ += n;
+}
+void StatusReporter::Reject(const std::string& reason, int64_t n) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  rejected_[reason] += n;
+}
+void StatusReporter::Count(const std::string& name, int64_t n) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  counters_[name] += n;
+}
+void StatusReporter::SetState(int8_t state) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  state_ = state;
+}
+void StatusReporter::SetError(const std::string& text, int64_t utime) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  last_error_ = text;
+  last_error_utime_ = utime;
+}
+
+int64_t StatusReporter::inputs() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return inputs_;
+}
+int64_t StatusReporter::outputs() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return outputs_;
+}
+int64_t StatusReporter::dropped() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return dropped_;
+}
+int64_t StatusReporter::rejected(const std::string& reason) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  auto it = rejected_.find(reason);
+  return it == rejected_.end() ? 0 : it->second;
+}
+int64_t StatusReporter::counter(const std::string& name) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  auto it = counters_.find(name);
+  return it == counters_.end() ? 0 : it->second;
+}
+
+namespace {
+counter_t MakeCounter(const std::string& name, int64_t count) {
+  counter_t c{};
+  c.name = name;
+  c.count = count;
+  return c;
+}
+}  // namespace
+
+process_status_t StatusReporter::Make(int64_t utime, const BusStats* bus_stats) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  process_status_t s{};
+  s.utime = utime;
+  s.process = process_;
+  s.host = host_;
+  s.pid = pid_;
+  s.uptime_us = utime - start_utime_;
+  s.state = state_;
+  s.inputs = inputs_;
+  s.outputs = outputs_;
+  s.dropped = dropped_;
+  auto rejected = rejected_;
+  auto counters = counters_;
+  s.last_error = last_error_;
+  s.last_error_utime = last_error_utime_;
+  if (bus_stats != nullptr) {
+    // An undecodable message is input refused at the door; a throwing
+    // handler is a bug, surfaced rather than hidden.
+    if (bus_stats->decode_failures > 0)
+      rejected["undecodable_message"] += bus_stats->decode_failures;
+    if (bus_stats->handler_exceptions > 0) {
+      counters["handler_exceptions"] += bus_stats->handler_exceptions;
+    }
+    if (bus_stats->publish_failures > 0) {
+      counters["publish_failures"] += bus_stats->publish_failures;
+    }
+    if (s.last_error.empty() && !bus_stats->last_error.empty()) {
+      s.last_error = bus_stats->last_error;
+    }
+  }
+  for (const auto& [name, count] : rejected) s.rejected.push_back(MakeCounter(name, count));
+  for (const auto& [name, count] : counters) s.counters.push_back(MakeCounter(name, count));
+  s.num_rejected = static_cast<int32_t>(s.rejected.size());
+  s.num_counters = static_cast<int32_t>(s.counters.size());
+  return s;
+}
+
+bool StatusReporter::MaybePublish(Bus* bus, int64_t now_utime) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (last_publish_utime_ >= 0 && now_utime - last_publish_utime_ < 1000000) return false;
+    last_publish_utime_ = now_utime;
+  }
+  const BusStats stats = bus->stats();
+  return bus->Publish(kStatusChannel, Make(now_utime, &stats));
+}
+
+// ---------------------------------------------------------------------------
+
+namespace {
+std::atomic<bool> g_shutdown{false};
+int g_wake_pipe[2] = {-1, -1};
+
+void OnSignal(int) {
+  g_shutdown.store(true);
+  if (g_wake_pipe[1] >= 0) {
+    const char byte = 1;
+    // Best effort: a full pipe already wakes the loop.
+    [[maybe_unused]] ssize_t n = ::write(g_wake_pipe[1], &byte, 1);
+  }
+}
+}  // namespace
+
+void InstallShutdownHandlers() {
+  if (g_wake_pipe[0] < 0 && ::pipe(g_wake_pipe) == 0) {
+    for (int fd : g_wake_pipe) ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) | O_NONBLOCK);
+  }
+  struct sigaction sa {};
+  sa.sa_handler = OnSignal;
+  sigemptyset(&sa.sa_mask);
+  ::sigaction(SIGINT, &sa, nullptr);
+  ::sigaction(SIGTERM, &sa, nullptr);
+  // A reader that went away must not kill a publisher.
+  std::signal(SIGPIPE, SIG_IGN);
+}
+
+bool ShutdownRequested() { return g_shutdown.load(); }
+
+void RequestShutdown() { OnSignal(0); }
+
+int RunLoop(LcmBus* bus, const std::function<void(int64_t)>& tick, const RunLoopOptions& options) {
+  const int64_t start = NowUtime();
+  const int64_t end =
+      options.duration_s > 0 ? start + static_cast<int64_t>(options.duration_s * 1e6) : INT64_MAX;
+  const int lcm_fd = bus->Fileno();
+  while (!ShutdownRequested()) {
+    int64_t now = NowUtime();
+    if (now >= end) break;
+    const int64_t remaining_ms = (end - now) / 1000;
+    const int timeout_ms = static_cast<int>(
+        std::min<int64_t>(options.tick_period_ms, std::max<int64_t>(remaining_ms, 0)));
+    pollfd fds[2] = {{lcm_fd, POLLIN, 0}, {g_wake_pipe[0], POLLIN, 0}};
+    const int n = ::poll(fds, g_wake_pipe[0] >= 0 ? 2 : 1, timeout_ms);
+    if (n < 0 && errno != EINTR) {
+      spdlog::error("poll failed: {}", std::strerror(errno));
+      return 1;
+    }
+    if (n > 0 && (fds[0].revents & POLLIN)) {
+      // Drain what is waiting without blocking, then tick.
+      while (true) {
+        const int handled = bus->Handle(0);
+        if (handled < 0) {
+          spdlog::error("LCM failed while receiving on {}", bus->url());
+          return 1;
+        }
+        if (handled == 0) break;
+      }
+    }
+    tick(NowUtime());
+  }
+  return 0;
+}
+
+std::unique_ptr<ProcessContext> StartProcess(const std::string& name, const ProcessOptions& options,
+                                             std::string* error) {
+  auto ctx = std::make_unique<ProcessContext>();
+  ctx->name = name;
+  ctx->options = options;
+  if (!SetUpLogging(name, options.log_level)) {
+    *error = "unknown log level '" + options.log_level + "'";
+    return nullptr;
+  }
+  if (!options.config_path.empty() && !LoadSite(options.config_path, &ctx->site, error)) {
+    return nullptr;
+  }
+  InstallShutdownHandlers();
+  if (options.check) return ctx;
+  ctx->bus = LcmBus::Create(options.lcm_url, error);
+  if (ctx->bus == nullptr) return nullptr;
+  return ctx;
+}
+
+}  // namespace roomfix

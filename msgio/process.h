@@ -1,0 +1,129 @@
+#ifndef ROOMFIX_MSGIO_PROCESS_H_
+#define ROOMFIX_MSGIO_PROCESS_H_
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+
+#include "core/world/site.h"
+#include "msgio/bus.h"
+#include "roomfix/process_status_t.hpp"
+
+namespace CLI {
+class App;
+}
+
+namespace roomfix {
+
+// LCM's default group and port with ttl=0: packets never leave this host.
+// Several hosts need ttl=1 (docs/operations.md).
+inline constexpr char kDefaultLcmUrl[] = "udpm://239.255.76.67:7667?ttl=0";
+inline constexpr char kStatusChannel[] = "STATUS";
+
+// Host wall clock, microseconds since the Unix epoch. Only processes and
+// msgio read the clock; core/ takes time as an argument.
+int64_t NowUtime();
+
+// The flags every roomfix process has.
+struct ProcessOptions {
+  std::string lcm_url = kDefaultLcmUrl;
+  std::string config_path;
+  std::string log_level = "info";
+  // Validate flags and configuration, print what would run, and exit.
+  bool check = false;
+};
+
+// Adds --lcm-url, --config, --log-level and --check to a CLI11 app.
+void AddProcessFlags(CLI::App* app, ProcessOptions* options, bool config_required);
+
+// Counters and state for a process's STATUS heartbeat. Thread-safe: a
+// process may count from its receive thread and a worker.
+class StatusReporter {
+ public:
+  StatusReporter(std::string process_name, int64_t start_utime);
+
+  void AddInputs(int64_t n = 1);
+  void AddOutputs(int64_t n = 1);
+  void AddDropped(int64_t n = 1);
+  // An input refused for `reason` (lower_case_with_underscores).
+  void Reject(const std::string& reason, int64_t n = 1);
+  // Any other counter, by name.
+  void Count(const std::string& name, int64_t n = 1);
+  void SetState(int8_t state);
+  void SetError(const std::string& text, int64_t utime);
+
+  int64_t inputs() const;
+  int64_t outputs() const;
+  int64_t dropped() const;
+  int64_t rejected(const std::string& reason) const;
+  int64_t counter(const std::string& name) const;
+
+  // The heartbeat message as of utime; the bus's own failures (undecodable
+  // messages, throwing handlers) are folded in when a bus is given.
+  process_status_t Make(int64_t utime, const BusStats* bus_stats) const;
+
+  // Publishes on STATUS when a second has passed since the last heartbeat
+  // (or at once, the first time). Returns true when it published.
+  bool MaybePublish(Bus* bus, int64_t now_utime);
+
+ private:
+  mutable std::mutex mutex_;
+  std::string process_;
+  std::string host_;
+  int32_t pid_ = 0;
+  int64_t start_utime_ = 0;
+  int64_t last_publish_utime_ = -1;
+  int8_t state_ = process_status_t::STATE_STARTING;
+  int64_t inputs_ = 0;
+  int64_t outputs_ = 0;
+  int64_t dropped_ = 0;
+  std::map<std::string, int64_t> rejected_;
+  std::map<std::string, int64_t> counters_;
+  std::string last_error_;
+  int64_t last_error_utime_ = 0;
+};
+
+// SIGINT and SIGTERM set a flag and wake the run loop through a pipe.
+void InstallShutdownHandlers();
+bool ShutdownRequested();
+// Asks the run loop to stop as a signal would (for tests and --duration).
+void RequestShutdown();
+
+struct RunLoopOptions {
+  // The tick is called at least this often, and after every batch of
+  // messages.
+  int tick_period_ms = 10;
+  // Stop after this long; <= 0 runs until a signal.
+  double duration_s = 0.0;
+};
+
+// Dispatches messages from the bus and calls tick(now_utime) until SIGINT,
+// SIGTERM or the duration ends. Returns 0 on a clean stop and 1 (with the
+// reason logged) when LCM fails.
+int RunLoop(LcmBus* bus, const std::function<void(int64_t now_utime)>& tick,
+            const RunLoopOptions& options);
+
+// What a process's main needs after its flags are parsed: logging set up,
+// signals handled, the site file loaded and the bus opened.
+struct ProcessContext {
+  std::string name;
+  ProcessOptions options;
+  Site site;
+  std::unique_ptr<LcmBus> bus;
+};
+
+// Returns nullptr with a one-line reason when the process cannot start (bad
+// site file, LCM unavailable). With --check the bus is not opened.
+std::unique_ptr<ProcessContext> StartProcess(const std::string& name, const ProcessOptions& options,
+                                             std::string* error);
+
+// Sets spdlog's default logger to stderr with the process name and level
+// ("trace", "debug", "info", "warn", "error"); false for an unknown level.
+bool SetUpLogging(const std::string& process_name, const std::string& level);
+
+}  // namespace roomfix
+
+#endif  // ROOMFIX_MSGIO_PROCESS_H_

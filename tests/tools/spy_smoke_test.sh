@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# scripts/spy starts lcm-spy (under a virtual X display) and it keeps running:
+# Debian's own lcm-spy wrapper dies at once on Java 17 (-Xincgc).
+#   spy_smoke_test.sh SOURCE_DIR BUILD_DIR
+set -uo pipefail
+source=$1 build=$2
+if ! command -v xvfb-run >/dev/null; then
+  echo "xvfb-run not installed; skipping"
+  exit 77
+fi
+log=$(mktemp)
+trap 'rm -f "$log"' EXIT
+ROOMFIX_BUILD_DIR=$build timeout 8 xvfb-run -a "$source/scripts/spy" --lcm-url=memq:// >"$log" 2>&1
+rc=$?
+if ((rc != 124)); then
+  echo "FAIL: lcm-spy exited with $rc before the time-out:"
+  cat "$log"
+  exit 1
+fi
+if grep -E 'Exception|Error:' "$log"; then
+  echo "FAIL: lcm-spy printed an error"
+  exit 1
+fi
+echo "ok: lcm-spy ran for 8 s with the roomfix jar on its class path"

@@ -1,0 +1,20 @@
+#ifndef ROOMFIX_TOOLS_COMMANDS_H_
+#define ROOMFIX_TOOLS_COMMANDS_H_
+
+namespace CLI {
+class App;
+}
+
+namespace roomfix {
+
+// Each subcommand of `roomfix` registers itself on the top-level app and sets
+// *exit_code from its callback. Later issues add solve, frames, calibrate,
+// analyze, bench and sim here.
+void AddVersionCommand(CLI::App* app, int* exit_code);
+void AddCheckConfigCommand(CLI::App* app, int* exit_code);
+void AddLogInfoCommand(CLI::App* app, int* exit_code);
+void AddListenCommand(CLI::App* app, int* exit_code);
+
+}  // namespace roomfix
+
+#endif  // ROOMFIX_TOOLS_COMMANDS_H_

@@ -1,0 +1,68 @@
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <iostream>
+#include <string>
+
+#include "msgio/bus.h"
+#include "msgio/message_json.h"
+#include "msgio/process.h"
+#include "tools/commands.h"
+
+namespace roomfix {
+namespace {
+
+struct ListenOptions {
+  std::string lcm_url = kDefaultLcmUrl;
+  std::string channel = ".*";
+  int64_t count = 0;
+  double timeout_s = 0.0;
+};
+
+}  // namespace
+
+void AddListenCommand(CLI::App* app, int* exit_code) {
+  auto* cmd = app->add_subcommand(
+      "listen", "Print every roomfix message received as one JSON line (channel, time, fields)");
+  auto o = std::make_shared<ListenOptions>();
+  cmd->add_option("--lcm-url", o->lcm_url, "LCM URL")->capture_default_str();
+  cmd->add_option("--channel", o->channel, "Channel regular expression")->capture_default_str();
+  cmd->add_option("--count", o->count, "Stop after this many messages (0: no limit)");
+  cmd->add_option("--timeout", o->timeout_s,
+                  "Give up after this many seconds; exit 3 if fewer than --count arrived");
+  cmd->callback([o, exit_code] {
+    std::string error;
+    auto bus = LcmBus::Create(o->lcm_url, &error);
+    if (bus == nullptr) {
+      std::cerr << "roomfix listen: " << error << "\n";
+      *exit_code = 1;
+      return;
+    }
+    InstallShutdownHandlers();
+    int64_t received = 0;
+    bus->SubscribeRaw(o->channel, [&](const MessageInfo& info, const void* data, int size) {
+      std::string json;
+      std::string why;
+      if (MessageToJson(data, size, &json, &why)) {
+        std::printf("{\"channel\":\"%s\",\"recv_utime\":%lld,\"message\":%s}\n",
+                    info.channel.c_str(), static_cast<long long>(info.recv_utime), json.c_str());
+      } else {
+        std::printf("{\"channel\":\"%s\",\"recv_utime\":%lld,\"size\":%d,\"error\":\"%s\"}\n",
+                    info.channel.c_str(), static_cast<long long>(info.recv_utime), size,
+                    why.c_str());
+      }
+      std::fflush(stdout);
+      if (o->count > 0 && ++received >= o->count) RequestShutdown();
+    });
+    RunLoopOptions loop;
+    loop.duration_s = o->timeout_s;
+    *exit_code = RunLoop(
+        bus.get(), [](int64_t) {}, loop);
+    if (*exit_code == 0 && o->count > 0 && received < o->count) {
+      std::cerr << "roomfix listen: timed out after " << received << " of " << o->count
+                << " messages\n";
+      *exit_code = 3;
+    }
+  });
+}
+
+}  // namespace roomfix

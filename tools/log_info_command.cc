@@ -1,0 +1,70 @@
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <iostream>
+#include <map>
+#include <string>
+
+#include "msgio/log.h"
+#include "msgio/message_json.h"
+#include "tools/commands.h"
+
+namespace roomfix {
+namespace {
+
+struct ChannelSummary {
+  int64_t events = 0;
+  int64_t bytes = 0;
+  int64_t first_utime = 0;
+  int64_t last_utime = 0;
+  std::map<std::string, int64_t> types;
+};
+
+}  // namespace
+
+void AddLogInfoCommand(CLI::App* app, int* exit_code) {
+  auto* cmd = app->add_subcommand(
+      "log-info", "Summarise an LCM log: events, types and rate per channel, and any damage");
+  auto path = std::make_shared<std::string>();
+  cmd->add_option("LOG", *path, "LCM log file (roomfix_logger or lcm-logger)")->required();
+  cmd->callback([path, exit_code] {
+    std::string error;
+    auto reader = LogReader::Open(*path, &error);
+    if (reader == nullptr) {
+      std::cerr << "roomfix log-info: " << error << "\n";
+      *exit_code = 1;
+      return;
+    }
+    std::map<std::string, ChannelSummary> channels;
+    LogEvent event;
+    while (reader->Next(&event)) {
+      ChannelSummary& c = channels[event.channel];
+      if (c.events == 0) c.first_utime = event.utime;
+      c.last_utime = event.utime;
+      ++c.events;
+      c.bytes += static_cast<int64_t>(event.data.size());
+      const char* type = RoomfixTypeName(event.data.data(), static_cast<int>(event.data.size()));
+      ++c.types[type != nullptr ? type : "(not a roomfix type)"];
+    }
+    std::printf("%s: %lld events, %lld bytes\n", path->c_str(),
+                static_cast<long long>(reader->events_read()),
+                static_cast<long long>(reader->file_size()));
+    std::printf("%-24s %8s %10s %9s  %s\n", "channel", "events", "bytes", "rate_hz", "type");
+    for (const auto& [name, c] : channels) {
+      const double span_s = (c.last_utime - c.first_utime) * 1e-6;
+      const double rate = span_s > 0 ? (c.events - 1) / span_s : 0.0;
+      for (const auto& [type, count] : c.types) {
+        std::printf("%-24s %8lld %10lld %9.2f  %s\n", name.c_str(), static_cast<long long>(count),
+                    static_cast<long long>(c.bytes), rate, type.c_str());
+      }
+    }
+    *exit_code = 0;
+    if (reader->damaged()) {
+      std::printf("damaged: unreadable after byte %lld of %lld\n",
+                  static_cast<long long>(reader->bytes_read()),
+                  static_cast<long long>(reader->file_size()));
+      *exit_code = 2;
+    }
+  });
+}
+
+}  // namespace roomfix

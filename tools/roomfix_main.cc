@@ -1,0 +1,16 @@
+// roomfix: the project's command-line tool.
+#include <CLI/CLI.hpp>
+
+#include "tools/commands.h"
+
+int main(int argc, char** argv) {
+  CLI::App app{"roomfix: indoor robot localisation tools"};
+  app.require_subcommand(1);
+  int exit_code = 0;
+  roomfix::AddVersionCommand(&app, &exit_code);
+  roomfix::AddCheckConfigCommand(&app, &exit_code);
+  roomfix::AddLogInfoCommand(&app, &exit_code);
+  roomfix::AddListenCommand(&app, &exit_code);
+  CLI11_PARSE(app, argc, argv);
+  return exit_code;
+}
