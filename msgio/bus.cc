@@ -74,15 +74,19 @@ void Bus::CountDecodeFailure(const std::string& channel, const char* type_name) 
 
 // ---------------------------------------------------------------------------
 
+// Subscriptions go through LCM's C API: the C++ wrapper's method-handler
+// subscriptions (lcm-cpp-impl.hpp) cast between unrelated template types,
+// which UndefinedBehaviorSanitizer reports on every message.
 struct LcmBus::Subscription {
   SubscriptionId id = 0;
   LcmBus* bus = nullptr;
   RawHandler handler;
-  lcm::Subscription* lcm_subscription = nullptr;
+  lcm_subscription_t* lcm_subscription = nullptr;
 
-  void OnMessage(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
-    MessageInfo info{channel, rbuf->recv_utime};
-    bus->Deliver(handler, info, rbuf->data, static_cast<int>(rbuf->data_size));
+  static void OnMessage(const lcm_recv_buf_t* rbuf, const char* channel, void* user) {
+    auto* self = static_cast<Subscription*>(user);
+    const MessageInfo info{channel, rbuf->recv_utime};
+    self->bus->Deliver(self->handler, info, rbuf->data, static_cast<int>(rbuf->data_size));
   }
 };
 
@@ -102,7 +106,9 @@ LcmBus::LcmBus(std::unique_ptr<lcm::LCM> lcm, std::string url)
     : lcm_(std::move(lcm)), url_(std::move(url)) {}
 
 LcmBus::~LcmBus() {
-  for (auto& s : subscriptions_) lcm_->unsubscribe(s->lcm_subscription);
+  for (auto& s : subscriptions_) {
+    lcm_unsubscribe(lcm_->getUnderlyingLCM(), s->lcm_subscription);
+  }
 }
 
 bool LcmBus::PublishRaw(const std::string& channel, const void* data, int size) {
@@ -116,7 +122,8 @@ SubscriptionId LcmBus::SubscribeRaw(const std::string& channel_regex, RawHandler
   s->id = next_id_++;
   s->bus = this;
   s->handler = std::move(handler);
-  s->lcm_subscription = lcm_->subscribe(channel_regex, &Subscription::OnMessage, s.get());
+  s->lcm_subscription = lcm_subscribe(lcm_->getUnderlyingLCM(), channel_regex.c_str(),
+                                      &Subscription::OnMessage, s.get());
   const SubscriptionId id = s->id;
   subscriptions_.push_back(std::move(s));
   return id;
@@ -126,7 +133,7 @@ void LcmBus::Unsubscribe(SubscriptionId id) {
   auto it = std::find_if(subscriptions_.begin(), subscriptions_.end(),
                          [id](const auto& s) { return s->id == id; });
   if (it == subscriptions_.end()) return;
-  lcm_->unsubscribe((*it)->lcm_subscription);
+  lcm_unsubscribe(lcm_->getUnderlyingLCM(), (*it)->lcm_subscription);
   subscriptions_.erase(it);
 }
 

@@ -122,6 +122,30 @@ TEST(ReplayLog, DeliversMatchingEventsInOrderWithLogTimeAsTheClock) {
   EXPECT_DOUBLE_EQ(xs[1], 0.2);
 }
 
+// LCM's own file provider reads a LogWriter log as if it were the network,
+// which is how a process is pointed at a recording with --lcm-url. LCM 1.3.1
+// stamps those messages with the wall clock, not the log's times: a replay
+// that must be deterministic uses ReplayLog instead.
+TEST(LcmBus, ReadsALogWrittenByLogWriterThroughTheFileUrl) {
+  TempDir dir;
+  const std::string path = dir.File("a.lcm");
+  WriteLog(path, 5, 1000000);
+  std::string error;
+  auto bus = LcmBus::Create("file://" + path + "?speed=0", &error);
+  ASSERT_NE(bus, nullptr) << error;
+  std::vector<double> xs;
+  std::vector<int64_t> times;
+  bus->Subscribe<pose2d_t>(".*", [&](const pose2d_t& p, const MessageInfo& info) {
+    xs.push_back(p.x_m);
+    times.push_back(info.recv_utime);
+  });
+  while (bus->Handle(1000) > 0) {
+  }
+  ASSERT_EQ(xs.size(), 5u);
+  EXPECT_DOUBLE_EQ(xs[4], 0.4);
+  EXPECT_GT(times[2], 1500000000000000);  // Wall clock, not 1200050 from the log.
+}
+
 // The same node code runs live and in replay: a node publishing from its
 // handler reaches a recorder subscribed on the same bus, stamped with log time.
 TEST(ReplayLog, ANodeOutputIsStampedWithTheInputEventTime) {

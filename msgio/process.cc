@@ -161,6 +161,13 @@ bool StatusReporter::MaybePublish(Bus* bus, int64_t now_utime) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     if (last_publish_utime_ >= 0 && now_utime - last_publish_utime_ < 1000000) return false;
+  }
+  return Publish(bus, now_utime);
+}
+
+bool StatusReporter::Publish(Bus* bus, int64_t now_utime) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
     last_publish_utime_ = now_utime;
   }
   const BusStats stats = bus->stats();

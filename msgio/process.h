@@ -68,6 +68,9 @@ class StatusReporter {
   // Publishes on STATUS when a second has passed since the last heartbeat
   // (or at once, the first time). Returns true when it published.
   bool MaybePublish(Bus* bus, int64_t now_utime);
+  // Publishes now, whatever the time since the last one (state changes,
+  // the last heartbeat before exit).
+  bool Publish(Bus* bus, int64_t now_utime);
 
  private:
   mutable std::mutex mutex_;

@@ -63,4 +63,9 @@ void GroundTruthNode::Tick(int64_t now_utime) {
   status_.MaybePublish(bus_, now_utime);
 }
 
+void GroundTruthNode::Stop(int64_t now_utime) {
+  status_.SetState(process_status_t::STATE_STOPPING);
+  status_.Publish(bus_, now_utime);
+}
+
 }  // namespace roomfix

@@ -34,6 +34,8 @@ class GroundTruthNode {
   GroundTruthNode(const Site& site, Bus* bus, const GroundTruthNodeOptions& options);
 
   void Tick(int64_t now_utime);
+  // Says goodbye: a last heartbeat in state STOPPING.
+  void Stop(int64_t now_utime);
 
   const StatusReporter& status() const { return status_; }
   int64_t samples_published() const { return next_sample_; }

@@ -72,6 +72,9 @@ TEST_F(GroundTruthNodeTest, SendsAHeartbeatEverySecond) {
   EXPECT_EQ(beats[2].process, "roomfix_sim");
   EXPECT_EQ(beats[2].state, process_status_t::STATE_RUNNING);
   EXPECT_EQ(beats[2].outputs, 61);  // Samples 0..60 at 30 Hz by t = 2 s.
+  node.Stop(2600000);
+  ASSERT_EQ(beats.size(), 4u);
+  EXPECT_EQ(beats[3].state, process_status_t::STATE_STOPPING);
 }
 
 TEST(GroundTruthNodeOptions, RejectsANonPositiveRate) {

@@ -50,6 +50,7 @@ int main(int argc, char** argv) {
   loop.duration_s = duration_s;
   const int rc = roomfix::RunLoop(
       ctx->bus.get(), [&](int64_t now) { node.Tick(now); }, loop);
+  node.Stop(roomfix::NowUtime());
   spdlog::info("stopped after {} samples", node.samples_published());
   return rc;
 }

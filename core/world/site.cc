@@ -160,13 +160,18 @@ using K = Reader;  // K::Join / K::Index build key paths.
 Room ParseRoom(const Reader& r, const YAML::Node& node) {
   const std::string key = "room";
   r.ExpectMap(node, key);
-  r.OnlyKeys(node, key, {"size_m", "height_m", "grid_m", "origin"});
+  r.OnlyKeys(node, key, {"size_m", "min_corner_m", "height_m", "grid_m", "origin"});
   Room room;
   const YAML::Node size = r.Required(node, key, "size_m");
   const auto xy = r.Doubles<2>(size, "room.size_m");
   if (xy[0] <= 0.0 || xy[1] <= 0.0) r.Fail(size, "room.size_m", "sizes must be positive");
   room.size_x_m = xy[0];
   room.size_y_m = xy[1];
+  if (node["min_corner_m"]) {
+    const auto corner = r.Doubles<2>(node["min_corner_m"], "room.min_corner_m");
+    room.min_x_m = corner[0];
+    room.min_y_m = corner[1];
+  }
   room.height_m = r.Positive(r.Required(node, key, "height_m"), "room.height_m");
   if (node["grid_m"]) room.grid_m = r.Positive(node["grid_m"], "room.grid_m");
   if (node["origin"]) room.origin = r.String(node["origin"], "room.origin");
@@ -180,11 +185,14 @@ constexpr double kOutsideRoomTolerance_m = 0.05;
 void CheckInsideRoom(const Reader& r, const YAML::Node& node, const std::string& key,
                      const Room& room, const std::array<double, 3>& p) {
   const double t = kOutsideRoomTolerance_m;
-  if (p[0] < -t || p[0] > room.size_x_m + t || p[1] < -t || p[1] > room.size_y_m + t || p[2] < -t ||
-      p[2] > room.height_m + t) {
+  const double x0 = room.min_x_m;
+  const double y0 = room.min_y_m;
+  if (p[0] < x0 - t || p[0] > x0 + room.size_x_m + t || p[1] < y0 - t ||
+      p[1] > y0 + room.size_y_m + t || p[2] < -t || p[2] > room.height_m + t) {
     std::ostringstream s;
     s << "position (" << p[0] << ", " << p[1] << ", " << p[2] << ") m is outside the room ("
-      << room.size_x_m << " x " << room.size_y_m << " x " << room.height_m << " m)";
+      << room.size_x_m << " x " << room.size_y_m << " x " << room.height_m << " m from (" << x0
+      << ", " << y0 << ", 0))";
     r.Fail(node, key, s.str());
   }
 }

@@ -20,6 +20,11 @@ namespace roomfix {
 // docs/site_file.md for every key.
 
 struct Room {
+  // The floor spans [min_x_m, min_x_m + size_x_m] x [min_y_m, min_y_m +
+  // size_y_m]: the origin is wherever the surveyed mark is, often a corner
+  // (min 0, 0), sometimes the middle of the room (motion-capture origins).
+  double min_x_m = 0.0;
+  double min_y_m = 0.0;
   double size_x_m = 0.0;
   double size_y_m = 0.0;
   double height_m = 0.0;

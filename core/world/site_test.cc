@@ -5,6 +5,9 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
 
 #include "tests/testing/test_paths.h"
 
@@ -143,6 +146,41 @@ TEST(Site, ResolvesCalibrationRelativeToTheSiteFile) {
   std::string error;
   ASSERT_TRUE(ParseSite(text, "inline.yaml", "/etc/roomfix", &site, &error)) << error;
   EXPECT_EQ(site.cameras[0].calibration_file, "/etc/roomfix/cal/cam0.yaml");
+}
+
+// The shipped LIAS-CUHKSZ site files must carry the dataset's surveyed anchor
+// positions exactly, so solving its real ranges against them is meaningful.
+TEST(Site, LiasPlanarSitesMatchTheDatasetAnchors) {
+  const std::string data = testing::SharedDataDir();
+  if (data.empty()) GTEST_SKIP() << "../shared/data is absent: real-data check skipped";
+  std::ifstream csv(data + "/uwb_lias_planar/anchors.csv");
+  ASSERT_TRUE(csv.good()) << "uwb_lias_planar/anchors.csv missing from " << data;
+  std::string line;
+  std::getline(csv, line);  // header: session,anchor,x_m,y_m,z_m
+  int checked = 0;
+  std::map<std::string, Site> sites;
+  while (std::getline(csv, line)) {
+    std::istringstream row(line);
+    std::string session, anchor, x, y, z;
+    std::getline(row, session, ',');
+    std::getline(row, anchor, ',');
+    std::getline(row, x, ',');
+    std::getline(row, y, ',');
+    std::getline(row, z, ',');
+    const std::string name = session == "8.14" ? "lias_planar_814" : "lias_planar_820";
+    if (sites.count(name) == 0) {
+      std::string error;
+      ASSERT_TRUE(LoadSite(SourceDir() + "/config/sites/" + name + ".yaml", &sites[name], &error))
+          << error;
+    }
+    const Receiver* r = sites[name].FindReceiver(std::stoi(anchor));
+    ASSERT_NE(r, nullptr) << name << " anchor " << anchor;
+    EXPECT_EQ(r->position_m[0], std::stod(x));
+    EXPECT_EQ(r->position_m[1], std::stod(y));
+    EXPECT_EQ(r->position_m[2], std::stod(z));
+    ++checked;
+  }
+  EXPECT_EQ(checked, 16);
 }
 
 TEST(RadioAddress, ParsesTheCommonSpellings) {

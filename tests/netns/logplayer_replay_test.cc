@@ -72,8 +72,10 @@ TEST(SampleLog, ReadsBackAsGroundTruthOnTheReferenceCircle) {
   EXPECT_GE(beats, 1);
 }
 
-TEST(LcmLogplayer, PlaysEveryEventOfTheSampleLogIntactAndInOrder) {
-  const auto expected = ReadAll(SampleLog());
+// Plays `path` with the real lcm-logplayer and checks that a subscriber on
+// the default multicast URL receives every event, byte for byte, in order.
+void ExpectLogplayerDeliversEveryEvent(const std::string& path) {
+  const auto expected = ReadAll(path);
   ASSERT_FALSE(expected.empty());
   std::string error;
   auto bus = LcmBus::Create(kDefaultLcmUrl, &error);
@@ -84,7 +86,7 @@ TEST(LcmLogplayer, PlaysEveryEventOfTheSampleLogIntactAndInOrder) {
     received.emplace_back(info.channel, std::vector<uint8_t>(b, b + size));
   });
 
-  ChildProcess player({"lcm-logplayer", "--speed=4", SampleLog()});
+  ChildProcess player({"lcm-logplayer", "--speed=4", path});
   ASSERT_TRUE(player.started()) << "lcm-logplayer not found (liblcm-bin)";
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
   while (received.size() < expected.size() && std::chrono::steady_clock::now() < deadline) {
@@ -96,6 +98,35 @@ TEST(LcmLogplayer, PlaysEveryEventOfTheSampleLogIntactAndInOrder) {
     EXPECT_EQ(received[i].first, expected[i].channel) << "event " << i;
     EXPECT_EQ(received[i].second, expected[i].data) << "event " << i;
   }
+}
+
+TEST(LcmLogplayer, PlaysEveryEventOfTheSampleLogIntactAndInOrder) {
+  ExpectLogplayerDeliversEveryEvent(SampleLog());
+}
+
+// Logs written by roomfix's LogWriter are ordinary LCM logs.
+TEST(LcmLogplayer, PlaysALogWrittenByLogWriter) {
+  testing::TempDir dir;
+  const std::string path = dir.File("written.lcm");
+  std::string error;
+  auto writer = LogWriter::Create(path, false, &error);
+  ASSERT_NE(writer, nullptr) << error;
+  for (int i = 0; i < 50; ++i) {
+    pose2d_t p{};
+    p.utime = 1700000000000000 + i * 20000;
+    p.source = pose2d_t::SOURCE_CAMERA;
+    p.robot_id = i % 3;
+    p.x_m = 0.01 * i;
+    p.y_m = -0.02 * i;
+    p.heading_rad = 0.1 * i;
+    std::vector<uint8_t> bytes(p.getEncodedSize());
+    p.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+    ASSERT_TRUE(writer->Write(p.utime, i % 2 ? "POSE_CAMERA" : "POSE_FUSED", bytes.data(),
+                              static_cast<int>(bytes.size()), &error))
+        << error;
+  }
+  writer.reset();  // Closes the file.
+  ExpectLogplayerDeliversEveryEvent(path);
 }
 
 }  // namespace
