@@ -576,35 +576,28 @@ std::string DirName(const std::string& path) {
 
 }  // namespace
 
+namespace {
+template <class T, class Pred>
+const T* FindIf(const std::vector<T>& items, Pred pred) {
+  auto it = std::find_if(items.begin(), items.end(), pred);
+  return it == items.end() ? nullptr : &*it;
+}
+}  // namespace
+
 const Receiver* Site::FindReceiver(int id) const {
-  for (const auto& r : receivers) {
-    if (r.id == id) return &r;
-  }
-  return nullptr;
+  return FindIf(receivers, [id](const Receiver& r) { return r.id == id; });
 }
 const Receiver* Site::FindReceiverByAddress(uint64_t address) const {
-  for (const auto& r : receivers) {
-    if (r.address == address) return &r;
-  }
-  return nullptr;
+  return FindIf(receivers, [address](const Receiver& r) { return r.address == address; });
 }
 const Beacon* Site::FindBeacon(int id) const {
-  for (const auto& b : beacons) {
-    if (b.id == id) return &b;
-  }
-  return nullptr;
+  return FindIf(beacons, [id](const Beacon& b) { return b.id == id; });
 }
 const Beacon* Site::FindBeaconByAddress(uint64_t address) const {
-  for (const auto& b : beacons) {
-    if (b.address == address) return &b;
-  }
-  return nullptr;
+  return FindIf(beacons, [address](const Beacon& b) { return b.address == address; });
 }
 const Robot* Site::FindRobot(int id) const {
-  for (const auto& r : robots) {
-    if (r.id == id) return &r;
-  }
-  return nullptr;
+  return FindIf(robots, [id](const Robot& r) { return r.id == id; });
 }
 
 bool ParseRadioAddress(const std::string& text, uint64_t* address) {

@@ -109,14 +109,17 @@ TEST(Site, RejectsEveryBrokenSiteWithOneLineNamingFileAndKey) {
   }
 }
 
+// The head of a small inline site: its sixth line is the third receiver.
+constexpr char kTwoReceivers[] =
+    "name: x\n"
+    "room: {size_m: [4, 3], height_m: 3}\n"
+    "receivers:\n"
+    "  - {id: 1, address: '0x0000000000000001', position_m: [0, 0, 2]}\n"
+    "  - {id: 2, address: '0x0000000000000002', position_m: [4, 0, 2]}\n";
+
 TEST(Site, ErrorNamesTheLineOfTheOffendingKey) {
-  const std::string text =
-      "name: x\n"
-      "room: {size_m: [4, 3], height_m: 3}\n"
-      "receivers:\n"
-      "  - {id: 1, address: '0x0000000000000001', position_m: [0, 0, 2]}\n"
-      "  - {id: 2, address: '0x0000000000000002', position_m: [4, 0, 2]}\n"
-      "  - {id: 3, address: '0x0000000000000003', position_m: [4, 3, nope]}\n";
+  const std::string text = std::string(kTwoReceivers) +
+                           "  - {id: 3, address: '0x0000000000000003', position_m: [4, 3, nope]}\n";
   Site site;
   std::string error;
   ASSERT_FALSE(ParseSite(text, "inline.yaml", "", &site, &error));
@@ -131,17 +134,12 @@ TEST(Site, MissingFileGivesOneLine) {
 }
 
 TEST(Site, ResolvesCalibrationRelativeToTheSiteFile) {
-  const std::string text =
-      "name: x\n"
-      "room: {size_m: [4, 3], height_m: 3}\n"
-      "receivers:\n"
-      "  - {id: 1, address: '0x0000000000000001', position_m: [0, 0, 2]}\n"
-      "  - {id: 2, address: '0x0000000000000002', position_m: [4, 0, 2]}\n"
-      "  - {id: 3, address: '0x0000000000000003', position_m: [4, 3, 2]}\n"
-      "cameras:\n"
-      "  - {id: 0, device: /dev/video0, resolution: [640, 480], fps: 30,\n"
-      "     mount_position_m: [2, 1.5, 2.9], calibration: cal/cam0.yaml,\n"
-      "     marker_classes: [], robots: []}\n";
+  const std::string text = std::string(kTwoReceivers) +
+                           "  - {id: 3, address: '0x0000000000000003', position_m: [4, 3, 2]}\n"
+                           "cameras:\n"
+                           "  - {id: 0, device: /dev/video0, resolution: [640, 480], fps: 30,\n"
+                           "     mount_position_m: [2, 1.5, 2.9], calibration: cal/cam0.yaml,\n"
+                           "     marker_classes: [], robots: []}\n";
   Site site;
   std::string error;
   ASSERT_TRUE(ParseSite(text, "inline.yaml", "/etc/roomfix", &site, &error)) << error;
