@@ -1,0 +1,683 @@
+#include "core/trilat/trilateration.h"
+
+#include <gsl/gsl_errno.h>
+#include <gsl/gsl_multimin.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <sstream>
+
+namespace roomfix::trilat {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr double kInf = std::numeric_limits<double>::infinity();
+// Receivers closer than this to a common line (2D) are collinear.
+constexpr double kCollinear_m = 0.01;
+// Receivers whose out-of-plane spread is below this, or below this fraction
+// of their in-plane spread, are treated as coplanar in 3D: the linear start
+// cannot see the out-of-plane coordinate, and the mirror image fits as well.
+constexpr double kCoplanar_m = 0.01;
+constexpr double kCoplanarRatio = 0.05;
+// Levenberg-Marquardt stops when a step moves the point less than this.
+constexpr double kStepTolerance_m = 1e-10;
+// Nelder-Mead stops when the simplex is smaller than this (GSL's "size":
+// mean distance of the vertices from their centre).
+constexpr double kSimplexTolerance_m = 1e-7;
+
+// The ranges in the solver's own coordinates: anchors in the D free
+// coordinates, plus a fixed offset along the others (the beacon-to-receiver
+// height difference in kFixedHeight2D), so that the distance is
+// sqrt(|p - a_i|^2 + off2_i).
+template <int D>
+struct Ranges {
+  using Vec = Eigen::Matrix<double, D, 1>;
+  std::vector<Vec> a;
+  std::vector<double> off2;
+  std::vector<double> d;
+  std::vector<int> ids;
+  // Indices (into the vectors above) of the ranges in the current fit.
+  std::vector<int> active;
+};
+
+template <int D>
+double Cost(const Ranges<D>& r, const std::vector<int>& active,
+            const Eigen::Matrix<double, D, 1>& p) {
+  double cost = 0.0;
+  for (int i : active) {
+    const double e = std::sqrt((p - r.a[i]).squaredNorm() + r.off2[i]) - r.d[i];
+    cost += e * e;
+  }
+  return cost;
+}
+
+// J^T J and J^T e for e_i = |p - a_i| - d_i, J_i = (p - a_i)^T / |p - a_i|.
+template <int D>
+double NormalEquations(const Ranges<D>& r, const std::vector<int>& active,
+                       const Eigen::Matrix<double, D, 1>& p, Eigen::Matrix<double, D, D>* jtj,
+                       Eigen::Matrix<double, D, 1>* jte) {
+  jtj->setZero();
+  jte->setZero();
+  double cost = 0.0;
+  for (int i : active) {
+    const Eigen::Matrix<double, D, 1> diff = p - r.a[i];
+    const double dist = std::sqrt(diff.squaredNorm() + r.off2[i]);
+    const double e = dist - r.d[i];
+    cost += e * e;
+    // At a receiver the gradient is undefined; that range then adds nothing
+    // to the step (it cannot say which way to go).
+    if (dist < 1e-12) continue;
+    const Eigen::Matrix<double, D, 1> j = diff / dist;
+    *jtj += j * j.transpose();
+    *jte += j * e;
+  }
+  return cost;
+}
+
+// Levenberg-Marquardt with Marquardt's diagonal scaling. Returns the number
+// of iterations; *converged is false when the limit was reached.
+template <int D>
+int Refine(const Ranges<D>& r, const std::vector<int>& active, int max_iterations,
+           Eigen::Matrix<double, D, 1>* p, bool* converged) {
+  using Vec = Eigen::Matrix<double, D, 1>;
+  using Mat = Eigen::Matrix<double, D, D>;
+  Mat jtj;
+  Vec jte;
+  double cost = NormalEquations(r, active, *p, &jtj, &jte);
+  double lambda = 1e-6;
+  *converged = false;
+  int it = 0;
+  while (it < max_iterations) {
+    ++it;
+    Mat a = jtj;
+    // A small absolute term keeps the system solvable where a coordinate has
+    // no gradient at all (a point on the receivers' plane in 3D).
+    const double floor = 1e-12 * std::max(1.0, jtj.diagonal().maxCoeff());
+    for (int k = 0; k < D; ++k) a(k, k) = jtj(k, k) * (1.0 + lambda) + lambda * floor;
+    const Vec step = -a.inverse() * jte;
+    if (!step.allFinite()) break;
+    // Gauss-Newton converges quadratically near the minimum, so once a step
+    // is this small the remaining error is far below it.
+    if (step.norm() < kStepTolerance_m * std::max(1.0, p->norm())) {
+      *converged = true;
+      break;
+    }
+    const Vec candidate = *p + step;
+    const double candidate_cost = Cost(r, active, candidate);
+    if (candidate_cost <= cost) {
+      *p = candidate;
+      cost = NormalEquations(r, active, *p, &jtj, &jte);
+      lambda = std::max(lambda * 0.1, 1e-12);
+    } else {
+      lambda *= 10.0;
+      // No step lowers the cost: this is the minimum to rounding.
+      if (lambda > 1e8) {
+        *converged = true;
+        break;
+      }
+    }
+  }
+  return it;
+}
+
+// Spread of points: eigenvalues (ascending) and eigenvectors of their
+// scatter matrix divided by n, and the centroid.
+template <int D>
+struct Spread {
+  Eigen::Matrix<double, D, 1> centroid;
+  Eigen::Matrix<double, D, 1> variances;
+  Eigen::Matrix<double, D, D> axes;
+};
+
+template <int D>
+Spread<D> SpreadOf(const Ranges<D>& r, const std::vector<int>& active) {
+  Spread<D> s;
+  s.centroid.setZero();
+  for (int i : active) s.centroid += r.a[i];
+  s.centroid /= static_cast<double>(active.size());
+  Eigen::Matrix<double, D, D> scatter = Eigen::Matrix<double, D, D>::Zero();
+  for (int i : active) {
+    const Eigen::Matrix<double, D, 1> c = r.a[i] - s.centroid;
+    scatter += c * c.transpose();
+  }
+  scatter /= static_cast<double>(active.size());
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, D, D>> eig(scatter);
+  s.variances = eig.eigenvalues().cwiseMax(0.0);
+  s.axes = eig.eigenvectors();
+  return s;
+}
+
+// The linear start: subtracting the mean of the squared range equations
+//   d_i^2 - off2_i - |a_i|^2 = |p|^2 - 2 a_i.p
+// removes |p|^2 and leaves -2 (a_i - mean a).p = c_i - mean c, solved by
+// least squares. False when the anchors do not span the D coordinates.
+template <int D>
+bool LinearStart(const Ranges<D>& r, const std::vector<int>& active,
+                 Eigen::Matrix<double, D, 1>* p) {
+  using Vec = Eigen::Matrix<double, D, 1>;
+  using Mat = Eigen::Matrix<double, D, D>;
+  Vec mean_a = Vec::Zero();
+  double mean_c = 0.0;
+  for (int i : active) {
+    mean_a += r.a[i];
+    mean_c += r.d[i] * r.d[i] - r.off2[i] - r.a[i].squaredNorm();
+  }
+  const double n = static_cast<double>(active.size());
+  mean_a /= n;
+  mean_c /= n;
+  Mat m = Mat::Zero();
+  Vec rhs = Vec::Zero();
+  for (int i : active) {
+    const Vec row = -2.0 * (r.a[i] - mean_a);
+    const double c = r.d[i] * r.d[i] - r.off2[i] - r.a[i].squaredNorm() - mean_c;
+    m += row * row.transpose();
+    rhs += row * c;
+  }
+  const double scale = m.trace();
+  if (!(scale > 0.0) || std::abs(m.determinant()) < 1e-12 * std::pow(scale, D)) return false;
+  *p = m.inverse() * rhs;
+  return p->allFinite();
+}
+
+// ---------------------------------------------------------------------------
+// Nelder-Mead through GSL, the reference method.
+
+template <int D>
+struct NelderMeadParams {
+  const Ranges<D>* r;
+  const std::vector<int>* active;
+};
+
+template <int D>
+double NelderMeadCost(const gsl_vector* x, void* params) {
+  const auto* np = static_cast<const NelderMeadParams<D>*>(params);
+  Eigen::Matrix<double, D, 1> p;
+  for (int k = 0; k < D; ++k) p[k] = gsl_vector_get(x, k);
+  return Cost(*np->r, *np->active, p);
+}
+
+// GSL's workspaces are kept per thread and dimension, so the baseline is not
+// charged for allocations a real user of it would also avoid.
+struct GslMinimizer {
+  gsl_multimin_fminimizer* s = nullptr;
+  gsl_vector* x = nullptr;
+  gsl_vector* step = nullptr;
+  explicit GslMinimizer(int d)
+      : s(gsl_multimin_fminimizer_alloc(gsl_multimin_fminimizer_nmsimplex2, d)),
+        x(gsl_vector_alloc(d)),
+        step(gsl_vector_alloc(d)) {}
+  ~GslMinimizer() {
+    gsl_multimin_fminimizer_free(s);
+    gsl_vector_free(x);
+    gsl_vector_free(step);
+  }
+};
+
+template <int D>
+int NelderMead(const Ranges<D>& r, const std::vector<int>& active, int max_iterations,
+               Eigen::Matrix<double, D, 1>* p, bool* converged) {
+  thread_local GslMinimizer m(D);
+  NelderMeadParams<D> params{&r, &active};
+  gsl_multimin_function f;
+  f.n = D;
+  f.f = &NelderMeadCost<D>;
+  f.params = &params;
+  for (int k = 0; k < D; ++k) {
+    gsl_vector_set(m.x, k, (*p)[k]);
+    gsl_vector_set(m.step, k, 0.5);
+  }
+  gsl_multimin_fminimizer_set(m.s, &f, m.x, m.step);
+  *converged = false;
+  int it = 0;
+  while (it < max_iterations * 20) {
+    ++it;
+    if (gsl_multimin_fminimizer_iterate(m.s) != GSL_SUCCESS) break;
+    if (gsl_multimin_test_size(gsl_multimin_fminimizer_size(m.s), kSimplexTolerance_m) ==
+        GSL_SUCCESS) {
+      *converged = true;
+      break;
+    }
+  }
+  for (int k = 0; k < D; ++k) (*p)[k] = gsl_vector_get(m.s->x, k);
+  return it;
+}
+
+// ---------------------------------------------------------------------------
+
+struct Workspace {
+  Ranges<2> r2;
+  Ranges<3> r3;
+  std::vector<int> subset;
+  std::vector<int> best_subset;
+  std::vector<int> excluded;
+};
+
+Workspace& ThreadWorkspace() {
+  thread_local Workspace w;
+  return w;
+}
+
+template <int D>
+void Clear(Ranges<D>* r) {
+  r->a.clear();
+  r->off2.clear();
+  r->d.clear();
+  r->ids.clear();
+  r->active.clear();
+}
+
+// Sorts the input into valid ranges and rejected ones.
+template <int D>
+void Collect(const std::vector<RangeMeasurement>& input, const SolverOptions& o, Ranges<D>* r,
+             Fix* fix) {
+  Clear(r);
+  for (size_t i = 0; i < input.size(); ++i) {
+    const RangeMeasurement& m = input[i];
+    auto reject = [&](RangeRejection why) { fix->rejected.push_back({m.receiver_id, why}); };
+    // A receiver id heard twice in one firing is a corrupted set: neither
+    // range can be trusted, so every copy goes.
+    bool duplicate = false;
+    for (size_t j = 0; j < input.size(); ++j) {
+      duplicate = duplicate || (j != i && input[j].receiver_id == m.receiver_id);
+    }
+    if (duplicate) {
+      reject(RangeRejection::kDuplicateReceiver);
+    } else if (!m.receiver_m.allFinite()) {
+      reject(RangeRejection::kNonFiniteReceiver);
+    } else if (!std::isfinite(m.range_m)) {
+      reject(RangeRejection::kNonFinite);
+    } else if (m.range_m < 0.0) {
+      reject(RangeRejection::kNegative);
+    } else if (m.range_m > o.max_range_m) {
+      reject(RangeRejection::kTooLong);
+    } else {
+      Eigen::Matrix<double, D, 1> a;
+      double off2 = 0.0;
+      if constexpr (D == 2) {
+        a = m.receiver_m.head<2>();
+        if (o.dimension == Dimension::kFixedHeight2D) {
+          const double dz = o.fixed_height_m - m.receiver_m.z();
+          off2 = dz * dz;
+        }
+      } else {
+        a = m.receiver_m;
+      }
+      r->active.push_back(static_cast<int>(r->a.size()));
+      r->a.push_back(a);
+      r->off2.push_back(off2);
+      r->d.push_back(m.range_m);
+      r->ids.push_back(m.receiver_id);
+    }
+  }
+  if (!fix->rejected.empty()) fix->flags |= kBadRangesDropped;
+}
+
+// Where to start: the caller's guess, or the linear solution. For coplanar
+// receivers in 3D the linear system has no out-of-plane information; the
+// in-plane point comes from it and the height above the plane from the mean
+// of d_i^2 - |q - q_i|^2, on the room side.
+template <int D>
+bool Start(const Ranges<D>& r, const std::vector<int>& active, const SolverOptions& o,
+           const Eigen::Vector3d* guess, const Spread<D>& spread, bool coplanar,
+           Eigen::Matrix<double, D, 1>* p) {
+  if (guess != nullptr && guess->allFinite()) {
+    if constexpr (D == 2) {
+      *p = guess->head<2>();
+    } else {
+      *p = *guess;
+    }
+    return true;
+  }
+  if constexpr (D == 3) {
+    if (coplanar) {
+      Ranges<2> q;
+      const Eigen::Vector3d e1 = spread.axes.col(2);
+      const Eigen::Vector3d e2 = spread.axes.col(1);
+      const Eigen::Vector3d normal = spread.axes.col(0);
+      std::vector<int> all;
+      for (int i : active) {
+        const Eigen::Vector3d c = r.a[i] - spread.centroid;
+        all.push_back(static_cast<int>(q.a.size()));
+        q.a.emplace_back(e1.dot(c), e2.dot(c));
+        const double out = normal.dot(c);
+        q.off2.push_back(out * out);
+        q.d.push_back(r.d[i]);
+      }
+      Eigen::Vector2d in_plane;
+      if (!LinearStart(q, all, &in_plane)) return false;
+      double h2 = 0.0;
+      for (size_t k = 0; k < all.size(); ++k) {
+        h2 += q.d[k] * q.d[k] - (in_plane - q.a[k]).squaredNorm();
+      }
+      const double h = std::sqrt(std::max(0.0, h2 / static_cast<double>(all.size())));
+      Eigen::Vector3d side_point = o.room_side_point_m;
+      if (!side_point.allFinite()) side_point = {spread.centroid.x(), spread.centroid.y(), 0.0};
+      const double side_sign = normal.dot(side_point - spread.centroid) < 0.0 ? -1.0 : 1.0;
+      *p = spread.centroid + e1 * in_plane.x() + e2 * in_plane.y() + normal * (side_sign * h);
+      return true;
+    }
+  }
+  (void)o;
+  (void)spread;
+  (void)coplanar;
+  return LinearStart(r, active, p);
+}
+
+template <int D>
+void Residuals(const Ranges<D>& r, const std::vector<int>& active,
+               const Eigen::Matrix<double, D, 1>& p, double* max_abs) {
+  *max_abs = 0.0;
+  for (int i : active) {
+    *max_abs =
+        std::max(*max_abs, std::abs(std::sqrt((p - r.a[i]).squaredNorm() + r.off2[i]) - r.d[i]));
+  }
+}
+
+template <int D>
+void SolveIn(const std::vector<RangeMeasurement>& input, const SolverOptions& o,
+             const Eigen::Vector3d* guess, Ranges<D>* r, Fix* fix) {
+  using Vec = Eigen::Matrix<double, D, 1>;
+  Collect(input, o, r, fix);
+  const int needed = D + 1;
+  if (static_cast<int>(r->active.size()) < needed) {
+    fix->flags |= kTooFewRanges;
+    return;
+  }
+  const Spread<D> spread = SpreadOf(*r, r->active);
+  // variances ascending: [0] smallest.
+  const double second = std::sqrt(spread.variances[D == 2 ? 0 : 1]);
+  if (second < kCollinear_m) {
+    fix->flags |= kCollinearReceivers;
+    return;
+  }
+  bool coplanar = false;
+  if constexpr (D == 3) {
+    const double smallest = std::sqrt(spread.variances[0]);
+    coplanar = smallest < kCoplanar_m || smallest < kCoplanarRatio * second;
+  }
+
+  Workspace& w = ThreadWorkspace();
+  auto solve_subset = [&](const std::vector<int>& active, const Eigen::Vector3d* start_guess,
+                          Vec* p, bool* converged) -> int {
+    if (!Start(*r, active, o, start_guess, spread, coplanar, p)) return -1;
+    if (o.method == Method::kNelderMead)
+      return NelderMead(*r, active, o.max_iterations, p, converged);
+    return Refine(*r, active, o.max_iterations, p, converged);
+  };
+
+  Vec p;
+  bool converged = false;
+  int iterations = solve_subset(r->active, guess, &p, &converged);
+  if (iterations < 0) {
+    fix->flags |= kDegenerateGeometry;
+    return;
+  }
+  fix->iterations = iterations;
+
+  if (o.method == Method::kRobust) {
+    const double threshold = o.OutlierThreshold();
+    double worst = 0.0;
+    Residuals(*r, r->active, p, &worst);
+    const int n = static_cast<int>(r->active.size());
+    const int max_out = std::min(o.max_outliers, n - needed);
+    if (worst > threshold && max_out > 0) {
+      // Consensus: the smallest set of excluded ranges after which every
+      // remaining residual is within the threshold; among equals, the lowest
+      // cost. Exhaustive over subsets, which for the handful of receivers in
+      // a room is a few dozen small solves at most.
+      bool found = false;
+      double best_cost = kInf;
+      Vec best_p = p;
+      int best_converged = 0;
+      for (int k = 1; k <= max_out && !found; ++k) {
+        std::vector<int> pick(k);
+        for (int j = 0; j < k; ++j) pick[j] = j;
+        while (true) {
+          w.subset.clear();
+          for (int i = 0, j = 0; i < n; ++i) {
+            if (j < k && pick[j] == i) {
+              ++j;
+            } else {
+              w.subset.push_back(r->active[i]);
+            }
+          }
+          Vec q;
+          bool c = false;
+          const int its = solve_subset(w.subset, nullptr, &q, &c);
+          if (its >= 0) {
+            fix->iterations += its;
+            double sub_worst = 0.0;
+            Residuals(*r, w.subset, q, &sub_worst);
+            const double cost = Cost(*r, w.subset, q);
+            if (sub_worst <= threshold && cost < best_cost) {
+              found = true;
+              best_cost = cost;
+              best_p = q;
+              best_converged = c;
+            }
+          }
+          // Next combination of k indices out of n.
+          int j = k - 1;
+          while (j >= 0 && pick[j] == n - k + j) --j;
+          if (j < 0) break;
+          ++pick[j];
+          for (int t = j + 1; t < k; ++t) pick[t] = pick[t - 1] + 1;
+        }
+      }
+      if (found) {
+        // Re-admit any excluded range that agrees with the consensus point,
+        // and refit on the final set.
+        w.subset.clear();
+        for (int i : r->active) {
+          const double e =
+              std::abs(std::sqrt((best_p - r->a[i]).squaredNorm() + r->off2[i]) - r->d[i]);
+          if (e <= threshold) {
+            w.subset.push_back(i);
+          } else {
+            fix->rejected.push_back({r->ids[i], RangeRejection::kOutlier});
+          }
+        }
+        r->active = w.subset;
+        p = best_p;
+        converged = best_converged;
+        fix->iterations += Refine(*r, r->active, o.max_iterations, &p, &converged);
+        fix->flags |= kOutliersRejected;
+      } else {
+        fix->flags |= kInconsistentRanges;
+      }
+    }
+  }
+
+  if constexpr (D == 3) {
+    if (coplanar) {
+      // The mirror image through the receivers' plane fits equally well;
+      // keep the room side.
+      const Eigen::Vector3d normal = spread.axes.col(0);
+      Eigen::Vector3d side_point = o.room_side_point_m;
+      if (!side_point.allFinite()) side_point = {spread.centroid.x(), spread.centroid.y(), 0.0};
+      const double side = normal.dot(side_point - spread.centroid);
+      const double offset = normal.dot(p - spread.centroid);
+      if (side * offset < 0.0) p -= 2.0 * offset * normal;
+      fix->flags |= kMirrorResolved;
+    }
+  }
+
+  if (!converged) fix->flags |= kNotConverged;
+  Eigen::Matrix<double, D, D> jtj;
+  Vec jte;
+  const double cost = NormalEquations(*r, r->active, p, &jtj, &jte);
+  const double sigma2 = o.range_sigma_m * o.range_sigma_m;
+  Eigen::Matrix<double, D, D> cov = Eigen::Matrix<double, D, D>::Constant(kInf);
+  const double scale = jtj.trace();
+  if (scale > 0.0 && std::abs(jtj.determinant()) > 1e-14 * std::pow(scale, D)) {
+    cov = sigma2 * jtj.inverse();
+  }
+  fix->covariance_m2.setZero();
+  fix->covariance_m2.topLeftCorner<D, D>() = cov;
+  if (!cov.allFinite() ||
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, D, D>>(cov, Eigen::EigenvaluesOnly)
+              .eigenvalues()
+              .maxCoeff() > o.max_position_sigma_m * o.max_position_sigma_m) {
+    fix->flags |= kPoorGeometry;
+  }
+  if constexpr (D == 2) {
+    fix->position_m = {p.x(), p.y(),
+                       o.dimension == Dimension::kFixedHeight2D ? o.fixed_height_m : 0.0};
+  } else {
+    fix->position_m = p;
+  }
+  fix->residual_rms_m = std::sqrt(cost / static_cast<double>(r->active.size()));
+  for (int i : r->active) fix->used.push_back(r->ids[i]);
+  const uint32_t degrading =
+      kBadRangesDropped | kOutliersRejected | kInconsistentRanges | kPoorGeometry | kNotConverged;
+  fix->status = (fix->flags & degrading) != 0 ? FixStatus::kDegraded : FixStatus::kOk;
+}
+
+}  // namespace
+
+const char* MethodName(Method method) {
+  switch (method) {
+    case Method::kNelderMead:
+      return "nelder-mead";
+    case Method::kDefault:
+      return "default";
+    case Method::kRobust:
+      return "robust";
+  }
+  return "?";
+}
+
+bool ParseMethod(const std::string& name, Method* method) {
+  for (Method m : {Method::kNelderMead, Method::kDefault, Method::kRobust}) {
+    if (name == MethodName(m)) {
+      *method = m;
+      return true;
+    }
+  }
+  return false;
+}
+
+const char* RangeRejectionName(RangeRejection reason) {
+  switch (reason) {
+    case RangeRejection::kNonFinite:
+      return "non_finite_range";
+    case RangeRejection::kNegative:
+      return "negative_range";
+    case RangeRejection::kTooLong:
+      return "range_too_long";
+    case RangeRejection::kDuplicateReceiver:
+      return "duplicate_receiver";
+    case RangeRejection::kNonFiniteReceiver:
+      return "non_finite_receiver_position";
+    case RangeRejection::kOutlier:
+      return "outlier";
+  }
+  return "?";
+}
+
+const char* FixFlagName(FixFlag flag) {
+  switch (flag) {
+    case kTooFewRanges:
+      return "too_few_ranges";
+    case kCollinearReceivers:
+      return "collinear_receivers";
+    case kDegenerateGeometry:
+      return "degenerate_geometry";
+    case kBadRangesDropped:
+      return "bad_ranges_dropped";
+    case kOutliersRejected:
+      return "outliers_rejected";
+    case kInconsistentRanges:
+      return "inconsistent_ranges";
+    case kPoorGeometry:
+      return "poor_geometry";
+    case kNotConverged:
+      return "not_converged";
+    case kMirrorResolved:
+      return "mirror_resolved";
+  }
+  return "?";
+}
+
+std::string DescribeFlags(uint32_t flags) {
+  std::string out;
+  for (uint32_t bit = 1; bit != 0 && bit <= kMirrorResolved; bit <<= 1) {
+    if ((flags & bit) == 0) continue;
+    if (!out.empty()) out += ",";
+    out += FixFlagName(static_cast<FixFlag>(bit));
+  }
+  return out;
+}
+
+bool SolverOptions::IsValid(std::string* error) const {
+  auto fail = [&](const char* what) {
+    if (error != nullptr) *error = what;
+    return false;
+  };
+  if (dimension == Dimension::kFixedHeight2D && !std::isfinite(fixed_height_m)) {
+    return fail("fixed_height_m must be finite");
+  }
+  if (!(range_sigma_m > 0.0) || !std::isfinite(range_sigma_m)) {
+    return fail("range_sigma_m must be positive");
+  }
+  if (!(max_range_m > 0.0)) return fail("max_range_m must be positive");
+  if (outlier_threshold_m < 0.0 || !std::isfinite(outlier_threshold_m)) {
+    return fail("outlier_threshold_m must be zero (automatic) or positive");
+  }
+  if (max_outliers < 0) return fail("max_outliers must not be negative");
+  if (!(max_position_sigma_m > 0.0)) return fail("max_position_sigma_m must be positive");
+  if (max_iterations < 1) return fail("max_iterations must be at least 1");
+  return true;
+}
+
+double SolverOptions::OutlierThreshold() const {
+  if (outlier_threshold_m > 0.0) return outlier_threshold_m;
+  return std::max(4.0 * range_sigma_m, 0.05);
+}
+
+void Solve(const std::vector<RangeMeasurement>& ranges, const SolverOptions& options,
+           const Eigen::Vector3d* initial_guess, Fix* fix) {
+  fix->status = FixStatus::kFailed;
+  fix->flags = 0;
+  fix->position_m.setConstant(kNaN);
+  fix->covariance_m2.setZero();
+  fix->residual_rms_m = kNaN;
+  fix->used.clear();
+  fix->rejected.clear();
+  fix->iterations = 0;
+  Workspace& w = ThreadWorkspace();
+  if (options.dimension == Dimension::k3D) {
+    SolveIn<3>(ranges, options, initial_guess, &w.r3, fix);
+  } else {
+    SolveIn<2>(ranges, options, initial_guess, &w.r2, fix);
+  }
+}
+
+Fix Solve(const std::vector<RangeMeasurement>& ranges, const SolverOptions& options,
+          const Eigen::Vector3d* initial_guess) {
+  Fix fix;
+  Solve(ranges, options, initial_guess, &fix);
+  return fix;
+}
+
+double CramerRaoRmse(const std::vector<Eigen::Vector3d>& receivers_m,
+                     const Eigen::Vector3d& position_m, double sigma_m, Dimension dimension) {
+  const int d = dimension == Dimension::k3D ? 3 : 2;
+  Eigen::Matrix3d info = Eigen::Matrix3d::Zero();
+  for (const Eigen::Vector3d& a : receivers_m) {
+    Eigen::Vector3d u = position_m - a;
+    if (dimension == Dimension::kPlanar2D) u.z() = 0.0;
+    const double n = u.norm();
+    if (n < 1e-12) continue;
+    u /= n;
+    info += u * u.transpose() / (sigma_m * sigma_m);
+  }
+  const Eigen::MatrixXd block = info.topLeftCorner(d, d);
+  Eigen::FullPivLU<Eigen::MatrixXd> lu(block);
+  if (!lu.isInvertible()) return kInf;
+  return std::sqrt(lu.inverse().trace());
+}
+
+}  // namespace roomfix::trilat

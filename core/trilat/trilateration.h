@@ -1,0 +1,157 @@
+#ifndef ROOMFIX_CORE_TRILAT_TRILATERATION_H_
+#define ROOMFIX_CORE_TRILAT_TRILATERATION_H_
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace roomfix::trilat {
+
+// Position from ranges to receivers at known positions: the point p that
+// minimises
+//
+//   F(p) = sum_i (|a_i - p| - d_i)^2
+//
+// over the receivers a_i that answered, with ranges d_i (metres, room frame).
+//
+// Dimensions:
+//  - kFixedHeight2D: p = (x, y, h) with the beacon height h known (the usual
+//    case: the beacon rides at a fixed height on its robot). Unknowns x, y.
+//  - kPlanar2D: anchors and point in one plane; the anchors' z is ignored.
+//  - k3D: x, y, z free. When the receivers are coplanar (all on one height,
+//    the common installation), p and its mirror image through their plane fit
+//    equally well; the solution on the room side is chosen and the fix says so.
+enum class Dimension { kFixedHeight2D, kPlanar2D, k3D };
+
+// kNelderMead: GSL's simplex (nmsimplex2) on F, as the reference paper did;
+//   the baseline every benchmark compares against.
+// kDefault: closed-form linear least-squares start (the range equations
+//   |p|^2 - 2 a_i.p + |a_i|^2 = d_i^2 minus their mean, which removes |p|^2),
+//   refined by Levenberg-Marquardt with the analytic Jacobian; warm-started
+//   from a given point when there is one.
+// kRobust: kDefault plus outlier rejection by consensus over receiver
+//   subsets (see SolverOptions::outlier_threshold_m), for reflections and
+//   non-line-of-sight paths, which only ever make a range longer.
+enum class Method { kNelderMead, kDefault, kRobust };
+
+const char* MethodName(Method method);
+bool ParseMethod(const std::string& name, Method* method);
+
+struct RangeMeasurement {
+  int receiver_id = 0;
+  Eigen::Vector3d receiver_m = Eigen::Vector3d::Zero();
+  double range_m = 0.0;
+};
+
+struct SolverOptions {
+  Method method = Method::kDefault;
+  Dimension dimension = Dimension::kFixedHeight2D;
+  // Beacon height for kFixedHeight2D.
+  double fixed_height_m = 0.0;
+  // Standard deviation of a range, for the covariance and the default
+  // outlier threshold.
+  double range_sigma_m = 0.02;
+  // Ranges above this are impossible in the room (its diagonal plus a
+  // margin) and rejected as input errors.
+  double max_range_m = std::numeric_limits<double>::infinity();
+  // kRobust: a range whose residual exceeds this is an outlier. 0 means
+  // 4 range_sigma_m, floored at 5 cm.
+  double outlier_threshold_m = 0.0;
+  // kRobust: at most this many ranges are rejected as outliers, and always
+  // few enough that the rest still over-determine the position.
+  int max_outliers = 2;
+  // A fix whose position standard deviation (the covariance's largest
+  // eigenvalue, square-rooted) exceeds this is flagged: poor geometry.
+  double max_position_sigma_m = 0.5;
+  int max_iterations = 100;
+  // k3D with coplanar receivers: a point on the room side of their plane.
+  // NaN (the default) takes the floor below the receivers' centroid.
+  Eigen::Vector3d room_side_point_m =
+      Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+
+  bool IsValid(std::string* error) const;
+  // The outlier threshold in effect.
+  double OutlierThreshold() const;
+};
+
+// Why a range was not used.
+enum class RangeRejection : uint8_t {
+  kNonFinite,
+  kNegative,
+  kTooLong,
+  kDuplicateReceiver,
+  kNonFiniteReceiver,
+  kOutlier,
+};
+const char* RangeRejectionName(RangeRejection reason);
+
+struct RejectedRange {
+  int receiver_id = 0;
+  RangeRejection reason = RangeRejection::kOutlier;
+};
+
+enum class FixStatus : uint8_t {
+  kOk,
+  // A position, with a warning in `flags`.
+  kDegraded,
+  // No position: `flags` says why.
+  kFailed,
+};
+
+// What happened, as bits of Fix::flags. The names (FixFlagName) are the
+// STATUS counter names.
+enum FixFlag : uint32_t {
+  kTooFewRanges = 1u << 0,        // failed: fewer valid ranges than needed
+  kCollinearReceivers = 1u << 1,  // failed: receivers on one line
+  kDegenerateGeometry = 1u << 2,  // failed: the normal equations are singular
+  kBadRangesDropped = 1u << 3,    // degraded: some input ranges were invalid
+  kOutliersRejected = 1u << 4,    // degraded: the robust solver dropped ranges
+  kInconsistentRanges = 1u << 5,  // degraded: no consistent subset was found
+  kPoorGeometry = 1u << 6,        // degraded: covariance above the limit
+  kNotConverged = 1u << 7,        // degraded: iteration limit reached
+  kMirrorResolved = 1u << 8,      // note: coplanar receivers, room side chosen
+};
+const char* FixFlagName(FixFlag flag);
+// "too_few_ranges,collinear_receivers" for the flags set.
+std::string DescribeFlags(uint32_t flags);
+
+struct Fix {
+  FixStatus status = FixStatus::kFailed;
+  uint32_t flags = 0;
+  // Room frame. For the 2D modes z is the fixed height (or 0 in kPlanar2D).
+  Eigen::Vector3d position_m = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  // Covariance of (x, y, z), m^2: range_sigma_m^2 (J^T J)^-1 at the
+  // solution. Rows and columns of fixed coordinates are zero.
+  Eigen::Matrix3d covariance_m2 = Eigen::Matrix3d::Zero();
+  // sqrt(F(p) / n) over the ranges used.
+  double residual_rms_m = std::numeric_limits<double>::quiet_NaN();
+  std::vector<int> used;
+  std::vector<RejectedRange> rejected;
+  int iterations = 0;
+
+  bool has_position() const { return status != FixStatus::kFailed; }
+};
+
+// Solves one range set. `initial_guess`, when given (the previous fix of the
+// same beacon), replaces the linear start. Never throws; every failure is in
+// the returned Fix. `fix` is reused so that a caller in a loop does not
+// allocate.
+void Solve(const std::vector<RangeMeasurement>& ranges, const SolverOptions& options,
+           const Eigen::Vector3d* initial_guess, Fix* fix);
+Fix Solve(const std::vector<RangeMeasurement>& ranges, const SolverOptions& options,
+          const Eigen::Vector3d* initial_guess = nullptr);
+
+// Cramer-Rao bound on the RMS position error of any unbiased estimator for
+// a beacon at `position_m`, with independent Gaussian range noise of
+// standard deviation sigma_m: sqrt(trace(I^-1)) with the Fisher information
+// I = sum_i u_i u_i^T / sigma^2, u_i the unit vector from receiver i to the
+// beacon restricted to the free coordinates of `dimension`. Infinite when I
+// is singular.
+double CramerRaoRmse(const std::vector<Eigen::Vector3d>& receivers_m,
+                     const Eigen::Vector3d& position_m, double sigma_m, Dimension dimension);
+
+}  // namespace roomfix::trilat
+
+#endif  // ROOMFIX_CORE_TRILAT_TRILATERATION_H_
