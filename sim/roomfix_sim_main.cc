@@ -7,10 +7,13 @@
 
 #include "msgio/process.h"
 #include "sim/ground_truth_node.h"
+#include "sim/ranges_node.h"
 
 int main(int argc, char** argv) {
   roomfix::ProcessOptions process;
   roomfix::GroundTruthNodeOptions options;
+  roomfix::SimRangesNodeOptions ranges;
+  bool publish_ranges = false;
   double duration_s = 0.0;
   CLI::App app{"roomfix_sim: publishes simulated robots' true poses on POSE_GROUND_TRUTH"};
   roomfix::AddProcessFlags(&app, &process, /*config_required=*/true);
@@ -18,11 +21,29 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--duration", duration_s, "Stop after this many seconds (0: until a signal)")
       ->capture_default_str();
+  app.add_flag("--ranges", publish_ranges,
+               "Also publish range sets on RANGES directly (an ideal radio, bypassing the "
+               "virtual wall devices and zigbee_bridge)");
+  app.add_option("--ranges-rate-hz", ranges.rate_hz, "Firings per second of each beacon")
+      ->capture_default_str();
+  app.add_option("--range-noise", ranges.noise.sigma_m, "Gaussian range noise, m")
+      ->capture_default_str();
+  app.add_option("--nlos-probability", ranges.noise.nlos_probability,
+                 "Share of ranges that take a reflected path (+0.3 to +1.0 m)")
+      ->capture_default_str();
+  app.add_option("--dropout-probability", ranges.noise.dropout_probability,
+                 "Share of receivers that miss a firing")
+      ->capture_default_str();
+  app.add_option("--seed", ranges.seed, "Noise generator seed")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
   std::string error;
   if (!options.IsValid(&error)) {
     std::cerr << "roomfix_sim: --rate-hz: " << error << "\n";
+    return 1;
+  }
+  if (!ranges.IsValid(&error)) {
+    std::cerr << "roomfix_sim: ranges: " << error << "\n";
     return 1;
   }
   auto ctx = roomfix::StartProcess("roomfix_sim", process, &error);

@@ -1,0 +1,73 @@
+#ifndef ROOMFIX_TRILAT_PROC_TRILAT_NODE_H_
+#define ROOMFIX_TRILAT_PROC_TRILAT_NODE_H_
+
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "core/trilat/trilateration.h"
+#include "core/world/site.h"
+#include "msgio/bus.h"
+#include "msgio/process.h"
+#include "roomfix/range_set_t.hpp"
+
+namespace roomfix {
+
+inline constexpr char kRangesChannel[] = "RANGES";
+inline constexpr char kUltrasoundPoseChannel[] = "POSE_ULTRASOUND";
+
+struct TrilatNodeOptions {
+  // Method, dimension and noise model. In kFixedHeight2D the height of each
+  // beacon comes from the site file (fixed_height_m is ignored).
+  trilat::SolverOptions solver;
+  // The previous fix of a beacon seeds the next solve when it is at most
+  // this old (by firing time); a robot moves little in half a second.
+  double warm_start_max_age_s = 0.5;
+  // Height for beacons the site file does not list; NaN refuses them
+  // (counted as unknown_beacon).
+  double unknown_beacon_height_m = std::numeric_limits<double>::quiet_NaN();
+
+  bool IsValid(std::string* error) const;
+};
+
+// Turns each range_set_t on RANGES into a pose2d_t on POSE_ULTRASOUND.
+//
+// Time is the messages' own: the pose is valid at the firing time, the
+// warm start's age is measured between firings, and "now" is the receive
+// time of the range set, so replaying a log gives the recorded poses bit for
+// bit. Every range set gets a pose, a lost one (NaN position) when it could
+// not be solved; why is counted in STATUS: per range ("negative_range",
+// "outlier", ...) and per set ("too_few_ranges", "collinear_receivers",
+// "unknown_beacon", ...).
+class TrilatNode {
+ public:
+  TrilatNode(const Site& site, Bus* bus, const TrilatNodeOptions& options, int64_t start_utime);
+
+  void Tick(int64_t now_utime);
+  void Stop(int64_t now_utime);
+  const StatusReporter& status() const { return status_; }
+
+ private:
+  struct BeaconTrack {
+    int64_t last_fix_utime = 0;
+    Eigen::Vector3d last_position_m;
+    bool has_fix = false;
+  };
+
+  void OnRangeSet(const range_set_t& set, const MessageInfo& info);
+
+  const Site& site_;
+  Bus* bus_;
+  TrilatNodeOptions options_;
+  StatusReporter status_;
+  double max_range_m_ = 0.0;
+  std::unordered_map<int, BeaconTrack> tracks_;
+  std::vector<trilat::RangeMeasurement> ranges_;
+  trilat::Fix fix_;
+};
+
+}  // namespace roomfix
+
+#endif  // ROOMFIX_TRILAT_PROC_TRILAT_NODE_H_

@@ -1,0 +1,174 @@
+#include "trilat_proc/trilat_node.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <map>
+
+#include "roomfix/pose2d_t.hpp"
+#include "tests/testing/test_paths.h"
+
+namespace roomfix {
+namespace {
+
+// Two robots with beacons at different heights in the demo room's corners.
+constexpr char kTwoRobotSite[] =
+    "name: two_robots\n"
+    "room: {size_m: [4, 3], height_m: 3.3}\n"
+    "receivers:\n"
+    "  - {id: 1, address: '0x0000000000000001', position_m: [0, 0, 2.5]}\n"
+    "  - {id: 2, address: '0x0000000000000002', position_m: [4, 0, 2.5]}\n"
+    "  - {id: 3, address: '0x0000000000000003', position_m: [4, 3, 2.5]}\n"
+    "  - {id: 4, address: '0x0000000000000004', position_m: [0, 3, 2.5]}\n"
+    "beacons:\n"
+    "  - {id: 10, address: '0x00000000000000A0', height_m: 1.3}\n"
+    "  - {id: 11, address: '0x00000000000000A1', height_m: 0.4}\n"
+    "robots:\n"
+    "  - {id: 1, beacon_id: 10}\n"
+    "  - {id: 2, beacon_id: 11}\n";
+
+// Exact solves agree with the truth to rounding.
+constexpr double kExact_m = 1e-9;
+
+class TrilatNodeTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string error;
+    ASSERT_TRUE(ParseSite(kTwoRobotSite, "two_robots.yaml", "", &site_, &error)) << error;
+    bus_.Subscribe<pose2d_t>(kUltrasoundPoseChannel, [this](const pose2d_t& p, const MessageInfo&) {
+      poses_.push_back(p);
+    });
+  }
+
+  range_set_t Firing(int beacon_id, int64_t seq, int64_t utime, double x, double y, double z) {
+    range_set_t set{};
+    set.utime = utime;
+    set.beacon_id = beacon_id;
+    set.firing_seq = seq;
+    set.speed_of_sound_mps = 343.0;
+    set.temperature_c = 20.0;
+    set.num_expected = 4;
+    for (const Receiver& r : site_.receivers) {
+      range_t range{};
+      range.receiver_id = r.id;
+      for (int k = 0; k < 3; ++k) range.receiver_position_m[k] = r.position_m[k];
+      range.range_m =
+          std::sqrt(std::pow(r.position_m[0] - x, 2) + std::pow(r.position_m[1] - y, 2) +
+                    std::pow(r.position_m[2] - z, 2));
+      range.time_of_flight_us = range.range_m / 343.0 * 1e6;
+      range.arrival_utime = utime + static_cast<int64_t>(range.time_of_flight_us) + 2000;
+      set.ranges.push_back(range);
+    }
+    set.num_ranges = static_cast<int32_t>(set.ranges.size());
+    return set;
+  }
+
+  void Deliver(const range_set_t& set, int64_t recv_utime) {
+    std::vector<uint8_t> bytes(set.getEncodedSize());
+    set.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+    bus_.Inject(kRangesChannel, bytes.data(), static_cast<int>(bytes.size()), recv_utime);
+  }
+
+  Site site_;
+  LoopbackBus bus_;
+  std::vector<pose2d_t> poses_;
+};
+
+TEST_F(TrilatNodeTest, PublishesThePoseAtTheFiringTimeForTheRobotCarryingTheBeacon) {
+  TrilatNode node(site_, &bus_, TrilatNodeOptions(), 0);
+  Deliver(Firing(10, 77, 5000000, 1.25, 2.0, 1.3), 5012000);
+  ASSERT_EQ(poses_.size(), 1u);
+  const pose2d_t& p = poses_[0];
+  EXPECT_EQ(p.utime, 5000000);
+  EXPECT_EQ(p.latency_us, 12000);
+  EXPECT_EQ(p.source, pose2d_t::SOURCE_ULTRASOUND);
+  EXPECT_EQ(p.robot_id, 1);
+  EXPECT_EQ(p.measurement_seq, 77);
+  EXPECT_NEAR(p.x_m, 1.25, kExact_m);
+  EXPECT_NEAR(p.y_m, 2.0, kExact_m);
+  EXPECT_EQ(p.z_m, 1.3);
+  EXPECT_TRUE(std::isnan(p.heading_rad));
+  EXPECT_TRUE(std::isnan(p.covariance[2][2]));
+  EXPECT_GT(p.covariance[0][0], 0.0);
+  EXPECT_EQ(p.num_measurements, 4);
+  EXPECT_EQ(p.status, pose2d_t::STATUS_OK);
+  EXPECT_EQ(node.status().outputs(), 1);
+}
+
+TEST_F(TrilatNodeTest, SolvesEachBeaconAtItsOwnHeight) {
+  TrilatNode node(site_, &bus_, TrilatNodeOptions(), 0);
+  Deliver(Firing(10, 1, 1000000, 1.0, 1.0, 1.3), 1010000);
+  Deliver(Firing(11, 1, 1000500, 3.0, 2.0, 0.4), 1010500);
+  ASSERT_EQ(poses_.size(), 2u);
+  EXPECT_EQ(poses_[1].robot_id, 2);
+  EXPECT_NEAR(poses_[1].x_m, 3.0, kExact_m);
+  EXPECT_NEAR(poses_[1].y_m, 2.0, kExact_m);
+  EXPECT_EQ(poses_[1].z_m, 0.4);
+}
+
+TEST_F(TrilatNodeTest, WarmStartsFromARecentFixOfTheSameBeaconOnly) {
+  TrilatNode node(site_, &bus_, TrilatNodeOptions(), 0);
+  Deliver(Firing(10, 1, 1000000, 1.0, 1.0, 1.3), 1010000);
+  Deliver(Firing(10, 2, 1100000, 1.02, 1.0, 1.3), 1110000);  // 0.1 s later: warm.
+  Deliver(Firing(11, 1, 1150000, 2.0, 2.0, 0.4), 1160000);   // Other beacon: cold.
+  Deliver(Firing(10, 3, 2100000, 1.5, 1.0, 1.3), 2110000);   // 1 s later: cold.
+  EXPECT_EQ(node.status().counter("warm_starts"), 1);
+  ASSERT_EQ(poses_.size(), 4u);
+  EXPECT_NEAR(poses_[1].x_m, 1.02, kExact_m);
+  EXPECT_NEAR(poses_[3].x_m, 1.5, kExact_m);
+}
+
+TEST_F(TrilatNodeTest, RefusesAnUnknownBeaconAndSaysSo) {
+  TrilatNode node(site_, &bus_, TrilatNodeOptions(), 0);
+  Deliver(Firing(99, 1, 1000000, 1.0, 1.0, 1.3), 1010000);
+  EXPECT_TRUE(poses_.empty());
+  EXPECT_EQ(node.status().rejected("unknown_beacon"), 1);
+  const process_status_t s = node.status().Make(1020000, nullptr);
+  EXPECT_EQ(s.last_error, "range set from beacon 99, which the site file does not list");
+}
+
+TEST_F(TrilatNodeTest, CountsBadRangesByReasonAndStillSolvesWithTheRest) {
+  TrilatNode node(site_, &bus_, TrilatNodeOptions(), 0);
+  range_set_t set = Firing(10, 5, 1000000, 2.0, 1.5, 1.3);
+  range_t extra = set.ranges[0];
+  extra.receiver_id = 7;
+  extra.range_m = -1.0;
+  set.ranges.push_back(extra);
+  extra.receiver_id = 8;
+  extra.range_m = 50.0;  // Longer than the room allows.
+  set.ranges.push_back(extra);
+  set.num_ranges = 6;
+  Deliver(set, 1010000);
+  ASSERT_EQ(poses_.size(), 1u);
+  EXPECT_EQ(poses_[0].status, pose2d_t::STATUS_DEGRADED);
+  EXPECT_NEAR(poses_[0].x_m, 2.0, kExact_m);
+  EXPECT_EQ(node.status().rejected("negative_range"), 1);
+  EXPECT_EQ(node.status().rejected("range_too_long"), 1);
+}
+
+TEST_F(TrilatNodeTest, PublishesALostPoseWhenASetCannotBeSolved) {
+  TrilatNode node(site_, &bus_, TrilatNodeOptions(), 0);
+  range_set_t set = Firing(10, 6, 1000000, 2.0, 1.5, 1.3);
+  set.ranges.resize(2);
+  set.num_ranges = 2;
+  Deliver(set, 1010000);
+  ASSERT_EQ(poses_.size(), 1u);
+  EXPECT_EQ(poses_[0].status, pose2d_t::STATUS_LOST);
+  EXPECT_TRUE(std::isnan(poses_[0].x_m));
+  EXPECT_EQ(node.status().rejected("too_few_ranges"), 1);
+  EXPECT_EQ(node.status().outputs(), 0);
+}
+
+TEST_F(TrilatNodeTest, CountsAMessageThatIsNotARangeSet) {
+  TrilatNode node(site_, &bus_, TrilatNodeOptions(), 0);
+  pose2d_t wrong{};
+  bus_.Publish(kRangesChannel, wrong);
+  const BusStats stats = bus_.stats();
+  std::map<std::string, int64_t> rejected;
+  for (const auto& c : node.status().Make(0, &stats).rejected) rejected[c.name] = c.count;
+  EXPECT_EQ(rejected["undecodable_message"], 1);
+  EXPECT_TRUE(poses_.empty());
+}
+
+}  // namespace
+}  // namespace roomfix
