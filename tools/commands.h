@@ -14,6 +14,8 @@ void AddVersionCommand(CLI::App* app, int* exit_code);
 void AddCheckConfigCommand(CLI::App* app, int* exit_code);
 void AddLogInfoCommand(CLI::App* app, int* exit_code);
 void AddListenCommand(CLI::App* app, int* exit_code);
+void AddSolveCommand(CLI::App* app, int* exit_code);
+void AddBenchCommand(CLI::App* app, int* exit_code);
 
 }  // namespace roomfix
 

@@ -11,6 +11,8 @@ int main(int argc, char** argv) {
   roomfix::AddCheckConfigCommand(&app, &exit_code);
   roomfix::AddLogInfoCommand(&app, &exit_code);
   roomfix::AddListenCommand(&app, &exit_code);
+  roomfix::AddSolveCommand(&app, &exit_code);
+  roomfix::AddBenchCommand(&app, &exit_code);
   CLI11_PARSE(app, argc, argv);
   return exit_code;
 }

@@ -21,8 +21,12 @@ constexpr double kCollinear_m = 0.01;
 // cannot see the out-of-plane coordinate, and the mirror image fits as well.
 constexpr double kCoplanar_m = 0.01;
 constexpr double kCoplanarRatio = 0.05;
-// Levenberg-Marquardt stops when a step moves the point less than this.
-constexpr double kStepTolerance_m = 1e-10;
+// Levenberg-Marquardt stops after a step shorter than this. With zero
+// residuals Gauss-Newton converges quadratically, so the error after such a
+// step is about its square (1e-14 m); with noisy ranges convergence is
+// linear, and what is left is a small fraction of a step far below any
+// range noise.
+constexpr double kStepTolerance_m = 1e-7;
 // Nelder-Mead stops when the simplex is smaller than this (GSL's "size":
 // mean distance of the vertices from their centre).
 constexpr double kSimplexTolerance_m = 1e-7;
@@ -98,25 +102,28 @@ int Refine(const Ranges<D>& r, const std::vector<int>& active, int max_iteration
     for (int k = 0; k < D; ++k) a(k, k) = jtj(k, k) * (1.0 + lambda) + lambda * floor;
     const Vec step = -a.inverse() * jte;
     if (!step.allFinite()) break;
-    // Gauss-Newton converges quadratically near the minimum, so once a step
-    // is this small the remaining error is far below it.
-    if (step.norm() < kStepTolerance_m * std::max(1.0, p->norm())) {
-      *converged = true;
-      break;
-    }
+    const bool small = step.norm() < kStepTolerance_m;
     const Vec candidate = *p + step;
-    const double candidate_cost = Cost(r, active, candidate);
+    // The candidate's normal equations cost little more than its cost alone
+    // and are needed anyway when the step is accepted, which is the rule.
+    Mat candidate_jtj;
+    Vec candidate_jte;
+    const double candidate_cost =
+        NormalEquations(r, active, candidate, &candidate_jtj, &candidate_jte);
     if (candidate_cost <= cost) {
       *p = candidate;
-      cost = NormalEquations(r, active, *p, &jtj, &jte);
+      cost = candidate_cost;
+      jtj = candidate_jtj;
+      jte = candidate_jte;
       lambda = std::max(lambda * 0.1, 1e-12);
     } else {
       lambda *= 10.0;
-      // No step lowers the cost: this is the minimum to rounding.
-      if (lambda > 1e8) {
-        *converged = true;
-        break;
-      }
+    }
+    // No step lowers the cost any more (lambda has grown past any use), or
+    // the last one was negligible: this is the minimum.
+    if (small || lambda > 1e8) {
+      *converged = true;
+      break;
     }
   }
   return it;
@@ -131,6 +138,18 @@ struct Spread {
   Eigen::Matrix<double, D, D> axes;
 };
 
+// Eigen-decomposition of a symmetric 2x2 or 3x3 matrix in closed form
+// (Eigen's computeDirect): iterative solvers cost more than the rest of a
+// 4-receiver solve.
+template <int D>
+void EigenSymmetric(const Eigen::Matrix<double, D, D>& m, Eigen::Matrix<double, D, 1>* values,
+                    Eigen::Matrix<double, D, D>* vectors) {
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, D, D>> eig;
+  eig.computeDirect(m, vectors != nullptr ? Eigen::ComputeEigenvectors : Eigen::EigenvaluesOnly);
+  *values = eig.eigenvalues();
+  if (vectors != nullptr) *vectors = eig.eigenvectors();
+}
+
 template <int D>
 Spread<D> SpreadOf(const Ranges<D>& r, const std::vector<int>& active) {
   Spread<D> s;
@@ -143,9 +162,8 @@ Spread<D> SpreadOf(const Ranges<D>& r, const std::vector<int>& active) {
     scatter += c * c.transpose();
   }
   scatter /= static_cast<double>(active.size());
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, D, D>> eig(scatter);
-  s.variances = eig.eigenvalues().cwiseMax(0.0);
-  s.axes = eig.eigenvectors();
+  EigenSymmetric<D>(scatter, &s.variances, D == 3 ? &s.axes : nullptr);
+  s.variances = s.variances.cwiseMax(0.0);
   return s;
 }
 
@@ -516,10 +534,9 @@ void SolveIn(const std::vector<RangeMeasurement>& input, const SolverOptions& o,
   }
   fix->covariance_m2.setZero();
   fix->covariance_m2.topLeftCorner<D, D>() = cov;
-  if (!cov.allFinite() ||
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, D, D>>(cov, Eigen::EigenvaluesOnly)
-              .eigenvalues()
-              .maxCoeff() > o.max_position_sigma_m * o.max_position_sigma_m) {
+  Vec cov_values = Vec::Constant(kInf);
+  if (cov.allFinite()) EigenSymmetric<D>(cov, &cov_values, nullptr);
+  if (!(cov_values.maxCoeff() <= o.max_position_sigma_m * o.max_position_sigma_m)) {
     fix->flags |= kPoorGeometry;
   }
   if constexpr (D == 2) {

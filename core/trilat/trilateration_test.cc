@@ -21,6 +21,9 @@ constexpr double kExact_m = 1e-9;
 // Nelder-Mead stops when its simplex is below 1e-7 m; the vertex it returns
 // is within a few simplex sizes of the minimum.
 constexpr double kSimplex_m = 1e-5;
+// With noisy ranges Levenberg-Marquardt converges linearly and stops after a
+// step below 1e-7 m; two starts agree to within a few such steps.
+constexpr double kConverged_m = 1e-6;
 
 // The reference installation: receivers in the corners of the 4 x 3 m floor
 // at 2.5 m, beacon at 1.3 m.
@@ -148,7 +151,7 @@ TEST(Solve, WarmStartGivesTheSameFixAsTheLinearStart) {
   const Fix cold = Solve(ranges, FixedHeight(Method::kDefault));
   const Eigen::Vector3d previous(3.0, 0.7, 1.3);
   const Fix warm = Solve(ranges, FixedHeight(Method::kDefault), &previous);
-  EXPECT_NEAR((cold.position_m - warm.position_m).norm(), 0.0, kExact_m);
+  EXPECT_NEAR((cold.position_m - warm.position_m).norm(), 0.0, kConverged_m);
 }
 
 // The covariance is the Gauss-Newton one, sigma^2 (J^T J)^-1; with small

@@ -1,0 +1,27 @@
+#include <CLI/CLI.hpp>
+
+#include "tools/bench_trilat.h"
+#include "tools/commands.h"
+
+namespace roomfix {
+
+void AddBenchCommand(CLI::App* app, int* exit_code) {
+  auto* bench = app->add_subcommand("bench", "Benchmarks that print figures");
+  bench->require_subcommand(1);
+  auto* trilat = bench->add_subcommand(
+      "trilat",
+      "The reference paper's Monte Carlo experiment for Nelder-Mead, the default and the robust "
+      "solver, and trilat_proc's node throughput");
+  auto options = std::make_shared<BenchTrilatOptions>();
+  trilat->add_option("--trials", options->trials, "Random beacon positions per scenario")
+      ->capture_default_str();
+  trilat
+      ->add_option("--node-sets", options->node_sets,
+                   "Range sets pushed through trilat_proc's node")
+      ->capture_default_str();
+  trilat->add_option("--seed", options->seed, "Random seed")->capture_default_str();
+  trilat->add_flag("--json", options->json, "Print one JSON object instead of tables");
+  trilat->callback([options, exit_code] { *exit_code = RunTrilatBench(*options); });
+}
+
+}  // namespace roomfix

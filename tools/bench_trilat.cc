@@ -1,0 +1,274 @@
+#include "tools/bench_trilat.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "core/trilat/trilateration.h"
+#include "core/world/site.h"
+#include "core/world/ultrasound_model.h"
+#include "msgio/bus.h"
+#include "roomfix/pose2d_t.hpp"
+#include "roomfix/range_set_t.hpp"
+#include "trilat_proc/trilat_node.h"
+
+namespace roomfix {
+namespace {
+
+using nlohmann::json;
+using trilat::Method;
+
+// The paper's room: receivers at the corners of a 4 x 3 m rectangle at 2.5 m
+// (six: plus the middles of the long walls), beacon at 1.3 m anywhere on the
+// floor at least 0.2 m from the walls.
+constexpr double kReceiverHeight_m = 2.5;
+constexpr double kBeaconHeight_m = 1.3;
+
+struct Scenario {
+  std::string name;
+  std::string description;
+  std::vector<Eigen::Vector3d> receivers;
+  // Gaussian sigma, or the half-width of uniform noise when `uniform`.
+  double noise_m;
+  bool uniform = false;
+  double nlos_fraction = 0.0;
+};
+
+struct Trial {
+  Eigen::Vector3d truth;
+  std::vector<trilat::RangeMeasurement> ranges;
+  double crlb_m;
+};
+
+struct MethodResult {
+  double median_ns, p99_ns, rmse_m, p95_m, rmse_over_crlb, speedup;
+  int failures;
+};
+
+double Percentile(std::vector<double> v, double q) {
+  std::sort(v.begin(), v.end());
+  const size_t k = std::min(v.size() - 1, static_cast<size_t>(q * (v.size() - 1) + 0.5));
+  return v[k];
+}
+
+// Standard deviation of the noise, which is what the Cramer-Rao bound and
+// the solver's covariance take (uniform on [-a, a] has a / sqrt(3)).
+double Sigma(const Scenario& s) { return s.uniform ? s.noise_m / std::sqrt(3.0) : s.noise_m; }
+
+std::vector<Trial> MakeTrials(const Scenario& s, int n, std::mt19937_64* rng) {
+  std::uniform_real_distribution<double> x(0.2, 3.8), y(0.2, 2.8), unit(0.0, 1.0);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  std::vector<Trial> trials(n);
+  for (Trial& t : trials) {
+    t.truth = {x(*rng), y(*rng), kBeaconHeight_m};
+    for (size_t i = 0; i < s.receivers.size(); ++i) {
+      double e = s.uniform ? s.noise_m * (2.0 * unit(*rng) - 1.0) : s.noise_m * gauss(*rng);
+      if (unit(*rng) < s.nlos_fraction) e += 0.3 + 0.7 * unit(*rng);
+      t.ranges.push_back(
+          {static_cast<int>(i) + 1, s.receivers[i], (s.receivers[i] - t.truth).norm() + e});
+    }
+    t.crlb_m =
+        trilat::CramerRaoRmse(s.receivers, t.truth, Sigma(s), trilat::Dimension::kFixedHeight2D);
+  }
+  return trials;
+}
+
+MethodResult RunMethod(const Scenario& s, const std::vector<Trial>& trials, Method method) {
+  trilat::SolverOptions options;
+  options.method = method;
+  options.dimension = trilat::Dimension::kFixedHeight2D;
+  options.fixed_height_m = kBeaconHeight_m;
+  options.range_sigma_m = Sigma(s);
+  trilat::Fix fix;
+  std::vector<double> times_ns, errors;
+  times_ns.reserve(trials.size());
+  errors.reserve(trials.size());
+  double sum2 = 0.0, crlb2 = 0.0;
+  int failures = 0;
+  // One untimed pass warms caches and GSL's workspace.
+  for (size_t k = 0; k < std::min<size_t>(200, trials.size()); ++k) {
+    trilat::Solve(trials[k].ranges, options, nullptr, &fix);
+  }
+  for (const Trial& t : trials) {
+    const auto start = std::chrono::steady_clock::now();
+    trilat::Solve(t.ranges, options, nullptr, &fix);
+    const auto stop = std::chrono::steady_clock::now();
+    times_ns.push_back(std::chrono::duration<double, std::nano>(stop - start).count());
+    if (!fix.has_position()) {
+      ++failures;
+      continue;
+    }
+    const double e = (fix.position_m - t.truth).head<2>().norm();
+    errors.push_back(e);
+    sum2 += e * e;
+    crlb2 += t.crlb_m * t.crlb_m;
+  }
+  MethodResult r{};
+  r.median_ns = Percentile(times_ns, 0.5);
+  r.p99_ns = Percentile(times_ns, 0.99);
+  r.rmse_m = std::sqrt(sum2 / errors.size());
+  r.p95_m = Percentile(errors, 0.95);
+  r.rmse_over_crlb = r.rmse_m / std::sqrt(crlb2 / errors.size());
+  r.failures = failures;
+  return r;
+}
+
+// trilat_proc's node on memq://: range sets published and handled in
+// batches, as LCM would deliver them from the network.
+json NodeThroughput(int n, uint64_t seed) {
+  Site site;
+  std::string error;
+  const std::string yaml =
+      "name: bench\nroom: {size_m: [4, 3], height_m: 3.3}\nreceivers:\n"
+      "  - {id: 1, address: '0x01', position_m: [0, 0, 2.5]}\n"
+      "  - {id: 2, address: '0x02', position_m: [4, 0, 2.5]}\n"
+      "  - {id: 3, address: '0x03', position_m: [4, 3, 2.5]}\n"
+      "  - {id: 4, address: '0x04', position_m: [0, 3, 2.5]}\n"
+      "beacons:\n  - {id: 1, address: '0x10', height_m: 1.3}\nrobots:\n  - {id: 1, beacon_id: 1}\n";
+  // Addresses need 16 hex digits.
+  std::string text = yaml;
+  for (const char* a : {"0x01'", "0x02'", "0x03'", "0x04'", "0x10'"}) {
+    const std::string from(a);
+    const std::string to = "0x00000000000000" + from.substr(2);
+    text.replace(text.find(from), from.size(), to);
+  }
+  if (!ParseSite(text, "bench.yaml", "", &site, &error)) return {{"error", error}};
+  auto bus = LcmBus::Create("memq://", &error);
+  if (bus == nullptr) return {{"error", error}};
+  TrilatNode node(site, bus.get(), TrilatNodeOptions(), 0);
+  int64_t poses = 0;
+  bus->Subscribe<pose2d_t>(kUltrasoundPoseChannel,
+                           [&](const pose2d_t&, const MessageInfo&) { ++poses; });
+
+  std::mt19937_64 rng(seed);
+  UltrasoundNoise noise;
+  noise.sigma_m = 0.02;
+  std::vector<std::vector<uint8_t>> encoded;
+  const int distinct = 1000;
+  for (int k = 0; k < distinct; ++k) {
+    const double t = k * 0.1;
+    const std::array<double, 3> p = {2.0 + std::cos(t), 1.5 + std::sin(t), 1.3};
+    range_set_t set{};
+    set.utime = 1000000 + k * 100000;
+    set.beacon_id = 1;
+    set.firing_seq = k;
+    set.num_expected = 4;
+    for (const SimulatedRange& s : SimulateRanges(site, p, 20.0, noise, &rng)) {
+      range_t r{};
+      r.receiver_id = s.receiver_id;
+      const Receiver* rc = site.FindReceiver(s.receiver_id);
+      for (int i = 0; i < 3; ++i) r.receiver_position_m[i] = rc->position_m[i];
+      r.range_m = s.measured_m;
+      set.ranges.push_back(r);
+    }
+    set.num_ranges = static_cast<int32_t>(set.ranges.size());
+    std::vector<uint8_t> bytes(set.getEncodedSize());
+    set.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+    encoded.push_back(bytes);
+  }
+  const int batch = 500;
+  const auto start = std::chrono::steady_clock::now();
+  for (int k = 0; k < n; k += batch) {
+    for (int j = k; j < std::min(n, k + batch); ++j) {
+      const auto& b = encoded[j % distinct];
+      bus->PublishRaw(kRangesChannel, b.data(), static_cast<int>(b.size()));
+    }
+    while (bus->Handle(0) > 0) {
+    }
+  }
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return {{"range_sets", n},
+          {"poses", poses},
+          {"seconds", seconds},
+          {"range_sets_per_s", n / seconds},
+          {"transport", "memq://"}};
+}
+
+}  // namespace
+
+int RunTrilatBench(const BenchTrilatOptions& options) {
+  const std::vector<Eigen::Vector3d> four = {{0, 0, kReceiverHeight_m},
+                                             {4, 0, kReceiverHeight_m},
+                                             {4, 3, kReceiverHeight_m},
+                                             {0, 3, kReceiverHeight_m}};
+  std::vector<Eigen::Vector3d> six = four;
+  six.push_back({2, 0, kReceiverHeight_m});
+  six.push_back({2, 3, kReceiverHeight_m});
+  const std::vector<Scenario> scenarios = {
+      {"4rx_gauss_2cm", "4 receivers, Gaussian noise sigma 2 cm", four, 0.02},
+      {"4rx_gauss_5cm", "4 receivers, Gaussian noise sigma 5 cm", four, 0.05},
+      {"4rx_uniform_10cm", "4 receivers, uniform noise +-10 cm (the paper's)", four, 0.10, true},
+      {"6rx_gauss_2cm", "6 receivers, Gaussian noise sigma 2 cm", six, 0.02},
+      {"6rx_gauss_2cm_nlos10", "6 receivers, sigma 2 cm, 10% non-line-of-sight +0.3..1.0 m", six,
+       0.02, false, 0.10},
+  };
+  const std::vector<std::pair<Method, const char*>> methods = {{Method::kNelderMead, "nelder_mead"},
+                                                               {Method::kDefault, "default"},
+                                                               {Method::kRobust, "robust"}};
+
+  json out;
+  std::mt19937_64 rng(options.seed);
+  for (const Scenario& s : scenarios) {
+    const auto trials = MakeTrials(s, options.trials, &rng);
+    json methods_json;
+    std::vector<MethodResult> results;
+    for (const auto& [method, key] : methods) results.push_back(RunMethod(s, trials, method));
+    for (size_t m = 0; m < methods.size(); ++m) {
+      MethodResult& r = results[m];
+      r.speedup = results[0].median_ns / r.median_ns;
+      methods_json[methods[m].second] = {{"median_ns", r.median_ns},
+                                         {"p99_ns", r.p99_ns},
+                                         {"rmse_m", r.rmse_m},
+                                         {"p95_m", r.p95_m},
+                                         {"rmse_over_crlb", r.rmse_over_crlb},
+                                         {"speedup_vs_nelder_mead", r.speedup},
+                                         {"failures", r.failures}};
+    }
+    out["scenarios"][s.name] = {
+        {"description", s.description}, {"trials", options.trials}, {"methods", methods_json}};
+    if (!options.json) {
+      std::printf("\n%s (%d trials)\n", s.description.c_str(), options.trials);
+      std::printf("  %-12s %10s %10s %9s %9s %11s %9s\n", "method", "median_ns", "p99_ns", "rmse_m",
+                  "p95_m", "rmse/crlb", "speedup");
+      for (size_t m = 0; m < methods.size(); ++m) {
+        const MethodResult& r = results[m];
+        std::printf("  %-12s %10.0f %10.0f %9.4f %9.4f %11.3f %8.1fx\n", methods[m].second,
+                    r.median_ns, r.p99_ns, r.rmse_m, r.p95_m, r.rmse_over_crlb, r.speedup);
+      }
+    }
+  }
+  const auto& clean = out["scenarios"]["6rx_gauss_2cm"]["methods"];
+  const auto& nlos = out["scenarios"]["6rx_gauss_2cm_nlos10"]["methods"];
+  json outlier_ratio;
+  for (const char* m : {"nelder_mead", "default", "robust"}) {
+    outlier_ratio[m] = nlos[m]["p95_m"].get<double>() / clean[m]["p95_m"].get<double>();
+  }
+  out["p95_with_outliers_over_without"] = outlier_ratio;
+  out["node"] = NodeThroughput(options.node_sets, options.seed);
+  if (options.json) {
+    std::cout << out.dump() << "\n";
+  } else {
+    std::printf("\n95th-percentile error with 10%% outliers / without (6 receivers):\n");
+    for (const char* m : {"nelder_mead", "default", "robust"}) {
+      std::printf("  %-12s %.2f\n", m, outlier_ratio[m].get<double>());
+    }
+    const json& node = out["node"];
+    if (node.contains("error")) {
+      std::printf("\ntrilat_proc node: %s\n", node["error"].get<std::string>().c_str());
+      return 1;
+    }
+    std::printf("\ntrilat_proc node on memq://: %.0f range sets/s (%d sets, %.3f s, %lld poses)\n",
+                node["range_sets_per_s"].get<double>(), node["range_sets"].get<int>(),
+                node["seconds"].get<double>(), node["poses"].get<long long>());
+  }
+  return 0;
+}
+
+}  // namespace roomfix
