@@ -29,8 +29,13 @@ if [[ "${3:-}" == "--inner" ]]; then
   trap cleanup EXIT
   lcm-logger --flush-interval=100 -f "$log" >"$out/lcm-logger.txt" 2>&1 &
   pids+=($!)
-  sleep 0.3  # let the logger join the group before anything publishes
+  "$bin/trilat_proc" --config "$site" --method robust --log-level info 2>"$out/trilat_proc.txt" &
+  pids+=($!)
+  sleep 0.5  # let the logger and the solver join the group before anything publishes
+  # The simulator publishes the true poses and, standing in for the virtual
+  # wall devices and zigbee_bridge until they exist, noisy range sets.
   "$bin/roomfix_sim" --config "$site" --duration "$seconds" --log-level info \
+    --ranges --range-noise 0.02 --nlos-probability 0.05 --dropout-probability 0.02 \
     2>&1 | sed 's/^/  /'
   sleep 0.3  # let the last messages reach the logger
   cleanup

@@ -67,10 +67,17 @@ int main(int argc, char** argv) {
 
   options.start_utime = roomfix::NowUtime();
   roomfix::GroundTruthNode node(ctx->site, ctx->bus.get(), options);
+  ranges.start_utime = options.start_utime;
+  roomfix::SimRangesNode ranges_node(ctx->site, ctx->bus.get(), ranges);
   roomfix::RunLoopOptions loop;
   loop.duration_s = duration_s;
   const int rc = roomfix::RunLoop(
-      ctx->bus.get(), [&](int64_t now) { node.Tick(now); }, loop);
+      ctx->bus.get(),
+      [&](int64_t now) {
+        node.Tick(now);
+        if (publish_ranges) ranges_node.Tick(now);
+      },
+      loop);
   node.Stop(roomfix::NowUtime());
   spdlog::info("stopped after {} samples", node.samples_published());
   return rc;

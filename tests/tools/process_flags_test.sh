@@ -8,7 +8,7 @@ site=$source/config/sites/demo_room.yaml
 failures=0
 fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
 
-for bin in roomfix_sim; do
+for bin in roomfix_sim trilat_proc; do
   "$build/bin/$bin" --help | grep -q -- '--lcm-url' || fail "$bin --help lacks --lcm-url"
   "$build/bin/$bin" --help | grep -q -- '--config' || fail "$bin --help lacks --config"
   out=$("$build/bin/$bin" --config "$site" --check 2>/dev/null) || fail "$bin --check failed"

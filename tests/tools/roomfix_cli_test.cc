@@ -1,0 +1,133 @@
+// The `roomfix` command's solve and bench subcommands, run as a user would.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "tests/testing/test_paths.h"
+
+namespace roomfix {
+namespace {
+
+using nlohmann::json;
+using testing::BinDir;
+using testing::ChildProcess;
+using testing::ReadFile;
+using testing::TempDir;
+using testing::WriteFile;
+
+// Runs `roomfix ARGS...`, returns stdout lines as JSON (non-JSON lines fail).
+std::vector<json> RunJsonLines(const std::vector<std::string>& args, int* exit_code) {
+  TempDir dir;
+  std::vector<std::string> argv = {BinDir() + "/roomfix"};
+  argv.insert(argv.end(), args.begin(), args.end());
+  ChildProcess p(argv, dir.File("out.txt"));
+  *exit_code = p.Wait(120);
+  std::vector<json> out;
+  std::istringstream lines(ReadFile(dir.File("out.txt")));
+  std::string line;
+  while (std::getline(lines, line)) {
+    json j = json::parse(line, nullptr, false);
+    EXPECT_FALSE(j.is_discarded()) << "not JSON: " << line;
+    out.push_back(j);
+  }
+  return out;
+}
+
+TEST(RoomfixSolve, AnswersEachLineAndReportsMalformedOnesWithoutStopping) {
+  TempDir dir;
+  // Beacon at (1.2, 0.9, 1.3) under four corner receivers at 2.5 m.
+  auto range = [](double x, double y, double z) {
+    return std::sqrt(std::pow(x - 1.2, 2) + std::pow(y - 0.9, 2) + std::pow(z - 1.3, 2));
+  };
+  std::ostringstream in;
+  in.precision(17);
+  in << R"({"anchors": [[0,0,2.5],[4,0,2.5],[4,3,2.5],[0,3,2.5]], "distances": [)"
+     << range(0, 0, 2.5) << "," << range(4, 0, 2.5) << "," << range(4, 3, 2.5) << ","
+     << range(0, 3, 2.5) << R"(], "height": 1.3})"
+     << "\n";
+  in << "this is not json\n";
+  in << R"({"anchors": [[0,0],[5,0],[5,4]], "distances": [3, 4]})"
+     << "\n";
+  // Planar 2D: (3, 4) from (0, 0) is 5, from (5, 0) sqrt(20), from (5, 4) 2.
+  in << R"({"anchors": [[0,0],[5,0],[5,4]], "distances": [5, 4.47213595499958, 2]})"
+     << "\n";
+  in << R"({"anchors": [[0,0,2.5],[4,0,2.5],[4,3,2.5],[0,3,2.5],[2,0,2.5],[2,3,2.5]],)"
+     << R"( "distances": [1.9, 2.9, 3.3, 2.4, 1.7, 2.2], "height": 1.3, "method": "robust"})"
+     << "\n";
+  in << R"({"anchors": [[0,0,2.5],[4,0,2.5]], "distances": [1, 2], "height": 1.3})"
+     << "\n";
+  in << R"({"anchors": [[0,0,2.5],[4,0,2.5],[4,3,2.5]], "distances": [1, 2, 3], "method": "magic"})"
+     << "\n";
+  ASSERT_TRUE(WriteFile(dir.File("in.jsonl"), in.str()));
+
+  int rc = 0;
+  const auto out = RunJsonLines({"solve", dir.File("in.jsonl")}, &rc);
+  EXPECT_EQ(rc, 2);  // Some lines failed.
+  ASSERT_EQ(out.size(), 7u);
+
+  EXPECT_EQ(out[0]["status"], "ok");
+  EXPECT_NEAR(out[0]["position"][0].get<double>(), 1.2, 1e-9);
+  EXPECT_NEAR(out[0]["position"][1].get<double>(), 0.9, 1e-9);
+  EXPECT_EQ(out[0]["position"][2].get<double>(), 1.3);
+  EXPECT_EQ(out[0]["used"], json::array({0, 1, 2, 3}));
+  EXPECT_EQ(out[0]["covariance"].size(), 3u);
+
+  EXPECT_EQ(out[1]["line"], 2);
+  EXPECT_TRUE(out[1]["error"].get<std::string>().find("parse error") != std::string::npos)
+      << out[1];
+
+  EXPECT_EQ(out[2]["line"], 3);
+  EXPECT_EQ(out[2]["error"], "\"anchors\" and \"distances\" differ in length (3 and 2)");
+
+  EXPECT_EQ(out[3]["status"], "ok");
+  EXPECT_EQ(out[3]["position"].size(), 2u);
+  EXPECT_NEAR(out[3]["position"][0].get<double>(), 3.0, 1e-9);
+  EXPECT_NEAR(out[3]["position"][1].get<double>(), 4.0, 1e-9);
+
+  EXPECT_EQ(out[4]["method"], "robust");
+  EXPECT_TRUE(out[4].contains("rejected"));
+
+  EXPECT_EQ(out[5]["status"], "failed");
+  EXPECT_EQ(out[5]["flags"], "too_few_ranges");
+  EXPECT_TRUE(out[5]["position"][0].is_null());
+
+  EXPECT_EQ(out[6]["line"], 7);
+  EXPECT_EQ(out[6]["error"], "\"method\" must be \"nelder-mead\", \"default\" or \"robust\"");
+}
+
+// The benchmark's figures are checked for shape and accuracy only; its
+// timings are printed, never asserted (the machine is shared).
+TEST(RoomfixBenchTrilat, PrintsEveryMethodForEveryScenarioAsJson) {
+  int rc = 0;
+  const auto out =
+      RunJsonLines({"bench", "trilat", "--trials", "2000", "--node-sets", "2000", "--json"}, &rc);
+  ASSERT_EQ(rc, 0);
+  ASSERT_EQ(out.size(), 1u);
+  const json& b = out[0];
+  for (const char* scenario : {"4rx_gauss_2cm", "4rx_gauss_5cm", "4rx_uniform_10cm",
+                               "6rx_gauss_2cm", "6rx_gauss_2cm_nlos10"}) {
+    ASSERT_TRUE(b["scenarios"].contains(scenario)) << scenario;
+    for (const char* method : {"nelder_mead", "default", "robust"}) {
+      const json& m = b["scenarios"][scenario]["methods"][method];
+      for (const char* key :
+           {"median_ns", "p99_ns", "rmse_m", "p95_m", "rmse_over_crlb", "speedup_vs_nelder_mead"}) {
+        ASSERT_TRUE(m.contains(key) && m[key].is_number())
+            << scenario << " " << method << " " << key;
+      }
+      EXPECT_EQ(m["failures"], 0);
+    }
+  }
+  // With Gaussian noise every method is efficient: 2000 trials estimate the
+  // RMSE to about 1.6%, so 10% from the bound is a real failure.
+  for (const char* method : {"nelder_mead", "default", "robust"}) {
+    EXPECT_NEAR(b["scenarios"]["4rx_gauss_2cm"]["methods"][method]["rmse_over_crlb"].get<double>(),
+                1.0, 0.10)
+        << method;
+  }
+  EXPECT_EQ(b["node"]["poses"], 2000);
+}
+
+}  // namespace
+}  // namespace roomfix
