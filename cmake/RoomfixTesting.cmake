@@ -1,7 +1,9 @@
 # Test helpers shared by every folder.
 #
 # Tests find the source tree, the build tree and the real reference data
-# through these environment variables, never through paths baked into code.
+# through these environment variables; tests/testing compiles the same paths
+# in as defaults, which is what GoogleTest-discovered tests use (a list-valued
+# ENVIRONMENT does not survive gtest_discover_tests' generated script).
 set(ROOMFIX_TEST_ENVIRONMENT
   "ROOMFIX_SOURCE_DIR=${CMAKE_SOURCE_DIR}"
   "ROOMFIX_BUILD_DIR=${CMAKE_BINARY_DIR}"
@@ -18,7 +20,7 @@ function(roomfix_add_gtest name)
   target_link_libraries(${name} PRIVATE ${ARG_LIBS} roomfix_testing GTest::gtest_main)
   gtest_discover_tests(${name}
     DISCOVERY_TIMEOUT 60
-    PROPERTIES ENVIRONMENT "${ROOMFIX_TEST_ENVIRONMENT}" TIMEOUT 300)
+    PROPERTIES TIMEOUT 300)
 endfunction()
 
 # roomfix_add_netns_test(<name> COMMAND <cmd> [args...]): runs the command in

@@ -16,6 +16,7 @@ void AddLogInfoCommand(CLI::App* app, int* exit_code);
 void AddListenCommand(CLI::App* app, int* exit_code);
 void AddSolveCommand(CLI::App* app, int* exit_code);
 void AddBenchCommand(CLI::App* app, int* exit_code);
+void AddCompareCommand(CLI::App* app, int* exit_code);
 
 }  // namespace roomfix
 

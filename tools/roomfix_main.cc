@@ -13,6 +13,7 @@ int main(int argc, char** argv) {
   roomfix::AddListenCommand(&app, &exit_code);
   roomfix::AddSolveCommand(&app, &exit_code);
   roomfix::AddBenchCommand(&app, &exit_code);
+  roomfix::AddCompareCommand(&app, &exit_code);
   CLI11_PARSE(app, argc, argv);
   return exit_code;
 }

@@ -523,6 +523,12 @@ void SolveIn(const std::vector<RangeMeasurement>& input, const SolverOptions& o,
   }
 
   if (!converged) fix->flags |= kNotConverged;
+  // Whatever the method, a residual beyond the outlier threshold means the
+  // ranges disagree: with too little redundancy to tell which one is wrong
+  // (three ranges in 2D), or outside robust mode, the fix is still flagged.
+  double worst_residual = 0.0;
+  Residuals(*r, r->active, p, &worst_residual);
+  if (worst_residual > o.OutlierThreshold()) fix->flags |= kInconsistentRanges;
   Eigen::Matrix<double, D, D> jtj;
   Vec jte;
   const double cost = NormalEquations(*r, r->active, p, &jtj, &jte);

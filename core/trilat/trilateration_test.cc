@@ -221,6 +221,21 @@ TEST(Solve, RobustModeRejectsTwoOutliersAmongSix) {
   EXPECT_NEAR((fix.position_m - beacon).norm(), 0.0, kExact_m);
 }
 
+// Three ranges in 2D leave one degree of redundancy: enough to see that a
+// range is wrong, not which. The fix is kept but flagged. (Where the three
+// circles can still nearly meet, as at (2.5, 1.5) here, even that is
+// invisible: a fourth receiver is what makes outliers detectable everywhere.)
+TEST(Solve, FlagsRangesThatDisagreeWhenTheOutlierCannotBeIdentified) {
+  auto ranges = ExactRanges({{0, 0, 2.5}, {4, 0, 2.5}, {4, 3, 2.5}}, {0.5, 1.5, 1.3});
+  ranges[1].range_m += 0.6;
+  for (Method method : {Method::kDefault, Method::kRobust}) {
+    const Fix fix = Solve(ranges, FixedHeight(method));
+    EXPECT_EQ(fix.status, FixStatus::kDegraded) << MethodName(method);
+    EXPECT_EQ(fix.flags, static_cast<uint32_t>(kInconsistentRanges)) << DescribeFlags(fix.flags);
+    EXPECT_TRUE(fix.rejected.empty());
+  }
+}
+
 TEST(Solve, GivesNoPositionWithFewerRangesThanTheModeNeeds) {
   const auto ranges = ExactRanges({{0, 0, 2.5}, {4, 0, 2.5}}, {1, 1, 1.3});
   const Fix fix = Solve(ranges, FixedHeight(Method::kDefault));

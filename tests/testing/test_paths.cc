@@ -24,12 +24,12 @@ std::string Env(const char* name, const std::string& fallback) {
 }
 }  // namespace
 
-std::string SourceDir() { return Env("ROOMFIX_SOURCE_DIR", "."); }
-std::string BuildDir() { return Env("ROOMFIX_BUILD_DIR", "."); }
+std::string SourceDir() { return Env("ROOMFIX_SOURCE_DIR", ROOMFIX_DEFAULT_SOURCE_DIR); }
+std::string BuildDir() { return Env("ROOMFIX_BUILD_DIR", ROOMFIX_DEFAULT_BUILD_DIR); }
 std::string BinDir() { return BuildDir() + "/bin"; }
 
 std::string SharedDataDir() {
-  const std::string dir = Env("ROOMFIX_SHARED_DATA_DIR", SourceDir() + "/../shared/data");
+  const std::string dir = Env("ROOMFIX_SHARED_DATA_DIR", ROOMFIX_DEFAULT_SHARED_DATA_DIR);
   return std::filesystem::is_directory(dir) ? dir : "";
 }
 

@@ -1,0 +1,135 @@
+// roomfix compare: each pose source in a log against the simulator's ground
+// truth: error, rate and latency. `make demo` prints it and writes its JSON.
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "core/analysis/track_error.h"
+#include "msgio/log.h"
+#include "msgio/message_json.h"
+#include "roomfix/pose2d_t.hpp"
+#include "tools/commands.h"
+
+namespace roomfix {
+namespace {
+
+const char* SourceName(int8_t source) {
+  switch (source) {
+    case pose2d_t::SOURCE_CAMERA:
+      return "camera";
+    case pose2d_t::SOURCE_ULTRASOUND:
+      return "ultrasound";
+    case pose2d_t::SOURCE_FUSED:
+      return "fused";
+    case pose2d_t::SOURCE_GROUND_TRUTH:
+      return "ground_truth";
+    default:
+      return "unknown";
+  }
+}
+
+struct SourceTrack {
+  std::vector<analysis::TimedPosition> positions;
+  std::vector<double> latencies_ms;
+  int lost = 0;
+};
+
+// Ground truth is sampled at 30 Hz or more; a longer gap means it was not
+// running, and nothing is compared there.
+constexpr int64_t kMaxReferenceGap_us = 200000;
+
+}  // namespace
+
+void AddCompareCommand(CLI::App* app, int* exit_code) {
+  auto* cmd = app->add_subcommand(
+      "compare", "Error, rate and latency of every pose source in a log against ground truth");
+  auto log_path = std::make_shared<std::string>();
+  auto json_path = std::make_shared<std::string>();
+  cmd->add_option("LOG", *log_path, "LCM log with POSE_* channels")->required();
+  cmd->add_option("--json", *json_path, "Also write the summary as JSON to this file");
+  cmd->callback([log_path, json_path, exit_code] {
+    std::string error;
+    auto reader = LogReader::Open(*log_path, &error);
+    if (reader == nullptr) {
+      std::cerr << "roomfix compare: " << error << "\n";
+      *exit_code = 1;
+      return;
+    }
+    // (source, robot) -> track
+    std::map<std::pair<std::string, int>, SourceTrack> tracks;
+    LogEvent e;
+    int undecodable = 0;
+    while (reader->Next(&e)) {
+      if (e.channel.rfind("POSE_", 0) != 0) continue;
+      pose2d_t p{};
+      if (p.decode(e.data.data(), 0, static_cast<int>(e.data.size())) !=
+          static_cast<int>(e.data.size())) {
+        ++undecodable;
+        continue;
+      }
+      SourceTrack& t = tracks[{SourceName(p.source), p.robot_id}];
+      if (p.status == pose2d_t::STATUS_LOST) {
+        ++t.lost;
+        continue;
+      }
+      t.positions.push_back({p.utime, p.x_m, p.y_m});
+      t.latencies_ms.push_back(p.latency_us * 1e-3);
+    }
+    nlohmann::json out;
+    out["log"] = *log_path;
+    std::printf("%-12s %5s %7s %8s %8s %8s %8s %12s %5s\n", "source", "robot", "fixes", "rate_hz",
+                "rmse_m", "p95_m", "max_m", "latency_ms", "lost");
+    for (auto& [key, t] : tracks) {
+      if (key.first == "ground_truth") continue;
+      std::sort(t.positions.begin(), t.positions.end(),
+                [](const auto& a, const auto& b) { return a.utime < b.utime; });
+      const double span_s = t.positions.size() > 1
+                                ? (t.positions.back().utime - t.positions.front().utime) * 1e-6
+                                : 0;
+      const double rate = span_s > 0 ? (t.positions.size() - 1) / span_s : 0.0;
+      const double latency = analysis::Percentile(t.latencies_ms, 0.5);
+      nlohmann::json j = {{"fixes", t.positions.size()},
+                          {"lost", t.lost},
+                          {"rate_hz", rate},
+                          {"latency_ms_median", latency}};
+      auto truth = tracks.find({"ground_truth", key.second});
+      analysis::ErrorSummary s;
+      if (truth != tracks.end()) {
+        auto& ref = truth->second.positions;
+        std::sort(ref.begin(), ref.end(),
+                  [](const auto& a, const auto& b) { return a.utime < b.utime; });
+        s = analysis::CompareToReference(t.positions, ref, kMaxReferenceGap_us);
+        j["rmse_m"] = s.rmse_m;
+        j["p95_m"] = s.p95_m;
+        j["max_m"] = s.max_m;
+        j["compared"] = s.compared;
+      }
+      std::printf("%-12s %5d %7zu %8.2f %8.4f %8.4f %8.4f %12.1f %5d\n", key.first.c_str(),
+                  key.second, t.positions.size(), rate, s.rmse_m, s.p95_m, s.max_m, latency,
+                  t.lost);
+      // One robot per source in the summary (the first); all in "robots".
+      if (!out["sources"].contains(key.first)) out["sources"][key.first] = j;
+      out["robots"][std::to_string(key.second)][key.first] = j;
+    }
+    if (undecodable > 0) std::printf("%d POSE_* events did not decode as pose2d_t\n", undecodable);
+    if (reader->damaged())
+      std::printf("the log is damaged after byte %lld\n",
+                  static_cast<long long>(reader->bytes_read()));
+    if (!json_path->empty()) {
+      std::ofstream f(*json_path);
+      f << out.dump(2) << "\n";
+      if (!f) {
+        std::cerr << "roomfix compare: cannot write " << *json_path << "\n";
+        *exit_code = 1;
+        return;
+      }
+    }
+    *exit_code = 0;
+  });
+}
+
+}  // namespace roomfix
