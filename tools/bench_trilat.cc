@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "core/analysis/track_error.h"
 #include "core/trilat/trilateration.h"
 #include "core/world/site.h"
 #include "core/world/ultrasound_model.h"
@@ -50,12 +51,6 @@ struct MethodResult {
   double median_ns, p99_ns, rmse_m, p95_m, rmse_over_crlb, speedup;
   int failures;
 };
-
-double Percentile(std::vector<double> v, double q) {
-  std::sort(v.begin(), v.end());
-  const size_t k = std::min(v.size() - 1, static_cast<size_t>(q * (v.size() - 1) + 0.5));
-  return v[k];
-}
 
 // Standard deviation of the noise, which is what the Cramer-Rao bound and
 // the solver's covariance take (uniform on [-a, a] has a / sqrt(3)).
@@ -110,10 +105,10 @@ MethodResult RunMethod(const Scenario& s, const std::vector<Trial>& trials, Meth
     crlb2 += t.crlb_m * t.crlb_m;
   }
   MethodResult r{};
-  r.median_ns = Percentile(times_ns, 0.5);
-  r.p99_ns = Percentile(times_ns, 0.99);
+  r.median_ns = analysis::Percentile(times_ns, 0.5);
+  r.p99_ns = analysis::Percentile(times_ns, 0.99);
   r.rmse_m = std::sqrt(sum2 / errors.size());
-  r.p95_m = Percentile(errors, 0.95);
+  r.p95_m = analysis::Percentile(errors, 0.95);
   r.rmse_over_crlb = r.rmse_m / std::sqrt(crlb2 / errors.size());
   r.failures = failures;
   return r;

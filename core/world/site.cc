@@ -131,6 +131,18 @@ class Reader {
     return address;
   }
 
+  // Reads the required integer `field` of an entry and checks that no
+  // earlier entry had it ("duplicate <what> id N").
+  int UniqueId(const YAML::Node& map, const std::string& key, const char* field, const char* what,
+               std::set<int>* seen) const {
+    const YAML::Node node = Required(map, key, field);
+    const int id = Int(node, key + "." + field);
+    if (!seen->insert(id).second) {
+      Fail(node, key + "." + field, std::string("duplicate ") + what + " id " + std::to_string(id));
+    }
+    return id;
+  }
+
   static std::string Join(const std::string& key, const std::string& name) {
     return key.empty() ? name : key + "." + name;
   }
@@ -247,11 +259,7 @@ void ParseRadios(const Reader& r, const YAML::Node& root, Site* site) {
     r.ExpectMap(node, key);
     r.OnlyKeys(node, key, {"id", "address", "position_m", "range_offset_m"});
     Receiver rc;
-    const YAML::Node id = r.Required(node, key, "id");
-    rc.id = r.Int(id, key + ".id");
-    if (!receiver_ids.insert(rc.id).second) {
-      r.Fail(id, key + ".id", "duplicate receiver id " + std::to_string(rc.id));
-    }
+    rc.id = r.UniqueId(node, key, "id", "receiver", &receiver_ids);
     const YAML::Node address = r.Required(node, key, "address");
     rc.address = r.Address(address, key + ".address");
     claim_address(address, key + ".address", rc.address);
@@ -283,11 +291,7 @@ void ParseRadios(const Reader& r, const YAML::Node& root, Site* site) {
     r.ExpectMap(node, key);
     r.OnlyKeys(node, key, {"id", "address", "height_m"});
     Beacon b;
-    const YAML::Node id = r.Required(node, key, "id");
-    b.id = r.Int(id, key + ".id");
-    if (!beacon_ids.insert(b.id).second) {
-      r.Fail(id, key + ".id", "duplicate beacon id " + std::to_string(b.id));
-    }
+    b.id = r.UniqueId(node, key, "id", "beacon", &beacon_ids);
     const YAML::Node address = r.Required(node, key, "address");
     b.address = r.Address(address, key + ".address");
     claim_address(address, key + ".address", b.address);
@@ -312,11 +316,7 @@ void ParseRobots(const Reader& r, const YAML::Node& root, Site* site) {
     r.ExpectMap(node, key);
     r.OnlyKeys(node, key, {"id", "name", "beacon_id"});
     Robot robot;
-    const YAML::Node id = r.Required(node, key, "id");
-    robot.id = r.Int(id, key + ".id");
-    if (!ids.insert(robot.id).second) {
-      r.Fail(id, key + ".id", "duplicate robot id " + std::to_string(robot.id));
-    }
+    robot.id = r.UniqueId(node, key, "id", "robot", &ids);
     if (node["name"]) robot.name = r.String(node["name"], key + ".name");
     if (const YAML::Node beacon = node["beacon_id"]) {
       robot.beacon_id = r.Int(beacon, key + ".beacon_id");
@@ -374,11 +374,7 @@ void ParseCameras(const Reader& r, const YAML::Node& root, const std::string& ba
                {"id", "device", "resolution", "fps", "pixel_format", "mount_position_m",
                 "field_of_view_deg", "properties", "calibration", "marker_classes", "robots"});
     Camera cam;
-    const YAML::Node id = r.Required(node, key, "id");
-    cam.id = r.Int(id, key + ".id");
-    if (!ids.insert(cam.id).second) {
-      r.Fail(id, key + ".id", "duplicate camera id " + std::to_string(cam.id));
-    }
+    cam.id = r.UniqueId(node, key, "id", "camera", &ids);
     cam.device = r.String(r.Required(node, key, "device"), key + ".device");
     const YAML::Node resolution = r.Required(node, key, "resolution");
     const auto wh = r.Ints<2>(resolution, key + ".resolution");
