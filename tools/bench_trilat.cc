@@ -206,7 +206,8 @@ int RunTrilatBench(const BenchTrilatOptions& options) {
   };
   const std::vector<std::pair<Method, const char*>> methods = {{Method::kNelderMead, "nelder_mead"},
                                                                {Method::kDefault, "default"},
-                                                               {Method::kRobust, "robust"}};
+                                                               {Method::kRobust, "robust"},
+                                                               {Method::kCauchy, "cauchy"}};
 
   json out;
   std::mt19937_64 rng(options.seed);
@@ -242,7 +243,7 @@ int RunTrilatBench(const BenchTrilatOptions& options) {
   const auto& clean = out["scenarios"]["6rx_gauss_2cm"]["methods"];
   const auto& nlos = out["scenarios"]["6rx_gauss_2cm_nlos10"]["methods"];
   json outlier_ratio;
-  for (const char* m : {"nelder_mead", "default", "robust"}) {
+  for (const char* m : {"nelder_mead", "default", "robust", "cauchy"}) {
     outlier_ratio[m] = nlos[m]["p95_m"].get<double>() / clean[m]["p95_m"].get<double>();
   }
   out["p95_with_outliers_over_without"] = outlier_ratio;
@@ -251,7 +252,7 @@ int RunTrilatBench(const BenchTrilatOptions& options) {
     std::cout << out.dump() << "\n";
   } else {
     std::printf("\n95th-percentile error with 10%% outliers / without (6 receivers):\n");
-    for (const char* m : {"nelder_mead", "default", "robust"}) {
+    for (const char* m : {"nelder_mead", "default", "robust", "cauchy"}) {
       std::printf("  %-12s %.2f\n", m, outlier_ratio[m].get<double>());
     }
     const json& node = out["node"];

@@ -69,7 +69,8 @@ json SolveOne(const json& in) {
   if (in.contains("method")) {
     if (!in["method"].is_string() ||
         !trilat::ParseMethod(in["method"].get<std::string>(), &options.method)) {
-      throw std::runtime_error("\"method\" must be \"nelder-mead\", \"default\" or \"robust\"");
+      throw std::runtime_error(
+          "\"method\" must be \"nelder-mead\", \"default\", \"robust\" or \"cauchy\"");
     }
   }
   if (in.contains("sigma")) {

@@ -14,9 +14,11 @@ int main(int argc, char** argv) {
   std::string dimension = "fixed-height";
   CLI::App app{"trilat_proc: trilaterates each range set on RANGES into a pose on POSE_ULTRASOUND"};
   roomfix::AddProcessFlags(&app, &process, /*config_required=*/true);
-  app.add_option("--method", method, "nelder-mead (the reference), default, or robust")
+  app.add_option("--method", method,
+                 "nelder-mead (the reference), default, robust (consensus), or cauchy "
+                 "(M-estimator)")
       ->capture_default_str()
-      ->check(CLI::IsMember({"nelder-mead", "default", "robust"}));
+      ->check(CLI::IsMember({"nelder-mead", "default", "robust", "cauchy"}));
   app.add_option("--dimension", dimension,
                  "fixed-height (2D, beacon height from the site file), planar, or 3d")
       ->capture_default_str()

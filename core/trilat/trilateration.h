@@ -34,7 +34,10 @@ enum class Dimension { kFixedHeight2D, kPlanar2D, k3D };
 // kRobust: kDefault plus outlier rejection by consensus over receiver
 //   subsets (see SolverOptions::outlier_threshold_m), for reflections and
 //   non-line-of-sight paths, which only ever make a range longer.
-enum class Method { kNelderMead, kDefault, kRobust };
+// kCauchy: the M-estimator alternative to kRobust: kDefault's start, then
+//   iteratively reweighted least squares with the Cauchy loss. Kept so the
+//   benchmark can show which outlier strategy works better.
+enum class Method { kNelderMead, kDefault, kRobust, kCauchy };
 
 const char* MethodName(Method method);
 bool ParseMethod(const std::string& name, Method* method);

@@ -94,7 +94,8 @@ TEST(RoomfixSolve, AnswersEachLineAndReportsMalformedOnesWithoutStopping) {
   EXPECT_TRUE(out[5]["position"][0].is_null());
 
   EXPECT_EQ(out[6]["line"], 7);
-  EXPECT_EQ(out[6]["error"], "\"method\" must be \"nelder-mead\", \"default\" or \"robust\"");
+  EXPECT_EQ(out[6]["error"],
+            "\"method\" must be \"nelder-mead\", \"default\", \"robust\" or \"cauchy\"");
 }
 
 // The benchmark's figures are checked for shape and accuracy only; its
@@ -109,7 +110,7 @@ TEST(RoomfixBenchTrilat, PrintsEveryMethodForEveryScenarioAsJson) {
   for (const char* scenario : {"4rx_gauss_2cm", "4rx_gauss_5cm", "4rx_uniform_10cm",
                                "6rx_gauss_2cm", "6rx_gauss_2cm_nlos10"}) {
     ASSERT_TRUE(b["scenarios"].contains(scenario)) << scenario;
-    for (const char* method : {"nelder_mead", "default", "robust"}) {
+    for (const char* method : {"nelder_mead", "default", "robust", "cauchy"}) {
       const json& m = b["scenarios"][scenario]["methods"][method];
       for (const char* key :
            {"median_ns", "p99_ns", "rmse_m", "p95_m", "rmse_over_crlb", "speedup_vs_nelder_mead"}) {
