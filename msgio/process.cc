@@ -77,6 +77,10 @@ void StatusReporter::Count(const std::string& name, int64_t n) {
   std::lock_guard<std::mutex> lock(mutex_);
   counters_[name] += n;
 }
+void StatusReporter::SetCounter(const std::string& name, int64_t value) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  counters_[name] = value;
+}
 void StatusReporter::SetState(int8_t state) {
   std::lock_guard<std::mutex> lock(mutex_);
   state_ = state;

@@ -52,6 +52,8 @@ class StatusReporter {
   void Reject(const std::string& reason, int64_t n = 1);
   // Any other counter, by name.
   void Count(const std::string& name, int64_t n = 1);
+  // A gauge: a named value that is set rather than added to (queue depth).
+  void SetCounter(const std::string& name, int64_t value);
   void SetState(int8_t state);
   void SetError(const std::string& text, int64_t utime);
 

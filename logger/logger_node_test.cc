@@ -1,0 +1,174 @@
+#include "logger/logger_node.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+
+#include "tests/testing/test_paths.h"
+
+namespace roomfix {
+namespace {
+
+using testing::TempDir;
+
+std::vector<LogEvent> ReadAll(const std::string& path) {
+  std::string error;
+  auto reader = LogReader::Open(path, &error);
+  EXPECT_NE(reader, nullptr) << error;
+  std::vector<LogEvent> out;
+  LogEvent e;
+  while (reader != nullptr && reader->Next(&e)) out.push_back(e);
+  return out;
+}
+
+std::vector<uint8_t> Payload(int k, int size) {
+  std::vector<uint8_t> b(size);
+  for (int i = 0; i < size; ++i) b[i] = static_cast<uint8_t>(k * 31 + i);
+  return b;
+}
+
+class LoggerNodeTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string error;
+    bus_ = LcmBus::Create("memq://", &error);
+    ASSERT_NE(bus_, nullptr) << error;
+  }
+  void Publish(int n, int size, const std::string& channel = "DATA") {
+    for (int k = 0; k < n; ++k) {
+      const auto b = Payload(k, size);
+      bus_->PublishRaw(channel, b.data(), size);
+      while (bus_->Handle(0) > 0) {
+      }
+    }
+  }
+  TempDir dir_;
+  std::unique_ptr<LcmBus> bus_;
+};
+
+TEST_F(LoggerNodeTest, RecordsEveryEventWithItsChannelPayloadAndReceiveTime) {
+  LoggerOptions o;
+  o.path = dir_.File("a.lcm");
+  std::string error;
+  auto node = LoggerNode::Create(bus_.get(), o, 0, &error);
+  ASSERT_NE(node, nullptr) << error;
+  Publish(500, 40, "POSE_A");
+  Publish(500, 7, "RANGES");
+  node->Stop(1);
+  const auto events = ReadAll(o.path);
+  ASSERT_EQ(events.size(), 1000u);
+  for (size_t i = 0; i < events.size(); ++i) {
+    EXPECT_EQ(events[i].eventnum, static_cast<int64_t>(i));
+    EXPECT_EQ(events[i].channel, i < 500 ? "POSE_A" : "RANGES");
+    EXPECT_EQ(events[i].data, Payload(static_cast<int>(i % 500), i < 500 ? 40 : 7));
+    EXPECT_GT(events[i].utime, 1500000000000000);
+    if (i > 0) {
+      EXPECT_GE(events[i].utime, events[i - 1].utime);
+    }
+  }
+  EXPECT_EQ(node->status().inputs(), 1000);
+  EXPECT_EQ(node->status().outputs(), 1000);
+  EXPECT_EQ(node->status().dropped(), 0);
+}
+
+TEST_F(LoggerNodeTest, RecordsOnlyTheChosenChannels) {
+  LoggerOptions o;
+  o.path = dir_.File("a.lcm");
+  o.channel_regex = "POSE_.*";
+  std::string error;
+  auto node = LoggerNode::Create(bus_.get(), o, 0, &error);
+  ASSERT_NE(node, nullptr) << error;
+  Publish(10, 8, "POSE_CAMERA");
+  Publish(10, 8, "STATUS");
+  Publish(10, 8, "XPOSE_CAMERA");
+  node->Stop(1);
+  EXPECT_EQ(ReadAll(o.path).size(), 10u);
+}
+
+TEST_F(LoggerNodeTest, RefusesToOverwriteAnExistingLogUnlessTold) {
+  LoggerOptions o;
+  o.path = dir_.File("a.lcm");
+  ASSERT_TRUE(testing::WriteFile(o.path, "precious"));
+  std::string error;
+  EXPECT_EQ(LoggerNode::Create(bus_.get(), o, 0, &error), nullptr);
+  EXPECT_EQ(error, o.path + ": already exists (refusing to overwrite)");
+  EXPECT_EQ(testing::ReadFile(o.path), "precious");
+  o.overwrite = true;
+  EXPECT_NE(LoggerNode::Create(bus_.get(), o, 0, &error), nullptr);
+}
+
+TEST_F(LoggerNodeTest, RotatesBySizeIntoNumberedFilesWithoutLosingAnEvent) {
+  LoggerOptions o;
+  o.path = dir_.File("session.lcm");
+  o.rotate_bytes = 4000;
+  std::string error;
+  auto node = LoggerNode::Create(bus_.get(), o, 0, &error);
+  ASSERT_NE(node, nullptr) << error;
+  Publish(300, 100);
+  node->Stop(1);
+  const auto files = node->files();
+  ASSERT_GE(files.size(), 7u);  // 300 x ~133 bytes in files of about 4000.
+  EXPECT_EQ(files[0], dir_.File("session.0000.lcm"));
+  EXPECT_EQ(files[1], dir_.File("session.0001.lcm"));
+  size_t total = 0;
+  int k = 0;
+  for (const auto& f : files) {
+    const auto events = ReadAll(f);
+    EXPECT_LE(std::filesystem::file_size(f), 4000u + 133u) << f;
+    for (const auto& e : events) EXPECT_EQ(e.data, Payload(k++, 100));
+    if (!events.empty()) {
+      EXPECT_EQ(events[0].eventnum, 0);  // Each file counts from 0.
+    }
+    total += events.size();
+  }
+  EXPECT_EQ(total, 300u);
+}
+
+TEST_F(LoggerNodeTest, AFullDiskIsReportedAndCountedNotACrash) {
+  LoggerOptions o;
+  o.path = "/dev/full";  // Every write fails with ENOSPC.
+  o.overwrite = true;
+  std::string error;
+  auto node = LoggerNode::Create(bus_.get(), o, 0, &error);
+  ASSERT_NE(node, nullptr) << error;
+  Publish(2000, 64);
+  node->Stop(1);
+  const process_status_t s = node->status().Make(2, nullptr);
+  EXPECT_EQ(s.state, process_status_t::STATE_FAILED);
+  EXPECT_NE(s.last_error.find("No space left on device"), std::string::npos) << s.last_error;
+  EXPECT_GT(s.dropped, 0);
+  EXPECT_EQ(s.inputs, 2000);
+}
+
+TEST_F(LoggerNodeTest, DropsAndCountsWhatTheQueueCannotHold) {
+  LoggerOptions o;
+  o.path = dir_.File("a.lcm");
+  o.max_queue_bytes = 50;  // A 100-byte message can never be queued.
+  std::string error;
+  auto node = LoggerNode::Create(bus_.get(), o, 0, &error);
+  ASSERT_NE(node, nullptr) << error;
+  Publish(3, 100);
+  Publish(3, 10);
+  node->Stop(1);
+  EXPECT_EQ(node->status().dropped(), 3);
+  EXPECT_EQ(ReadAll(o.path).size(), 3u);
+}
+
+TEST(LoggerOptions, RejectsABadChannelExpressionAndNoPath) {
+  LoggerOptions o;
+  std::string error;
+  EXPECT_FALSE(o.IsValid(&error));
+  EXPECT_EQ(error, "a log file path is required");
+  o.path = "x.lcm";
+  o.channel_regex = "(";
+  EXPECT_FALSE(o.IsValid(&error));
+  EXPECT_EQ(error, "channel expression '(' is not a valid regular expression");
+}
+
+TEST(RotatedLogPath, NumbersBeforeTheExtension) {
+  EXPECT_EQ(RotatedLogPath("/logs/session.lcm", 3), "/logs/session.0003.lcm");
+  EXPECT_EQ(RotatedLogPath("/logs.d/session", 12), "/logs.d/session.0012");
+}
+
+}  // namespace
+}  // namespace roomfix
