@@ -22,6 +22,7 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
   trilat->add_option("--seed", options->seed, "Random seed")->capture_default_str();
   trilat->add_flag("--json", options->json, "Print one JSON object instead of tables");
   trilat->callback([options, exit_code] { *exit_code = RunTrilatBench(*options); });
+  AddBenchLoggerCommand(bench, exit_code);
 }
 
 }  // namespace roomfix
