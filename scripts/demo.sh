@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # `make demo`: runs the roomfix pipeline on the simulator with the embedded
-# default site (config/sites/demo_room.yaml), records everything with the
-# real lcm-logger, and summarises the log.
+# default site (config/sites/demo_room.yaml), records everything with
+# roomfix_logger, and summarises the log.
 #
 #   scripts/demo.sh BUILD_DIR SECONDS
 #
@@ -27,7 +27,7 @@ if [[ "${3:-}" == "--inner" ]]; then
     wait 2>/dev/null || true
   }
   trap cleanup EXIT
-  lcm-logger --flush-interval=100 -f "$log" >"$out/lcm-logger.txt" 2>&1 &
+  "$bin/roomfix_logger" "$log" --force --log-level warn 2>"$out/roomfix_logger.txt" &
   pids+=($!)
   "$bin/trilat_proc" --config "$site" --method robust --log-level info 2>"$out/trilat_proc.txt" &
   pids+=($!)

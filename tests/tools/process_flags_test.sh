@@ -23,6 +23,14 @@ for bin in roomfix_sim trilat_proc; do
   [[ $(grep -c "$bin:" <<<"$err") -eq 1 && "$err" == *"cannot start LCM"* ]] || fail "$bin: '$err'"
 done
 
+logger=$build/bin/roomfix_logger
+"$logger" --help | grep -q -- '--lcm-url' || fail "roomfix_logger --help lacks --lcm-url"
+out=$("$logger" /tmp/never_written.lcm --check 2>/dev/null) || fail "roomfix_logger --check failed"
+[[ "$out" == *"ok"* ]] || fail "roomfix_logger --check printed '$out'"
+[[ ! -e /tmp/never_written.lcm ]] || fail "roomfix_logger --check wrote a file"
+err=$("$logger" /tmp/x.lcm --lcm-url "nonsense://" 2>&1 >/dev/null)
+(($? != 0)) && [[ "$err" == *"cannot start LCM"* ]] || fail "roomfix_logger on a bad URL: '$err'"
+
 "$build/bin/roomfix" version | grep -q '^roomfix ' || fail "roomfix version"
 "$build/bin/roomfix" --help | grep -q 'check-config' || fail "roomfix --help lacks check-config"
 out=$("$build/bin/roomfix" log-info "$source/tests/data/ground_truth_sample.lcm") || fail "log-info"
