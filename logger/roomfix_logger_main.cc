@@ -12,6 +12,7 @@ int main(int argc, char** argv) {
   roomfix::LoggerOptions options;
   double rotate_mb = 0.0;
   double queue_mb = static_cast<double>(options.max_queue_bytes) / (1 << 20);
+  bool via_liblcm = false;
   CLI::App app{
       "roomfix_logger: records LCM channels into LCM log files (lcm-logplayer plays them)"};
   roomfix::AddProcessFlags(&app, &process, /*config_required=*/false);
@@ -28,7 +29,11 @@ int main(int argc, char** argv) {
                  "Start a new numbered file after this many seconds (0: never)");
   app.add_option("--queue-mb", queue_mb, "Most MiB of received, unwritten messages to hold")
       ->capture_default_str();
+  app.add_flag("--via-liblcm", via_liblcm,
+               "Receive udpm:// through liblcm instead of reading the multicast socket directly "
+               "(liblcm 1.3.1 loses messages above about 10 000 per second)");
   CLI11_PARSE(app, argc, argv);
+  process.direct_udpm = !via_liblcm;
   options.rotate_bytes = static_cast<int64_t>(rotate_mb * (1 << 20));
   options.max_queue_bytes = static_cast<int64_t>(queue_mb * (1 << 20));
 

@@ -72,6 +72,11 @@ void Bus::CountDecodeFailure(const std::string& channel, const char* type_name) 
   stats_.last_error = "message on " + channel + " does not decode as " + type_name;
 }
 
+void Bus::RecordError(const std::string& error) {
+  std::lock_guard<std::mutex> lock(stats_mutex_);
+  stats_.last_error = error;
+}
+
 // ---------------------------------------------------------------------------
 
 // Subscriptions go through LCM's C API: the C++ wrapper's method-handler
@@ -137,7 +142,11 @@ void LcmBus::Unsubscribe(SubscriptionId id) {
   subscriptions_.erase(it);
 }
 
-int LcmBus::Handle(int timeout_ms) { return lcm_->handleTimeout(timeout_ms); }
+int LcmBus::Handle(int timeout_ms) {
+  const int n = lcm_->handleTimeout(timeout_ms);
+  if (n < 0) RecordError("LCM failed while receiving on " + url_);
+  return n;
+}
 
 int LcmBus::Fileno() const { return lcm_->getFileno(); }
 

@@ -68,11 +68,19 @@ class Bus {
 
   BusStats stats() const;
 
+  // Waits up to timeout_ms for messages and dispatches those that arrived.
+  // Returns the number handled (0 on time-out), or -1 when the transport
+  // failed. Buses without a transport of their own handle nothing.
+  virtual int Handle(int /*timeout_ms*/) { return 0; }
+  // A descriptor that becomes readable when a message is waiting, or -1.
+  virtual int Fileno() const { return -1; }
+
  protected:
   // Calls the handler, catching and counting anything it throws.
   void Deliver(const RawHandler& handler, const MessageInfo& info, const void* data, int size);
   void CountPublished(bool ok, const std::string& channel);
   void CountDecodeFailure(const std::string& channel, const char* type_name);
+  void RecordError(const std::string& error);
 
  private:
   mutable std::mutex stats_mutex_;
@@ -92,11 +100,8 @@ class LcmBus final : public Bus {
   SubscriptionId SubscribeRaw(const std::string& channel_regex, RawHandler handler) override;
   void Unsubscribe(SubscriptionId id) override;
 
-  // Waits up to timeout_ms for messages and dispatches those that arrived.
-  // Returns the number handled (0 on time-out), or -1 on an LCM error.
-  int Handle(int timeout_ms);
-  // File descriptor that becomes readable when a message is waiting.
-  int Fileno() const;
+  int Handle(int timeout_ms) override;
+  int Fileno() const override;
   const std::string& url() const { return url_; }
 
  private:

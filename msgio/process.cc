@@ -15,6 +15,8 @@
 #include <cstdint>
 #include <cstring>
 
+#include "msgio/udpm_bus.h"
+
 namespace roomfix {
 
 int64_t NowUtime() {
@@ -211,7 +213,7 @@ bool ShutdownRequested() { return g_shutdown.load(); }
 
 void RequestShutdown() { OnSignal(0); }
 
-int RunLoop(LcmBus* bus, const std::function<void(int64_t)>& tick, const RunLoopOptions& options) {
+int RunLoop(Bus* bus, const std::function<void(int64_t)>& tick, const RunLoopOptions& options) {
   const int64_t start = NowUtime();
   const int64_t end =
       options.duration_s > 0 ? start + static_cast<int64_t>(options.duration_s * 1e6) : INT64_MAX;
@@ -233,7 +235,7 @@ int RunLoop(LcmBus* bus, const std::function<void(int64_t)>& tick, const RunLoop
       while (true) {
         const int handled = bus->Handle(0);
         if (handled < 0) {
-          spdlog::error("LCM failed while receiving on {}", bus->url());
+          spdlog::error("receiving failed: {}", bus->stats().last_error);
           return 1;
         }
         if (handled == 0) break;
@@ -258,7 +260,11 @@ std::unique_ptr<ProcessContext> StartProcess(const std::string& name, const Proc
   }
   InstallShutdownHandlers();
   if (options.check) return ctx;
-  ctx->bus = LcmBus::Create(options.lcm_url, error);
+  if (options.direct_udpm && options.lcm_url.rfind("udpm://", 0) == 0) {
+    ctx->bus = UdpmBus::Create(options.lcm_url, error);
+  } else {
+    ctx->bus = LcmBus::Create(options.lcm_url, error);
+  }
   if (ctx->bus == nullptr) return nullptr;
   return ctx;
 }

@@ -34,6 +34,10 @@ struct ProcessOptions {
   std::string log_level = "info";
   // Validate flags and configuration, print what would run, and exit.
   bool check = false;
+  // For udpm:// URLs, speak LCM's wire format on our own socket (UdpmBus)
+  // instead of going through liblcm: for processes that must not lose
+  // messages at high rates.
+  bool direct_udpm = false;
 };
 
 // Adds --lcm-url, --config, --log-level and --check to a CLI11 app.
@@ -108,7 +112,7 @@ struct RunLoopOptions {
 // Dispatches messages from the bus and calls tick(now_utime) until SIGINT,
 // SIGTERM or the duration ends. Returns 0 on a clean stop and 1 (with the
 // reason logged) when LCM fails.
-int RunLoop(LcmBus* bus, const std::function<void(int64_t now_utime)>& tick,
+int RunLoop(Bus* bus, const std::function<void(int64_t now_utime)>& tick,
             const RunLoopOptions& options);
 
 // What a process's main needs after its flags are parsed: logging set up,
@@ -117,7 +121,7 @@ struct ProcessContext {
   std::string name;
   ProcessOptions options;
   Site site;
-  std::unique_ptr<LcmBus> bus;
+  std::unique_ptr<Bus> bus;
 };
 
 // Returns nullptr with a one-line reason when the process cannot start (bad
