@@ -231,8 +231,11 @@ int RunLoop(Bus* bus, const std::function<void(int64_t)>& tick, const RunLoopOpt
       return 1;
     }
     if (n > 0 && (fds[0].revents & POLLIN)) {
-      // Drain what is waiting without blocking, then tick.
-      while (true) {
+      // Drain what is waiting without blocking, then tick. Under a sustained
+      // flood the socket never runs dry, so draining stops after one tick
+      // period to keep heartbeats and deadlines running.
+      const int64_t drain_until = NowUtime() + options.tick_period_ms * 1000;
+      while (NowUtime() < drain_until) {
         const int handled = bus->Handle(0);
         if (handled < 0) {
           spdlog::error("receiving failed: {}", bus->stats().last_error);
