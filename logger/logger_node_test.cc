@@ -12,13 +12,10 @@ namespace {
 using testing::TempDir;
 
 std::vector<LogEvent> ReadAll(const std::string& path) {
+  std::vector<LogEvent> events;
   std::string error;
-  auto reader = LogReader::Open(path, &error);
-  EXPECT_NE(reader, nullptr) << error;
-  std::vector<LogEvent> out;
-  LogEvent e;
-  while (reader != nullptr && reader->Next(&e)) out.push_back(e);
-  return out;
+  EXPECT_TRUE(ReadLogEvents(path, &events, &error)) << error;
+  return events;
 }
 
 std::vector<uint8_t> Payload(int k, int size) {

@@ -99,6 +99,19 @@ bool LogWriter::Flush(std::string* error) {
   return true;
 }
 
+bool ReadLogEvents(const std::string& path, std::vector<LogEvent>* events, std::string* error) {
+  events->clear();
+  auto reader = LogReader::Open(path, error);
+  if (reader == nullptr) return false;
+  LogEvent e;
+  while (reader->Next(&e)) events->push_back(e);
+  if (reader->damaged()) {
+    *error = path + ": unreadable after byte " + std::to_string(reader->bytes_read());
+    return false;
+  }
+  return true;
+}
+
 ReplaySummary ReplayLog(const std::string& path, LoopbackBus* bus, const ReplayOptions& options) {
   ReplaySummary summary;
   auto reader = LogReader::Open(path, &summary.error);

@@ -80,6 +80,11 @@ class LogWriter {
   int64_t events_written_ = 0;
 };
 
+// Reads a whole log into memory (for tests and small logs). False, with the
+// reason, when it cannot be opened or is damaged; the readable events are in
+// *events either way.
+bool ReadLogEvents(const std::string& path, std::vector<LogEvent>* events, std::string* error);
+
 struct ReplayOptions {
   // Only events on matching channels are delivered (LCM regex rules).
   std::string channel_regex = ".*";

@@ -85,6 +85,11 @@ TEST(LogReader, ReportsATruncatedLogAfterReadingWhatIsWhole) {
   while (reader->Next(&e)) ++n;
   EXPECT_EQ(n, 4);
   EXPECT_TRUE(reader->damaged());
+
+  std::vector<LogEvent> events;
+  EXPECT_FALSE(ReadLogEvents(path, &events, &error));
+  EXPECT_EQ(events.size(), 4u);  // What was whole is kept.
+  EXPECT_NE(error.find("unreadable after byte"), std::string::npos) << error;
 }
 
 TEST(LogReader, SaysWhenTheFileIsMissing) {

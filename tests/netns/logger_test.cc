@@ -22,13 +22,10 @@ using testing::SourceDir;
 using testing::TempDir;
 
 std::vector<LogEvent> ReadAll(const std::string& path) {
+  std::vector<LogEvent> events;
   std::string error;
-  auto reader = LogReader::Open(path, &error);
-  EXPECT_NE(reader, nullptr) << error;
-  std::vector<LogEvent> out;
-  LogEvent e;
-  while (reader != nullptr && reader->Next(&e)) out.push_back(e);
-  return out;
+  EXPECT_TRUE(ReadLogEvents(path, &events, &error)) << error;
+  return events;
 }
 
 void SleepS(double s) { std::this_thread::sleep_for(std::chrono::duration<double>(s)); }

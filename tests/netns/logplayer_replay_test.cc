@@ -25,13 +25,9 @@ using testing::SourceDir;
 std::string SampleLog() { return SourceDir() + "/tests/data/ground_truth_sample.lcm"; }
 
 std::vector<LogEvent> ReadAll(const std::string& path) {
-  std::string error;
-  auto reader = LogReader::Open(path, &error);
-  EXPECT_NE(reader, nullptr) << error;
   std::vector<LogEvent> events;
-  LogEvent e;
-  while (reader != nullptr && reader->Next(&e)) events.push_back(e);
-  EXPECT_FALSE(reader != nullptr && reader->damaged());
+  std::string error;
+  EXPECT_TRUE(ReadLogEvents(path, &events, &error)) << error;
   return events;
 }
 
