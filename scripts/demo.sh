@@ -60,4 +60,4 @@ echo "Recorded log: $out/demo.lcm (replay with: lcm-logplayer $out/demo.lcm)"
 "$bin/roomfix" log-info "$out/demo.lcm" | sed 's/^/  /'
 echo
 echo "Each pose source against the simulator's ground truth (summary: $out/summary.json):"
-"$bin/roomfix" compare "$out/demo.lcm" --json "$out/summary.json" | sed 's/^/  /'
+"$bin/roomfix" compare "$out/demo.lcm" --json "$out/summary.json" --fit-circle | sed 's/^/  /'

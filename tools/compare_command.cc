@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "core/analysis/circle_fit.h"
 #include "core/analysis/track_error.h"
 #include "msgio/log.h"
 #include "msgio/message_json.h"
@@ -49,9 +50,12 @@ void AddCompareCommand(CLI::App* app, int* exit_code) {
       "compare", "Error, rate and latency of every pose source in a log against ground truth");
   auto log_path = std::make_shared<std::string>();
   auto json_path = std::make_shared<std::string>();
+  auto fit_circle = std::make_shared<bool>(false);
   cmd->add_option("LOG", *log_path, "LCM log with POSE_* channels")->required();
   cmd->add_option("--json", *json_path, "Also write the summary as JSON to this file");
-  cmd->callback([log_path, json_path, exit_code] {
+  cmd->add_flag("--fit-circle", *fit_circle,
+                "Also fit the reference paper's circle models to each source's track");
+  cmd->callback([log_path, json_path, fit_circle, exit_code] {
     std::string error;
     auto reader = LogReader::Open(*log_path, &error);
     if (reader == nullptr) {
@@ -114,6 +118,35 @@ void AddCompareCommand(CLI::App* app, int* exit_code) {
       // One robot per source in the summary (the first); all in "robots".
       if (!out["sources"].contains(key.first)) out["sources"][key.first] = j;
       out["robots"][std::to_string(key.second)][key.first] = j;
+    }
+    if (*fit_circle) {
+      std::printf("\n%-12s %5s %8s %9s %9s %10s %10s %9s %8s %8s\n", "source", "robot", "r_m",
+                  "cx_m", "cy_m", "vx_mm/s", "vy_mm/s", "w_rad/s", "phase", "err_m");
+      for (auto& [key, t] : tracks) {
+        std::vector<analysis::TimedPoint> points;
+        for (const auto& p : t.positions) {
+          points.push_back({(p.utime - t.positions.front().utime) * 1e-6, p.x_m, p.y_m});
+        }
+        const analysis::CircularMotionFit f = analysis::FitCircularMotion(points);
+        if (!f.usable) {
+          std::printf("%-12s %5d no fit: %s\n", key.first.c_str(), key.second, f.message.c_str());
+          continue;
+        }
+        std::printf("%-12s %5d %8.4f %9.4f %9.4f %10.3f %10.3f %9.4f %8.3f %8.4f\n",
+                    key.first.c_str(), key.second, f.radius_m, f.cx_m, f.cy_m, f.vx_mps * 1e3,
+                    f.vy_mps * 1e3, f.angular_speed_radps, f.phase_rad, f.mean_error_m);
+        out["robots"][std::to_string(key.second)][key.first]["circle_fit"] = {
+            {"radius_m", f.radius_m},
+            {"radius_sigma_m", f.radius_sigma_m},
+            {"cx_m", f.cx_m},
+            {"cy_m", f.cy_m},
+            {"vx_mps", f.vx_mps},
+            {"vy_mps", f.vy_mps},
+            {"angular_speed_radps", f.angular_speed_radps},
+            {"phase_rad", f.phase_rad},
+            {"mean_error_m", f.mean_error_m},
+            {"std_error_m", f.std_error_m}};
+      }
     }
     if (undecodable > 0) std::printf("%d POSE_* events did not decode as pose2d_t\n", undecodable);
     if (reader->damaged())

@@ -17,15 +17,20 @@ using testing::ReadFile;
 using testing::TempDir;
 using testing::WriteFile;
 
-// Runs `roomfix ARGS...`, returns stdout lines as JSON (non-JSON lines fail).
-std::vector<json> RunJsonLines(const std::vector<std::string>& args, int* exit_code) {
+// Runs `roomfix ARGS...` and returns its standard output.
+std::string RunRoomfix(const std::vector<std::string>& args, int* exit_code) {
   TempDir dir;
   std::vector<std::string> argv = {BinDir() + "/roomfix"};
   argv.insert(argv.end(), args.begin(), args.end());
   ChildProcess p(argv, dir.File("out.txt"));
   *exit_code = p.Wait(120);
+  return ReadFile(dir.File("out.txt"));
+}
+
+// As RunRoomfix, with every line of the output parsed as JSON.
+std::vector<json> RunJsonLines(const std::vector<std::string>& args, int* exit_code) {
   std::vector<json> out;
-  std::istringstream lines(ReadFile(dir.File("out.txt")));
+  std::istringstream lines(RunRoomfix(args, exit_code));
   std::string line;
   while (std::getline(lines, line)) {
     json j = json::parse(line, nullptr, false);
@@ -128,6 +133,25 @@ TEST(RoomfixBenchTrilat, PrintsEveryMethodForEveryScenarioAsJson) {
         << method;
   }
   EXPECT_EQ(b["node"]["poses"], 2000);
+}
+
+// The circle fits on the recorded simulator log give back the reference
+// drive the simulator followed (exact data: only conditioning limits it).
+TEST(RoomfixCompare, FitsTheReferenceCircleToTheRecordedGroundTruth) {
+  TempDir dir;
+  int rc = 0;
+  const std::string table =
+      RunRoomfix({"compare", testing::SourceDir() + "/tests/data/ground_truth_sample.lcm",
+                  "--fit-circle", "--json", dir.File("summary.json")},
+                 &rc);
+  EXPECT_NE(table.find("ground_truth"), std::string::npos) << table;
+  ASSERT_EQ(rc, 0);
+  const json summary = json::parse(ReadFile(dir.File("summary.json")));
+  const json& fit = summary["robots"]["1"]["ground_truth"]["circle_fit"];
+  ASSERT_TRUE(fit.is_object()) << summary.dump();
+  EXPECT_NEAR(fit["radius_m"].get<double>(), 0.419, 1e-4);
+  EXPECT_NEAR(fit["angular_speed_radps"].get<double>(), -0.439, 1e-4);
+  EXPECT_NEAR(fit["mean_error_m"].get<double>(), 0.0, 1e-6);
 }
 
 }  // namespace
