@@ -88,6 +88,22 @@ Solution Solve(Model* model, const std::vector<double>& start) {
   return s;
 }
 
+// The first five parameters of either fit are (r, x0, y0, vx, vy). A
+// negative radius is the same circle (the motion fit absorbs it in its
+// phase), so the magnitude is kept.
+void SetCircle(const Solution& s, DriftingCircle* c) {
+  c->radius_m = std::abs(s.x[0]);
+  c->cx_m = s.x[1];
+  c->cy_m = s.x[2];
+  c->vx_mps = s.x[3];
+  c->vy_mps = s.x[4];
+  c->radius_sigma_m = s.sigma[0];
+  c->cx_sigma_m = s.sigma[1];
+  c->cy_sigma_m = s.sigma[2];
+  c->vx_sigma_mps = s.sigma[3];
+  c->vy_sigma_mps = s.sigma[4];
+}
+
 // Algebraic (Kasa) circle: x^2 + y^2 + D x + E y + F = 0 by linear least
 // squares; a start for the drifting-circle fit. False for collinear points.
 bool AlgebraicCircle(const std::vector<TimedPoint>& pts, double* cx, double* cy, double* r) {
@@ -173,16 +189,7 @@ DriftingCircleFit FitDriftingCircle(const std::vector<TimedPoint>& points) {
   out.iterations = s.iterations;
   if (!s.ok) return out;
   out.usable = true;
-  out.radius_m = std::abs(s.x[0]);
-  out.cx_m = s.x[1];
-  out.cy_m = s.x[2];
-  out.vx_mps = s.x[3];
-  out.vy_mps = s.x[4];
-  out.radius_sigma_m = s.sigma[0];
-  out.cx_sigma_m = s.sigma[1];
-  out.cy_sigma_m = s.sigma[2];
-  out.vx_sigma_mps = s.sigma[3];
-  out.vy_sigma_mps = s.sigma[4];
+  SetCircle(s, &out);
   out.residual_std_m = std::sqrt(s.rss / static_cast<double>(points.size() - 5));
   return out;
 }
@@ -258,22 +265,12 @@ CircularMotionFit FitCircularMotion(const std::vector<TimedPoint>& points) {
   out.iterations = s.iterations;
   if (!s.ok) return out;
   out.usable = true;
-  out.radius_m = s.x[0];
-  out.cx_m = s.x[1];
-  out.cy_m = s.x[2];
-  out.vx_mps = s.x[3];
-  out.vy_mps = s.x[4];
+  SetCircle(s, &out);
   out.angular_speed_radps = s.x[5];
   // A negative radius is the same circle half a turn on.
   out.phase_rad = s.x[6] + (s.x[0] < 0 ? kPi : 0.0);
-  out.radius_m = std::abs(out.radius_m);
   out.phase_rad = std::remainder(out.phase_rad, 2 * kPi);
   if (out.phase_rad < 0) out.phase_rad += 2 * kPi;
-  out.radius_sigma_m = s.sigma[0];
-  out.cx_sigma_m = s.sigma[1];
-  out.cy_sigma_m = s.sigma[2];
-  out.vx_sigma_mps = s.sigma[3];
-  out.vy_sigma_mps = s.sigma[4];
   out.angular_speed_sigma_radps = s.sigma[5];
   out.phase_sigma_rad = s.sigma[6];
   double sum = 0, sum2 = 0;
