@@ -224,8 +224,12 @@ int RunLoop(Bus* bus, const std::function<void(int64_t)>& tick, const RunLoopOpt
     const int64_t remaining_ms = (end - now) / 1000;
     const int timeout_ms = static_cast<int>(
         std::min<int64_t>(options.tick_period_ms, std::max<int64_t>(remaining_ms, 0)));
-    pollfd fds[2] = {{lcm_fd, POLLIN, 0}, {g_wake_pipe[0], POLLIN, 0}};
-    const int n = ::poll(fds, g_wake_pipe[0] >= 0 ? 2 : 1, timeout_ms);
+    // A negative descriptor is ignored by poll(), so absent ones need no
+    // special case.
+    const int extra = options.extra_fd ? options.extra_fd() : -1;
+    pollfd fds[3] = {
+        {lcm_fd, POLLIN, 0}, {g_wake_pipe[0], POLLIN, 0}, {extra, POLLIN, 0}};
+    const int n = ::poll(fds, 3, timeout_ms);
     if (n < 0 && errno != EINTR) {
       spdlog::error("poll failed: {}", std::strerror(errno));
       return 1;

@@ -107,6 +107,10 @@ struct RunLoopOptions {
   int tick_period_ms = 10;
   // Stop after this long; <= 0 runs until a signal.
   double duration_s = 0.0;
+  // A further descriptor to wait on besides the bus (a serial port), or -1.
+  // Asked for before every wait, because a reopened device has a new one.
+  // Its readiness only wakes the loop early; the tick does the reading.
+  std::function<int()> extra_fd;
 };
 
 // Dispatches messages from the bus and calls tick(now_utime) until SIGINT,

@@ -14,6 +14,7 @@ int main(int argc, char** argv) {
   roomfix::AddSolveCommand(&app, &exit_code);
   roomfix::AddBenchCommand(&app, &exit_code);
   roomfix::AddCompareCommand(&app, &exit_code);
+  roomfix::AddFramesCommand(&app, &exit_code);
   CLI11_PARSE(app, argc, argv);
   return exit_code;
 }

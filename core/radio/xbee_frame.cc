@@ -1,0 +1,380 @@
+#include "core/radio/xbee_frame.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <cstring>
+#include <utility>
+
+namespace roomfix::radio {
+namespace {
+
+// Longest length field a frame can carry.
+constexpr size_t kMaxLengthField = 0xFFFF;
+// Start delimiter, two length bytes, checksum.
+constexpr size_t kFrameOverhead = 4;
+
+bool NeedsEscape(uint8_t byte) {
+  return byte == kStartDelimiter || byte == kEscape || byte == kXon || byte == kXoff;
+}
+
+uint8_t Checksum(const uint8_t* data, size_t size) {
+  uint32_t sum = 0;
+  for (size_t i = 0; i < size; ++i) sum += data[i];
+  return static_cast<uint8_t>(0xFF - (sum & 0xFF));
+}
+
+void AppendByte(uint8_t byte, bool escaped, std::vector<uint8_t>* out) {
+  if (escaped && NeedsEscape(byte)) {
+    out->push_back(kEscape);
+    out->push_back(byte ^ kEscapeXor);
+  } else {
+    out->push_back(byte);
+  }
+}
+
+uint64_t ReadBigEndian(const uint8_t* data, size_t size) {
+  uint64_t value = 0;
+  for (size_t i = 0; i < size; ++i) value = (value << 8) | data[i];
+  return value;
+}
+
+void AppendBigEndian(uint64_t value, size_t size, std::vector<uint8_t>* out) {
+  for (size_t i = size; i-- > 0;) out->push_back(static_cast<uint8_t>(value >> (8 * i)));
+}
+
+// Fixed header sizes of the receive frames, frame type included; 0 for any
+// other type.
+size_t ReceiveHeaderSize(uint8_t frame_type) {
+  switch (frame_type) {
+    case kZigbeeRxFrameType:
+      return 1 + 8 + 2 + 1;
+    case kRx64FrameType:
+      return 1 + 8 + 1 + 1;
+    case kRx16FrameType:
+      return 1 + 2 + 1 + 1;
+    default:
+      return 0;
+  }
+}
+
+}  // namespace
+
+const char* FrameErrorName(FrameError error) {
+  switch (error) {
+    case FrameError::kGarbage:
+      return "garbage";
+    case FrameError::kBadChecksum:
+      return "bad checksum";
+    case FrameError::kTruncated:
+      return "truncated";
+    case FrameError::kBadLength:
+      return "bad length";
+    case FrameError::kBadEscape:
+      return "bad escape";
+  }
+  return "unknown";
+}
+
+FrameDecoder::FrameDecoder(const FrameDecoderOptions& options)
+    : options_(options),
+      escaped_(options.mode == ApiMode::kEscaped),
+      max_length_(std::min(options.max_frame_data_bytes, kMaxLengthField)),
+      frame_(max_length_ + kFrameOverhead) {}
+
+bool FrameDecoder::InFrame() const { return phase_ != Phase::kIdle; }
+uint64_t FrameDecoder::bytes_fed() const { return bytes_fed_; }
+const FrameDecoderOptions& FrameDecoder::options() const { return options_; }
+
+void FrameDecoder::Feed(const uint8_t* data, size_t size, FrameSink* sink) {
+  const uint64_t offset = bytes_fed_;
+  bytes_fed_ += size;
+  size_t done = 0;
+  while (done < size) {
+    done += Scan(data + done, size - done, offset + done, sink);
+    if (rescan_) Rescan(sink);
+  }
+}
+
+void FrameDecoder::FlushPartial(FrameSink* sink) {
+  // In mode 1 the rescan of a truncated frame may start another frame that
+  // is just as incomplete; each round starts later in the stream, so this
+  // ends.
+  while (phase_ != Phase::kIdle) {
+    char detail[96];
+    std::snprintf(detail, sizeof(detail), "stream paused or ended %llu bytes into the frame",
+                  static_cast<unsigned long long>(bytes_fed_ - frame_offset_));
+    FailFrame(FrameError::kTruncated, bytes_fed_, detail, sink);
+    if (rescan_) Rescan(sink);
+  }
+  FlushGarbage(sink);
+}
+
+void FrameDecoder::StartFrame(uint64_t offset, FrameSink* sink) {
+  FlushGarbage(sink);
+  frame_offset_ = offset;
+  frame_[0] = kStartDelimiter;
+  frame_size_ = 1;
+  phase_ = Phase::kLengthMsb;
+  escape_next_ = false;
+  length_ = 0;
+  sum_ = 0;
+}
+
+void FrameDecoder::FailFrame(FrameError error, uint64_t end_offset, const char* detail,
+                             FrameSink* sink) {
+  if (frame_offset_ >= covered_until_) {
+    FrameErrorInfo info;
+    info.error = error;
+    info.stream_offset = frame_offset_;
+    info.size_bytes = end_offset - frame_offset_;
+    info.detail = detail;
+    sink->OnFrameError(info);
+    covered_until_ = end_offset;
+  }
+  phase_ = Phase::kIdle;
+  escape_next_ = false;
+  rescan_ = !escaped_;
+}
+
+void FrameDecoder::AddGarbage(uint64_t offset, uint64_t size) {
+  const uint64_t end = offset + size;
+  if (end <= covered_until_) return;
+  offset = std::max(offset, covered_until_);
+  // A run only grows at its end: it is flushed before any frame starts, and
+  // rescans only revisit bytes after a frame's start.
+  if (garbage_bytes_ == 0) garbage_start_ = offset;
+  garbage_bytes_ += end - offset;
+}
+
+void FrameDecoder::FlushGarbage(FrameSink* sink) {
+  if (garbage_bytes_ == 0) return;
+  FrameErrorInfo info;
+  info.error = FrameError::kGarbage;
+  info.stream_offset = garbage_start_;
+  info.size_bytes = garbage_bytes_;
+  char detail[64];
+  std::snprintf(detail, sizeof(detail), "%llu bytes outside any frame",
+                static_cast<unsigned long long>(garbage_bytes_));
+  info.detail = detail;
+  garbage_bytes_ = 0;
+  sink->OnFrameError(info);
+}
+
+void FrameDecoder::Rescan(FrameSink* sink) {
+  replay_.assign(frame_.begin() + 1, frame_.begin() + frame_size_);
+  replay_offset_ = frame_offset_ + 1;
+  replay_pos_ = 0;
+  rescan_ = false;
+  while (replay_pos_ < replay_.size()) {
+    replay_pos_ += Scan(replay_.data() + replay_pos_, replay_.size() - replay_pos_,
+                        replay_offset_ + replay_pos_, sink);
+    if (rescan_) {
+      // The failed frame began inside the replay (Scan saw nothing else), so
+      // what to replay next is already in place after its start delimiter.
+      replay_pos_ = static_cast<size_t>(frame_offset_ + 1 - replay_offset_);
+      rescan_ = false;
+    }
+  }
+  replay_.clear();
+}
+
+size_t FrameDecoder::Scan(const uint8_t* data, size_t size, uint64_t offset, FrameSink* sink) {
+  const uint8_t* p = data;
+  const uint8_t* const end = data + size;
+  char detail[96];
+  while (p < end) {
+    if (phase_ == Phase::kIdle) {
+      const void* found = std::memchr(p, kStartDelimiter, end - p);
+      const uint8_t* start = found != nullptr ? static_cast<const uint8_t*>(found) : end;
+      if (start != p) AddGarbage(offset + (p - data), start - p);
+      if (start == end) return size;
+      StartFrame(offset + (start - data), sink);
+      p = start + 1;
+      continue;
+    }
+
+    uint8_t byte = *p;
+    if (escaped_) {
+      // Fast path through frame data up to the next byte that needs a look.
+      if (phase_ == Phase::kData && !escape_next_) {
+        const size_t want = length_ - (frame_size_ - 3);
+        const uint8_t* run = p;
+        const uint8_t* const run_end = p + std::min<size_t>(want, end - p);
+        uint8_t* out = frame_.data() + frame_size_;
+        uint32_t sum = 0;
+        while (run < run_end && *run != kStartDelimiter && *run != kEscape) {
+          sum += *run;
+          *out++ = *run++;
+        }
+        sum_ += sum;
+        frame_size_ += run - p;
+        p = run;
+        if (frame_size_ - 3 == length_) {
+          phase_ = Phase::kChecksum;
+          continue;
+        }
+        if (p == end) continue;
+        byte = *p;
+      }
+      if (byte == kStartDelimiter) {
+        // Not consumed: it starts the next frame on the next round.
+        const uint64_t at = offset + (p - data);
+        if (escape_next_) {
+          FailFrame(FrameError::kBadEscape, at, "escape byte followed by a start delimiter", sink);
+        } else {
+          std::snprintf(detail, sizeof(detail), "start delimiter %llu bytes into the frame",
+                        static_cast<unsigned long long>(at - frame_offset_));
+          FailFrame(FrameError::kTruncated, at, detail, sink);
+        }
+        continue;
+      }
+      ++p;
+      if (escape_next_) {
+        escape_next_ = false;
+        byte ^= kEscapeXor;
+        if (!NeedsEscape(byte)) {
+          std::snprintf(detail, sizeof(detail), "escape byte followed by 0x%02X",
+                        static_cast<unsigned>(byte ^ kEscapeXor));
+          FailFrame(FrameError::kBadEscape, offset + (p - data), detail, sink);
+          continue;
+        }
+      } else if (byte == kEscape) {
+        escape_next_ = true;
+        continue;
+      }
+    } else {
+      if (phase_ == Phase::kData) {
+        const size_t want = length_ - (frame_size_ - 3);
+        const size_t take = std::min<size_t>(want, end - p);
+        uint8_t* out = frame_.data() + frame_size_;
+        std::memcpy(out, p, take);
+        uint32_t sum = 0;
+        for (size_t i = 0; i < take; ++i) sum += p[i];
+        sum_ += sum;
+        frame_size_ += take;
+        p += take;
+        if (take == want) phase_ = Phase::kChecksum;
+        continue;
+      }
+      ++p;
+    }
+
+    // One unescaped header, data or checksum byte; p is past its raw bytes.
+    frame_[frame_size_++] = byte;
+    switch (phase_) {
+      case Phase::kLengthMsb:
+        length_ = static_cast<size_t>(byte) << 8;
+        phase_ = Phase::kLengthLsb;
+        break;
+      case Phase::kLengthLsb:
+        length_ |= byte;
+        if (length_ == 0 || length_ > max_length_) {
+          std::snprintf(detail, sizeof(detail), "length %zu, accepted 1 to %zu", length_,
+                        max_length_);
+          FailFrame(FrameError::kBadLength, offset + (p - data), detail, sink);
+          if (rescan_) return p - data;
+        } else {
+          phase_ = Phase::kData;
+        }
+        break;
+      case Phase::kData:
+        sum_ += byte;
+        if (frame_size_ - 3 == length_) phase_ = Phase::kChecksum;
+        break;
+      case Phase::kChecksum:
+        if (((sum_ + byte) & 0xFF) == 0xFF) {
+          phase_ = Phase::kIdle;
+          sink->OnFrame(frame_.data() + 3, length_, frame_offset_);
+        } else {
+          std::snprintf(detail, sizeof(detail), "checksum 0x%02X, expected 0x%02X",
+                        static_cast<unsigned>(byte), static_cast<unsigned>(0xFF - (sum_ & 0xFF)));
+          FailFrame(FrameError::kBadChecksum, offset + (p - data), detail, sink);
+          if (rescan_) return p - data;
+        }
+        break;
+      case Phase::kIdle:
+        break;
+    }
+  }
+  return size;
+}
+
+std::vector<uint8_t> EncodeFrame(const uint8_t* frame_data, size_t size, ApiMode mode) {
+  std::vector<uint8_t> out;
+  AppendFrame(frame_data, size, mode, &out);
+  return out;
+}
+
+void AppendFrame(const uint8_t* frame_data, size_t size, ApiMode mode, std::vector<uint8_t>* out) {
+  // A length field cannot say more; appending nothing beats a frame whose
+  // length lies. Size 0 is encoded as is (decoders report kBadLength), which
+  // the tests use.
+  if (size > kMaxLengthField) return;
+  const bool escaped = mode == ApiMode::kEscaped;
+  out->reserve(out->size() + (escaped ? 2 : 1) * (size + kFrameOverhead));
+  out->push_back(kStartDelimiter);
+  AppendByte(static_cast<uint8_t>(size >> 8), escaped, out);
+  AppendByte(static_cast<uint8_t>(size & 0xFF), escaped, out);
+  if (escaped) {
+    for (size_t i = 0; i < size; ++i) AppendByte(frame_data[i], true, out);
+  } else {
+    out->insert(out->end(), frame_data, frame_data + size);
+  }
+  AppendByte(Checksum(frame_data, size), escaped, out);
+}
+
+PacketParse ParseReceivePacket(const uint8_t* frame_data, size_t size, ReceivePacket* packet) {
+  if (size == 0) return PacketParse::kTooShort;
+  const uint8_t type = frame_data[0];
+  const size_t header = ReceiveHeaderSize(type);
+  if (header == 0) return PacketParse::kOtherFrameType;
+  if (size < header) return PacketParse::kTooShort;
+
+  *packet = ReceivePacket();
+  packet->frame_type = type;
+  const uint8_t* p = frame_data + 1;
+  if (type == kZigbeeRxFrameType || type == kRx64FrameType) {
+    packet->has_address64 = true;
+    packet->address64 = ReadBigEndian(p, 8);
+    p += 8;
+  }
+  if (type == kZigbeeRxFrameType || type == kRx16FrameType) {
+    packet->has_address16 = true;
+    packet->address16 = static_cast<uint16_t>(ReadBigEndian(p, 2));
+    p += 2;
+  }
+  if (type != kZigbeeRxFrameType) {
+    // The module reports -dBm: 0x28 is -40 dBm.
+    packet->has_rssi = true;
+    packet->rssi_dbm = -static_cast<int>(*p++);
+  }
+  packet->options = *p++;
+  packet->payload.assign(p, frame_data + size);
+  return PacketParse::kOk;
+}
+
+std::vector<uint8_t> EncodeReceivePacket(const ReceivePacket& packet) {
+  // Fields follow frame_type; the has_* flags are what a parse sets, not
+  // switches. Another frame type has no receive layout: empty result.
+  std::vector<uint8_t> out;
+  const uint8_t type = packet.frame_type;
+  const size_t header = ReceiveHeaderSize(type);
+  if (header == 0) return out;
+  out.reserve(header + packet.payload.size());
+  out.push_back(type);
+  if (type == kZigbeeRxFrameType || type == kRx64FrameType) {
+    AppendBigEndian(packet.address64, 8, &out);
+  }
+  if (type == kZigbeeRxFrameType || type == kRx16FrameType) {
+    AppendBigEndian(packet.address16, 2, &out);
+  }
+  if (type != kZigbeeRxFrameType) {
+    // Outside what a byte of -dBm can say: clamped to 0 dBm or -255 dBm.
+    out.push_back(static_cast<uint8_t>(std::clamp(-packet.rssi_dbm, 0, 255)));
+  }
+  out.push_back(packet.options);
+  out.insert(out.end(), packet.payload.begin(), packet.payload.end());
+  return out;
+}
+
+}  // namespace roomfix::radio
