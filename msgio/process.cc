@@ -227,8 +227,7 @@ int RunLoop(Bus* bus, const std::function<void(int64_t)>& tick, const RunLoopOpt
     // A negative descriptor is ignored by poll(), so absent ones need no
     // special case.
     const int extra = options.extra_fd ? options.extra_fd() : -1;
-    pollfd fds[3] = {
-        {lcm_fd, POLLIN, 0}, {g_wake_pipe[0], POLLIN, 0}, {extra, POLLIN, 0}};
+    pollfd fds[3] = {{lcm_fd, POLLIN, 0}, {g_wake_pipe[0], POLLIN, 0}, {extra, POLLIN, 0}};
     const int n = ::poll(fds, 3, timeout_ms);
     if (n < 0 && errno != EINTR) {
       spdlog::error("poll failed: {}", std::strerror(errno));

@@ -7,8 +7,8 @@
 #
 # Runs inside a private network namespace when this machine allows one, so the
 # multicast traffic stays private; otherwise on the host-only LCM default
-# (ttl=0). As later parts land (trilat_proc, zigbee_bridge, camera_proc, the
-# logger, the viewer) they join the process list below.
+# (ttl=0). As later parts land (camera_proc, the viewer) they join the
+# process list below.
 set -euo pipefail
 build=${1:-build}
 seconds=${2:-10}
@@ -32,11 +32,32 @@ if [[ "${3:-}" == "--inner" ]]; then
   "$bin/trilat_proc" --config "$site" --method robust --log-level info 2>"$out/trilat_proc.txt" &
   pids+=($!)
   sleep 0.5  # let the logger and the solver join the group before anything publishes
-  # The simulator publishes the true poses and, standing in for the virtual
-  # wall devices and zigbee_bridge until they exist, noisy range sets.
-  "$bin/roomfix_sim" --config "$site" --duration "$seconds" --log-level info \
-    --ranges --range-noise 0.02 --nlos-probability 0.05 --dropout-probability 0.02 \
-    2>&1 | sed 's/^/  /'
+  # The simulator publishes the true poses and plays the beacon and the wall
+  # receivers on a pseudo-terminal, with a radio that buffers, reorders,
+  # duplicates, loses and corrupts, and a neighbour's module on the air;
+  # zigbee_bridge reads it as it would a ZigBee coordinator on /dev/ttyUSB0.
+  radio=$out/radio
+  rm -f "$radio"
+  "$bin/roomfix_sim" --config "$site" --log-level info \
+    --radio-pty --pty-link "$radio" \
+    --range-noise 0.02 --nlos-probability 0.05 --dropout-probability 0.02 \
+    --buffering 0.05 --buffer-hold 0.04 --reorder 0.01 --duplicate 0.05 --lost-report 0.01 \
+    --foreign 0.1 \
+    --corrupt-byte 0.0002 --garbage 0.01 \
+    > "$out/roomfix_sim.path" 2> >(sed 's/^/  /') &
+  sim=$!
+  for _ in $(seq 100); do [[ -e "$radio" ]] && break; sleep 0.05; done
+  "$bin/zigbee_bridge" --config "$site" --port "$radio" --log-level info \
+    2> >(sed 's/^/  /') &
+  bridge=$!
+  pids+=("$bridge" "$sim")
+  sleep "$seconds"
+  # The bridge stops before its device goes away, so its last word is a
+  # clean summary rather than a lost device.
+  kill -INT "$bridge"
+  wait "$bridge" || true
+  kill -INT "$sim"
+  wait "$sim" || true
   sleep 0.3  # let the last messages reach the logger
   cleanup
   trap - EXIT

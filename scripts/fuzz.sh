@@ -15,7 +15,7 @@
 set -euo pipefail
 
 if [[ $# -lt 1 || $# -gt 2 || "$1" == -h || "$1" == --help ]]; then
-  sed -n '2,15p' "$0" | sed 's/^# \{0,1\}//'
+  sed -n '2,14p' "$0" | sed 's/^# \{0,1\}//'
   exit 2
 fi
 target=$1
@@ -32,7 +32,10 @@ cc=${CC:-clang-14}
 cxx=${CXX:-clang++-14}
 # Coverage feedback for every library the target links; ROOMFIX_SANITIZE adds
 # ASan + UBSan (aborting on UB) to the whole build.
-if [[ ! -f "$build/CMakeCache.txt" ]]; then
+if [[ -f "$build/CMakeCache.txt" ]]; then
+  # Picks up targets added since the first configure.
+  cmake "$build" > "$build.configure.log" 2>&1 || { cat "$build.configure.log"; exit 1; }
+else
   cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
     -DCMAKE_C_COMPILER="$cc" -DCMAKE_CXX_COMPILER="$cxx" \
     -DCMAKE_C_FLAGS="-fsanitize=fuzzer-no-link" -DCMAKE_CXX_FLAGS="-fsanitize=fuzzer-no-link" \
@@ -52,6 +55,8 @@ status=0
   -artifact_prefix="$corpus/" ${FUZZ_ARGS:-} || status=$?
 if [[ $status -ne 0 ]]; then
   echo "fuzz.sh: ${target}_fuzzer failed (status $status); crash input(s) in $corpus/:" >&2
-  ls -t "$corpus" | grep -E '^(crash|leak|timeout|oom|slow-unit)-' | head -5 >&2 || true
+  for file in "$corpus"/crash-* "$corpus"/leak-* "$corpus"/timeout-* "$corpus"/oom-*; do
+    [[ -e "$file" ]] && echo "  $file" >&2
+  done
 fi
 exit $status

@@ -56,27 +56,26 @@ int main(int argc, char** argv) {
   radio->add_option("--api-mode", api_mode, "XBee API mode: 1 (unescaped) or 2 (escaped)")
       ->capture_default_str()
       ->check(CLI::IsMember({1, 2}));
-  radio->add_option("--frame-type", frame_type,
-                    "zigbee (0x90 receive packets) or 802.15.4 (0x80, 64-bit source)")
+  radio
+      ->add_option("--frame-type", frame_type,
+                   "zigbee (0x90 receive packets) or 802.15.4 (0x80, 64-bit source)")
       ->capture_default_str()
       ->check(CLI::IsMember({"zigbee", "802.15.4"}));
   radio->add_option("--radio-rate-hz", wall.rate_hz, "Firings per second of each beacon")
       ->capture_default_str();
-  radio->add_option("--faults", faults_preset,
-                    "none, or all (every fault below at a high rate); the flags below override")
+  radio
+      ->add_option("--faults", faults_preset,
+                   "none, or all (every fault below at a high rate); the flags below override")
       ->capture_default_str()
       ->check(CLI::IsMember({"none", "all"}));
-  double* fault_values[] = {&wall.faults.lost_report_probability,
-                            &wall.faults.lost_announcement_probability,
-                            &wall.faults.buffer_probability,
-                            &wall.faults.reorder_probability,
-                            &wall.faults.duplicate_probability,
-                            &wall.faults.foreign_probability,
-                            &wall.faults.corrupt_byte_probability,
-                            &wall.faults.garbage_probability};
-  const char* fault_flags[] = {"--lost-report", "--lost-announcement", "--buffering",
-                               "--reorder",     "--duplicate",         "--foreign",
-                               "--corrupt-byte", "--garbage"};
+  double* fault_values[] = {
+      &wall.faults.lost_report_probability,  &wall.faults.lost_announcement_probability,
+      &wall.faults.buffer_probability,       &wall.faults.reorder_probability,
+      &wall.faults.duplicate_probability,    &wall.faults.foreign_probability,
+      &wall.faults.corrupt_byte_probability, &wall.faults.garbage_probability};
+  const char* fault_flags[] = {
+      "--lost-report", "--lost-announcement", "--buffering",    "--reorder",
+      "--duplicate",   "--foreign",           "--corrupt-byte", "--garbage"};
   const char* fault_help[] = {
       "Probability that the radio loses a report",
       "Probability that the radio loses a firing announcement",
@@ -91,8 +90,9 @@ int main(int argc, char** argv) {
   for (int i = 0; i < 8; ++i) {
     radio->add_option(fault_flags[i], fault_overrides[i], fault_help[i]);
   }
-  radio->add_option("--buffer-hold", wall.faults.buffer_hold_max_s,
-                    "Longest a buffering module holds reports back, s")
+  radio
+      ->add_option("--buffer-hold", wall.faults.buffer_hold_max_s,
+                   "Longest a buffering module holds reports back, s")
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
@@ -115,8 +115,8 @@ int main(int argc, char** argv) {
   if (faults_preset != "all" || app.count("--dropout-probability") > 0) {
     wall.faults.ultrasound.dropout_probability = ranges.noise.dropout_probability;
   }
-  wall.api_mode = api_mode == 1 ? roomfix::radio::ApiMode::kUnescaped
-                                : roomfix::radio::ApiMode::kEscaped;
+  wall.api_mode =
+      api_mode == 1 ? roomfix::radio::ApiMode::kUnescaped : roomfix::radio::ApiMode::kEscaped;
   wall.frame_type =
       frame_type == "zigbee" ? roomfix::radio::kZigbeeRxFrameType : roomfix::radio::kRx64FrameType;
   wall.seed = ranges.seed;
@@ -150,7 +150,8 @@ int main(int argc, char** argv) {
   if (process.check) {
     std::cout << "roomfix_sim: ok: " << ctx->site.simulation.robots.size() << " robot(s) at "
               << options.rate_hz << " Hz on " << process.lcm_url;
-    if (radio_pty) std::cout << ", wall devices on a pseudo-terminal (faults " << faults_preset << ")";
+    if (radio_pty)
+      std::cout << ", wall devices on a pseudo-terminal (faults " << faults_preset << ")";
     std::cout << "\n";
     return 0;
   }

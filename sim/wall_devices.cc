@@ -193,9 +193,10 @@ void VirtualWallDevices::Fire(Firer* firer, int64_t fire_utime) {
 
     // A receiver that heard nothing reports when its listening window ends.
     const double heard_after_s = report.no_echo ? 0.03 : ranges[i].time_of_flight_s;
-    int64_t utime = fire_utime +
-                    static_cast<int64_t>(std::llround((heard_after_s + options_.processing_s) * 1e6)) +
-                    RadioLatencyUs();
+    int64_t utime =
+        fire_utime +
+        static_cast<int64_t>(std::llround((heard_after_s + options_.processing_s) * 1e6)) +
+        RadioLatencyUs();
     if (Chance(faults.reorder_probability)) {
       utime += static_cast<int64_t>(period_us * Uniform(1.0, 3.0));
     }

@@ -23,6 +23,7 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
   trilat->add_flag("--json", options->json, "Print one JSON object instead of tables");
   trilat->callback([options, exit_code] { *exit_code = RunTrilatBench(*options); });
   AddBenchLoggerCommand(bench, exit_code);
+  AddBenchRadioCommand(bench, exit_code);
 }
 
 }  // namespace roomfix

@@ -20,6 +20,8 @@ void AddCompareCommand(CLI::App* app, int* exit_code);
 void AddFramesCommand(CLI::App* app, int* exit_code);
 // Adds `logger` under the `bench` subcommand.
 void AddBenchLoggerCommand(CLI::App* bench, int* exit_code);
+// Adds `radio` under the `bench` subcommand.
+void AddBenchRadioCommand(CLI::App* bench, int* exit_code);
 
 }  // namespace roomfix
 

@@ -90,9 +90,8 @@ class JsonLines : public radio::FrameSink {
  public:
   void OnFrame(const uint8_t* data, size_t size, uint64_t offset) override {
     ++frames;
-    json line = {{"offset", offset},
-                 {"type", HexByte(data[0], 2)},
-                 {"type_name", FrameTypeName(data[0])}};
+    json line = {
+        {"offset", offset}, {"type", HexByte(data[0], 2)}, {"type_name", FrameTypeName(data[0])}};
     radio::ReceivePacket p;
     const radio::PacketParse parse = radio::ParseReceivePacket(data, size, &p);
     if (parse == radio::PacketParse::kOk) {
@@ -127,8 +126,7 @@ bool ParseHexText(const std::string& text, std::vector<uint8_t>* out, std::strin
   int high = -1;
   for (size_t i = 0; i < text.size(); ++i) {
     const char c = text[i];
-    if (c == '0' && i + 1 < text.size() && (text[i + 1] == 'x' || text[i + 1] == 'X') &&
-        high < 0) {
+    if (c == '0' && i + 1 < text.size() && (text[i + 1] == 'x' || text[i + 1] == 'X') && high < 0) {
       ++i;
       continue;
     }
@@ -196,8 +194,7 @@ int RunDecode(const FramesOptions& options) {
       in->read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
       const std::streamsize n = in->gcount();
       if (n <= 0) break;
-      decoder.Feed(reinterpret_cast<const uint8_t*>(buffer.data()), static_cast<size_t>(n),
-                   &sink);
+      decoder.Feed(reinterpret_cast<const uint8_t*>(buffer.data()), static_cast<size_t>(n), &sink);
     }
   }
   // The stream ended: a frame still open was cut short.

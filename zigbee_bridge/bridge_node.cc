@@ -18,22 +18,6 @@ namespace {
 // belong to the next frames (which in API mode 1 delays them).
 constexpr size_t kMaxFrameDataBytes = 128;
 
-const char* FrameErrorReason(radio::FrameError error) {
-  switch (error) {
-    case radio::FrameError::kGarbage:
-      return "garbage";
-    case radio::FrameError::kBadChecksum:
-      return "bad_checksum";
-    case radio::FrameError::kTruncated:
-      return "truncated_frame";
-    case radio::FrameError::kBadLength:
-      return "bad_length";
-    case radio::FrameError::kBadEscape:
-      return "bad_escape";
-  }
-  return "frame_error";
-}
-
 }  // namespace
 
 bool BridgeNodeOptions::IsValid(std::string* error) const {
@@ -110,7 +94,7 @@ void BridgeNode::OnFrame(const uint8_t* frame_data, size_t size, uint64_t stream
 }
 
 void BridgeNode::OnFrameError(const radio::FrameErrorInfo& error) {
-  const char* reason = FrameErrorReason(error.error);
+  const char* reason = radio::FrameErrorName(error.error);
   status_.Reject(reason);
   if (error.error == radio::FrameError::kGarbage) {
     status_.Count("garbage_bytes", static_cast<int64_t>(error.size_bytes));

@@ -29,11 +29,10 @@ Site DemoSite() {
 struct SimulatedRadio {
   SimulatedRadio(const Site& site, const WallDevicesOptions& wall, const BridgeNodeOptions& bridge)
       : devices(site, wall), node(site, &bus, bridge, kStartUtime) {
-    bus.Subscribe<range_set_t>("RANGES", [this](const range_set_t& s, const MessageInfo&) {
-      sets.push_back(s);
-    });
-    bus.Subscribe<process_status_t>("STATUS", [this](const process_status_t& s,
-                                                     const MessageInfo&) { status = s; });
+    bus.Subscribe<range_set_t>(
+        "RANGES", [this](const range_set_t& s, const MessageInfo&) { sets.push_back(s); });
+    bus.Subscribe<process_status_t>(
+        "STATUS", [this](const process_status_t& s, const MessageInfo&) { status = s; });
     node.OnLinkUp("simulated", kStartUtime);
   }
 

@@ -78,12 +78,9 @@ class DeviceWriter {
 class BridgeLoop {
  public:
   BridgeLoop(const Site& site, const std::string& port)
-      : link_(SerialLinkOptions{port, 115200, 0.05, 0.2}),
-        node_(site, &bus_, {}, NowUtime()) {
-    bus_.Subscribe<range_set_t>("RANGES",
-                                [this](const range_set_t& s, const MessageInfo&) {
-                                  sets.push_back(s);
-                                });
+      : link_(SerialLinkOptions{port, 115200, 0.05, 0.2}), node_(site, &bus_, {}, NowUtime()) {
+    bus_.Subscribe<range_set_t>(
+        "RANGES", [this](const range_set_t& s, const MessageInfo&) { sets.push_back(s); });
     bus_.Subscribe<process_status_t>(
         "STATUS", [this](const process_status_t& s, const MessageInfo&) { statuses.push_back(s); });
   }

@@ -108,6 +108,13 @@ int main(int argc, char** argv) {
       },
       loop);
   node.Stop(roomfix::NowUtime());
-  spdlog::info("stopped: {} range sets published", node.sets_published());
+  const roomfix::radio::RangeAssembler& a = node.assembler();
+  std::string rejected;
+  for (const auto& [reason, count] : a.rejected()) {
+    rejected += (rejected.empty() ? "" : ", ") + reason + " " + std::to_string(count);
+  }
+  spdlog::info("stopped: {} range sets published ({} complete, {} at the deadline); rejected: {}",
+               node.sets_published(), a.counter("sets_complete"), a.counter("sets_deadline"),
+               rejected.empty() ? "none" : rejected);
   return rc;
 }

@@ -22,7 +22,8 @@ double Median(std::vector<double> values) {
   std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(mid), values.end());
   if (values.size() % 2 == 1) return values[mid];
   const double upper = values[mid];
-  const double lower = *std::max_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(mid));
+  const double lower =
+      *std::max_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(mid));
   return 0.5 * (lower + upper);
 }
 
@@ -89,7 +90,8 @@ const char* CloseReasonName(CloseReason reason) {
 }
 
 int64_t UnwrapSequence(uint16_t seq, int64_t newest) {
-  const auto delta = static_cast<int16_t>(static_cast<uint16_t>(seq - static_cast<uint16_t>(newest)));
+  const auto delta =
+      static_cast<int16_t>(static_cast<uint16_t>(seq - static_cast<uint16_t>(newest)));
   return newest + delta;
 }
 
@@ -187,8 +189,7 @@ void RangeAssembler::NoteTemperature(const WallMessage& message, OpenFiring* fir
   firing->temperatures_c.push_back(t);
 }
 
-const char* RangeAssembler::OnPacket(const RadioPacket& packet,
-                                     std::vector<AssembledSet>* closed) {
+const char* RangeAssembler::OnPacket(const RadioPacket& packet, std::vector<AssembledSet>* closed) {
   const Receiver* receiver = nullptr;
   const Beacon* beacon = nullptr;
   std::string source;
@@ -197,9 +198,13 @@ const char* RangeAssembler::OnPacket(const RadioPacket& packet,
     beacon = site_.FindBeaconByAddress(packet.address64);
     source = FormatRadioAddress(packet.address64);
   } else if (packet.has_address16) {
+    // 802.15.4 short addressing (frame 0x81): only modules given a
+    // short_address in the site file can be recognised.
+    receiver = site_.FindReceiverByShortAddress(packet.address16);
+    beacon = site_.FindBeaconByShortAddress(packet.address16);
     char buffer[8];
     std::snprintf(buffer, sizeof(buffer), "0x%04X", packet.address16);
-    source = std::string("16-bit ") + buffer;
+    source = std::string("short address ") + buffer;
   } else {
     source = "unknown 64-bit address";
   }
@@ -231,8 +236,8 @@ const char* RangeAssembler::OnPacket(const RadioPacket& packet,
     return OnAnnouncement(FindBeaconState(beacon->id), message, packet, closed);
   }
   if (receiver == nullptr) {
-    return Reject("wrong_sender", source + " (beacon " + std::to_string(beacon->id) +
-                                      ") sent a range report");
+    return Reject("wrong_sender",
+                  source + " (beacon " + std::to_string(beacon->id) + ") sent a range report");
   }
   return OnReport(static_cast<int>(receiver - site_.receivers.data()), message, packet, closed);
 }
@@ -242,10 +247,9 @@ const char* RangeAssembler::OnAnnouncement(BeaconState* state, const WallMessage
                                            std::vector<AssembledSet>* closed) {
   ++counters_["announcements"];
   int64_t seq = Unwrap(*state, message.firing_seq);
-  const bool after_silence =
-      state->last_announcement_utime != INT64_MIN &&
-      packet.arrival_utime - state->last_announcement_utime >
-          static_cast<int64_t>(options_.restart_silence_s * 1e6);
+  const bool after_silence = state->last_announcement_utime != INT64_MIN &&
+                             packet.arrival_utime - state->last_announcement_utime >
+                                 static_cast<int64_t>(options_.restart_silence_s * 1e6);
   state->last_announcement_utime = std::max(state->last_announcement_utime, packet.arrival_utime);
   if (state->has_newest && (seq < state->newest_seq - options_.stale_window_firings ||
                             (after_silence && seq <= state->newest_seq))) {
@@ -260,7 +264,12 @@ const char* RangeAssembler::OnAnnouncement(BeaconState* state, const WallMessage
     state->newest_seq = message.firing_seq;
     std::fill(state->closed.begin(), state->closed.end(), INT64_MIN);
     seq = message.firing_seq;
+    state->floor_seq = seq;
     ++counters_["beacon_restarts"];
+  }
+  if (seq < state->floor_seq) {
+    return Reject("stale_firing", "announcement of beacon " + std::to_string(state->beacon->id) +
+                                      " from before its restart");
   }
   if (IsClosed(*state, seq)) {
     return Reject("late_report", "announcement of beacon " + std::to_string(state->beacon->id) +
@@ -283,8 +292,7 @@ const char* RangeAssembler::OnAnnouncement(BeaconState* state, const WallMessage
 }
 
 const char* RangeAssembler::OnReport(int receiver_index, const WallMessage& message,
-                                     const RadioPacket& packet,
-                                     std::vector<AssembledSet>* closed) {
+                                     const RadioPacket& packet, std::vector<AssembledSet>* closed) {
   ++counters_["reports"];
   const Receiver& receiver = site_.receivers[static_cast<size_t>(receiver_index)];
   BeaconState* state = FindBeaconState(message.beacon_id);
@@ -298,9 +306,9 @@ const char* RangeAssembler::OnReport(int receiver_index, const WallMessage& mess
                            std::to_string(state->beacon->id) + " firing " +
                            std::to_string(seq + state->seq_offset);
   if (IsClosed(*state, seq)) return Reject("late_report", what + " after its set was published");
-  if (state->has_newest && seq < state->newest_seq - options_.stale_window_firings) {
-    return Reject("stale_firing", what + ", " +
-                                      std::to_string(state->newest_seq - seq) +
+  if (seq < state->floor_seq ||
+      (state->has_newest && seq < state->newest_seq - options_.stale_window_firings)) {
+    return Reject("stale_firing", what + ", " + std::to_string(state->newest_seq - seq) +
                                       " firings behind the newest");
   }
   OpenFiring* firing = FindOpen(state, seq);
@@ -344,8 +352,8 @@ const char* RangeAssembler::OnReport(int receiver_index, const WallMessage& mess
   return reason;
 }
 
-void RangeAssembler::Close(BeaconState* state, size_t index, CloseReason reason,
-                           int64_t now_utime, std::vector<AssembledSet>* closed) {
+void RangeAssembler::Close(BeaconState* state, size_t index, CloseReason reason, int64_t now_utime,
+                           std::vector<AssembledSet>* closed) {
   OpenFiring& f = state->open[index];
   AssembledSet set;
   set.beacon_id = state->beacon->id;

@@ -177,6 +177,9 @@ class RangeAssembler {
     int64_t newest_seq = 0;
     int64_t seq_offset = 0;
     int64_t last_announcement_utime = INT64_MIN;
+    // After a restart, firings before its first are of the old numbering
+    // and refused as stale: letting them in would reuse published numbers.
+    int64_t floor_seq = INT64_MIN;
     // Slot seq % size holds seq once that firing was closed.
     std::vector<int64_t> closed;
     std::vector<OpenFiring> open;

@@ -151,8 +151,8 @@ TEST_F(RangeAssemblerTest, NeverMixesFiringsDeliveredInAShuffledBurst) {
   for (const AssembledSet& set : closed_) {
     ASSERT_EQ(set.ranges.size(), 4u);
     for (const AssembledRange& r : set.ranges) {
-      const uint32_t expected = static_cast<uint32_t>(8'000'000 + set.firing_seq * 1000 +
-                                                      (r.receiver_id - 1));
+      const uint32_t expected =
+          static_cast<uint32_t>(8'000'000 + set.firing_seq * 1000 + (r.receiver_id - 1));
       EXPECT_NEAR(r.time_of_flight_us, expected * 1e-3, 1e-9)
           << "firing " << set.firing_seq << " receiver " << r.receiver_id;
     }
@@ -168,11 +168,35 @@ TEST_F(RangeAssemblerTest, DropsReportFromUnknownAddress) {
   m.time_of_flight_ns = TofNs(2.8);
   EXPECT_STREQ(Send(&a, kForeignAddress, m, kT0 + 1000), "unknown_address");
   EXPECT_EQ(a.rejected("unknown_address"), 1);
-  EXPECT_NE(a.last_rejection().find("0x0013A200DEADBEEF"), std::string::npos)
-      << a.last_rejection();
+  EXPECT_NE(a.last_rejection().find("0x0013A200DEADBEEF"), std::string::npos) << a.last_rejection();
   a.Advance(kT0 + 100'000, &closed_);
   ASSERT_EQ(closed_.size(), 1u);
   EXPECT_TRUE(closed_[0].ranges.empty());
+}
+
+TEST_F(RangeAssemblerTest, RecognisesShortAddressesTheSiteLists) {
+  site_.receivers[0].short_address = 0x0101;
+  RangeAssembler a(site_, {});
+  Announce(&a, 1, kT0);
+  WallMessage m;
+  m.beacon_id = 1;
+  m.firing_seq = 1;
+  m.time_of_flight_ns = TofNs(TrueRangeM(0));
+  payloads_.push_back(EncodeWallMessage(m));
+  RadioPacket p;
+  p.has_address16 = true;
+  p.address16 = 0x0101;
+  p.payload = payloads_.back().data();
+  p.payload_size = payloads_.back().size();
+  p.arrival_utime = kT0 + 9000;
+  EXPECT_EQ(a.OnPacket(p, &closed_), nullptr);
+  p.address16 = 0x0202;
+  EXPECT_STREQ(a.OnPacket(p, &closed_), "unknown_address");
+  EXPECT_NE(a.last_rejection().find("short address 0x0202"), std::string::npos);
+  a.Flush(kT0 + 20'000, &closed_);
+  ASSERT_EQ(closed_.size(), 1u);
+  ASSERT_EQ(closed_[0].ranges.size(), 1u);
+  EXPECT_EQ(closed_[0].ranges[0].receiver_id, 1);
 }
 
 TEST_F(RangeAssemblerTest, DropsPacketsFromTheWrongKindOfDevice) {
@@ -231,8 +255,8 @@ TEST_F(RangeAssemblerTest, CountsNoEchoAsAnAnswerWithoutARange) {
 
 TEST_F(RangeAssemblerTest, DropsMalformedAndUnsupportedPayloads) {
   RangeAssembler a(site_, {});
-  std::vector<uint8_t> bytes = EncodeWallMessage(WallMessage{PayloadType::kRangeReport, 1, 1,
-                                                             TofNs(2.8), 2000, 0});
+  std::vector<uint8_t> bytes =
+      EncodeWallMessage(WallMessage{PayloadType::kRangeReport, 1, 1, TofNs(2.8), 2000, 0});
   bytes[6] ^= 0x10;
   RadioPacket p;
   p.has_address64 = true;
@@ -295,6 +319,9 @@ TEST_F(RangeAssemblerTest, KeepsNumbersIncreasingWhenTheBeaconRestarts) {
   EXPECT_EQ(closed_[1].ranges.size(), 1u);
   EXPECT_EQ(closed_[2].firing_seq, 5002);
   EXPECT_EQ(a.counter("beacon_restarts"), 1);
+  // Late packets of the old numbering must not reuse published numbers.
+  EXPECT_STREQ(Report(&a, 1, 65534, TofNs(2.8), kT0 + 410'000), "stale_firing");
+  EXPECT_STREQ(Announce(&a, 65535, kT0 + 420'000), "stale_firing");
 }
 
 TEST_F(RangeAssemblerTest, TakesAnOldNumberAfterASilenceAsARestart) {

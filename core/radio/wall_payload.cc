@@ -103,8 +103,7 @@ PayloadError DecodeWallMessage(const uint8_t* data, size_t size, WallMessage* me
   const uint16_t crc = Crc16CcittFalse(data, size - 2);
   const uint16_t sent = Get16(data + size - 2);
   if (crc != sent) {
-    return Fail(PayloadError::kBadCrc, detail,
-                "CRC " + Hex(sent, 4) + ", computed " + Hex(crc, 4));
+    return Fail(PayloadError::kBadCrc, detail, "CRC " + Hex(sent, 4) + ", computed " + Hex(crc, 4));
   }
   if (data[2] == 0) return Fail(PayloadError::kBadBeaconId, detail, "beacon id 0 is reserved");
 

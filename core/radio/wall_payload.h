@@ -54,10 +54,10 @@ inline constexpr size_t kRangeReportPayloadBytes = 14;
 
 // Status flags (bit field). Unknown bits are ignored, so a newer firmware
 // can add flags without breaking an older bridge.
-inline constexpr uint8_t kFlagWeakEcho = 0x01;      // echo amplitude below the detector's margin
-inline constexpr uint8_t kFlagNoEcho = 0x02;        // the timer ran out: no time of flight
+inline constexpr uint8_t kFlagWeakEcho = 0x01;  // echo amplitude below the detector's margin
+inline constexpr uint8_t kFlagNoEcho = 0x02;    // the timer ran out: no time of flight
 inline constexpr uint8_t kFlagLowBattery = 0x04;
-inline constexpr uint8_t kFlagSensorFault = 0x08;   // temperature sensor failed its self-test
+inline constexpr uint8_t kFlagSensorFault = 0x08;  // temperature sensor failed its self-test
 
 // Sentinel for "no temperature reading".
 inline constexpr int16_t kNoTemperature = INT16_MIN;

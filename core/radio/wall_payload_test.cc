@@ -86,8 +86,7 @@ TEST(DecodeWallMessage, RejectsEachMalformedPayloadWithItsReason) {
 
   bytes = ValidReport();
   bytes[1] = 0x07;
-  EXPECT_EQ(DecodeWallMessage(bytes.data(), bytes.size(), &m, &detail),
-            PayloadError::kUnknownType);
+  EXPECT_EQ(DecodeWallMessage(bytes.data(), bytes.size(), &m, &detail), PayloadError::kUnknownType);
 
   bytes = ValidReport();
   bytes.pop_back();
@@ -100,8 +99,7 @@ TEST(DecodeWallMessage, RejectsEachMalformedPayloadWithItsReason) {
   WallMessage zero;
   zero.beacon_id = 0;
   bytes = EncodeWallMessage(zero);
-  EXPECT_EQ(DecodeWallMessage(bytes.data(), bytes.size(), &m, &detail),
-            PayloadError::kBadBeaconId);
+  EXPECT_EQ(DecodeWallMessage(bytes.data(), bytes.size(), &m, &detail), PayloadError::kBadBeaconId);
 }
 
 TEST(DecodeWallMessage, CrcCatchesEverySingleBitError) {

@@ -12,6 +12,9 @@ namespace {
 constexpr size_t kMaxLengthField = 0xFFFF;
 // Start delimiter, two length bytes, checksum.
 constexpr size_t kFrameOverhead = 4;
+// Mode 1 takes at most this many fed bytes into its window at a time, which
+// bounds the window (and its one allocation) whatever the caller feeds.
+constexpr size_t kWindowSlice = 4096;
 
 bool NeedsEscape(uint8_t byte) {
   return byte == kStartDelimiter || byte == kEscape || byte == kXon || byte == kXoff;
@@ -64,13 +67,13 @@ const char* FrameErrorName(FrameError error) {
     case FrameError::kGarbage:
       return "garbage";
     case FrameError::kBadChecksum:
-      return "bad checksum";
+      return "bad_checksum";
     case FrameError::kTruncated:
-      return "truncated";
+      return "truncated_frame";
     case FrameError::kBadLength:
-      return "bad length";
+      return "bad_length";
     case FrameError::kBadEscape:
-      return "bad escape";
+      return "bad_escape";
   }
   return "unknown";
 }
@@ -78,8 +81,15 @@ const char* FrameErrorName(FrameError error) {
 FrameDecoder::FrameDecoder(const FrameDecoderOptions& options)
     : options_(options),
       escaped_(options.mode == ApiMode::kEscaped),
-      max_length_(std::min(options.max_frame_data_bytes, kMaxLengthField)),
-      frame_(max_length_ + kFrameOverhead) {}
+      max_length_(std::min(options.max_frame_data_bytes, kMaxLengthField)) {
+  if (escaped_) {
+    frame_.resize(max_length_);
+  } else {
+    window_.reserve(kWindowSlice + max_length_ + kFrameOverhead);
+    prefix_.reserve(kWindowSlice + max_length_ + kFrameOverhead + 1);
+    prefix_.push_back(0);
+  }
+}
 
 bool FrameDecoder::InFrame() const { return phase_ != Phase::kIdle; }
 uint64_t FrameDecoder::bytes_fed() const { return bytes_fed_; }
@@ -88,23 +98,35 @@ const FrameDecoderOptions& FrameDecoder::options() const { return options_; }
 void FrameDecoder::Feed(const uint8_t* data, size_t size, FrameSink* sink) {
   const uint64_t offset = bytes_fed_;
   bytes_fed_ += size;
-  size_t done = 0;
-  while (done < size) {
-    done += Scan(data + done, size - done, offset + done, sink);
-    if (rescan_) Rescan(sink);
+  if (escaped_) {
+    FeedEscaped(data, size, offset, sink);
+    return;
+  }
+  while (size > 0) {
+    const size_t take = std::min(size, kWindowSlice);
+    const size_t from = window_.size();
+    window_.insert(window_.end(), data, data + take);
+    prefix_.resize(from + take + 1);
+    uint8_t running = prefix_[from];
+    for (size_t i = 0; i < take; ++i) {
+      running = static_cast<uint8_t>(running + data[i]);
+      prefix_[from + i + 1] = running;
+    }
+    ScanWindow(from, sink);
+    data += take;
+    size -= take;
   }
 }
 
 void FrameDecoder::FlushPartial(FrameSink* sink) {
-  // In mode 1 the rescan of a truncated frame may start another frame that
-  // is just as incomplete; each round starts later in the stream, so this
-  // ends.
+  char detail[96];
+  // In mode 1 the rescan of a truncated candidate may start another one that
+  // is just as incomplete; each starts later in the stream, so this ends.
   while (phase_ != Phase::kIdle) {
-    char detail[96];
     std::snprintf(detail, sizeof(detail), "stream paused or ended %llu bytes into the frame",
                   static_cast<unsigned long long>(bytes_fed_ - frame_offset_));
     FailFrame(FrameError::kTruncated, bytes_fed_, detail, sink);
-    if (rescan_) Rescan(sink);
+    if (!escaped_) ScanWindow(1, sink);
   }
   FlushGarbage(sink);
 }
@@ -112,28 +134,37 @@ void FrameDecoder::FlushPartial(FrameSink* sink) {
 void FrameDecoder::StartFrame(uint64_t offset, FrameSink* sink) {
   FlushGarbage(sink);
   frame_offset_ = offset;
-  frame_[0] = kStartDelimiter;
-  frame_size_ = 1;
-  phase_ = Phase::kLengthMsb;
-  escape_next_ = false;
+  phase_ = escaped_ ? Phase::kLengthMsb : Phase::kCandidate;
+  frame_size_ = 0;
   length_ = 0;
   sum_ = 0;
+  escape_next_ = false;
 }
 
 void FrameDecoder::FailFrame(FrameError error, uint64_t end_offset, const char* detail,
                              FrameSink* sink) {
-  if (frame_offset_ >= covered_until_) {
-    FrameErrorInfo info;
-    info.error = error;
-    info.stream_offset = frame_offset_;
-    info.size_bytes = end_offset - frame_offset_;
-    info.detail = detail;
-    sink->OnFrameError(info);
-    covered_until_ = end_offset;
-  }
   phase_ = Phase::kIdle;
   escape_next_ = false;
-  rescan_ = !escaped_;
+  if (frame_offset_ < covered_until_) return;
+  FrameErrorInfo info;
+  info.error = error;
+  info.stream_offset = frame_offset_;
+  info.size_bytes = end_offset - frame_offset_;
+  info.detail = detail;
+  covered_until_ = end_offset;
+  sink->OnFrameError(info);
+}
+
+void FrameDecoder::FailChecksum(uint8_t checksum, uint32_t sum, uint64_t end_offset,
+                                FrameSink* sink) {
+  char detail[64] = "";
+  // Mode 1 suppresses most failures in adversarial input; formatting their
+  // detail would then be most of the cost.
+  if (frame_offset_ >= covered_until_) {
+    std::snprintf(detail, sizeof(detail), "checksum 0x%02X, expected 0x%02X",
+                  static_cast<unsigned>(checksum), static_cast<unsigned>(0xFF - (sum & 0xFF)));
+  }
+  FailFrame(FrameError::kBadChecksum, end_offset, detail, sink);
 }
 
 void FrameDecoder::AddGarbage(uint64_t offset, uint64_t size) {
@@ -141,7 +172,7 @@ void FrameDecoder::AddGarbage(uint64_t offset, uint64_t size) {
   if (end <= covered_until_) return;
   offset = std::max(offset, covered_until_);
   // A run only grows at its end: it is flushed before any frame starts, and
-  // rescans only revisit bytes after a frame's start.
+  // a rescan only revisits bytes after a frame's start.
   if (garbage_bytes_ == 0) garbage_start_ = offset;
   garbage_bytes_ += end - offset;
 }
@@ -160,25 +191,56 @@ void FrameDecoder::FlushGarbage(FrameSink* sink) {
   sink->OnFrameError(info);
 }
 
-void FrameDecoder::Rescan(FrameSink* sink) {
-  replay_.assign(frame_.begin() + 1, frame_.begin() + frame_size_);
-  replay_offset_ = frame_offset_ + 1;
-  replay_pos_ = 0;
-  rescan_ = false;
-  while (replay_pos_ < replay_.size()) {
-    replay_pos_ += Scan(replay_.data() + replay_pos_, replay_.size() - replay_pos_,
-                        replay_offset_ + replay_pos_, sink);
-    if (rescan_) {
-      // The failed frame began inside the replay (Scan saw nothing else), so
-      // what to replay next is already in place after its start delimiter.
-      replay_pos_ = static_cast<size_t>(frame_offset_ + 1 - replay_offset_);
-      rescan_ = false;
+void FrameDecoder::ScanWindow(size_t from, FrameSink* sink) {
+  const uint8_t* const w = window_.data();
+  const uint8_t* const sums = prefix_.data();
+  const size_t n = window_.size();
+  size_t candidate = 0;  // where the frame in progress starts, if any
+  size_t i = from;       // next byte to look at outside a frame
+  char detail[96];
+  for (;;) {
+    if (phase_ == Phase::kIdle) {
+      const void* found = i < n ? std::memchr(w + i, kStartDelimiter, n - i) : nullptr;
+      const size_t at = found != nullptr ? static_cast<const uint8_t*>(found) - w : n;
+      if (at > i) AddGarbage(window_offset_ + i, at - i);
+      if (at == n) break;
+      candidate = at;
+      StartFrame(window_offset_ + at, sink);
+    }
+    const size_t available = n - candidate;
+    if (available < 3) break;
+    const size_t length = static_cast<size_t>(w[candidate + 1]) << 8 | w[candidate + 2];
+    if (length == 0 || length > max_length_) {
+      detail[0] = '\0';
+      if (frame_offset_ >= covered_until_) {
+        std::snprintf(detail, sizeof(detail), "length %zu, accepted 1 to %zu", length, max_length_);
+      }
+      FailFrame(FrameError::kBadLength, frame_offset_ + 3, detail, sink);
+      i = candidate + 1;
+      continue;
+    }
+    if (available < length + kFrameOverhead) break;
+    const size_t data_at = candidate + 3;
+    const uint8_t sum = static_cast<uint8_t>(sums[data_at + length] - sums[data_at]);
+    const uint8_t checksum = w[data_at + length];
+    if (static_cast<uint8_t>(sum + checksum) == 0xFF) {
+      phase_ = Phase::kIdle;
+      sink->OnFrame(w + data_at, length, frame_offset_);
+      i = candidate + length + kFrameOverhead;
+    } else {
+      FailChecksum(checksum, sum, frame_offset_ + length + kFrameOverhead, sink);
+      i = candidate + 1;
     }
   }
-  replay_.clear();
+  // Keep only the frame in progress; prefix sums stay valid shifted, since
+  // only their differences count.
+  const size_t keep_from = phase_ == Phase::kIdle ? n : candidate;
+  window_.erase(window_.begin(), window_.begin() + keep_from);
+  prefix_.erase(prefix_.begin(), prefix_.begin() + keep_from);
+  window_offset_ += keep_from;
 }
 
-size_t FrameDecoder::Scan(const uint8_t* data, size_t size, uint64_t offset, FrameSink* sink) {
+void FrameDecoder::FeedEscaped(const uint8_t* data, size_t size, uint64_t offset, FrameSink* sink) {
   const uint8_t* p = data;
   const uint8_t* const end = data + size;
   char detail[96];
@@ -187,80 +249,61 @@ size_t FrameDecoder::Scan(const uint8_t* data, size_t size, uint64_t offset, Fra
       const void* found = std::memchr(p, kStartDelimiter, end - p);
       const uint8_t* start = found != nullptr ? static_cast<const uint8_t*>(found) : end;
       if (start != p) AddGarbage(offset + (p - data), start - p);
-      if (start == end) return size;
+      if (start == end) return;
       StartFrame(offset + (start - data), sink);
       p = start + 1;
       continue;
     }
-
-    uint8_t byte = *p;
-    if (escaped_) {
-      // Fast path through frame data up to the next byte that needs a look.
-      if (phase_ == Phase::kData && !escape_next_) {
-        const size_t want = length_ - (frame_size_ - 3);
-        const uint8_t* run = p;
-        const uint8_t* const run_end = p + std::min<size_t>(want, end - p);
-        uint8_t* out = frame_.data() + frame_size_;
-        uint32_t sum = 0;
-        while (run < run_end && *run != kStartDelimiter && *run != kEscape) {
-          sum += *run;
-          *out++ = *run++;
-        }
-        sum_ += sum;
-        frame_size_ += run - p;
-        p = run;
-        if (frame_size_ - 3 == length_) {
-          phase_ = Phase::kChecksum;
-          continue;
-        }
-        if (p == end) continue;
-        byte = *p;
+    // Frame data runs to the next byte that needs a look without the
+    // per-byte state machine.
+    if (phase_ == Phase::kData && !escape_next_) {
+      const uint8_t* run = p;
+      const uint8_t* const run_end = p + std::min<size_t>(length_ - frame_size_, end - p);
+      uint8_t* out = frame_.data() + frame_size_;
+      uint32_t sum = 0;
+      while (run < run_end && *run != kStartDelimiter && *run != kEscape) {
+        sum += *run;
+        *out++ = *run++;
       }
-      if (byte == kStartDelimiter) {
-        // Not consumed: it starts the next frame on the next round.
-        const uint64_t at = offset + (p - data);
-        if (escape_next_) {
-          FailFrame(FrameError::kBadEscape, at, "escape byte followed by a start delimiter", sink);
-        } else {
-          std::snprintf(detail, sizeof(detail), "start delimiter %llu bytes into the frame",
-                        static_cast<unsigned long long>(at - frame_offset_));
-          FailFrame(FrameError::kTruncated, at, detail, sink);
-        }
+      sum_ += sum;
+      frame_size_ += run - p;
+      p = run;
+      if (frame_size_ == length_) {
+        phase_ = Phase::kChecksum;
         continue;
       }
-      ++p;
-      if (escape_next_) {
-        escape_next_ = false;
-        byte ^= kEscapeXor;
-        if (!NeedsEscape(byte)) {
-          std::snprintf(detail, sizeof(detail), "escape byte followed by 0x%02X",
-                        static_cast<unsigned>(byte ^ kEscapeXor));
-          FailFrame(FrameError::kBadEscape, offset + (p - data), detail, sink);
-          continue;
-        }
-      } else if (byte == kEscape) {
-        escape_next_ = true;
-        continue;
-      }
-    } else {
-      if (phase_ == Phase::kData) {
-        const size_t want = length_ - (frame_size_ - 3);
-        const size_t take = std::min<size_t>(want, end - p);
-        uint8_t* out = frame_.data() + frame_size_;
-        std::memcpy(out, p, take);
-        uint32_t sum = 0;
-        for (size_t i = 0; i < take; ++i) sum += p[i];
-        sum_ += sum;
-        frame_size_ += take;
-        p += take;
-        if (take == want) phase_ = Phase::kChecksum;
-        continue;
-      }
-      ++p;
+      if (p == end) return;
     }
 
-    // One unescaped header, data or checksum byte; p is past its raw bytes.
-    frame_[frame_size_++] = byte;
+    uint8_t byte = *p;
+    if (byte == kStartDelimiter) {
+      // Not consumed: it starts the next frame on the next round.
+      const uint64_t at = offset + (p - data);
+      if (escape_next_) {
+        FailFrame(FrameError::kBadEscape, at, "escape byte followed by a start delimiter", sink);
+      } else {
+        std::snprintf(detail, sizeof(detail), "start delimiter %llu bytes into the frame",
+                      static_cast<unsigned long long>(at - frame_offset_));
+        FailFrame(FrameError::kTruncated, at, detail, sink);
+      }
+      continue;
+    }
+    ++p;
+    if (escape_next_) {
+      escape_next_ = false;
+      byte ^= kEscapeXor;
+      if (!NeedsEscape(byte)) {
+        std::snprintf(detail, sizeof(detail), "escape byte followed by 0x%02X",
+                      static_cast<unsigned>(byte ^ kEscapeXor));
+        FailFrame(FrameError::kBadEscape, offset + (p - data), detail, sink);
+        continue;
+      }
+    } else if (byte == kEscape) {
+      escape_next_ = true;
+      continue;
+    }
+
+    // One unescaped length, data or checksum byte.
     switch (phase_) {
       case Phase::kLengthMsb:
         length_ = static_cast<size_t>(byte) << 8;
@@ -272,31 +315,28 @@ size_t FrameDecoder::Scan(const uint8_t* data, size_t size, uint64_t offset, Fra
           std::snprintf(detail, sizeof(detail), "length %zu, accepted 1 to %zu", length_,
                         max_length_);
           FailFrame(FrameError::kBadLength, offset + (p - data), detail, sink);
-          if (rescan_) return p - data;
         } else {
           phase_ = Phase::kData;
         }
         break;
       case Phase::kData:
+        frame_[frame_size_++] = byte;
         sum_ += byte;
-        if (frame_size_ - 3 == length_) phase_ = Phase::kChecksum;
+        if (frame_size_ == length_) phase_ = Phase::kChecksum;
         break;
       case Phase::kChecksum:
         if (((sum_ + byte) & 0xFF) == 0xFF) {
           phase_ = Phase::kIdle;
-          sink->OnFrame(frame_.data() + 3, length_, frame_offset_);
+          sink->OnFrame(frame_.data(), length_, frame_offset_);
         } else {
-          std::snprintf(detail, sizeof(detail), "checksum 0x%02X, expected 0x%02X",
-                        static_cast<unsigned>(byte), static_cast<unsigned>(0xFF - (sum_ & 0xFF)));
-          FailFrame(FrameError::kBadChecksum, offset + (p - data), detail, sink);
-          if (rescan_) return p - data;
+          FailChecksum(byte, sum_, offset + (p - data), sink);
         }
         break;
       case Phase::kIdle:
+      case Phase::kCandidate:
         break;
     }
   }
-  return size;
 }
 
 std::vector<uint8_t> EncodeFrame(const uint8_t* frame_data, size_t size, ApiMode mode) {

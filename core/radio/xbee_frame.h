@@ -51,6 +51,8 @@ enum class FrameError {
   kBadEscape,
 };
 
+// The reason's name as counted in STATUS and printed by `roomfix frames`:
+// garbage, bad_checksum, truncated_frame, bad_length, bad_escape.
 const char* FrameErrorName(FrameError error);
 
 struct FrameErrorInfo {
@@ -106,7 +108,7 @@ class FrameDecoder {
  private:
   // Choices the public comments leave open:
   //  - Bytes of a bad frame are covered by that frame's error only. While
-  //    rescanning them, a candidate frame that starts inside an already
+  //    rescanning them (mode 1), a candidate frame that starts inside an already
   //    reported range and also fails is not reported (its bytes are already
   //    covered), and skipped bytes inside the range are not garbage. Errors
   //    therefore never overlap each other; a good frame found by the rescan
@@ -116,46 +118,52 @@ class FrameDecoder {
   //    so after it every byte fed is in a frame or in an error.
   //  - Mode 2 accepts raw 0x11/0x13 inside a frame (a module never sends
   //    them, but nothing is ambiguous about them).
-  enum class Phase : uint8_t { kIdle, kLengthMsb, kLengthLsb, kData, kChecksum };
+  //  - Cost, mode 1: each candidate frame (each 0x7E) is checked in O(1)
+  //    with prefix sums, so even a stream of 0x7E 0x01 0x2C ... that starts
+  //    a 300-byte candidate every 3 bytes costs O(1) per byte.
 
-  // Runs the state machine over bytes at stream offset `offset` until they
-  // are used up or a frame fails in mode 1; returns how many it consumed. On
-  // a mode-1 failure rescan_ is set and frame_ holds the failed frame's
-  // bytes. Mode-2 failures need no rescan: a raw 0x7E ends every mode-2
-  // frame, so a bad one cannot contain the start of another.
-  size_t Scan(const uint8_t* data, size_t size, uint64_t offset, FrameSink* sink);
-  // Feeds frame_[1..] of the failed frame (and, nested, of frames failing
-  // inside it) back through Scan before any later byte.
-  void Rescan(FrameSink* sink);
+  // kLengthMsb..kChecksum: where a mode-2 frame is. kCandidate: mode 1, a
+  // frame starts at window_[0] and is not resolved yet.
+  enum class Phase : uint8_t { kIdle, kLengthMsb, kLengthLsb, kData, kChecksum, kCandidate };
+
+  // Mode 2: a streaming state machine. A raw 0x7E ends every frame, so a
+  // bad frame never contains the start of another and needs no rescan.
+  void FeedEscaped(const uint8_t* data, size_t size, uint64_t offset, FrameSink* sink);
+  // Mode 1: new bytes are appended to window_ (at most kWindowSlice at a
+  // time) and ScanWindow resolves candidates in it, rescanning from one
+  // after a failed candidate's 0x7E. Afterwards window_ holds only the
+  // unresolved candidate, if any.
+  void ScanWindow(size_t from, FrameSink* sink);
   void StartFrame(uint64_t offset, FrameSink* sink);
   void FailFrame(FrameError error, uint64_t end_offset, const char* detail, FrameSink* sink);
+  void FailChecksum(uint8_t checksum, uint32_t sum, uint64_t end_offset, FrameSink* sink);
   void AddGarbage(uint64_t offset, uint64_t size);
   void FlushGarbage(FrameSink* sink);
 
   FrameDecoderOptions options_;
   bool escaped_ = true;
   size_t max_length_ = 0;  // min(options_.max_frame_data_bytes, 0xFFFF)
-  // Frame in progress, unescaped: 0x7E, length MSB, LSB, frame data and (mode
-  // 1, once read) the checksum; sized once so that appending never allocates.
-  // In mode 1 this is also its raw bytes, which is what a rescan replays.
-  std::vector<uint8_t> frame_;
-  size_t frame_size_ = 0;
   Phase phase_ = Phase::kIdle;
-  bool escape_next_ = false;
-  bool rescan_ = false;
-  size_t length_ = 0;
-  uint32_t sum_ = 0;
   uint64_t frame_offset_ = 0;  // stream offset of the frame's 0x7E
-  // Bytes already consumed that Scan must see again; replay_[replay_pos_] is
-  // at stream offset replay_offset_ + replay_pos_. Empty outside Feed.
-  std::vector<uint8_t> replay_;
-  size_t replay_pos_ = 0;
-  uint64_t replay_offset_ = 0;
   uint64_t bytes_fed_ = 0;
   // Bytes before this offset are inside a reported error.
   uint64_t covered_until_ = 0;
   uint64_t garbage_start_ = 0;
   uint64_t garbage_bytes_ = 0;
+
+  // Mode 2: frame data so far, unescaped; sized once, never reallocated.
+  std::vector<uint8_t> frame_;
+  size_t frame_size_ = 0;
+  size_t length_ = 0;
+  uint32_t sum_ = 0;
+  bool escape_next_ = false;
+
+  // Mode 1: raw bytes not yet resolved, window_[0] at window_offset_, and
+  // prefix_[i] = sum of window_[0..i) mod 256 (one entry more). Capacity is
+  // reserved once for a slice plus the longest frame.
+  std::vector<uint8_t> window_;
+  std::vector<uint8_t> prefix_;
+  uint64_t window_offset_ = 0;
 };
 
 // Wraps frame data (frame type first) into a complete frame: start

@@ -133,7 +133,7 @@ TEST(DigiExamples, ZigbeeReceivePacketInApiMode2EscapesTheNetworkAddress) {
 TEST(DigiExamples, OlderZigbeeGuidesMisprintedLengthIsABadChecksum) {
   Bytes misprinted = kDigiZigbeeRx;
   misprinted[2] = 0x11;
-  EXPECT_EQ(Events(misprinted, kMode1), "bad checksum@0+21 garbage@21+1");
+  EXPECT_EQ(Events(misprinted, kMode1), "bad_checksum@0+21 garbage@21+1");
 }
 
 // XBee/XBee-PRO S2C 802.15.4 RF Module User Guide, "RX Packet: 64-bit
@@ -250,11 +250,11 @@ TEST(FrameDecoder, ReportsGarbageBeforeStartDelimiterOncePerRun) {
 TEST(FrameDecoder, ResynchronisesAfterBadChecksumWithoutLosingNextFrame) {
   Bytes bad = kSmall;
   bad.back() ^= 0xFF;
-  EXPECT_EQ(Events(Concat({bad, kSmall}), kMode1), "bad checksum@0+6 frame@6:2311");
+  EXPECT_EQ(Events(Concat({bad, kSmall}), kMode1), "bad_checksum@0+6 frame@6:2311");
 
   Bytes bad_escaped = kSmallEscaped;
   bad_escaped.back() ^= 0x01;
-  EXPECT_EQ(Events(Concat({bad_escaped, kSmallEscaped}), kMode2), "bad checksum@0+7 frame@7:2311");
+  EXPECT_EQ(Events(Concat({bad_escaped, kSmallEscaped}), kMode2), "bad_checksum@0+7 frame@7:2311");
 }
 
 TEST(FrameDecoder, BadChecksumDetailNamesBothChecksums) {
@@ -273,7 +273,7 @@ TEST(FrameDecoder, Mode1FindsGoodFrameThatBeganInsideATruncatedFrame) {
   // A claims 16 data bytes: 3 + 16 + 1 = 20 bytes, B and C supply the rest.
   const Bytes stream = Concat({a_cut, b, kSmall, kSmall});
   EXPECT_EQ(Events(stream, kMode1),
-            "bad checksum@0+20 frame@8:8112345E0141 frame@18:2311 frame@24:2311");
+            "bad_checksum@0+20 frame@8:8112345E0141 frame@18:2311 frame@24:2311");
 }
 
 // Until A's length is used up nothing says A is bad, so B waits; the end of
@@ -289,7 +289,7 @@ TEST(FrameDecoder, FlushPartialDeclaresPartialFrameTruncatedAndRescansIt) {
   EXPECT_EQ(sink.events, "");
   EXPECT_TRUE(decoder.InFrame());
   decoder.FlushPartial(&sink);
-  EXPECT_EQ(sink.events, "truncated@0+12 frame@6:2311");
+  EXPECT_EQ(sink.events, "truncated_frame@0+12 frame@6:2311");
   EXPECT_FALSE(decoder.InFrame());
 }
 
@@ -301,7 +301,7 @@ TEST(FrameDecoder, Mode1StartDelimiterInsideFrameDataIsData) {
 TEST(FrameDecoder, Mode2StartDelimiterInsideFrameTruncatesItAndStartsTheNextFrame) {
   const Bytes a = Encode(Hex("90 01 02 03 04 05 06 07"), kMode2);
   const Bytes a_cut(a.begin(), a.begin() + 6);
-  EXPECT_EQ(Events(Concat({a_cut, kSmallEscaped}), kMode2), "truncated@0+6 frame@6:2311");
+  EXPECT_EQ(Events(Concat({a_cut, kSmallEscaped}), kMode2), "truncated_frame@0+6 frame@6:2311");
 }
 
 TEST(FrameDecoder, Mode2UnescapesLengthAndChecksumBytes) {
@@ -323,27 +323,27 @@ TEST(FrameDecoder, Mode2AcceptsUnescapedXonXoffAsData) {
 }
 
 TEST(FrameDecoder, ZeroLengthIsBadLength) {
-  EXPECT_EQ(Events(Concat({Hex("7E 00 00"), kSmall}), kMode1), "bad length@0+3 frame@3:2311");
+  EXPECT_EQ(Events(Concat({Hex("7E 00 00"), kSmall}), kMode1), "bad_length@0+3 frame@3:2311");
   EXPECT_EQ(Events(Concat({Hex("7E 00 00"), kSmallEscaped}), kMode2),
-            "bad length@0+3 frame@3:2311");
+            "bad_length@0+3 frame@3:2311");
 }
 
 TEST(FrameDecoder, LengthAboveMaximumIsBadLengthAndTheBodyIsGarbage) {
   const Bytes nine = Encode(Hex("90 01 02 03 04 05 06 07 08"), kMode2);  // 13 bytes
   EXPECT_EQ(Events(Concat({nine, kSmallEscaped}), kMode2, 8),
-            "bad length@0+3 garbage@3+10 frame@13:2311");
+            "bad_length@0+3 garbage@3+10 frame@13:2311");
 }
 
 TEST(FrameDecoder, Mode1RescansTheLengthBytesOfABadLength) {
   // The first 0x7E gives length 0x7E00; the real frame starts at the second.
-  EXPECT_EQ(Events(Concat({Hex("7E"), kSmall}), kMode1), "bad length@0+3 frame@1:2311");
+  EXPECT_EQ(Events(Concat({Hex("7E"), kSmall}), kMode1), "bad_length@0+3 frame@1:2311");
 }
 
 TEST(FrameDecoder, Mode2EscapeOfAByteThatNeedsNoEscapeIsBadEscape) {
   // 7D 41 would be 0x61, which is never escaped; the rest up to the next
   // start delimiter is garbage.
   EXPECT_EQ(Events(Concat({Hex("7E 00 02 23 7D 41 CB"), kSmallEscaped}), kMode2),
-            "bad escape@0+6 garbage@6+1 frame@7:2311");
+            "bad_escape@0+6 garbage@6+1 frame@7:2311");
   const Decoded decoded = Decode(Hex("7E 00 02 23 7D 41"), kMode2);
   ASSERT_EQ(decoded.errors.size(), 1u);
   EXPECT_EQ(decoded.errors[0].detail, "escape byte followed by 0x41");
@@ -351,19 +351,19 @@ TEST(FrameDecoder, Mode2EscapeOfAByteThatNeedsNoEscapeIsBadEscape) {
 
 TEST(FrameDecoder, Mode2EscapeFollowedByStartDelimiterIsBadEscapeAndStartsNewFrame) {
   EXPECT_EQ(Events(Concat({Hex("7E 00 02 23 7D"), kSmallEscaped}), kMode2),
-            "bad escape@0+5 frame@5:2311");
+            "bad_escape@0+5 frame@5:2311");
 }
 
 // A's data holds 0x7E 00 01 55 66: a candidate frame whose checksum fails
 // too. Its bytes are already covered by A's report, so it is not reported.
 TEST(FrameDecoder, BadFrameInsideAReportedBadFrameIsNotReportedAgain) {
   const Bytes a = Hex("7E 00 06 7E 00 01 55 66 77 00");
-  EXPECT_EQ(Events(Concat({a, kSmall}), kMode1), "bad checksum@0+10 frame@10:2311");
+  EXPECT_EQ(Events(Concat({a, kSmall}), kMode1), "bad_checksum@0+10 frame@10:2311");
   // Same when the inner candidate reaches past A's end: the bytes past A
   // are rescanned and B is still found.
   const Bytes reaching = Hex("7E 00 03 7E 00 0A 00");
   EXPECT_EQ(Events(Concat({reaching, kSmall, kSmall}), kMode1),
-            "bad checksum@0+7 frame@7:2311 frame@13:2311");
+            "bad_checksum@0+7 frame@7:2311 frame@13:2311");
 }
 
 TEST(FrameDecoder, FlushPartialReportsTrailingGarbageAndNothingWhenIdle) {

@@ -131,6 +131,21 @@ class Reader {
     return address;
   }
 
+  // A 16-bit 802.15.4 short address (MY): 1 to 4 hex digits, below 0xFFFE
+  // (0xFFFE and 0xFFFF mean "use the 64-bit address").
+  uint16_t ShortAddress(const YAML::Node& node, const std::string& key) const {
+    const std::string text = node.IsScalar() ? node.Scalar() : "";
+    std::string digits =
+        text.rfind("0x", 0) == 0 || text.rfind("0X", 0) == 0 ? text.substr(2) : text;
+    const bool hex = !digits.empty() && digits.size() <= 4 &&
+                     digits.find_first_not_of("0123456789abcdefABCDEF") == std::string::npos;
+    const unsigned long value = hex ? std::stoul(digits, nullptr, 16) : 0xFFFFul;
+    if (value >= 0xFFFE) {
+      Fail(node, key, "expected a 16-bit short address below 0xFFFE, e.g. 0x1234");
+    }
+    return static_cast<uint16_t>(value);
+  }
+
   // Reads the required integer `field` of an entry and checks that no
   // earlier entry had it ("duplicate <what> id N").
   int UniqueId(const YAML::Node& map, const std::string& key, const char* field, const char* what,
@@ -250,6 +265,17 @@ void ParseRadios(const Reader& r, const YAML::Node& root, Site* site) {
     }
   };
 
+  std::map<uint16_t, std::string> short_owner;
+  auto claim_short = [&](const YAML::Node& node, const std::string& key, uint16_t address) {
+    auto [it, fresh] = short_owner.emplace(address, key);
+    if (!fresh) {
+      char text[8];
+      std::snprintf(text, sizeof(text), "0x%04X", address);
+      r.Fail(node, key,
+             std::string("duplicate short address ") + text + " (also " + it->second + ")");
+    }
+  };
+
   const YAML::Node receivers = r.Required(root, "", "receivers");
   r.ExpectSequence(receivers, "receivers");
   std::set<int> receiver_ids;
@@ -257,12 +283,16 @@ void ParseRadios(const Reader& r, const YAML::Node& root, Site* site) {
     const YAML::Node node = receivers[i];
     const std::string key = K::Index("receivers", i);
     r.ExpectMap(node, key);
-    r.OnlyKeys(node, key, {"id", "address", "position_m", "range_offset_m"});
+    r.OnlyKeys(node, key, {"id", "address", "short_address", "position_m", "range_offset_m"});
     Receiver rc;
     rc.id = r.UniqueId(node, key, "id", "receiver", &receiver_ids);
     const YAML::Node address = r.Required(node, key, "address");
     rc.address = r.Address(address, key + ".address");
     claim_address(address, key + ".address", rc.address);
+    if (node["short_address"]) {
+      rc.short_address = r.ShortAddress(node["short_address"], key + ".short_address");
+      claim_short(node["short_address"], key + ".short_address", *rc.short_address);
+    }
     const YAML::Node position = r.Required(node, key, "position_m");
     rc.position_m = r.Doubles<3>(position, key + ".position_m");
     CheckInsideRoom(r, position, key + ".position_m", site->room, rc.position_m);
@@ -289,12 +319,16 @@ void ParseRadios(const Reader& r, const YAML::Node& root, Site* site) {
     const YAML::Node node = beacons[i];
     const std::string key = K::Index("beacons", i);
     r.ExpectMap(node, key);
-    r.OnlyKeys(node, key, {"id", "address", "height_m"});
+    r.OnlyKeys(node, key, {"id", "address", "short_address", "height_m"});
     Beacon b;
     b.id = r.UniqueId(node, key, "id", "beacon", &beacon_ids);
     const YAML::Node address = r.Required(node, key, "address");
     b.address = r.Address(address, key + ".address");
     claim_address(address, key + ".address", b.address);
+    if (node["short_address"]) {
+      b.short_address = r.ShortAddress(node["short_address"], key + ".short_address");
+      claim_short(node["short_address"], key + ".short_address", *b.short_address);
+    }
     const YAML::Node height = r.Required(node, key, "height_m");
     b.height_m = r.Double(height, key + ".height_m");
     if (b.height_m < 0.0 || b.height_m > site->room.height_m) {
@@ -583,6 +617,14 @@ const T* FindIf(const std::vector<T>& items, Pred pred) {
 const Receiver* Site::FindReceiver(int id) const {
   return FindIf(receivers, [id](const Receiver& r) { return r.id == id; });
 }
+const Receiver* Site::FindReceiverByShortAddress(uint16_t address) const {
+  return FindIf(receivers, [address](const Receiver& r) { return r.short_address == address; });
+}
+
+const Beacon* Site::FindBeaconByShortAddress(uint16_t address) const {
+  return FindIf(beacons, [address](const Beacon& b) { return b.short_address == address; });
+}
+
 const Receiver* Site::FindReceiverByAddress(uint64_t address) const {
   return FindIf(receivers, [address](const Receiver& r) { return r.address == address; });
 }

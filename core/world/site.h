@@ -38,6 +38,9 @@ struct Receiver {
   int id = 0;
   // 64-bit IEEE address of the receiver's radio.
   uint64_t address = 0;
+  // 802.15.4 short address (MY) when the module uses 16-bit addressing: its
+  // frames (0x81) then carry only this.
+  std::optional<uint16_t> short_address;
   std::array<double, 3> position_m{};
   // Subtracted from every range this receiver measures (calibration).
   double range_offset_m = 0.0;
@@ -46,6 +49,7 @@ struct Receiver {
 struct Beacon {
   int id = 0;
   uint64_t address = 0;
+  std::optional<uint16_t> short_address;
   // Height of the ultrasonic emitter above the floor; the 2D solver holds it.
   double height_m = 0.0;
 };
@@ -127,6 +131,8 @@ struct Site {
   const Receiver* FindReceiverByAddress(uint64_t address) const;
   const Beacon* FindBeacon(int id) const;
   const Beacon* FindBeaconByAddress(uint64_t address) const;
+  const Receiver* FindReceiverByShortAddress(uint16_t address) const;
+  const Beacon* FindBeaconByShortAddress(uint16_t address) const;
   const Robot* FindRobot(int id) const;
 };
 

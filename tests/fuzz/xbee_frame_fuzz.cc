@@ -5,8 +5,8 @@
 //  - feeding the stream at once, a byte at a time, or in chunks whose sizes
 //    come from the input's own bytes gives identical reports;
 //  - a reference decoder (below: the documented rules applied to the whole
-//    stream with random access, no incremental state, no replay buffer)
-//    gives the same reports;
+//    stream with random access, summing each candidate frame byte by byte;
+//    no incremental state, no window, no prefix sums) gives the same reports;
 //  - reports come in increasing stream order, errors never overlap, and
 //    after FlushPartial every byte is in a frame or an error;
 //  - every frame re-encodes (EncodeFrame) to bytes that decode to that frame

@@ -8,20 +8,30 @@ site=$source/config/sites/demo_room.yaml
 failures=0
 fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
 
-for bin in roomfix_sim trilat_proc; do
+for bin in roomfix_sim trilat_proc zigbee_bridge; do
+  extra=()
+  # --check validates the port's name, not the device: none is needed here.
+  [[ $bin == zigbee_bridge ]] && extra=(--port /dev/ttyUSB0)
   "$build/bin/$bin" --help | grep -q -- '--lcm-url' || fail "$bin --help lacks --lcm-url"
   "$build/bin/$bin" --help | grep -q -- '--config' || fail "$bin --help lacks --config"
-  out=$("$build/bin/$bin" --config "$site" --check 2>/dev/null) || fail "$bin --check failed"
+  out=$("$build/bin/$bin" "${extra[@]}" --config "$site" --check 2>/dev/null) || fail "$bin --check failed"
   [[ "$out" == *"ok"* ]] || fail "$bin --check printed '$out'"
-  err=$("$build/bin/$bin" --config "$source/tests/data/broken_sites/duplicate_address.yaml" 2>&1 >/dev/null)
+  err=$("$build/bin/$bin" "${extra[@]}" --config "$source/tests/data/broken_sites/duplicate_address.yaml" 2>&1 >/dev/null)
   rc=$?
   ((rc != 0)) || fail "$bin started on a broken site file"
   [[ $(grep -c . <<<"$err") -eq 1 && "$err" == *"duplicate address"* ]] || fail "$bin: '$err'"
-  err=$("$build/bin/$bin" --config "$site" --lcm-url "nonsense://" 2>&1 >/dev/null)
+  err=$("$build/bin/$bin" "${extra[@]}" --config "$site" --lcm-url "nonsense://" 2>&1 >/dev/null)
   rc=$?
   ((rc != 0)) || fail "$bin started on a bad LCM URL"
   [[ $(grep -c "$bin:" <<<"$err") -eq 1 && "$err" == *"cannot start LCM"* ]] || fail "$bin: '$err'"
 done
+
+err=$("$build/bin/zigbee_bridge" --port /dev/ttyUSB0 --baud 12345 --config "$site" 2>&1 >/dev/null)
+(($? != 0)) && [[ $(grep -c . <<<"$err") -eq 1 && "$err" == *"baud"* ]] ||
+  fail "zigbee_bridge on a bad baud rate: '$err'"
+out=$("$build/bin/roomfix_sim" --config "$site" --radio-pty --faults all --check) ||
+  fail "roomfix_sim --radio-pty --check failed"
+[[ "$out" == *"pseudo-terminal"* ]] || fail "roomfix_sim --radio-pty --check printed '$out'"
 
 logger=$build/bin/roomfix_logger
 "$logger" --help | grep -q -- '--lcm-url' || fail "roomfix_logger --help lacks --lcm-url"

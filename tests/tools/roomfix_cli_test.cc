@@ -5,6 +5,8 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "core/radio/wall_payload.h"
+#include "core/radio/xbee_frame.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -152,6 +154,108 @@ TEST(RoomfixCompare, FitsTheReferenceCircleToTheRecordedGroundTruth) {
   EXPECT_NEAR(fit["radius_m"].get<double>(), 0.419, 1e-4);
   EXPECT_NEAR(fit["angular_speed_radps"].get<double>(), -0.439, 1e-4);
   EXPECT_NEAR(fit["mean_error_m"].get<double>(), 0.0, 1e-6);
+}
+
+TEST(RoomfixFrames, DecodesDigisPublishedZigbeeExampleInApiMode1) {
+  // Digi XBee 3 Zigbee RF Module User Guide, "Receive Packet frame - 0x90":
+  // the 16-bit address 0x7D84 holds an escape byte, which mode 1 takes as data.
+  TempDir dir;
+  WriteFile(dir.File("digi.hex"),
+            "7E 00 12 90 00 13 A2 00 40 52 2B AA 7D 84 01 52 78 44 61 74 61 0D\n");
+  int rc = -1;
+  const auto lines =
+      RunJsonLines({"frames", "decode", "--hex", "--api-mode", "1", dir.File("digi.hex")}, &rc);
+  EXPECT_EQ(rc, 0);
+  ASSERT_EQ(lines.size(), 1u);
+  EXPECT_EQ(lines[0]["type"], "0x90");
+  EXPECT_EQ(lines[0]["address64"], "0x0013A20040522BAA");
+  EXPECT_EQ(lines[0]["address16"], "0x7D84");
+  EXPECT_EQ(lines[0]["options"], "0x01");
+  EXPECT_EQ(lines[0]["payload_hex"], "527844617461");  // "RxData"
+  EXPECT_EQ(lines[0]["roomfix"]["error"], "unsupported_version") << "not a roomfix payload";
+}
+
+TEST(RoomfixFrames, DecodesRoomfixReportsAndNamesEachErrorByOffset) {
+  // A binary mode 2 stream: garbage, a range report, a frame with a broken
+  // checksum, an 802.15.4 frame with RSSI.
+  radio::WallMessage m;
+  m.beacon_id = 2;
+  m.firing_seq = 300;
+  m.time_of_flight_ns = 8'123'456;
+  m.temperature_centi_c = 2150;
+  m.flags = radio::kFlagWeakEcho;
+  radio::ReceivePacket p;
+  p.has_address64 = true;
+  p.address64 = 0x0013A20041000003ull;
+  p.has_address16 = true;
+  p.address16 = 0x1234;
+  p.payload = radio::EncodeWallMessage(m);
+  std::vector<uint8_t> data = radio::EncodeReceivePacket(p);
+  std::vector<uint8_t> stream = {0x01, 0x02, 0x03};
+  radio::AppendFrame(data.data(), data.size(), radio::ApiMode::kEscaped, &stream);
+  const size_t broken_at = stream.size();
+  radio::AppendFrame(data.data(), data.size(), radio::ApiMode::kEscaped, &stream);
+  stream.back() ^= 0x01;
+  radio::ReceivePacket rx64;
+  rx64.frame_type = radio::kRx64FrameType;
+  rx64.has_address64 = true;
+  rx64.address64 = 0x0013A20042000001ull;
+  rx64.has_rssi = true;
+  rx64.rssi_dbm = -61;
+  rx64.payload = {0xAB};
+  data = radio::EncodeReceivePacket(rx64);
+  radio::AppendFrame(data.data(), data.size(), radio::ApiMode::kEscaped, &stream);
+
+  TempDir dir;
+  WriteFile(dir.File("stream.bin"), std::string(stream.begin(), stream.end()));
+  int rc = -1;
+  const auto lines = RunJsonLines({"frames", "decode", dir.File("stream.bin")}, &rc);
+  EXPECT_EQ(rc, 0);
+  ASSERT_EQ(lines.size(), 4u);
+  EXPECT_EQ(lines[0]["error"], "garbage");
+  EXPECT_EQ(lines[0]["offset"], 0);
+  EXPECT_EQ(lines[0]["bytes"], 3);
+  EXPECT_EQ(lines[1]["address64"], "0x0013A20041000003");
+  const json& r = lines[1]["roomfix"];
+  EXPECT_EQ(r["type"], "range_report");
+  EXPECT_EQ(r["beacon_id"], 2);
+  EXPECT_EQ(r["firing_seq"], 300);
+  EXPECT_EQ(r["time_of_flight_ns"], 8123456);
+  EXPECT_DOUBLE_EQ(r["temperature_c"].get<double>(), 21.5);
+  EXPECT_EQ(r["flags"], json::array({"weak_echo"}));
+  EXPECT_EQ(lines[2]["error"], "bad_checksum");
+  EXPECT_EQ(lines[2]["offset"], broken_at);
+  EXPECT_EQ(lines[3]["type"], "0x80");
+  EXPECT_EQ(lines[3]["rssi_dbm"], -61);
+  EXPECT_EQ(lines[3]["roomfix"]["error"], "unsupported_version");
+}
+
+TEST(RoomfixFrames, RefusesHexTextThatIsNotHex) {
+  TempDir dir;
+  WriteFile(dir.File("bad.hex"), "7E 00 ZZ\n");
+  int rc = -1;
+  RunRoomfix({"frames", "decode", "--hex", dir.File("bad.hex")}, &rc);
+  EXPECT_EQ(rc, 2);
+}
+
+TEST(RoomfixBenchRadio, PrintsThroughputLatencyAndTheGroupingComparisonAsJson) {
+  int rc = -1;
+  const std::string out = RunRoomfix(
+      {"bench", "radio", "--json", "--site", testing::SourceDir() + "/config/sites/demo_room.yaml",
+       "--stream-mb", "2", "--repeats", "2", "--latency-firings", "50", "--compare-seconds", "60"},
+      &rc);
+  ASSERT_EQ(rc, 0) << out;
+  const json j = json::parse(out);
+  for (const char* mode : {"api_mode_1", "api_mode_2"}) {
+    EXPECT_GT(j["decode"][mode]["decode_mb_per_s_median"].get<double>(), 0.0);
+    EXPECT_GT(j["decode"][mode]["frames"].get<int>(), 10000);
+  }
+  EXPECT_EQ(j["latency"]["published"], 50);
+  EXPECT_GT(j["latency"]["from_write_ms_median"].get<double>(), 0.0);
+  // Association is deterministic (simulated time): roomfix never mixes, the
+  // reference's grouping does under the same faults.
+  EXPECT_EQ(j["grouping"]["roomfix_mixed_sets"], 0);
+  EXPECT_GT(j["grouping"]["reference_mixed_sets"].get<int>(), 50);
 }
 
 }  // namespace
