@@ -3,6 +3,7 @@
 #include <regex.h>
 
 #include <algorithm>
+#include <chrono>
 #include <exception>
 #include <lcm/lcm-cpp.hpp>
 #include <utility>
@@ -193,6 +194,15 @@ void LoopbackBus::Unsubscribe(SubscriptionId id) {
       return;
     }
   }
+}
+
+bool HandleUntil(Bus* bus, const std::function<bool()>& done, double timeout_s) {
+  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+  while (!done()) {
+    if (std::chrono::steady_clock::now() >= end) return false;
+    bus->Handle(20);
+  }
+  return true;
 }
 
 }  // namespace roomfix

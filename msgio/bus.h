@@ -154,6 +154,11 @@ class ChannelPattern {
 
 bool ChannelMatches(const std::string& channel_regex, const std::string& channel);
 
+// Dispatches the bus's messages until done() holds or timeout_s passes
+// (checked every 20 ms at least); returns whether done() held. For tests and
+// tools that wait for something to arrive.
+bool HandleUntil(Bus* bus, const std::function<bool()>& done, double timeout_s);
+
 template <class Msg>
 bool Bus::Publish(const std::string& channel, const Msg& msg) {
   const int size = msg.getEncodedSize();

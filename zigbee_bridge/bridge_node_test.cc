@@ -14,14 +14,6 @@ namespace {
 
 constexpr int64_t kStartUtime = 1'700'000'000'000'000;
 
-Site DemoSite() {
-  Site site;
-  std::string error;
-  EXPECT_TRUE(LoadSite(testing::SourceDir() + "/config/sites/demo_room.yaml", &site, &error))
-      << error;
-  return site;
-}
-
 // Drives the virtual wall devices and a BridgeNode on simulated time, 1 ms
 // steps, every chunk of bytes handed over at its own delivery time: the
 // whole radio path with no pseudo-terminal and no clock, so it is exact and
@@ -81,7 +73,7 @@ void PrintTo(const RadioCase& c, std::ostream* os) { *os << c.name; }
 class BridgeUnderEveryFault : public ::testing::TestWithParam<RadioCase> {};
 
 TEST_P(BridgeUnderEveryFault, NeverMixesFiringsAndPublishesEveryFiringThatArrivedInTime) {
-  const Site site = DemoSite();
+  const Site site = LoadDemoSite();
   WallDevicesOptions wall;
   wall.api_mode = GetParam().mode;
   wall.frame_type = GetParam().frame_type;
@@ -129,7 +121,7 @@ INSTANTIATE_TEST_SUITE_P(
     [](const ::testing::TestParamInfo<RadioCase>& case_info) { return case_info.param.name; });
 
 TEST(BridgeNode, PublishesEveryFiringCompleteOnACleanRadio) {
-  const Site site = DemoSite();
+  const Site site = LoadDemoSite();
   WallDevicesOptions wall;
   wall.start_utime = kStartUtime;
   SimulatedRadio radio(site, wall, {});
@@ -152,7 +144,7 @@ TEST(BridgeNode, PublishesEveryFiringCompleteOnACleanRadio) {
 }
 
 TEST(BridgeNode, RangesMatchTheTrueDistancesWithinTheNoise) {
-  const Site site = DemoSite();
+  const Site site = LoadDemoSite();
   WallDevicesOptions wall;
   wall.start_utime = kStartUtime;
   wall.faults.ultrasound.sigma_m = 0.0;
@@ -176,7 +168,7 @@ TEST(BridgeNode, RangesMatchTheTrueDistancesWithinTheNoise) {
 }
 
 TEST(BridgeNode, ReportsItsLinkInStatus) {
-  const Site site = DemoSite();
+  const Site site = LoadDemoSite();
   LoopbackBus bus;
   std::vector<process_status_t> statuses;
   bus.Subscribe<process_status_t>(
@@ -198,7 +190,7 @@ TEST(BridgeNode, ReportsItsLinkInStatus) {
 TEST(BridgeNode, DeclaresAFrameTruncatedWhenTheLineGoesQuiet) {
   // Mode 1: a frame cut short holds the decoder until the line is quiet;
   // the good frame inside its bytes is then found by the rescan.
-  const Site site = DemoSite();
+  const Site site = LoadDemoSite();
   LoopbackBus bus;
   std::vector<range_set_t> sets;
   bus.Subscribe<range_set_t>("RANGES",

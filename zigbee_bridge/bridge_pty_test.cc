@@ -23,14 +23,6 @@
 namespace roomfix {
 namespace {
 
-Site DemoSite() {
-  Site site;
-  std::string error;
-  EXPECT_TRUE(LoadSite(testing::SourceDir() + "/config/sites/demo_room.yaml", &site, &error))
-      << error;
-  return site;
-}
-
 // Plays the wall devices onto a pseudo-terminal from a thread, 1 ms ticks.
 // The terminal can be taken away and replaced (the coordinator unplugged and
 // plugged in again) while the devices go on firing.
@@ -119,7 +111,7 @@ class BridgeLoop {
 };
 
 TEST(BridgeThroughAPseudoTerminal, NeverMixesFiringsWithEveryFaultSwitchedOn) {
-  const Site site = DemoSite();
+  const Site site = LoadDemoSite();
   testing::TempDir dir;
   std::string error;
   auto pty = PseudoTerminal::Open(dir.File("radio"), &error);
@@ -151,7 +143,7 @@ TEST(BridgeThroughAPseudoTerminal, NeverMixesFiringsWithEveryFaultSwitchedOn) {
 }
 
 TEST(BridgeThroughAPseudoTerminal, SurvivesTheDeviceVanishingAndComingBack) {
-  const Site site = DemoSite();
+  const Site site = LoadDemoSite();
   testing::TempDir dir;
   const std::string port = dir.File("radio");
   std::string error;

@@ -1,9 +1,13 @@
 #include "zigbee_bridge/ledger_check.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <map>
 #include <set>
+
+#include "tests/testing/test_paths.h"
 
 namespace roomfix {
 namespace {
@@ -13,6 +17,14 @@ void Fail(LedgerCheck* check, const std::string& text) {
 }
 
 }  // namespace
+
+Site LoadDemoSite() {
+  Site site;
+  std::string error;
+  EXPECT_TRUE(LoadSite(testing::SourceDir() + "/config/sites/demo_room.yaml", &site, &error))
+      << error;
+  return site;
+}
 
 LedgerCheck CheckAgainstLedger(const std::vector<range_set_t>& sets,
                                const VirtualWallDevices& devices,

@@ -43,6 +43,10 @@ struct LedgerCheckOptions {
   double disturbance_window_s = 0.15;
 };
 
+// config/sites/demo_room.yaml, the site the radio tests run on; a load
+// failure is a test failure.
+Site LoadDemoSite();
+
 LedgerCheck CheckAgainstLedger(const std::vector<range_set_t>& sets,
                                const VirtualWallDevices& devices,
                                const LedgerCheckOptions& options);

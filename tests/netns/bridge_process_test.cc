@@ -25,16 +25,6 @@ using testing::SourceDir;
 
 std::string DemoSite() { return SourceDir() + "/config/sites/demo_room.yaml"; }
 
-template <class Pred>
-bool HandleUntil(LcmBus* bus, Pred pred, double timeout_s) {
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-  while (!pred()) {
-    if (std::chrono::steady_clock::now() > deadline) return false;
-    bus->Handle(20);
-  }
-  return true;
-}
-
 bool WaitForPath(const std::string& path, double timeout_s) {
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
   struct stat st {};

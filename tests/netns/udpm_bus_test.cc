@@ -21,12 +21,6 @@ std::vector<uint8_t> Payload(int size, int seed) {
   return b;
 }
 
-template <class Pred>
-void HandleUntil(Bus* bus, Pred done, double timeout_s = 5.0) {
-  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-  while (!done() && std::chrono::steady_clock::now() < end) bus->Handle(20);
-}
-
 TEST(UdpmBus, ReceivesShortAndFragmentedMessagesPublishedByLiblcm) {
   std::string error;
   auto ours = UdpmBus::Create(kDefaultLcmUrl, &error);
@@ -47,7 +41,8 @@ TEST(UdpmBus, ReceivesShortAndFragmentedMessagesPublishedByLiblcm) {
   for (size_t k = 0; k < sizes.size(); ++k) {
     const auto p = Payload(sizes[k], static_cast<int>(k));
     ASSERT_TRUE(lcm->PublishRaw("DATA_" + std::to_string(k), p.data(), sizes[k]));
-    HandleUntil(ours.get(), [&] { return got.size() > k; });
+    EXPECT_TRUE(HandleUntil(
+        ours.get(), [&] { return got.size() > k; }, 5.0));
   }
   ASSERT_EQ(got.size(), sizes.size());
   for (size_t k = 0; k < sizes.size(); ++k) {
@@ -75,7 +70,8 @@ TEST(UdpmBus, PublishesWhatLiblcmReceives) {
   const auto big = Payload(70000, 1);  // Beyond one datagram: refused, counted.
   EXPECT_FALSE(ours->PublishRaw("FROM_US", big.data(), static_cast<int>(big.size())));
   EXPECT_EQ(ours->stats().publish_failures, 1);
-  HandleUntil(lcm.get(), [&] { return got.size() >= 20; });
+  EXPECT_TRUE(HandleUntil(
+      lcm.get(), [&] { return got.size() >= 20; }, 5.0));
   ASSERT_EQ(got.size(), 20u);
   for (int k = 0; k < 20; ++k) EXPECT_EQ(got[k], Payload(10 * k, k));
 }
@@ -104,7 +100,8 @@ TEST(UdpmBus, CountsDatagramsThatAreNotLcmAndKeepsGoing) {
   }
   ::close(fd);
   ours->PublishRaw("GOOD", "ok", 2);
-  HandleUntil(ours.get(), [&] { return delivered >= 1; });
+  EXPECT_TRUE(HandleUntil(
+      ours.get(), [&] { return delivered >= 1; }, 5.0));
   EXPECT_EQ(delivered, 1);
   EXPECT_EQ(ours->wire_stats().malformed, 4);
 }

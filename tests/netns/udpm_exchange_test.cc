@@ -26,17 +26,6 @@ constexpr double kOnCircle_m = 1e-9;
 
 std::string DemoSite() { return SourceDir() + "/config/sites/demo_room.yaml"; }
 
-// Handles messages until pred() holds or timeout_s passes.
-template <class Pred>
-bool HandleUntil(LcmBus* bus, Pred pred, double timeout_s) {
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-  while (!pred()) {
-    if (std::chrono::steady_clock::now() > deadline) return false;
-    bus->Handle(50);
-  }
-  return true;
-}
-
 TEST(UdpmExchange, PosesFromTheSimulatorProcessArriveIntactOverMulticast) {
   std::string error;
   auto bus = LcmBus::Create(kDefaultLcmUrl, &error);
