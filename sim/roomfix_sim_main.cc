@@ -68,15 +68,21 @@ int main(int argc, char** argv) {
                    "none, or all (every fault below at a high rate); the flags below override")
       ->capture_default_str()
       ->check(CLI::IsMember({"none", "all"}));
-  double* fault_values[] = {
-      &wall.faults.lost_report_probability,  &wall.faults.lost_announcement_probability,
-      &wall.faults.buffer_probability,       &wall.faults.reorder_probability,
-      &wall.faults.duplicate_probability,    &wall.faults.foreign_probability,
-      &wall.faults.corrupt_byte_probability, &wall.faults.garbage_probability};
+  double* fault_values[] = {&wall.faults.announcement_delay_probability,
+                            &wall.faults.lost_report_probability,
+                            &wall.faults.lost_announcement_probability,
+                            &wall.faults.buffer_probability,
+                            &wall.faults.reorder_probability,
+                            &wall.faults.duplicate_probability,
+                            &wall.faults.foreign_probability,
+                            &wall.faults.corrupt_byte_probability,
+                            &wall.faults.garbage_probability};
   const char* fault_flags[] = {
-      "--lost-report", "--lost-announcement", "--buffering",    "--reorder",
-      "--duplicate",   "--foreign",           "--corrupt-byte", "--garbage"};
+      "--delay-announcement", "--lost-report", "--lost-announcement", "--buffering", "--reorder",
+      "--duplicate",          "--foreign",     "--corrupt-byte",      "--garbage"};
   const char* fault_help[] = {
+      "Probability that the beacon's module delays an announcement by up to 30 ms (it may "
+      "arrive after reports)",
       "Probability that the radio loses a report",
       "Probability that the radio loses a firing announcement",
       "Probability that a receiver's module starts holding reports back and releases them "
@@ -86,13 +92,20 @@ int main(int argc, char** argv) {
       "Probability per firing of a report from a module not in the site",
       "Probability per serial byte of a flipped bit",
       "Probability per frame of random bytes before it"};
-  double fault_overrides[8] = {};
-  for (int i = 0; i < 8; ++i) {
+  constexpr int kFaultFlags = 9;
+  double fault_overrides[kFaultFlags] = {};
+  for (int i = 0; i < kFaultFlags; ++i) {
     radio->add_option(fault_flags[i], fault_overrides[i], fault_help[i]);
   }
   radio
       ->add_option("--buffer-hold", wall.faults.buffer_hold_max_s,
                    "Longest a buffering module holds reports back, s")
+      ->capture_default_str();
+  double restart_every_s = 0.0;
+  radio
+      ->add_option("--restart-every", restart_every_s,
+                   "Switch the beacon off for 1 s every this many seconds; it comes back "
+                   "counting from 0 (0: never)")
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
@@ -101,7 +114,10 @@ int main(int argc, char** argv) {
     wall.faults = roomfix::RadioFaults::All();
     wall.faults.buffer_hold_max_s = hold_s;
   }
-  for (int i = 0; i < 8; ++i) {
+  wall.faults.restart_every_s = restart_every_s;
+  // A simulator runs for hours; only tests need the record of every firing.
+  wall.keep_ledger = false;
+  for (int i = 0; i < kFaultFlags; ++i) {
     if (app.count(fault_flags[i]) > 0) *fault_values[i] = fault_overrides[i];
   }
   // The ultrasound flags serve both range paths; --faults all sets its own

@@ -33,6 +33,16 @@ bool RadioFaults::IsValid(std::string* error) const {
       return false;
     }
   }
+  if (!IsProbability(announcement_delay_probability) ||
+      !(announcement_delay_max_s > 0.0 && announcement_delay_max_s <= 1.0)) {
+    *error = "announcement delay: probability in [0, 1], delay in (0, 1] s";
+    return false;
+  }
+  if (!(restart_every_s >= 0.0) || !(restart_pause_s > 0.0 && restart_pause_s < 3600.0) ||
+      (restart_every_s > 0.0 && restart_every_s <= restart_pause_s)) {
+    *error = "restarts: every > pause > 0 s (every 0: never)";
+    return false;
+  }
   if (!(buffer_hold_max_s > 0.0 && buffer_hold_max_s <= 10.0)) {
     *error = "buffer hold must be in (0, 10] s";
     return false;
@@ -53,6 +63,7 @@ RadioFaults RadioFaults::All() {
   f.foreign_probability = 0.2;
   f.corrupt_byte_probability = 0.001;
   f.garbage_probability = 0.05;
+  f.announcement_delay_probability = 0.05;
   return f;
 }
 
@@ -82,7 +93,9 @@ VirtualWallDevices::VirtualWallDevices(const Site& site, const WallDevicesOption
   for (const SimulatedRobot& sr : site.simulation.robots) {
     const Robot* robot = site.FindRobot(sr.robot_id);
     if (robot == nullptr || !robot->beacon_id) continue;
-    firers_.push_back({site.FindBeacon(*robot->beacon_id), sr.trajectory.get(), 0, 0});
+    Firer f{site.FindBeacon(*robot->beacon_id), sr.trajectory.get(), 0};
+    f.radio_seq = options.first_seq;
+    firers_.push_back(f);
   }
   // Beacons take turns so that their sound never overlaps.
   const double period_us = 1e6 / options_.rate_hz;
@@ -123,7 +136,7 @@ bool VirtualWallDevices::Schedule(int64_t utime, uint64_t source_address, uint16
   if (Chance(options_.faults.garbage_probability)) {
     const int n = static_cast<int>(Uniform(1.0, 21.0));
     for (int i = 0; i < n; ++i) p.bytes.push_back(static_cast<uint8_t>(rng_() & 0xFF));
-    disturbance_utimes_.push_back(utime);
+    if (options_.keep_ledger) disturbance_utimes_.push_back(utime);
   }
   const size_t frame_start = p.bytes.size();
   radio::AppendFrame(data.data(), data.size(), options_.api_mode, &p.bytes);
@@ -136,7 +149,7 @@ bool VirtualWallDevices::Schedule(int64_t utime, uint64_t source_address, uint16
       }
     }
   }
-  if (!intact) disturbance_utimes_.push_back(utime);
+  if (!intact && options_.keep_ledger) disturbance_utimes_.push_back(utime);
   queue_.push(std::move(p));
   ++frames_written_;
   return intact;
@@ -147,8 +160,11 @@ void VirtualWallDevices::Fire(Firer* firer, int64_t fire_utime) {
   FiringRecord record;
   record.beacon_id = firer->beacon->id;
   record.seq = firer->next_seq;
+  record.radio_seq = firer->radio_seq;
+  record.after_restart = firer->restarted;
+  firer->restarted = false;
   record.fire_utime = fire_utime;
-  const auto seq16 = static_cast<uint16_t>(firer->next_seq & 0xFFFF);
+  const uint16_t seq16 = firer->radio_seq;
   const double temperature_c = site_.simulation.temperature_c;
   const int16_t temperature_centi_c = radio::TemperatureToCentiC(temperature_c);
 
@@ -159,6 +175,10 @@ void VirtualWallDevices::Fire(Firer* firer, int64_t fire_utime) {
   announce.temperature_centi_c = temperature_centi_c;
   if (!Chance(faults.lost_announcement_probability)) {
     record.announcement_utime = fire_utime + RadioLatencyUs();
+    if (Chance(faults.announcement_delay_probability)) {
+      record.announcement_utime +=
+          static_cast<int64_t>(Uniform(0.0, faults.announcement_delay_max_s) * 1e6);
+    }
     record.announcement_intact =
         Schedule(record.announcement_utime, firer->beacon->address,
                  ShortAddress(firer->beacon->address), radio::EncodeWallMessage(announce));
@@ -231,18 +251,32 @@ void VirtualWallDevices::Fire(Firer* firer, int64_t fire_utime) {
     Schedule(fire_utime + static_cast<int64_t>(Uniform(0.005, 0.03) * 1e6), kForeignAddress,
              ShortAddress(kForeignAddress), radio::EncodeWallMessage(m));
   }
-  ledger_[{record.beacon_id, record.seq}] = std::move(record);
+  if (options_.keep_ledger) ledger_[{record.beacon_id, record.seq}] = std::move(record);
   ++firer->next_seq;
+  ++firer->radio_seq;
   ++firings_;
 }
 
 void VirtualWallDevices::AdvanceChunks(int64_t now_utime, std::vector<Chunk>* chunks) {
   const double period_us = 1e6 / options_.rate_hz;
+  const RadioFaults& faults = options_.faults;
   for (Firer& f : firers_) {
     while (true) {
       const int64_t fire_utime = options_.start_utime + f.offset_us +
-                                 static_cast<int64_t>(std::llround(f.next_seq * period_us));
+                                 static_cast<int64_t>(std::llround(f.next_slot * period_us));
       if (fire_utime > now_utime) break;
+      ++f.next_slot;
+      if (faults.restart_every_s > 0.0) {
+        // Within each restart period the beacon is off for the last
+        // restart_pause_s; it comes back counting from 0.
+        const double t_s = (fire_utime - options_.start_utime) * 1e-6;
+        if (std::fmod(t_s, faults.restart_every_s) >=
+            faults.restart_every_s - faults.restart_pause_s) {
+          f.radio_seq = 0;
+          f.restarted = true;
+          continue;
+        }
+      }
       Fire(&f, fire_utime);
     }
   }

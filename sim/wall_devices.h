@@ -41,6 +41,14 @@ struct RadioFaults {
   double corrupt_byte_probability = 0.0;
   // Per frame: a run of 1-20 random bytes written before it.
   double garbage_probability = 0.0;
+  // The beacon's own module delays an announcement by up to
+  // announcement_delay_max_s, so that it may arrive after reports.
+  double announcement_delay_probability = 0.0;
+  double announcement_delay_max_s = 0.03;
+  // Every restart_every_s (0: never) the beacon is switched off for
+  // restart_pause_s and comes back counting its firings from 0 again.
+  double restart_every_s = 0.0;
+  double restart_pause_s = 1.0;
 
   bool IsValid(std::string* error) const;
   // Every fault at a high rate, for stress tests and `--faults all`.
@@ -64,6 +72,12 @@ struct WallDevicesOptions {
   // Host time that is t = 0 of the trajectories (shared with the ground
   // truth, so both describe the same motion).
   int64_t start_utime = 0;
+  // The 16-bit firing number of the first firing (tests start near 65535 to
+  // cross the wrap-around).
+  uint16_t first_seq = 0;
+  // Keep a FiringRecord per firing (tests); a long-running simulator turns
+  // it off, or the ledger grows by about 10 MB an hour.
+  bool keep_ledger = true;
 
   bool IsValid(std::string* error) const;
 };
@@ -72,8 +86,13 @@ struct WallDevicesOptions {
 // checks the bridge's range sets against.
 struct FiringRecord {
   int beacon_id = 0;
-  // The 64-bit firing count (the radio carries its low 16 bits).
+  // The firing count since the simulation started, 0 first; the radio
+  // carries a 16-bit number that starts at first_seq and again at 0 after
+  // each restart.
   int64_t seq = 0;
+  uint16_t radio_seq = 0;
+  // The first firing after a restart of the beacon.
+  bool after_restart = false;
   int64_t fire_utime = 0;
   // When the announcement's last byte is written; -1 when lost.
   int64_t announcement_utime = -1;
@@ -134,7 +153,12 @@ class VirtualWallDevices {
     const Beacon* beacon;
     const Trajectory* trajectory;
     int64_t offset_us;
+    // Firing slots on the time grid (including those of restart pauses),
+    // firings made, and the number on the radio.
+    int64_t next_slot = 0;
     int64_t next_seq = 0;
+    uint16_t radio_seq = 0;
+    bool restarted = false;
   };
   struct Pending {
     int64_t utime;

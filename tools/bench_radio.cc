@@ -78,7 +78,8 @@ std::vector<uint8_t> MakeStream(const Site& site, radio::ApiMode mode, size_t by
       m.type = radio::PayloadType::kRangeReport;
       m.time_of_flight_ns = 7'000'000u + static_cast<uint32_t>(*frames) * 7919u % 3'000'000u;
       m.temperature_centi_c = 2100;
-      p.address64 = site.receivers[static_cast<size_t>(*frames % 5 - 1)].address;
+      p.address64 =
+          site.receivers[static_cast<size_t>(*frames % 5 - 1) % site.receivers.size()].address;
     }
     p.address16 = static_cast<uint16_t>(p.address64);
     p.payload = radio::EncodeWallMessage(m);
@@ -231,11 +232,12 @@ json PublishLatency(const Site& site, const BenchRadioOptions& options, std::str
     }
   });
   while (!ready) std::this_thread::sleep_for(std::chrono::milliseconds(1));
-  for (size_t k = 0; k < firings.size(); ++k) {
-    if (!pty->Write(firings[k].head.data(), firings[k].head.size(), error)) break;
+  bool wrote_all = true;
+  for (size_t k = 0; k < firings.size() && wrote_all; ++k) {
+    wrote_all = pty->Write(firings[k].head.data(), firings[k].head.size(), error);
     std::this_thread::sleep_for(std::chrono::milliseconds(2));
     write_utime[k] = NowUtime();
-    if (!pty->Write(firings[k].last.data(), firings[k].last.size(), error)) break;
+    wrote_all = wrote_all && pty->Write(firings[k].last.data(), firings[k].last.size(), error);
     std::this_thread::sleep_for(std::chrono::milliseconds(3));
   }
   const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(2);
@@ -247,6 +249,7 @@ json PublishLatency(const Site& site, const BenchRadioOptions& options, std::str
   bridge_thread.join();
   pty.reset();
   ::rmdir(dir_template);
+  if (!wrote_all) return nullptr;
 
   std::vector<double> from_write_ms;
   std::vector<double> from_read_ms;
@@ -352,10 +355,14 @@ json CompareGrouping(const Site& site, const BenchRadioOptions& options) {
   for (const range_set_t& s : sets) {
     if (s.ranges.empty()) continue;
     ++roomfix_with_ranges;
-    const FiringRecord& record = devices.ledger().at({s.beacon_id, s.firing_seq});
+    const auto it = devices.ledger().find({s.beacon_id, s.firing_seq});
+    if (it == devices.ledger().end()) {
+      ++roomfix_mixed;
+      continue;
+    }
     for (const range_t& r : s.ranges) {
       bool own = false;
-      for (const auto& rep : record.reports) {
+      for (const auto& rep : it->second.reports) {
         own |= rep.receiver_id == r.receiver_id && !rep.no_echo &&
                std::abs(rep.time_of_flight_ns - r.time_of_flight_us * 1e3) < 0.5;
       }
@@ -386,6 +393,11 @@ int RunRadioBench(const BenchRadioOptions& options) {
   std::string error;
   if (!LoadSite(options.site, &site, &error)) {
     std::cerr << "roomfix bench radio: " << error << "\n";
+    return 1;
+  }
+  if (site.beacons.empty() || site.simulation.robots.empty()) {
+    std::cerr << "roomfix bench radio: " << options.site
+              << ": needs a beacon and a simulated robot carrying it\n";
     return 1;
   }
   json result;

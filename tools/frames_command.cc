@@ -1,9 +1,13 @@
 // roomfix frames decode: an XBee API byte stream in, one JSON line per frame
 // and per error out.
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <CLI/CLI.hpp>
 #include <cctype>
+#include <cerrno>
 #include <cstdio>
-#include <fstream>
+#include <cstring>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -159,44 +163,67 @@ bool ParseHexText(const std::string& text, std::vector<uint8_t>* out, std::strin
 }
 
 int RunDecode(const FramesOptions& options) {
-  std::istream* in = &std::cin;
-  std::ifstream file;
+  int fd = 0;
   if (options.input != "-") {
-    file.open(options.input, std::ios::binary);
-    if (!file) {
-      std::cerr << "roomfix frames decode: cannot read " << options.input << "\n";
+    fd = ::open(options.input.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) {
+      std::cerr << "roomfix frames decode: cannot read " << options.input << ": "
+                << std::strerror(errno) << "\n";
       return 1;
     }
-    in = &file;
   }
   radio::FrameDecoderOptions decoder_options;
   decoder_options.mode =
       options.api_mode == 1 ? radio::ApiMode::kUnescaped : radio::ApiMode::kEscaped;
   radio::FrameDecoder decoder(decoder_options);
   JsonLines sink;
-  if (options.hex) {
-    std::string line;
-    int64_t line_number = 0;
-    std::vector<uint8_t> bytes;
-    while (std::getline(*in, line)) {
-      ++line_number;
-      bytes.clear();
-      std::string error;
-      if (!ParseHexText(line, &bytes, &error)) {
-        std::cerr << "roomfix frames decode: line " << line_number << ": " << error << "\n";
-        return 2;
-      }
-      decoder.Feed(bytes.data(), bytes.size(), &sink);
+  std::vector<uint8_t> bytes;
+  std::string pending_text;
+  int64_t line_number = 0;
+  std::vector<char> buffer(1 << 16);
+  // read(2), not an istream: on a pipe from a live port it returns what has
+  // arrived instead of waiting for a full buffer, so each frame is printed
+  // as it comes.
+  while (true) {
+    const ssize_t n = ::read(fd, buffer.data(), buffer.size());
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) {
+      std::cerr << "roomfix frames decode: read failed: " << std::strerror(errno) << "\n";
+      break;
     }
-  } else {
-    std::vector<char> buffer(1 << 16);
-    while (*in) {
-      in->read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
-      const std::streamsize n = in->gcount();
-      if (n <= 0) break;
+    if (n == 0) break;
+    if (!options.hex) {
       decoder.Feed(reinterpret_cast<const uint8_t*>(buffer.data()), static_cast<size_t>(n), &sink);
+    } else {
+      pending_text.append(buffer.data(), static_cast<size_t>(n));
+      size_t end;
+      while ((end = pending_text.find('\n')) != std::string::npos) {
+        ++line_number;
+        bytes.clear();
+        std::string error;
+        if (!ParseHexText(pending_text.substr(0, end), &bytes, &error)) {
+          std::cerr << "roomfix frames decode: line " << line_number << ": " << error << "\n";
+          if (fd != 0) ::close(fd);
+          return 2;
+        }
+        decoder.Feed(bytes.data(), bytes.size(), &sink);
+        pending_text.erase(0, end + 1);
+      }
     }
+    std::cout.flush();
   }
+  if (options.hex && !pending_text.empty()) {
+    ++line_number;
+    bytes.clear();
+    std::string error;
+    if (!ParseHexText(pending_text, &bytes, &error)) {
+      std::cerr << "roomfix frames decode: line " << line_number << ": " << error << "\n";
+      if (fd != 0) ::close(fd);
+      return 2;
+    }
+    decoder.Feed(bytes.data(), bytes.size(), &sink);
+  }
+  if (fd != 0) ::close(fd);
   // The stream ended: a frame still open was cut short.
   decoder.FlushPartial(&sink);
   std::cout.flush();

@@ -78,6 +78,10 @@ TEST_P(BridgeUnderEveryFault, NeverMixesFiringsAndPublishesEveryFiringThatArrive
   wall.api_mode = GetParam().mode;
   wall.frame_type = GetParam().frame_type;
   wall.faults = RadioFaults::All();
+  // The beacon restarts its count every 100 s, and the first count is near
+  // the 16-bit wrap-around.
+  wall.faults.restart_every_s = 100.0;
+  wall.first_seq = 65000;
   wall.seed = 11;
   wall.start_utime = kStartUtime;
   BridgeNodeOptions bridge;
@@ -89,6 +93,7 @@ TEST_P(BridgeUnderEveryFault, NeverMixesFiringsAndPublishesEveryFiringThatArrive
   check_options.deadline_s = bridge.assembler.deadline_s;
   check_options.judge_until_utime = radio.now - 200'000;
   check_options.skip_disturbed = GetParam().mode == radio::ApiMode::kUnescaped;
+  check_options.first_seq = wall.first_seq;
   const LedgerCheck check = CheckAgainstLedger(radio.sets, radio.devices, check_options);
   for (const std::string& f : check.failures) ADD_FAILURE() << f;
   EXPECT_EQ(check.mixed_sets, 0);
@@ -99,8 +104,10 @@ TEST_P(BridgeUnderEveryFault, NeverMixesFiringsAndPublishesEveryFiringThatArrive
   // in time (mode 1 judges fewer: see skip_disturbed).
   EXPECT_GT(check.expected_complete, GetParam().mode == radio::ApiMode::kEscaped ? 1800 : 500)
       << "too few firings arrived whole to judge";
-  EXPECT_GT(check.sets, 5800);
-  EXPECT_GT(check.ranges, 17500);
+  // 600 s with a 1 s pause every 100 s: about 5940 firings.
+  EXPECT_GT(check.sets, 5700);
+  EXPECT_GT(check.ranges, 17000);
+  EXPECT_EQ(radio.Counter("beacon_restarts"), 5);
   for (const char* reason : {"unknown_address", "duplicate_report", "late_report", "no_echo"}) {
     EXPECT_GT(radio.Rejected(reason), 0) << reason;
   }
@@ -109,6 +116,10 @@ TEST_P(BridgeUnderEveryFault, NeverMixesFiringsAndPublishesEveryFiringThatArrive
             0);
   EXPECT_GT(radio.Rejected("garbage"), 0);
   EXPECT_GT(radio.Counter("missing_announcement"), 0);
+  // Published numbers only grow, across the wrap-around and the restarts.
+  for (size_t k = 1; k < radio.sets.size(); ++k) {
+    EXPECT_NE(radio.sets[k].firing_seq, radio.sets[k - 1].firing_seq);
+  }
   EXPECT_EQ(radio.status.outputs, check.sets);
 }
 

@@ -39,7 +39,7 @@ LedgerCheck CheckAgainstLedger(const std::vector<range_set_t>& sets,
       ++check.repeated_sets;
       Fail(&check, "firing " + std::to_string(set.firing_seq) + " published twice");
     }
-    const auto it = ledger.find(key);
+    const auto it = ledger.find({set.beacon_id, set.firing_seq - options.first_seq});
     if (it == ledger.end()) {
       ++check.mixed_sets;
       Fail(&check, "set for firing " + std::to_string(set.firing_seq) + " never fired");
@@ -70,7 +70,22 @@ LedgerCheck CheckAgainstLedger(const std::vector<range_set_t>& sets,
   const auto deadline_us = static_cast<int64_t>(std::llround(options.deadline_s * 1e6));
   const auto margin_us = static_cast<int64_t>(std::llround(options.margin_s * 1e6));
   const auto window_us = static_cast<int64_t>(std::llround(options.disturbance_window_s * 1e6));
+  std::map<int, bool> awaiting_restart;  // per beacon
   for (const auto& [key, record] : ledger) {
+    bool& awaiting = awaiting_restart[key.first];
+    if (record.after_restart) awaiting = true;
+    if (awaiting) {
+      int64_t earliest_report = INT64_MAX;
+      for (const FiringRecord::Report& rep : record.reports) {
+        if (rep.delivery_utime >= 0)
+          earliest_report = std::min(earliest_report, rep.delivery_utime);
+      }
+      if (record.announcement_utime < 0 || !record.announcement_intact ||
+          record.announcement_utime > earliest_report) {
+        continue;
+      }
+      awaiting = false;
+    }
     int64_t first = INT64_MAX;
     int64_t last = INT64_MIN;
     bool all_intact = true;
@@ -87,12 +102,17 @@ LedgerCheck CheckAgainstLedger(const std::vector<range_set_t>& sets,
     }
     if (!all_intact || last > first + deadline_us - margin_us) continue;
     if (last + deadline_us > options.judge_until_utime) continue;
+    bool written_late = false;
+    for (const auto& [scheduled, written] : options.late_writes) {
+      written_late |= scheduled <= last && written >= first;
+    }
+    if (written_late) continue;
     if (options.skip_disturbed) {
       const auto lo = std::lower_bound(disturbances.begin(), disturbances.end(), first - window_us);
       if (lo != disturbances.end() && *lo <= last) continue;
     }
     ++check.expected_complete;
-    const auto it = published.find(key);
+    const auto it = published.find({key.first, key.second + options.first_seq});
     size_t with_echo = 0;
     for (const FiringRecord::Report& rep : record.reports) with_echo += rep.no_echo ? 0 : 1;
     if (it == published.end() || it->second->ranges.size() != with_echo) {

@@ -21,7 +21,10 @@ struct LedgerCheck {
   // Firings published more than once: must be 0.
   int repeated_sets = 0;
   // Firings whose every report arrived intact before the deadline, and how
-  // many of them were not published complete: must be 0.
+  // many of them were not published complete: must be 0. After a beacon
+  // restart, firings are judged again from the first whose announcement
+  // arrived intact before its reports (the bridge cannot know the new count
+  // before).
   int expected_complete = 0;
   int incomplete = 0;
   std::vector<std::string> failures;  // the first few, for the test output
@@ -38,6 +41,14 @@ struct LedgerCheckOptions {
   // API mode 1: firings near a corrupted frame or garbage are not judged
   // for completeness (see VirtualWallDevices::disturbance_utimes).
   bool skip_disturbed = false;
+  // The bridge numbers firings from the first 16-bit number it hears:
+  // published = ledger seq + first_seq (WallDevicesOptions::first_seq).
+  int64_t first_seq = 0;
+  // Writes that reached the pseudo-terminal late, as [scheduled, written]
+  // intervals (a stalled writer thread): firings with a delivery inside one
+  // are not judged for completeness, since the ledger's times are wrong
+  // for them.
+  std::vector<std::pair<int64_t, int64_t>> late_writes;
   // The bridge accepts at most 128 bytes of frame data, so a bogus length
   // holds back at most that many bytes: a few frames, under 0.15 s.
   double disturbance_window_s = 0.15;

@@ -92,19 +92,22 @@ int main(int argc, char** argv) {
           }
         }
         // Drain what the port holds; each read is stamped with the time it
-        // returned, the arrival time of its bytes.
+        // returned, the arrival time of its bytes. Deadlines are judged at
+        // the time of the read that found nothing more, so a report that
+        // came before a deadline has always been read by then.
+        int64_t tick_utime = roomfix::NowUtime();
         while (link.state() == roomfix::SerialLink::State::kOpen) {
-          const int64_t read_utime = roomfix::NowUtime();
-          const int n = link.Read(buffer.data(), buffer.size(), read_utime);
+          tick_utime = roomfix::NowUtime();
+          const int n = link.Read(buffer.data(), buffer.size(), tick_utime);
           if (n < 0) {
             spdlog::warn("{}; reopening", link.last_error());
-            node.OnLinkDown(link.last_error(), read_utime);
+            node.OnLinkDown(link.last_error(), tick_utime);
             break;
           }
           if (n == 0) break;
-          node.OnBytes(buffer.data(), static_cast<size_t>(n), read_utime);
+          node.OnBytes(buffer.data(), static_cast<size_t>(n), tick_utime);
         }
-        node.Tick(roomfix::NowUtime());
+        node.Tick(tick_utime);
       },
       loop);
   node.Stop(roomfix::NowUtime());

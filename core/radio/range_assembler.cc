@@ -197,7 +197,7 @@ const char* RangeAssembler::OnPacket(const RadioPacket& packet, std::vector<Asse
     receiver = site_.FindReceiverByAddress(packet.address64);
     beacon = site_.FindBeaconByAddress(packet.address64);
     source = FormatRadioAddress(packet.address64);
-  } else if (packet.has_address16) {
+  } else if (packet.has_address16 && !packet.has_address64) {
     // 802.15.4 short addressing (frame 0x81): only modules given a
     // short_address in the site file can be recognised.
     receiver = site_.FindReceiverByShortAddress(packet.address16);
@@ -247,21 +247,27 @@ const char* RangeAssembler::OnAnnouncement(BeaconState* state, const WallMessage
                                            std::vector<AssembledSet>* closed) {
   ++counters_["announcements"];
   int64_t seq = Unwrap(*state, message.firing_seq);
-  const bool after_silence = state->last_announcement_utime != INT64_MIN &&
-                             packet.arrival_utime - state->last_announcement_utime >
+  const bool after_silence = state->last_packet_utime != INT64_MIN &&
+                             packet.arrival_utime - state->last_packet_utime >
                                  static_cast<int64_t>(options_.restart_silence_s * 1e6);
-  state->last_announcement_utime = std::max(state->last_announcement_utime, packet.arrival_utime);
-  if (state->has_newest && (seq < state->newest_seq - options_.stale_window_firings ||
-                            (after_silence && seq <= state->newest_seq))) {
-    // Only the beacon itself can send this (its address, a valid CRC), so a
-    // firing number far behind means its counter started again (power
-    // cycle). Publish what is open and continue the numbering from the
-    // newest, so that published numbers still only grow.
+  state->last_packet_utime = std::max(state->last_packet_utime, packet.arrival_utime);
+  // Only the beacon itself can send an announcement (its address, a valid
+  // CRC), so one far behind its newest announcement, or behind it at all
+  // after a silence, means its counter started again (a power cycle). A copy
+  // delayed by a buffering radio is a few firings late and comes while the
+  // beacon is still talking.
+  if (state->has_announced && (seq < state->newest_announced - options_.max_open_firings ||
+                               (after_silence && seq < state->newest_announced))) {
+    // Publish what is open and continue the numbering after the newest, so
+    // that published numbers still only grow. A beacon counts from 0 after
+    // a restart, so the new count's 0 follows the old newest even when its
+    // first firings were not heard.
     while (!state->open.empty()) {
       Close(state, 0, CloseReason::kFlushed, packet.arrival_utime, closed);
     }
-    state->seq_offset += state->newest_seq + 1 - message.firing_seq;
+    state->seq_offset += state->newest_seq + 1;
     state->newest_seq = message.firing_seq;
+    state->newest_announced = message.firing_seq;
     std::fill(state->closed.begin(), state->closed.end(), INT64_MIN);
     seq = message.firing_seq;
     state->floor_seq = seq;
@@ -288,6 +294,9 @@ const char* RangeAssembler::OnAnnouncement(BeaconState* state, const WallMessage
   NoteTemperature(message, firing);
   if (!state->has_newest || seq > state->newest_seq) state->newest_seq = seq;
   state->has_newest = true;
+  if (!state->has_announced || seq > state->newest_announced) state->newest_announced = seq;
+  state->has_announced = true;
+  state->last_announcement_utime = std::max(state->last_announcement_utime, packet.arrival_utime);
   return nullptr;
 }
 
@@ -301,6 +310,7 @@ const char* RangeAssembler::OnReport(int receiver_index, const WallMessage& mess
                                         " answered beacon " + std::to_string(message.beacon_id) +
                                         ", which the site does not list");
   }
+  state->last_packet_utime = std::max(state->last_packet_utime, packet.arrival_utime);
   const int64_t seq = Unwrap(*state, message.firing_seq);
   const std::string what = "receiver " + std::to_string(receiver.id) + " report for beacon " +
                            std::to_string(state->beacon->id) + " firing " +
@@ -310,7 +320,18 @@ const char* RangeAssembler::OnReport(int receiver_index, const WallMessage& mess
       (state->has_newest && seq < state->newest_seq - options_.stale_window_firings)) {
     return Reject("stale_firing", what + ", " + std::to_string(state->newest_seq - seq) +
                                       " firings behind the newest");
+  }  // While the beacon is announcing, a report far ahead of its announcements
+  // belongs to another numbering: a buffered report from before a restart
+  // unwraps ahead of the new count. Letting it in would move the newest
+  // firing and make the real ones look stale.
+  if (state->has_announced &&
+      packet.arrival_utime - state->last_announcement_utime <=
+          static_cast<int64_t>(options_.restart_silence_s * 1e6) &&
+      seq > state->newest_announced + options_.max_open_firings) {
+    return Reject("future_firing", what + ", " + std::to_string(seq - state->newest_announced) +
+                                       " firings ahead of the beacon's announcements");
   }
+
   OpenFiring* firing = FindOpen(state, seq);
   if (firing == nullptr) firing = OpenNew(state, seq, packet.arrival_utime, closed);
   for (const Answer& a : firing->answers) {

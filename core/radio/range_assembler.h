@@ -29,14 +29,16 @@ struct AssemblerOptions {
   // receiver's |range offset|.
   double range_margin_m = 0.3;
   // Firings more than this many behind the newest of their beacon are
-  // stale: their reports are dropped (stale_firing). An announcement that
-  // far behind means the beacon restarted its counter.
+  // stale: their reports are dropped (stale_firing).
   int stale_window_firings = 64;
-  // An announcement for a firing at or behind the newest, after the beacon
-  // has not announced anything for this long, also means a restart (a power
-  // cycle takes longer than this; a late copy from a buffering radio comes
-  // while the beacon is still announcing).
-  double restart_silence_s = 1.0;
+  // A beacon restarted its counter when it announces a firing more than
+  // max_open_firings behind its newest announcement, or behind it at all
+  // after nothing about it was heard for this long (a power cycle takes
+  // longer; a late copy from a buffering radio comes while the beacon is
+  // still talking). A restart within this time after fewer than
+  // max_open_firings firings goes unnoticed until the new count passes the
+  // old one: those firings are dropped as late_report.
+  double restart_silence_s = 0.5;
   // At most this many firings of one beacon are assembled at once; opening
   // one more closes the oldest early (counted as sets_evicted).
   int max_open_firings = 16;
@@ -90,7 +92,8 @@ struct AssembledSet {
   bool fire_time_from_announcement = false;
   int beacon_id = 0;
   // Unwrapped to 64 bits: only grows within a session, across 16-bit
-  // wrap-around and beacon restarts.
+  // wrap-around and beacon restarts (after a restart the beacon's 0 follows
+  // the newest number before it).
   int64_t firing_seq = 0;
   double speed_of_sound_mps = 0.0;
   double temperature_c = 0.0;
@@ -117,6 +120,8 @@ struct AssembledSet {
 //   unknown_beacon       it names a beacon the site does not list
 //   late_report          its firing was already published
 //   stale_firing         its firing is far older than the beacon's newest
+//   future_firing        its firing is far ahead of the beacon's newest
+//                        announcement while the beacon is announcing
 //   duplicate_report     the receiver already answered this firing
 //   no_echo              the receiver heard nothing (answers, no range)
 //   tof_out_of_range     the range is impossible in this room
@@ -140,8 +145,8 @@ class RangeAssembler {
 
   // Counters: rejections by reason (see above) and events
   // (announcements, reports, sets_published, sets_complete, sets_deadline,
-  // sets_evicted, missing_announcement, beacon_restarts,
-  // implausible_temperature, duplicate_announcement).
+  // sets_evicted, sets_flushed, missing_announcement, beacon_restarts,
+  // implausible_temperature).
   const std::map<std::string, int64_t>& rejected() const { return rejected_; }
   const std::map<std::string, int64_t>& counters() const { return counters_; }
   int64_t rejected(const std::string& reason) const;
@@ -176,7 +181,14 @@ class RangeAssembler {
     // so that published numbers keep increasing.
     int64_t newest_seq = 0;
     int64_t seq_offset = 0;
+    // The newest firing the beacon itself announced: restarts and the window
+    // for reports are judged against it, not against reports, which a
+    // buffering radio can deliver from an old numbering.
+    bool has_announced = false;
+    int64_t newest_announced = 0;
     int64_t last_announcement_utime = INT64_MIN;
+    // Any packet about this beacon (announcement or report).
+    int64_t last_packet_utime = INT64_MIN;
     // After a restart, firings before its first are of the old numbering
     // and refused as stale: letting them in would reuse published numbers.
     int64_t floor_seq = INT64_MIN;

@@ -339,6 +339,70 @@ TEST_F(RangeAssemblerTest, TakesAnOldNumberAfterASilenceAsARestart) {
   EXPECT_EQ(a.counter("beacon_restarts"), 1);
 }
 
+TEST_F(RangeAssemblerTest, AReportBeforeItsAnnouncementAfterAPauseIsNoRestart) {
+  // The beacon paused for 2 s; the first report of its next firing beats
+  // the announcement (a broadcast can be slower than a unicast).
+  RangeAssembler a(site_, {});
+  for (uint16_t seq = 0; seq < 5; ++seq) Announce(&a, seq, kT0 + seq * 100'000);
+  a.Advance(kT0 + 1'000'000, &closed_);
+  const int64_t t = kT0 + 3'000'000;
+  EXPECT_EQ(Report(&a, 0, 5, TofNs(TrueRangeM(0)), t), nullptr);
+  EXPECT_EQ(Announce(&a, 5, t + 1000), nullptr);
+  for (int i = 1; i < 4; ++i) EXPECT_EQ(Report(&a, i, 5, TofNs(TrueRangeM(i)), t + 5000), nullptr);
+  ASSERT_EQ(closed_.size(), 6u);
+  EXPECT_EQ(closed_.back().firing_seq, 5);
+  EXPECT_EQ(closed_.back().ranges.size(), 4u);
+  EXPECT_EQ(a.counter("beacon_restarts"), 0);
+}
+
+TEST_F(RangeAssemblerTest, ABufferedReportFromBeforeARestartCannotDerailTheNewCount) {
+  RangeAssembler a(site_, {});
+  for (uint16_t seq = 0; seq < 100; ++seq) Announce(&a, seq, kT0 + seq * 100'000);
+  int64_t t = kT0 + 10'000'000;
+  a.Advance(t, &closed_);
+  closed_.clear();
+  // A quick power cycle: the count starts again at 0; then an old report
+  // of firing 98 arrives, which unwraps 98 firings ahead of the new count.
+  EXPECT_EQ(Announce(&a, 0, t + 100'000), nullptr);
+  EXPECT_STREQ(Report(&a, 3, 98, TofNs(TrueRangeM(3)), t + 110'000), "future_firing");
+  for (int i = 0; i < 4; ++i)
+    EXPECT_EQ(Report(&a, i, 0, TofNs(TrueRangeM(i)), t + 120'000), nullptr);
+  EXPECT_EQ(Announce(&a, 1, t + 200'000), nullptr);
+  EXPECT_EQ(a.counter("beacon_restarts"), 1);
+  ASSERT_EQ(closed_.size(), 1u);
+  EXPECT_EQ(closed_[0].firing_seq, 100) << "numbering continues after the old newest (99)";
+  EXPECT_EQ(closed_[0].ranges.size(), 4u);
+}
+
+TEST_F(RangeAssemblerTest, NoticesAQuickRestartOnceItIsFarBehindTheNewestAnnouncement) {
+  RangeAssembler a(site_, {});
+  for (uint16_t seq = 0; seq < 30; ++seq) Announce(&a, seq, kT0 + seq * 100'000);
+  // Restarted 0.2 s later, well inside the silence that would give it away.
+  EXPECT_EQ(Announce(&a, 0, kT0 + 3'100'000), nullptr);
+  EXPECT_EQ(a.counter("beacon_restarts"), 1);
+  EXPECT_EQ(Report(&a, 0, 0, TofNs(TrueRangeM(0)), kT0 + 3'110'000), nullptr);
+}
+
+TEST_F(RangeAssemblerTest, NeverTakesTheNetworkAddressOfAZigbeeFrameForAShortAddress) {
+  // A 0x90 frame whose module does not know the 64-bit source: its 16-bit
+  // network address is assigned by the coordinator and may equal a MY
+  // address of the site by chance.
+  site_.receivers[0].short_address = 0x0101;
+  RangeAssembler a(site_, {});
+  WallMessage m;
+  m.beacon_id = 1;
+  m.time_of_flight_ns = TofNs(2.8);
+  payloads_.push_back(EncodeWallMessage(m));
+  RadioPacket p;
+  p.has_address64 = true;
+  p.address64 = 0xFFFFFFFFFFFFFFFFull;
+  p.has_address16 = true;
+  p.address16 = 0x0101;
+  p.payload = payloads_.back().data();
+  p.payload_size = payloads_.back().size();
+  EXPECT_STREQ(a.OnPacket(p, &closed_), "unknown_address");
+}
+
 TEST_F(RangeAssemblerTest, UsesTheMedianPlausibleTemperatureForTheSpeedOfSound) {
   RangeAssembler a(site_, {});
   Announce(&a, 1, kT0);
