@@ -10,34 +10,11 @@
 
 #include "core/analysis/circle_fit.h"
 #include "core/analysis/track_error.h"
-#include "msgio/log.h"
-#include "msgio/message_json.h"
-#include "roomfix/pose2d_t.hpp"
+#include "msgio/pose_tracks.h"
 #include "tools/commands.h"
 
 namespace roomfix {
 namespace {
-
-const char* SourceName(int8_t source) {
-  switch (source) {
-    case pose2d_t::SOURCE_CAMERA:
-      return "camera";
-    case pose2d_t::SOURCE_ULTRASOUND:
-      return "ultrasound";
-    case pose2d_t::SOURCE_FUSED:
-      return "fused";
-    case pose2d_t::SOURCE_GROUND_TRUTH:
-      return "ground_truth";
-    default:
-      return "unknown";
-  }
-}
-
-struct SourceTrack {
-  std::vector<analysis::TimedPosition> positions;
-  std::vector<double> latencies_ms;
-  int lost = 0;
-};
 
 // Ground truth is sampled at 30 Hz or more; a longer gap means it was not
 // running, and nothing is compared there.
@@ -56,32 +33,25 @@ void AddCompareCommand(CLI::App* app, int* exit_code) {
   cmd->add_flag("--fit-circle", *fit_circle,
                 "Also fit the reference paper's circle models to each source's track");
   cmd->callback([log_path, json_path, fit_circle, exit_code] {
-    std::string error;
-    auto reader = LogReader::Open(*log_path, &error);
-    if (reader == nullptr) {
-      std::cerr << "roomfix compare: " << error << "\n";
+    PoseLogs logs = ReadPoseLogs({*log_path});
+    const LogReadReport& report = logs.logs.front();
+    if (!report.error.empty()) {
+      std::cerr << "roomfix compare: " << report.error << "\n";
       *exit_code = 1;
       return;
     }
-    // (source, robot) -> track
+    // (source, robot) -> positions and latencies
+    struct SourceTrack {
+      std::vector<analysis::TimedPosition> positions;
+      std::vector<double> latencies_ms;
+      int lost = 0;
+    };
     std::map<std::pair<std::string, int>, SourceTrack> tracks;
-    LogEvent e;
-    int undecodable = 0;
-    while (reader->Next(&e)) {
-      if (e.channel.rfind("POSE_", 0) != 0) continue;
-      pose2d_t p{};
-      if (p.decode(e.data.data(), 0, static_cast<int>(e.data.size())) !=
-          static_cast<int>(e.data.size())) {
-        ++undecodable;
-        continue;
-      }
-      SourceTrack& t = tracks[{SourceName(p.source), p.robot_id}];
-      if (p.status == pose2d_t::STATUS_LOST) {
-        ++t.lost;
-        continue;
-      }
-      t.positions.push_back({p.utime, p.x_m, p.y_m});
-      t.latencies_ms.push_back(p.latency_us * 1e-3);
+    for (const auto& [key, track] : logs.tracks) {
+      SourceTrack& t = tracks[key];
+      t.positions = track.Positions();
+      for (const PoseSample& s : track.samples) t.latencies_ms.push_back(s.latency_us * 1e-3);
+      t.lost = track.lost;
     }
     nlohmann::json out;
     out["log"] = *log_path;
@@ -148,10 +118,14 @@ void AddCompareCommand(CLI::App* app, int* exit_code) {
             {"std_error_m", f.std_error_m}};
       }
     }
-    if (undecodable > 0) std::printf("%d POSE_* events did not decode as pose2d_t\n", undecodable);
-    if (reader->damaged())
+    if (report.undecodable > 0) {
+      std::printf("%lld POSE_* events did not decode as pose2d_t\n",
+                  static_cast<long long>(report.undecodable));
+    }
+    if (report.damaged) {
       std::printf("the log is damaged after byte %lld\n",
-                  static_cast<long long>(reader->bytes_read()));
+                  static_cast<long long>(report.bytes_read));
+    }
     if (!json_path->empty()) {
       std::ofstream f(*json_path);
       f << out.dump(2) << "\n";

@@ -15,6 +15,7 @@ int main(int argc, char** argv) {
   roomfix::AddBenchCommand(&app, &exit_code);
   roomfix::AddCompareCommand(&app, &exit_code);
   roomfix::AddFramesCommand(&app, &exit_code);
+  roomfix::AddAnalyzeCommand(&app, &exit_code);
   CLI11_PARSE(app, argc, argv);
   return exit_code;
 }

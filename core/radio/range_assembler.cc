@@ -273,9 +273,11 @@ const char* RangeAssembler::OnAnnouncement(BeaconState* state, const WallMessage
     state->floor_seq = seq;
     ++counters_["beacon_restarts"];
   }
-  if (seq < state->floor_seq) {
+  if (seq < state->floor_seq ||
+      (state->has_newest && seq < state->newest_seq - options_.stale_window_firings)) {
     return Reject("stale_firing", "announcement of beacon " + std::to_string(state->beacon->id) +
-                                      " from before its restart");
+                                      " firing " + std::to_string(seq + state->seq_offset) +
+                                      ", before its restart or far behind its newest");
   }
   if (IsClosed(*state, seq)) {
     return Reject("late_report", "announcement of beacon " + std::to_string(state->beacon->id) +
@@ -330,6 +332,23 @@ const char* RangeAssembler::OnReport(int receiver_index, const WallMessage& mess
       seq > state->newest_announced + options_.max_open_firings) {
     return Reject("future_firing", what + ", " + std::to_string(seq - state->newest_announced) +
                                        " firings ahead of the beacon's announcements");
+  }
+  // Without recent announcements, reports must carry the count forward
+  // (the coordinator may not hear the beacon for a while), but one report
+  // alone may not move it far: a second receiver must name the same firing.
+  // Otherwise a single stray report would make every real firing stale.
+  if (state->has_newest && seq > state->newest_seq + options_.max_open_firings &&
+      FindOpen(state, seq) == nullptr) {
+    const bool corroborated =
+        state->jump_seq == seq && state->jump_receiver != receiver_index &&
+        packet.arrival_utime - state->jump_utime <= static_cast<int64_t>(options_.deadline_s * 1e6);
+    if (!corroborated) {
+      state->jump_seq = seq;
+      state->jump_receiver = receiver_index;
+      state->jump_utime = packet.arrival_utime;
+      return Reject("future_firing", what + ", " + std::to_string(seq - state->newest_seq) +
+                                         " firings ahead of the newest, named by one receiver");
+    }
   }
 
   OpenFiring* firing = FindOpen(state, seq);

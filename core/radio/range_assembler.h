@@ -121,7 +121,9 @@ struct AssembledSet {
 //   late_report          its firing was already published
 //   stale_firing         its firing is far older than the beacon's newest
 //   future_firing        its firing is far ahead of the beacon's newest
-//                        announcement while the beacon is announcing
+//                        announcement while the beacon is announcing, or
+//                        far ahead of the newest firing and no other
+//                        receiver has named it yet
 //   duplicate_report     the receiver already answered this firing
 //   no_echo              the receiver heard nothing (answers, no range)
 //   tof_out_of_range     the range is impossible in this room
@@ -189,6 +191,11 @@ class RangeAssembler {
     int64_t last_announcement_utime = INT64_MIN;
     // Any packet about this beacon (announcement or report).
     int64_t last_packet_utime = INT64_MIN;
+    // A report that would move the count far ahead, waiting for a second
+    // receiver to name the same firing.
+    int64_t jump_seq = INT64_MIN;
+    int jump_receiver = -1;
+    int64_t jump_utime = 0;
     // After a restart, firings before its first are of the old numbering
     // and refused as stale: letting them in would reuse published numbers.
     int64_t floor_seq = INT64_MIN;

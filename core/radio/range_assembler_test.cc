@@ -403,6 +403,45 @@ TEST_F(RangeAssemblerTest, NeverTakesTheNetworkAddressOfAZigbeeFrameForAShortAdd
   EXPECT_STREQ(a.OnPacket(p, &closed_), "unknown_address");
 }
 
+TEST_F(RangeAssemblerTest, OneStrayReportCannotCarryTheCountFarAhead) {
+  // Found by the fuzzer: with no announcement for a while, a single report
+  // far ahead moved the newest firing, made the beacon's real announcements
+  // stale and, the closed-firing memory being a ring, let a firing be
+  // published twice.
+  RangeAssembler a(site_, {});
+  Announce(&a, 101, kT0);
+  for (int i = 0; i < 4; ++i) Report(&a, i, 101, TofNs(TrueRangeM(i)), kT0 + 9000);
+  ASSERT_EQ(closed_.size(), 1u);
+  const int64_t t = kT0 + 1'000'000;  // no announcement for a second
+  EXPECT_STREQ(Report(&a, 2, 3084, TofNs(TrueRangeM(2)), t), "future_firing");
+  EXPECT_STREQ(Report(&a, 2, 3084, TofNs(TrueRangeM(2)), t + 1000), "future_firing")
+      << "the same receiver again is no corroboration";
+  EXPECT_STREQ(Announce(&a, 101, t + 2000), "late_report");
+  EXPECT_EQ(Announce(&a, 102, t + 100'000), nullptr);
+  for (int i = 0; i < 4; ++i) {
+    EXPECT_EQ(Report(&a, i, 102, TofNs(TrueRangeM(i)), t + 110'000), nullptr);
+  }
+  ASSERT_EQ(closed_.size(), 2u);
+  EXPECT_EQ(closed_[1].firing_seq, 102);
+}
+
+TEST_F(RangeAssemblerTest, TwoReceiversCarryTheCountAcrossALongRadioGap) {
+  // The coordinator heard nothing of the beacon for 10 s (100 firings):
+  // reports from two receivers agree on the new count.
+  RangeAssembler a(site_, {});
+  Announce(&a, 1, kT0);
+  a.Advance(kT0 + 1'000'000, &closed_);
+  const int64_t t = kT0 + 10'000'000;
+  EXPECT_STREQ(Report(&a, 0, 101, TofNs(TrueRangeM(0)), t), "future_firing");
+  EXPECT_EQ(Report(&a, 1, 101, TofNs(TrueRangeM(1)), t + 1000), nullptr);
+  EXPECT_EQ(Report(&a, 2, 101, TofNs(TrueRangeM(2)), t + 2000), nullptr);
+  EXPECT_EQ(Report(&a, 0, 102, TofNs(TrueRangeM(0)), t + 100'000), nullptr);
+  a.Flush(t + 200'000, &closed_);
+  ASSERT_EQ(closed_.size(), 3u);
+  EXPECT_EQ(closed_[1].firing_seq, 101);
+  EXPECT_EQ(closed_[1].ranges.size(), 2u);
+}
+
 TEST_F(RangeAssemblerTest, UsesTheMedianPlausibleTemperatureForTheSpeedOfSound) {
   RangeAssembler a(site_, {});
   Announce(&a, 1, kT0);

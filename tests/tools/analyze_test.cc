@@ -1,0 +1,232 @@
+// `roomfix analyze` on logs written with known trajectories and known noise:
+// it must give back what was put in.
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <nlohmann/json.hpp>
+#include <random>
+
+#include "core/world/trajectory.h"
+#include "msgio/log.h"
+#include "roomfix/pose2d_t.hpp"
+#include "tests/testing/test_paths.h"
+
+namespace roomfix {
+namespace {
+
+using nlohmann::json;
+using testing::BinDir;
+using testing::ChildProcess;
+using testing::ReadFile;
+using testing::TempDir;
+
+constexpr int64_t kT0 = 1'700'000'000'000'000;
+
+class LogBuilder {
+ public:
+  explicit LogBuilder(const std::string& path) {
+    std::string error;
+    writer_ = LogWriter::Create(path, true, &error);
+    EXPECT_NE(writer_, nullptr) << error;
+  }
+  void Pose(int8_t source, int64_t utime, double x_m, double y_m, int64_t latency_us = 5000,
+            int8_t status = pose2d_t::STATUS_OK) {
+    pose2d_t p{};
+    p.utime = utime;
+    p.source = source;
+    p.robot_id = 1;
+    p.x_m = x_m;
+    p.y_m = y_m;
+    p.heading_rad = std::nan("");
+    p.status = status;
+    p.latency_us = latency_us;
+    std::vector<uint8_t> buffer(static_cast<size_t>(p.getEncodedSize()));
+    p.encode(buffer.data(), 0, static_cast<int>(buffer.size()));
+    const char* channel = source == pose2d_t::SOURCE_CAMERA       ? "POSE_CAMERA"
+                          : source == pose2d_t::SOURCE_ULTRASOUND ? "POSE_ULTRASOUND"
+                                                                  : "POSE_GROUND_TRUTH";
+    std::string error;
+    EXPECT_TRUE(writer_->Write(utime + latency_us, channel, buffer.data(),
+                               static_cast<int>(buffer.size()), &error))
+        << error;
+  }
+  void Close() { writer_.reset(); }
+
+ private:
+  std::unique_ptr<LogWriter> writer_;
+};
+
+json Analyze(const std::vector<std::string>& args, int* exit_code) {
+  TempDir dir;
+  std::vector<std::string> argv = {BinDir() + "/roomfix", "analyze", "--json"};
+  argv.insert(argv.end(), args.begin(), args.end());
+  ChildProcess p(argv, dir.File("out.json"));
+  *exit_code = p.Wait(120);
+  return json::parse(ReadFile(dir.File("out.json")), nullptr, false);
+}
+
+bool NonEmptyFile(const std::string& path) {
+  struct stat st {};
+  return ::stat(path.c_str(), &st) == 0 && st.st_size > 1000;
+}
+
+TEST(RoomfixAnalyze, RecoversTheStaticRepeatabilityAndTheCameraCycleOfTheReference) {
+  // The reference's Fig. 7 and Figs. 3-4: 1172 fixes of a static robot, std
+  // 3.8 mm in x and 4.9 mm in y, one fix every 6 to 8 camera frames.
+  constexpr int kFixes = 1172;
+  constexpr double kSigmaXM = 0.0038;
+  constexpr double kSigmaYM = 0.0049;
+  // 4 standard errors of a sample standard deviation, sigma / sqrt(2 (n - 1)).
+  const double std_tol_x = 4 * kSigmaXM / std::sqrt(2.0 * (kFixes - 1));
+  const double std_tol_y = 4 * kSigmaYM / std::sqrt(2.0 * (kFixes - 1));
+  TempDir dir;
+  LogBuilder log(dir.File("static.lcm"));
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> nx(0.0, kSigmaXM), ny(0.0, kSigmaYM);
+  int frames_of[3] = {0, 0, 0};
+  int64_t t = kT0;
+  for (int i = 0; i < kFixes; ++i) {
+    log.Pose(pose2d_t::SOURCE_CAMERA, t, 1.0 + nx(rng), 2.0 + ny(rng));
+    const int frames = 6 + i % 3;                 // 6, 7, 8 frames in turn
+    if (i + 1 < kFixes) ++frames_of[frames - 6];  // the last one leads to no fix
+    // Capture times on the 30 fps frame grid, with 3 ms of jitter.
+    t += static_cast<int64_t>(frames * 1e6 / 30.0) + (i % 2 == 0 ? 3000 : -3000);
+  }
+  log.Close();
+
+  int rc = -1;
+  const json out = Analyze({dir.File("static.lcm"), "--out", dir.File("report")}, &rc);
+  ASSERT_EQ(rc, 0);
+  ASSERT_FALSE(out.is_discarded());
+  const json& camera = out["robots"]["1"]["camera"];
+  EXPECT_EQ(camera["fixes"], kFixes);
+  EXPECT_TRUE(camera["static"].get<bool>());
+  const json& r = camera["repeatability"];
+  EXPECT_NEAR(r["mean_x_m"].get<double>(), 1.0, 4 * kSigmaXM / std::sqrt(kFixes));
+  EXPECT_NEAR(r["std_x_m"].get<double>(), kSigmaXM, std_tol_x);
+  EXPECT_NEAR(r["std_y_m"].get<double>(), kSigmaYM, std_tol_y);
+  // P(|x| > 1.5 cm or |y| > 1.5 cm) for these sigmas: 1 - (1 - erfc(a / sqrt 2)) (1 - ...).
+  const double px = std::erfc(0.015 / kSigmaXM / std::sqrt(2.0));
+  const double py = std::erfc(0.015 / kSigmaYM / std::sqrt(2.0));
+  const double expected_share = 1 - (1 - px) * (1 - py);
+  EXPECT_NEAR(r["share_outside"].get<double>(), expected_share,
+              4 * std::sqrt(expected_share / kFixes) + 1.0 / kFixes);
+  int64_t in_histogram = r["histogram"]["outside"].get<int64_t>();
+  for (const auto& c : r["histogram"]["counts"]) in_histogram += c.get<int64_t>();
+  EXPECT_EQ(in_histogram, kFixes);
+
+  // Whole frames, counted exactly.
+  const json& frames = camera["timing"]["interval_frames"]["counts"];
+  EXPECT_EQ(frames[6].get<int>(), frames_of[0]);
+  EXPECT_EQ(frames[7].get<int>(), frames_of[1]);
+  EXPECT_EQ(frames[8].get<int>(), frames_of[2]);
+  EXPECT_NEAR(camera["timing"]["mean_ms"].get<double>(), 7 * 1000.0 / 30.0, 0.1);
+  EXPECT_NEAR(camera["latency_publish_ms"]["median_ms"].get<double>(), 5.0, 1e-9);
+
+  EXPECT_TRUE(NonEmptyFile(dir.File("report/static_camera_robot1.png")));
+  EXPECT_TRUE(NonEmptyFile(dir.File("report/intervals_camera_robot1.png")));
+  const std::string md = ReadFile(dir.File("report/report.md"));
+  EXPECT_NE(md.find("static_camera_robot1.png"), std::string::npos);
+  EXPECT_NE(md.find("0.38 cm, 0.49 cm"), std::string::npos) << "the reference beside ours";
+}
+
+TEST(RoomfixAnalyze, FitsTheReferenceCircleAndComparesEachSourceWithTruthAndCamera) {
+  // Ground truth at 30 Hz on the reference circle; the camera sees it 2 cm
+  // east and 1 cm south of the truth with 1 mm noise; ultrasound at 10 Hz
+  // with 1 cm noise.
+  constexpr double kSigmaUsM = 0.01;
+  constexpr double kSeconds = 60.0;
+  std::string error;
+  const std::unique_ptr<Trajectory> circle = MakeCircleTrajectory({}, &error);
+  ASSERT_NE(circle, nullptr) << error;
+  TempDir dir;
+  LogBuilder log(dir.File("circle.lcm"));
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> us(0.0, kSigmaUsM), cam(0.0, 0.001);
+  for (int k = 0; k <= kSeconds * 30; ++k) {
+    const double t = k / 30.0;
+    const GroundTruthPose p = circle->PoseAt(t);
+    const auto utime = kT0 + static_cast<int64_t>(t * 1e6);
+    log.Pose(pose2d_t::SOURCE_GROUND_TRUTH, utime, p.x_m, p.y_m, 0);
+    log.Pose(pose2d_t::SOURCE_CAMERA, utime, p.x_m + 0.02 + cam(rng), p.y_m - 0.01 + cam(rng));
+    if (k % 3 == 0) {
+      log.Pose(pose2d_t::SOURCE_ULTRASOUND, utime, p.x_m + us(rng), p.y_m + us(rng), 12000);
+    }
+  }
+  log.Pose(pose2d_t::SOURCE_ULTRASOUND, kT0 + 61'000'000, std::nan(""), std::nan(""), 12000,
+           pose2d_t::STATUS_LOST);
+  log.Close();
+
+  int rc = -1;
+  const json out = Analyze({dir.File("circle.lcm"), "--out", dir.File("report")}, &rc);
+  ASSERT_EQ(rc, 0);
+  const json& u = out["robots"]["1"]["ultrasound"];
+  EXPECT_EQ(u["fixes"], 601);
+  EXPECT_EQ(u["lost"], 1);
+  EXPECT_FALSE(u["static"].get<bool>());
+  // 601 fixes with 1 cm noise: the radius to about 1 cm / sqrt(601) = 0.4 mm.
+  constexpr double kRadiusTolM = 0.002;
+  const json& a = u["circle"]["drifting_centre"];
+  EXPECT_NEAR(a["radius_m"].get<double>(), 0.419, kRadiusTolM);
+  EXPECT_NEAR(a["cx_m"].get<double>(), 1.911, kRadiusTolM);
+  const json& b = u["circle"]["circular_motion"];
+  EXPECT_NEAR(b["angular_speed_radps"].get<double>(), -0.439, 0.001);
+  EXPECT_NEAR(b["phase_rad"].get<double>(), 3.163, 0.01);
+  // Error against the truth: the 2D error of N(0, 1 cm) per axis has RMS
+  // sqrt(2) cm.
+  EXPECT_NEAR(u["ground_truth_error"]["rmse_m"].get<double>(), std::sqrt(2.0) * kSigmaUsM, 0.002);
+  EXPECT_NEAR(u["timing"]["rate_hz"].get<double>(), 10.0, 0.05);
+  EXPECT_NEAR(u["motion"]["mean_speed_mps"].get<double>(), 0.419 * 0.439, 0.25)
+      << "noise inflates the speed between fixes; the mean stays of the right size";
+  // Camera as the reference for ultrasound: ultrasound - camera = (-2, +1) cm.
+  const json& vs = u["vs_camera"];
+  EXPECT_NEAR(vs["mean_dx_m"].get<double>(), -0.02, 0.002);
+  EXPECT_NEAR(vs["mean_dy_m"].get<double>(), 0.01, 0.002);
+  EXPECT_NEAR(out["robots"]["1"]["camera"]["ground_truth_error"]["rmse_m"].get<double>(),
+              std::hypot(0.02, 0.01), 0.001);
+  EXPECT_NEAR(out["sources"]["ultrasound"]["latency_ms_median"].get<double>(), 12.0, 1e-9);
+  EXPECT_TRUE(NonEmptyFile(dir.File("report/trajectory_robot1.png")));
+  EXPECT_TRUE(NonEmptyFile(dir.File("report/error_ultrasound_robot1.png")));
+}
+
+TEST(RoomfixAnalyze, AnalysesTheReadablePartOfATruncatedLogAndSaysWhere) {
+  TempDir dir;
+  LogBuilder log(dir.File("cut.lcm"));
+  for (int k = 0; k < 100; ++k) {
+    log.Pose(pose2d_t::SOURCE_ULTRASOUND, kT0 + k * 100'000, 1.0 + 0.001 * (k % 3), 1.0);
+  }
+  log.Close();
+  struct stat st {};
+  ASSERT_EQ(::stat(dir.File("cut.lcm").c_str(), &st), 0);
+  ASSERT_EQ(::truncate(dir.File("cut.lcm").c_str(), st.st_size - 20), 0);
+  int rc = -1;
+  const json out = Analyze({dir.File("cut.lcm"), "--no-figures", "--out", dir.File("r")}, &rc);
+  ASSERT_EQ(rc, 0);
+  EXPECT_TRUE(out["logs"][0]["damaged"].get<bool>());
+  EXPECT_LT(out["logs"][0]["bytes_read"].get<int64_t>(), st.st_size - 20);
+  EXPECT_EQ(out["robots"]["1"]["ultrasound"]["fixes"], 99);
+  EXPECT_NE(ReadFile(dir.File("r/report.md")).find("damaged: readable up to byte"),
+            std::string::npos);
+}
+
+TEST(RoomfixAnalyze, ReportsEmptyCorruptAndMissingLogsWithoutCrashing) {
+  TempDir dir;
+  testing::WriteFile(dir.File("empty.lcm"), "");
+  std::string garbage(4096, '\0');
+  for (size_t i = 0; i < garbage.size(); ++i) garbage[i] = static_cast<char>(i * 131 + 7);
+  testing::WriteFile(dir.File("garbage.lcm"), garbage);
+  int rc = -1;
+  json out = Analyze({dir.File("empty.lcm"), dir.File("garbage.lcm"), "--out", dir.File("r")}, &rc);
+  EXPECT_EQ(rc, 0);
+  ASSERT_FALSE(out.is_discarded());
+  EXPECT_TRUE(out["robots"].empty());
+  EXPECT_NE(ReadFile(dir.File("r/report.md")).find("No pose2d_t"), std::string::npos);
+
+  out = Analyze({dir.File("missing.lcm"), "--out", dir.File("r2")}, &rc);
+  EXPECT_EQ(rc, 1) << "nothing readable at all";
+}
+
+}  // namespace
+}  // namespace roomfix

@@ -1,0 +1,513 @@
+// roomfix analyze: the reference paper's measurements and figures from
+// recorded logs: static repeatability, timing, circle fits, motion, error
+// against ground truth, camera against ultrasound. A Markdown report and PNG
+// figures (gnuplot) in an output folder, and the same figures as JSON.
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
+#include <string>
+
+#include "core/analysis/circle_fit.h"
+#include "core/analysis/track_error.h"
+#include "core/analysis/track_stats.h"
+#include "msgio/pose_tracks.h"
+#include "tools/commands.h"
+
+namespace roomfix {
+namespace {
+
+using json = nlohmann::ordered_json;
+
+struct AnalyzeOptions {
+  std::vector<std::string> logs;
+  std::string out_dir;
+  bool json = false;
+  bool figures = true;
+  double frame_rate_hz = 30.0;
+  double tolerance_m = 0.015;
+  double static_extent_m = 0.05;
+  // Ground truth and camera tracks are sampled at 4 Hz or more; a longer
+  // gap means the reference was not running, and nothing is compared there.
+  double max_gap_s = 0.3;
+};
+
+json HistogramJson(const analysis::Histogram& h) {
+  return {{"lo", h.lo},
+          {"bin_width", h.bin_width},
+          {"counts", h.counts},
+          {"below", h.below},
+          {"above", h.above}};
+}
+
+json LatencyJson(const analysis::LatencySummary& l) {
+  return {{"n", l.n},
+          {"mean_ms", l.mean_ms},
+          {"median_ms", l.median_ms},
+          {"p95_ms", l.p95_ms},
+          {"max_ms", l.max_ms}};
+}
+
+json ErrorJson(const analysis::ErrorSummary& e) {
+  return {{"compared", e.compared}, {"unmatched", e.unmatched}, {"mean_m", e.mean_m},
+          {"rmse_m", e.rmse_m},     {"p95_m", e.p95_m},         {"max_m", e.max_m}};
+}
+
+json CircleJson(const analysis::DriftingCircle& c) {
+  return {{"radius_m", c.radius_m}, {"radius_sigma_m", c.radius_sigma_m},
+          {"cx_m", c.cx_m},         {"cx_sigma_m", c.cx_sigma_m},
+          {"cy_m", c.cy_m},         {"cy_sigma_m", c.cy_sigma_m},
+          {"vx_mps", c.vx_mps},     {"vx_sigma_mps", c.vx_sigma_mps},
+          {"vy_mps", c.vy_mps},     {"vy_sigma_mps", c.vy_sigma_mps}};
+}
+
+// Runs gnuplot on a script; false (with the reason) when gnuplot is missing
+// or fails. Figures are optional: the report says when one is missing.
+bool RunGnuplot(const std::string& script_path, std::string* error) {
+  const std::string command = "gnuplot " + script_path + " 2>&1";
+  FILE* pipe = ::popen(command.c_str(), "r");
+  if (pipe == nullptr) {
+    *error = "cannot start gnuplot";
+    return false;
+  }
+  std::string output;
+  char buffer[256];
+  while (std::fgets(buffer, sizeof(buffer), pipe) != nullptr) output += buffer;
+  const int status = ::pclose(pipe);
+  if (status != 0) {
+    *error = "gnuplot failed: " + (output.empty() ? std::string("is it installed?") : output);
+    return false;
+  }
+  return true;
+}
+
+bool WriteText(const std::string& path, const std::string& text) {
+  std::ofstream f(path);
+  f << text;
+  return static_cast<bool>(f);
+}
+
+std::string Fixed(double v, int digits) {
+  if (!std::isfinite(v)) return "-";
+  char buffer[64];
+  std::snprintf(buffer, sizeof(buffer), "%.*f", digits, v);
+  return buffer;
+}
+
+// Draws the figures of one analysis; each returns the PNG's file name, or ""
+// when it could not be drawn (with a note for the report).
+class Figures {
+ public:
+  Figures(std::string dir, bool enabled) : dir_(std::move(dir)), enabled_(enabled) {}
+
+  std::string Trajectory(int robot_id, const std::vector<const PoseTrack*>& tracks) {
+    const std::string name = "trajectory_robot" + std::to_string(robot_id);
+    std::string plot;
+    for (const PoseTrack* t : tracks) {
+      const std::string data = WriteData(name + "_" + t->source, [&](std::ostream& o) {
+        for (const PoseSample& s : t->samples) o << s.x_m << " " << s.y_m << "\n";
+      });
+      plot += (plot.empty() ? "" : ", ") +
+              ("'" + data + "' using 1:2 with " +
+               (t->source == "ground_truth" ? "lines lw 2" : "points pt 7 ps 0.4") + " title '" +
+               t->source + "'");
+    }
+    return Draw(name, "set title 'Robot " + std::to_string(robot_id) +
+                          ": trajectory of every source'\nset xlabel 'x (m)'\nset ylabel 'y (m)'\n"
+                          "set size ratio -1\nset key outside right\nplot " +
+                          plot + "\n");
+  }
+
+  std::string Intervals(const std::string& stem, const analysis::Timing& t) {
+    const std::string ms = WriteData(stem + "_ms", [&](std::ostream& o) {
+      for (size_t k = 0; k < t.interval_ms.counts.size(); ++k) {
+        o << t.interval_ms.lo + (k + 0.5) * t.interval_ms.bin_width << " "
+          << t.interval_ms.counts[k] << "\n";
+      }
+    });
+    const std::string frames = WriteData(stem + "_frames", [&](std::ostream& o) {
+      for (size_t k = 0; k < t.interval_frames.counts.size(); ++k) {
+        o << k << " " << t.interval_frames.counts[k] << "\n";
+      }
+    });
+    return Draw(stem, "set multiplot layout 1,2 title 'Time between successive fixes: mean " +
+                          Fixed(t.mean_ms, 1) + " ms, std " + Fixed(t.std_ms, 1) +
+                          " ms'\nset style fill solid 0.6\nset xlabel 'interval (ms)'\n"
+                          "set ylabel 'fixes'\nplot '" +
+                          ms + "' using 1:2 with boxes notitle\nset xlabel 'interval (frames at " +
+                          Fixed(1000.0 / t.frame_period_ms, 0) + " fps)'\nset xtics 1\nplot '" +
+                          frames + "' using 1:2 with boxes notitle\nunset multiplot\n");
+  }
+
+  std::string ErrorOverTime(const std::string& stem, const std::vector<analysis::ErrorSample>& e) {
+    if (e.empty()) return "";
+    const int64_t t0 = e.front().utime;
+    const std::string data = WriteData(stem, [&](std::ostream& o) {
+      for (const auto& s : e) o << (s.utime - t0) * 1e-6 << " " << s.error_m * 100.0 << "\n";
+    });
+    return Draw(stem,
+                "set title 'Error against ground truth'\nset xlabel 'time (s)'\n"
+                "set ylabel 'error (cm)'\nplot '" +
+                    data + "' using 1:2 with lines notitle\n");
+  }
+
+  std::string Static(const std::string& stem, const analysis::Repeatability& r) {
+    const analysis::Histogram2D& h = r.histogram;
+    if (h.nx == 0 || h.ny == 0) return "";
+    const std::string data = WriteData(stem, [&](std::ostream& o) {
+      for (int iy = 0; iy < h.ny; ++iy) {
+        for (int ix = 0; ix < h.nx; ++ix) {
+          o << (h.x_lo + (ix + 0.5) * h.bin_m - r.mean_x_m) * 100.0 << " "
+            << (h.y_lo + (iy + 0.5) * h.bin_m - r.mean_y_m) * 100.0 << " "
+            << h.counts[static_cast<size_t>(iy * h.nx + ix)] << "\n";
+        }
+        o << "\n";
+      }
+    });
+    return Draw(stem, "set title 'Static repeatability: " + std::to_string(r.n) + " fixes, std " +
+                          Fixed(r.std_x_m * 100, 2) + " cm x, " + Fixed(r.std_y_m * 100, 2) +
+                          " cm y'\nset xlabel 'x - mean (cm)'\nset ylabel 'y - mean (cm)'\n"
+                          "set size ratio -1\nset view map\nplot '" +
+                          data + "' using 1:2:3 with image notitle\n");
+  }
+
+  const std::vector<std::string>& notes() const { return notes_; }
+
+ private:
+  template <class Fill>
+  std::string WriteData(const std::string& stem, Fill fill) {
+    if (!enabled_) return "";
+    ::mkdir((dir_ + "/data").c_str(), 0755);
+    const std::string path = dir_ + "/data/" + stem + ".dat";
+    std::ofstream o(path);
+    fill(o);
+    return path;
+  }
+
+  std::string Draw(const std::string& stem, const std::string& body) {
+    if (!enabled_) return "";
+    const std::string png = stem + ".png";
+    const std::string script = dir_ + "/data/" + stem + ".gp";
+    WriteText(script, "set terminal pngcairo size 900,600 noenhanced\nset output '" + dir_ + "/" +
+                          png + "'\nset grid\n" + body);
+    std::string error;
+    if (!RunGnuplot(script, &error)) {
+      notes_.push_back(png + ": " + error);
+      return "";
+    }
+    return png;
+  }
+
+  std::string dir_;
+  bool enabled_;
+  std::vector<std::string> notes_;
+};
+
+std::string DefaultOutDir(const std::string& log) {
+  std::string base = log;
+  if (base.size() > 4 && base.compare(base.size() - 4, 4, ".lcm") == 0) {
+    base.resize(base.size() - 4);
+  }
+  return base + "_analysis";
+}
+
+int RunAnalyze(const AnalyzeOptions& options) {
+  const std::string out_dir =
+      options.out_dir.empty() ? DefaultOutDir(options.logs[0]) : options.out_dir;
+  if (::mkdir(out_dir.c_str(), 0755) != 0 && errno != EEXIST) {
+    std::cerr << "roomfix analyze: cannot make " << out_dir << ": " << std::strerror(errno) << "\n";
+    return 1;
+  }
+  // A progress bar on a terminal only: logs of hours take seconds to read.
+  const bool show_progress = ::isatty(2) != 0;
+  int last_percent = -1;
+  const PoseLogs logs = ReadPoseLogs(options.logs, [&](double fraction) {
+    const int percent = static_cast<int>(fraction * 100);
+    if (!show_progress || percent == last_percent) return;
+    last_percent = percent;
+    std::fprintf(stderr, "\rreading %zu log(s) [%-40s] %3d%%", options.logs.size(),
+                 std::string(static_cast<size_t>(percent * 40 / 100), '#').c_str(), percent);
+    if (percent == 100) std::fprintf(stderr, "\n");
+  });
+
+  json out;
+  out["logs"] = json::array();
+  int unreadable = 0;
+  for (const LogReadReport& r : logs.logs) {
+    json j = {{"path", r.path}};
+    if (!r.error.empty()) {
+      j["error"] = r.error;
+      ++unreadable;
+    } else {
+      j["events"] = r.events;
+      j["pose_events"] = r.pose_events;
+      j["undecodable"] = r.undecodable;
+      j["damaged"] = r.damaged;
+      j["bytes_read"] = r.bytes_read;
+      j["file_size"] = r.file_size;
+    }
+    out["logs"].push_back(j);
+  }
+  if (unreadable == static_cast<int>(logs.logs.size())) {
+    for (const LogReadReport& r : logs.logs) std::cerr << "roomfix analyze: " << r.error << "\n";
+    return 1;
+  }
+
+  Figures figures(out_dir, options.figures);
+  const auto max_gap_us = static_cast<int64_t>(options.max_gap_s * 1e6);
+  std::map<int, std::vector<const PoseTrack*>> by_robot;
+  for (const auto& [key, track] : logs.tracks) by_robot[key.second].push_back(&track);
+
+  std::ostringstream md;
+  md << "# roomfix analysis\n\n| log | events | poses | state |\n|---|---|---|---|\n";
+  for (const LogReadReport& r : logs.logs) {
+    md << "| `" << r.path << "` | " << r.events << " | " << r.pose_events << " | ";
+    if (!r.error.empty()) {
+      md << "unreadable: " << r.error;
+    } else if (r.damaged) {
+      md << "damaged: readable up to byte " << r.bytes_read << " of " << r.file_size;
+    } else {
+      md << "complete";
+    }
+    md << " |\n";
+  }
+  if (logs.tracks.empty()) md << "\nNo pose2d_t on any POSE_* channel.\n";
+
+  out["robots"] = json::object();
+  for (const auto& [robot_id, tracks] : by_robot) {
+    md << "\n## Robot " << robot_id << "\n\n";
+    const std::string trajectory = figures.Trajectory(robot_id, tracks);
+    if (!trajectory.empty()) md << "![trajectory](" << trajectory << ")\n\n";
+    const PoseTrack* truth = nullptr;
+    const PoseTrack* camera = nullptr;
+    for (const PoseTrack* t : tracks) {
+      if (t->source == "ground_truth") truth = t;
+      if (t->source == "camera") camera = t;
+    }
+    json robot = json::object();
+    for (const PoseTrack* t : tracks) {
+      const std::vector<analysis::TimedPosition> positions = t->Positions();
+      std::vector<int64_t> utimes;
+      std::vector<double> publish_ms;
+      std::vector<double> arrival_ms;
+      int degraded = 0;
+      for (const PoseSample& s : t->samples) {
+        utimes.push_back(s.utime);
+        publish_ms.push_back(s.latency_us * 1e-3);
+        arrival_ms.push_back((s.recv_utime - s.utime) * 1e-3);
+        degraded += s.degraded ? 1 : 0;
+      }
+      const std::string stem = t->source + "_robot" + std::to_string(robot_id);
+      json j = {{"fixes", t->samples.size()}, {"lost", t->lost}, {"degraded", degraded}};
+      md << "### " << t->source << "\n\n| figure | value |\n|---|---|\n";
+      md << "| fixes (lost, degraded) | " << t->samples.size() << " (" << t->lost << ", "
+         << degraded << ") |\n";
+
+      const analysis::Timing timing = analysis::ComputeTiming(utimes, options.frame_rate_hz);
+      j["timing"] = {{"intervals", timing.intervals},
+                     {"rate_hz", timing.rate_hz},
+                     {"mean_ms", timing.mean_ms},
+                     {"std_ms", timing.std_ms},
+                     {"median_ms", timing.median_ms},
+                     {"min_ms", timing.min_ms},
+                     {"max_ms", timing.max_ms},
+                     {"frame_period_ms", timing.frame_period_ms},
+                     {"interval_ms", HistogramJson(timing.interval_ms)},
+                     {"interval_frames", HistogramJson(timing.interval_frames)}};
+      md << "| rate | " << Fixed(timing.rate_hz, 2) << " Hz |\n| interval mean, std | "
+         << Fixed(timing.mean_ms, 1) << " ms, " << Fixed(timing.std_ms, 1)
+         << " ms (reference camera: 236 ms, 22.9 ms) |\n";
+      if (t->source != "ground_truth") {
+        const analysis::LatencySummary publish = analysis::SummariseLatency(publish_ms);
+        const analysis::LatencySummary arrival = analysis::SummariseLatency(arrival_ms);
+        j["latency_publish_ms"] = LatencyJson(publish);
+        j["latency_arrival_ms"] = LatencyJson(arrival);
+        md << "| latency to publish, median (p95) | " << Fixed(publish.median_ms, 1) << " ("
+           << Fixed(publish.p95_ms, 1) << ") ms |\n| latency to the logger, median (p95) | "
+           << Fixed(arrival.median_ms, 1) << " (" << Fixed(arrival.p95_ms, 1) << ") ms |\n";
+      }
+      const analysis::Motion motion = analysis::ComputeMotion(positions);
+      j["motion"] = {{"distance_m", motion.distance_m},
+                     {"duration_s", motion.duration_s},
+                     {"mean_speed_mps", motion.mean_speed_mps},
+                     {"std_speed_mps", motion.std_speed_mps},
+                     {"max_speed_mps", motion.max_speed_mps}};
+      md << "| distance, speed mean (std) | " << Fixed(motion.distance_m, 3) << " m, "
+         << Fixed(motion.mean_speed_mps * 100, 2) << " (" << Fixed(motion.std_speed_mps * 100, 2)
+         << ") cm/s |\n";
+
+      const bool is_static = analysis::LooksStatic(positions, options.static_extent_m);
+      j["static"] = is_static;
+      std::vector<std::string> pictures;
+      if (is_static) {
+        const analysis::Repeatability r =
+            analysis::ComputeRepeatability(positions, options.tolerance_m);
+        j["repeatability"] = {{"n", r.n},
+                              {"mean_x_m", r.mean_x_m},
+                              {"mean_y_m", r.mean_y_m},
+                              {"std_x_m", r.std_x_m},
+                              {"std_y_m", r.std_y_m},
+                              {"tolerance_m", r.tolerance_m},
+                              {"share_outside", r.share_outside},
+                              {"max_deviation_m", r.max_deviation_m},
+                              {"histogram",
+                               {{"x_lo", r.histogram.x_lo},
+                                {"y_lo", r.histogram.y_lo},
+                                {"bin_m", r.histogram.bin_m},
+                                {"nx", r.histogram.nx},
+                                {"ny", r.histogram.ny},
+                                {"counts", r.histogram.counts},
+                                {"outside", r.histogram.outside}}}};
+        md << "| static: mean | (" << Fixed(r.mean_x_m, 4) << ", " << Fixed(r.mean_y_m, 4)
+           << ") m |\n| static: std x, y | " << Fixed(r.std_x_m * 100, 3) << " cm, "
+           << Fixed(r.std_y_m * 100, 3) << " cm (reference: 0.38 cm, 0.49 cm) |\n"
+           << "| static: outside +-" << Fixed(r.tolerance_m * 100, 1) << " cm | "
+           << Fixed(r.share_outside * 100, 2) << "% |\n";
+        pictures.push_back(figures.Static("static_" + stem, r));
+      } else if (positions.size() >= 10) {
+        std::vector<analysis::TimedPoint> points;
+        for (const auto& p : positions) {
+          points.push_back({(p.utime - positions.front().utime) * 1e-6, p.x_m, p.y_m});
+        }
+        const analysis::DriftingCircleFit a = analysis::FitDriftingCircle(points);
+        const analysis::CircularMotionFit b = analysis::FitCircularMotion(points);
+        json circle = json::object();
+        if (a.usable) {
+          circle["drifting_centre"] = CircleJson(a);
+          circle["drifting_centre"]["residual_std_m"] = a.residual_std_m;
+          md << "| circle (a): r, centre, drift | " << Fixed(a.radius_m * 100, 2) << " cm, ("
+             << Fixed(a.cx_m * 100, 1) << ", " << Fixed(a.cy_m * 100, 1) << ") cm, ("
+             << Fixed(a.vx_mps * 1e3, 3) << ", " << Fixed(a.vy_mps * 1e3, 3)
+             << ") mm/s, residual std " << Fixed(a.residual_std_m * 100, 3)
+             << " cm (reference: 41.9 cm, (191.1, 149.6) cm, (0.264, -0.096) mm/s, 0.633 cm) |\n";
+        } else {
+          circle["drifting_centre"] = {{"error", a.message}};
+        }
+        if (b.usable) {
+          circle["circular_motion"] = CircleJson(b);
+          circle["circular_motion"]["angular_speed_radps"] = b.angular_speed_radps;
+          circle["circular_motion"]["angular_speed_sigma_radps"] = b.angular_speed_sigma_radps;
+          circle["circular_motion"]["phase_rad"] = b.phase_rad;
+          circle["circular_motion"]["phase_sigma_rad"] = b.phase_sigma_rad;
+          circle["circular_motion"]["mean_error_m"] = b.mean_error_m;
+          circle["circular_motion"]["std_error_m"] = b.std_error_m;
+          md << "| circle (b): w, phase, error mean (std) | " << Fixed(b.angular_speed_radps, 4)
+             << " rad/s, " << Fixed(b.phase_rad, 3) << " rad, " << Fixed(b.mean_error_m * 100, 2)
+             << " (" << Fixed(b.std_error_m * 100, 2)
+             << ") cm (reference: -0.439 rad/s, 3.163 rad, 2.8 (1.8) cm) |\n";
+        } else {
+          circle["circular_motion"] = {{"error", b.message}};
+        }
+        j["circle"] = circle;
+      }
+      if (truth != nullptr && t != truth) {
+        const std::vector<analysis::TimedPosition> reference = truth->Positions();
+        const analysis::ErrorSummary e =
+            analysis::CompareToReference(positions, reference, max_gap_us);
+        j["ground_truth_error"] = ErrorJson(e);
+        md << "| error vs ground truth: RMSE, p95, max | " << Fixed(e.rmse_m * 100, 2) << ", "
+           << Fixed(e.p95_m * 100, 2) << ", " << Fixed(e.max_m * 100, 2) << " cm |\n";
+        pictures.push_back(figures.ErrorOverTime(
+            "error_" + stem, analysis::ErrorsOverTime(positions, reference, max_gap_us)));
+      }
+      if (camera != nullptr && t->source == "ultrasound") {
+        const analysis::TrackOffset o =
+            analysis::CompareTracks(positions, camera->Positions(), max_gap_us);
+        j["vs_camera"] = {
+            {"matched", o.matched},     {"mean_dx_m", o.mean_dx_m},
+            {"mean_dy_m", o.mean_dy_m}, {"std_dx_m", o.std_dx_m},
+            {"std_dy_m", o.std_dy_m},   {"error_after_offset", ErrorJson(o.error_after_offset)}};
+        md << "| vs camera: offset (dx, dy) | (" << Fixed(o.mean_dx_m * 100, 2) << ", "
+           << Fixed(o.mean_dy_m * 100, 2) << ") cm over " << o.matched
+           << " fixes |\n| vs camera: RMSE once the offset is removed | "
+           << Fixed(o.error_after_offset.rmse_m * 100, 2) << " cm |\n";
+      }
+      if (timing.intervals > 0) pictures.push_back(figures.Intervals("intervals_" + stem, timing));
+      md << "\n";
+      for (const std::string& p : pictures) {
+        if (!p.empty()) md << "![" << p << "](" << p << ")\n";
+      }
+      md << "\n";
+      robot[t->source] = j;
+    }
+    out["robots"][std::to_string(robot_id)] = robot;
+  }
+  for (const std::string& note : figures.notes()) md << "\nFigure not drawn: " << note << "\n";
+
+  // The per-source summary of the first robot, the shape `make demo` prints.
+  out["sources"] = json::object();
+  for (const auto& [robot_id, robot] : out["robots"].items()) {
+    for (const auto& [source, j] : robot.items()) {
+      if (source == "ground_truth" || out["sources"].contains(source)) continue;
+      json s = {{"rate_hz", j["timing"]["rate_hz"]}};
+      if (j.contains("ground_truth_error")) {
+        s["rmse_m"] = j["ground_truth_error"]["rmse_m"];
+        s["p95_m"] = j["ground_truth_error"]["p95_m"];
+      }
+      if (j.contains("latency_publish_ms")) {
+        s["latency_ms_median"] = j["latency_publish_ms"]["median_ms"];
+      }
+      out["sources"][source] = s;
+    }
+  }
+  out["report"] = out_dir + "/report.md";
+  if (!WriteText(out_dir + "/report.md", md.str()) ||
+      !WriteText(out_dir + "/summary.json", out.dump(2) + "\n")) {
+    std::cerr << "roomfix analyze: cannot write into " << out_dir << "\n";
+    return 1;
+  }
+  if (options.json) {
+    std::cout << out.dump() << "\n";
+  } else {
+    std::cout << "report: " << out_dir << "/report.md\nsummary: " << out_dir << "/summary.json\n";
+    for (const LogReadReport& r : logs.logs) {
+      if (!r.error.empty()) std::cout << "unreadable: " << r.error << "\n";
+      if (r.damaged) {
+        std::cout << r.path << ": damaged, read up to byte " << r.bytes_read << " of "
+                  << r.file_size << "\n";
+      }
+    }
+  }
+  return 0;
+}
+
+}  // namespace
+
+void AddAnalyzeCommand(CLI::App* app, int* exit_code) {
+  auto options = std::make_shared<AnalyzeOptions>();
+  auto* cmd = app->add_subcommand(
+      "analyze",
+      "The reference paper's measurements from logs (written by roomfix_logger or lcm-logger): "
+      "static repeatability, timing, circle fits, motion, error against ground truth, camera "
+      "against ultrasound; a Markdown report with PNG figures");
+  cmd->add_option("LOG", options->logs, "LCM logs, analysed together")->required();
+  cmd->add_option("--out", options->out_dir,
+                  "Output folder (default: LOG without .lcm + _analysis)");
+  cmd->add_flag("--json", options->json, "Print the summary as one JSON object on stdout");
+  cmd->add_flag("!--no-figures", options->figures, "Skip the PNG figures (no gnuplot needed)");
+  cmd->add_option("--frame-rate", options->frame_rate_hz,
+                  "Camera frame rate for the interval histogram in frames")
+      ->capture_default_str();
+  cmd->add_option("--tolerance", options->tolerance_m,
+                  "Static repeatability: the share of fixes outside +- this, m")
+      ->capture_default_str();
+  cmd->add_option("--static-extent", options->static_extent_m,
+                  "A track is static when 90% of its fixes lie within this of its median, m")
+      ->capture_default_str();
+  cmd->add_option("--max-gap", options->max_gap_s,
+                  "No comparison where the reference track has a gap longer than this, s")
+      ->capture_default_str();
+  cmd->callback([options, exit_code] { *exit_code = RunAnalyze(*options); });
+}
+
+}  // namespace roomfix
