@@ -82,3 +82,6 @@ echo "Recorded log: $out/demo.lcm (replay with: lcm-logplayer $out/demo.lcm)"
 echo
 echo "Each pose source against the simulator's ground truth (summary: $out/summary.json):"
 "$bin/roomfix" compare "$out/demo.lcm" --json "$out/summary.json" --fit-circle | sed 's/^/  /'
+echo
+echo "The reference paper's measurements (timing, circle fits, errors, figures):"
+"$bin/roomfix" analyze "$out/demo.lcm" --out "$out/analysis" | sed 's/^/  /'

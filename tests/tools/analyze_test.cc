@@ -171,6 +171,16 @@ TEST(RoomfixAnalyze, FitsTheReferenceCircleAndComparesEachSourceWithTruthAndCame
   const json& a = u["circle"]["drifting_centre"];
   EXPECT_NEAR(a["radius_m"].get<double>(), 0.419, kRadiusTolM);
   EXPECT_NEAR(a["cx_m"].get<double>(), 1.911, kRadiusTolM);
+  // The reference's drift of the centre, (0.264, -0.096) mm/s, is small
+  // against 1 cm noise over 60 s; the fit must contain it within 4 of its
+  // own standard deviations, which must be honest (well under 1 mm/s).
+  for (const auto& [axis, truth_mps] : {std::pair<const char*, double>{"vx", 0.000264},
+                                        std::pair<const char*, double>{"vy", -0.000096}}) {
+    const double sigma = a[std::string(axis) + "_sigma_mps"].get<double>();
+    EXPECT_GT(sigma, 0.0);
+    EXPECT_LT(sigma, 0.001);
+    EXPECT_NEAR(a[std::string(axis) + "_mps"].get<double>(), truth_mps, 4 * sigma) << axis;
+  }
   const json& b = u["circle"]["circular_motion"];
   EXPECT_NEAR(b["angular_speed_radps"].get<double>(), -0.439, 0.001);
   EXPECT_NEAR(b["phase_rad"].get<double>(), 3.163, 0.01);
