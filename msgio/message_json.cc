@@ -4,6 +4,7 @@
 #include <cstring>
 #include <sstream>
 
+#include "roomfix/image_t.hpp"
 #include "roomfix/marker_pixels_t.hpp"
 #include "roomfix/pose2d_t.hpp"
 #include "roomfix/process_status_t.hpp"
@@ -155,6 +156,17 @@ std::string ToJson(const process_status_t& m) {
   return j.str();
 }
 
+// The image bytes are summarised, not dumped: a preview is tens of KB.
+std::string ToJson(const image_t& m) {
+  Json j;
+  j.Open('{').Key("type").Str("roomfix.image_t").Key("utime").Int(m.utime);
+  j.Key("camera_id").Int(m.camera_id).Key("frame_seq").Int(m.frame_seq);
+  j.Key("width_px").Int(m.width_px).Key("height_px").Int(m.height_px);
+  j.Key("source_width_px").Int(m.source_width_px).Key("source_height_px").Int(m.source_height_px);
+  j.Key("format").Str(m.format).Key("num_bytes").Int(m.num_bytes).Close('}');
+  return j.str();
+}
+
 template <class Msg>
 bool Decode(const void* data, int size, std::string* json, std::string* error) {
   Msg m{};
@@ -175,6 +187,7 @@ const char* RoomfixTypeName(const void* data, int size) {
   if (fp == marker_pixels_t::getHash()) return "roomfix.marker_pixels_t";
   if (fp == range_set_t::getHash()) return "roomfix.range_set_t";
   if (fp == process_status_t::getHash()) return "roomfix.process_status_t";
+  if (fp == image_t::getHash()) return "roomfix.image_t";
   return nullptr;
 }
 
@@ -183,6 +196,7 @@ int64_t RoomfixTypeFingerprint(const std::string& type_name) {
   if (type_name == "roomfix.marker_pixels_t") return marker_pixels_t::getHash();
   if (type_name == "roomfix.range_set_t") return range_set_t::getHash();
   if (type_name == "roomfix.process_status_t") return process_status_t::getHash();
+  if (type_name == "roomfix.image_t") return image_t::getHash();
   return 0;
 }
 
@@ -192,6 +206,7 @@ bool MessageToJson(const void* data, int size, std::string* json, std::string* e
   if (fp == marker_pixels_t::getHash()) return Decode<marker_pixels_t>(data, size, json, error);
   if (fp == range_set_t::getHash()) return Decode<range_set_t>(data, size, json, error);
   if (fp == process_status_t::getHash()) return Decode<process_status_t>(data, size, json, error);
+  if (fp == image_t::getHash()) return Decode<image_t>(data, size, json, error);
   if (error != nullptr) *error = "not a roomfix message (unknown fingerprint)";
   return false;
 }

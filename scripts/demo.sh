@@ -82,6 +82,8 @@ echo "Recorded log: $out/demo.lcm (replay with: lcm-logplayer $out/demo.lcm)"
 echo
 echo "Each pose source against the simulator's ground truth (summary: $out/summary.json):"
 "$bin/roomfix" compare "$out/demo.lcm" --json "$out/summary.json" --fit-circle | sed 's/^/  /'
+"$bin/roomfix_viewer" --config "$site" --headless --log "$out/demo.lcm" \
+  --png "$out/viewer.png" --log-level warn && echo "  viewer picture: $out/viewer.png"
 echo
 echo "The reference paper's measurements (timing, circle fits, errors, figures):"
 "$bin/roomfix" analyze "$out/demo.lcm" --out "$out/analysis" | sed 's/^/  /'

@@ -11,7 +11,7 @@ packages=(
   libopencv-dev libgsl-dev libeigen3-dev libserialport-dev
   libyaml-cpp-dev libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  gnuplot-nox iproute2 util-linux procps xvfb xauth
+  gnuplot-nox iproute2 util-linux procps xvfb xauth x11-apps
 )
 
 missing=()

@@ -24,6 +24,7 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
   trilat->callback([options, exit_code] { *exit_code = RunTrilatBench(*options); });
   AddBenchLoggerCommand(bench, exit_code);
   AddBenchRadioCommand(bench, exit_code);
+  AddBenchViewerCommand(bench, exit_code);
 }
 
 }  // namespace roomfix

@@ -23,6 +23,7 @@ void AddAnalyzeCommand(CLI::App* app, int* exit_code);
 void AddBenchLoggerCommand(CLI::App* bench, int* exit_code);
 // Adds `radio` under the `bench` subcommand.
 void AddBenchRadioCommand(CLI::App* bench, int* exit_code);
+void AddBenchViewerCommand(CLI::App* bench, int* exit_code);
 
 }  // namespace roomfix
 

@@ -8,10 +8,11 @@ site=$source/config/sites/demo_room.yaml
 failures=0
 fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
 
-for bin in roomfix_sim trilat_proc zigbee_bridge; do
+for bin in roomfix_sim trilat_proc zigbee_bridge roomfix_viewer; do
   extra=()
   # --check validates the port's name, not the device: none is needed here.
   [[ $bin == zigbee_bridge ]] && extra=(--port /dev/ttyUSB0)
+  [[ $bin == roomfix_viewer ]] && extra=(--headless --png /tmp/never_written.png)
   "$build/bin/$bin" --help | grep -q -- '--lcm-url' || fail "$bin --help lacks --lcm-url"
   "$build/bin/$bin" --help | grep -q -- '--config' || fail "$bin --help lacks --config"
   out=$("$build/bin/$bin" "${extra[@]}" --config "$site" --check 2>/dev/null) || fail "$bin --check failed"
@@ -32,6 +33,9 @@ err=$("$build/bin/zigbee_bridge" --port /dev/ttyUSB0 --baud 12345 --config "$sit
 out=$("$build/bin/roomfix_sim" --config "$site" --radio-pty --faults all --check) ||
   fail "roomfix_sim --radio-pty --check failed"
 [[ "$out" == *"pseudo-terminal"* ]] || fail "roomfix_sim --radio-pty --check printed '$out'"
+
+err=$(env -u DISPLAY "$build/bin/roomfix_viewer" --config "$site" 2>&1 >/dev/null)
+(($? != 0)) && [[ "$err" == *"no display"* ]] || fail "roomfix_viewer without a display: '$err'"
 
 logger=$build/bin/roomfix_logger
 "$logger" --help | grep -q -- '--lcm-url' || fail "roomfix_logger --help lacks --lcm-url"

@@ -1,0 +1,309 @@
+// roomfix_viewer: a live top-down view of the robots, the sensors and the
+// processes' health, in a window or rendered to PNG / video without one.
+#include <spdlog/spdlog.h>
+#include <sys/stat.h>
+
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <iostream>
+#include <opencv2/highgui.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/videoio.hpp>
+
+#include "msgio/log.h"
+#include "msgio/process.h"
+#include "viewer/render.h"
+#include "viewer/viewer_node.h"
+
+namespace {
+
+struct ViewerFlags {
+  bool headless = false;
+  std::string png;
+  std::string video;
+  std::string log;
+  double duration_s = 0.0;
+  double fps = 30.0;
+  std::string screenshot_dir = ".";
+};
+
+bool EndsWith(const std::string& s, const std::string& suffix) {
+  return s.size() >= suffix.size() &&
+         s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+// Writes frames to a video file (.mp4, .avi) or, for a folder, numbered PNGs.
+class FrameSink {
+ public:
+  bool Open(const std::string& target, double fps, cv::Size size, std::string* error) {
+    if (EndsWith(target, ".mp4") || EndsWith(target, ".avi") || EndsWith(target, ".mkv")) {
+      const int fourcc = EndsWith(target, ".avi") ? cv::VideoWriter::fourcc('M', 'J', 'P', 'G')
+                                                  : cv::VideoWriter::fourcc('m', 'p', '4', 'v');
+      writer_.open(target, fourcc, fps, size);
+      if (!writer_.isOpened()) {
+        *error = target + ": cannot open a video writer (codec missing?)";
+        return false;
+      }
+      return true;
+    }
+    folder_ = target;
+    if (::mkdir(folder_.c_str(), 0755) != 0 && errno != EEXIST) {
+      *error = folder_ + ": cannot make the folder for the image sequence";
+      return false;
+    }
+    return true;
+  }
+  bool Write(const cv::Mat& frame) {
+    ++frames_;
+    if (writer_.isOpened()) {
+      writer_.write(frame);
+      return true;
+    }
+    char name[32];
+    std::snprintf(name, sizeof(name), "/frame_%06lld.png", static_cast<long long>(frames_));
+    return cv::imwrite(folder_ + name, frame);
+  }
+  int64_t frames() const { return frames_; }
+
+ private:
+  cv::VideoWriter writer_;
+  std::string folder_;
+  int64_t frames_ = 0;
+};
+
+std::string Timestamped(const std::string& dir) {
+  char name[64];
+  std::snprintf(name, sizeof(name), "/roomfix_viewer_%lld.png",
+                static_cast<long long>(roomfix::NowUtime() / 1000));
+  return dir + name;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  roomfix::ProcessOptions process;
+  roomfix::ViewerNodeOptions options;
+  roomfix::viewer::RenderOptions render;
+  ViewerFlags flags;
+  CLI::App app{
+      "roomfix_viewer: top-down view of the robots (every pose source), the range circles of "
+      "each beacon's latest firing and every process's health; a window, or PNG/video "
+      "without a display"};
+  roomfix::AddProcessFlags(&app, &process, /*config_required=*/true);
+  app.add_flag("--headless", flags.headless, "No window: render to --png and/or --video");
+  app.add_option("--png", flags.png, "Write the picture at the end (of the log, or --duration)");
+  app.add_option("--video", flags.video,
+                 "Write every frame: a .mp4/.avi file or a folder of numbered PNGs");
+  app.add_option("--log", flags.log, "Replay this LCM log instead of listening live");
+  app.add_option("--duration", flags.duration_s, "Live: stop after this many seconds")
+      ->capture_default_str();
+  app.add_option("--fps", flags.fps, "Frames per second of the window and the video")
+      ->capture_default_str();
+  app.add_option("--width", render.width_px, "Picture width, pixels")->capture_default_str();
+  app.add_option("--height", render.height_px, "Picture height, pixels")->capture_default_str();
+  app.add_option("--trail", options.trail_s, "Seconds of trail behind each pose")
+      ->capture_default_str();
+  app.add_option("--stale-after", options.stale_after_s,
+                 "Mark a source or process stale after this long without a message, s")
+      ->capture_default_str();
+  app.add_option("--screenshot-dir", flags.screenshot_dir, "Where the 's' key saves pictures")
+      ->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+
+  std::string error;
+  if (!options.IsValid(&error) || !render.IsValid(&error)) {
+    std::cerr << "roomfix_viewer: " << error << "\n";
+    return 1;
+  }
+  if (!(flags.fps > 0.0 && flags.fps <= 240.0)) {
+    std::cerr << "roomfix_viewer: --fps must be in (0, 240]\n";
+    return 1;
+  }
+  if (flags.headless && flags.png.empty() && flags.video.empty()) {
+    std::cerr << "roomfix_viewer: --headless needs --png or --video\n";
+    return 1;
+  }
+  if (!flags.headless && std::getenv("DISPLAY") == nullptr) {
+    std::cerr << "roomfix_viewer: no display (DISPLAY is not set); use --headless --png FILE\n";
+    return 1;
+  }
+  if (!flags.log.empty()) process.lcm_url = "memq://";  // no network for a replay
+  auto ctx = roomfix::StartProcess("roomfix_viewer", process, &error);
+  if (ctx == nullptr) {
+    std::cerr << "roomfix_viewer: " << error << "\n";
+    return 1;
+  }
+  if (process.check) {
+    std::cout << "roomfix_viewer: ok: " << (flags.headless ? "headless" : "window") << ", "
+              << render.width_px << "x" << render.height_px << ", "
+              << (flags.log.empty() ? "live on " + process.lcm_url : "replaying " + flags.log)
+              << "\n";
+    return 0;
+  }
+
+  cv::Mat frame;
+  FrameSink video;
+  if (!flags.video.empty() &&
+      !video.Open(flags.video, flags.fps, cv::Size(render.width_px, render.height_px), &error)) {
+    std::cerr << "roomfix_viewer: " << error << "\n";
+    return 1;
+  }
+  const auto frame_us = static_cast<int64_t>(1e6 / flags.fps);
+
+  // A replay drives the same node through an in-process bus on log time.
+  if (!flags.log.empty()) {
+    roomfix::LoopbackBus bus;
+    roomfix::ViewerNode node(ctx->site, &bus, options, 0);
+    int64_t next_frame = 0;
+    roomfix::ReplayOptions replay;
+    if (!flags.video.empty() || !flags.headless) {
+      replay.on_time = [&](int64_t utime) {
+        if (next_frame == 0) next_frame = utime;
+        while (next_frame <= utime) {
+          roomfix::viewer::Render(node.StateAt(next_frame), render, &frame);
+          if (!flags.video.empty()) video.Write(frame);
+          if (!flags.headless) {
+            cv::imshow("roomfix_viewer", frame);
+            cv::waitKey(std::max(1, static_cast<int>(frame_us / 1000)));
+          }
+          next_frame += frame_us;
+        }
+      };
+    }
+    const roomfix::ReplaySummary summary = roomfix::ReplayLog(flags.log, &bus, replay);
+    if (!summary.ok) {
+      std::cerr << "roomfix_viewer: " << summary.error << "\n";
+      return 1;
+    }
+    if (summary.damaged) spdlog::warn("{}: damaged; replayed what was readable", flags.log);
+    roomfix::viewer::Render(node.StateAt(summary.last_utime), render, &frame);
+    if (!flags.png.empty() && !cv::imwrite(flags.png, frame)) {
+      std::cerr << "roomfix_viewer: cannot write " << flags.png << "\n";
+      return 1;
+    }
+    if (!flags.headless) {
+      // Keep the last picture up until a key is pressed or the window closes.
+      cv::imshow("roomfix_viewer", frame);
+      while (cv::getWindowProperty("roomfix_viewer", cv::WND_PROP_VISIBLE) > 0 &&
+             cv::waitKey(100) < 0 && !roomfix::ShutdownRequested()) {
+      }
+    }
+    spdlog::info("replayed {} events; {} frames written", summary.events_delivered, video.frames());
+    return 0;
+  }
+
+  roomfix::ViewerNode node(ctx->site, ctx->bus.get(), options, roomfix::NowUtime());
+  roomfix::viewer::ViewState* view = node.mutable_state();
+  int64_t next_frame = roomfix::NowUtime();
+  // Mouse: the wheel zooms, a drag pans (by the floor's own scale).
+  struct Mouse {
+    roomfix::viewer::RenderOptions* render;
+    const roomfix::Site* site;
+    int drag_x = -1;
+    int drag_y = -1;
+  } mouse{&render, &ctx->site};
+  if (!flags.headless) {
+    cv::namedWindow("roomfix_viewer", cv::WINDOW_AUTOSIZE);
+    cv::setMouseCallback(
+        "roomfix_viewer",
+        [](int event, int x, int y, int mouse_flags, void* user) {
+          auto* m = static_cast<Mouse*>(user);
+          roomfix::viewer::RenderOptions* r = m->render;
+          if (event == cv::EVENT_MOUSEWHEEL) {
+            r->zoom = std::clamp(r->zoom * (cv::getMouseWheelDelta(mouse_flags) > 0 ? 1.25 : 0.8),
+                                 0.2, 50.0);
+          } else if (event == cv::EVENT_LBUTTONDOWN) {
+            m->drag_x = x;
+            m->drag_y = y;
+          } else if (event == cv::EVENT_MOUSEMOVE && (mouse_flags & cv::EVENT_FLAG_LBUTTON) &&
+                     m->drag_x >= 0) {
+            const double scale = roomfix::viewer::MakeFloorMapping(*m->site, *r).scale_px_per_m;
+            if (scale > 0) {
+              r->pan_x_m -= (x - m->drag_x) / scale;
+              r->pan_y_m += (y - m->drag_y) / scale;
+            }
+            m->drag_x = x;
+            m->drag_y = y;
+          } else if (event == cv::EVENT_LBUTTONUP) {
+            m->drag_x = -1;
+          }
+        },
+        &mouse);
+  }
+  roomfix::RunLoopOptions loop;
+  loop.duration_s = flags.duration_s;
+  loop.tick_period_ms = std::max(1, static_cast<int>(frame_us / 1000));
+  const int rc = roomfix::RunLoop(
+      ctx->bus.get(),
+      [&](int64_t now) {
+        node.Tick(now);
+        if (now < next_frame) return;
+        next_frame = now + frame_us;
+        roomfix::viewer::Render(node.StateAt(now), render, &frame);
+        if (!flags.video.empty()) video.Write(frame);
+        if (flags.headless) return;
+        cv::imshow("roomfix_viewer", frame);
+        const int key = cv::waitKey(1);
+        if (key < 0) return;
+        switch (key & 0xFF) {
+          case 'q':
+          case 27:
+            roomfix::RequestShutdown();
+            break;
+          case '+':
+          case '=':
+            render.zoom = std::min(render.zoom * 1.25, 50.0);
+            break;
+          case '-':
+            render.zoom = std::max(render.zoom * 0.8, 0.2);
+            break;
+          case 'r':
+            render.zoom = 1.0;
+            render.pan_x_m = render.pan_y_m = 0.0;
+            break;
+          case 'h':
+            render.pan_x_m -= 0.25 / render.zoom;
+            break;
+          case 'l':
+            render.pan_x_m += 0.25 / render.zoom;
+            break;
+          case 'k':
+            render.pan_y_m += 0.25 / render.zoom;
+            break;
+          case 'j':
+            render.pan_y_m -= 0.25 / render.zoom;
+            break;
+          case '1':
+          case '2':
+          case '3':
+          case '4':
+            view->visible[(key & 0xFF) - '1'] = !view->visible[(key & 0xFF) - '1'];
+            break;
+          case 's': {
+            const std::string path = Timestamped(flags.screenshot_dir);
+            if (cv::imwrite(path, frame)) {
+              spdlog::info("screenshot: {}", path);
+            } else {
+              spdlog::warn("cannot write {}", path);
+            }
+            break;
+          }
+          default:
+            break;
+        }
+        if (cv::getWindowProperty("roomfix_viewer", cv::WND_PROP_VISIBLE) < 1) {
+          roomfix::RequestShutdown();
+        }
+      },
+      loop);
+  roomfix::viewer::Render(node.StateAt(roomfix::NowUtime()), render, &frame);
+  if (!flags.png.empty() && !cv::imwrite(flags.png, frame)) {
+    std::cerr << "roomfix_viewer: cannot write " << flags.png << "\n";
+    return 1;
+  }
+  node.Stop(roomfix::NowUtime());
+  return rc;
+}

@@ -1,0 +1,260 @@
+#include "viewer/viewer_node.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/analysis/track_error.h"
+#include "roomfix/image_t.hpp"
+#include "roomfix/marker_pixels_t.hpp"
+#include "roomfix/pose2d_t.hpp"
+#include "roomfix/process_status_t.hpp"
+#include "roomfix/range_set_t.hpp"
+
+namespace roomfix {
+namespace {
+
+// Rates and latencies are taken over the last few seconds, so a source that
+// stops shows it within that time.
+constexpr int64_t kRateWindowUs = 5'000'000;
+constexpr size_t kLatencySamples = 30;
+
+bool ToSource(int8_t source, viewer::Source* out) {
+  switch (source) {
+    case pose2d_t::SOURCE_CAMERA:
+      *out = viewer::Source::kCamera;
+      return true;
+    case pose2d_t::SOURCE_ULTRASOUND:
+      *out = viewer::Source::kUltrasound;
+      return true;
+    case pose2d_t::SOURCE_FUSED:
+      *out = viewer::Source::kFused;
+      return true;
+    case pose2d_t::SOURCE_GROUND_TRUTH:
+      *out = viewer::Source::kGroundTruth;
+      return true;
+    default:
+      return false;
+  }
+}
+
+}  // namespace
+
+bool ViewerNodeOptions::IsValid(std::string* error) const {
+  if (!(trail_s >= 0.0 && trail_s <= 3600.0)) {
+    *error = "trail must be 0 to 3600 s";
+    return false;
+  }
+  if (!(stale_after_s > 0.0 && stale_after_s <= 3600.0)) {
+    *error = "stale time must be in (0, 3600] s";
+    return false;
+  }
+  if (!(rejected_range_tolerance_m > 0.0)) {
+    *error = "rejected-range tolerance must be positive";
+    return false;
+  }
+  return true;
+}
+
+ViewerNode::ViewerNode(const Site& site, Bus* bus, const ViewerNodeOptions& options,
+                       int64_t start_utime)
+    : bus_(bus), options_(options), status_("roomfix_viewer", start_utime) {
+  state_.site = site;
+  state_.trail_s = options.trail_s;
+  state_.stale_after_s = options.stale_after_s;
+  state_.now_utime = start_utime;
+  status_.SetState(process_status_t::STATE_RUNNING);
+
+  bus_->Subscribe<pose2d_t>("POSE_.*", [this](const pose2d_t& p, const MessageInfo& info) {
+    status_.AddInputs();
+    ++messages_;
+    viewer::Source source;
+    if (!ToSource(p.source, &source)) {
+      status_.Reject("unknown_source");
+      return;
+    }
+    viewer::TrackView* t = FindTrack(source, p.robot_id);
+    t->recv_utime = info.recv_utime;
+    t->lost = p.status == pose2d_t::STATUS_LOST || !std::isfinite(p.x_m) || !std::isfinite(p.y_m);
+    TrackHistory& h = history_[{static_cast<int>(source), p.robot_id}];
+    h.recv_utimes.push_back(info.recv_utime);
+    if (p.latency_us > 0 || source != viewer::Source::kGroundTruth) {
+      h.latencies_ms.push_back(p.latency_us * 1e-3);
+      if (h.latencies_ms.size() > kLatencySamples) h.latencies_ms.pop_front();
+    }
+    if (t->lost) return;
+    t->utime = p.utime;
+    t->x_m = p.x_m;
+    t->y_m = p.y_m;
+    t->heading_rad = p.heading_rad;
+    t->cov_xx_m2 = p.covariance[0][0];
+    t->cov_xy_m2 = p.covariance[0][1];
+    t->cov_yy_m2 = p.covariance[1][1];
+    t->degraded = p.status == pose2d_t::STATUS_DEGRADED;
+    t->trail.push_back({p.utime, p.x_m, p.y_m});
+  });
+  bus_->Subscribe<range_set_t>("RANGES", [this](const range_set_t& s, const MessageInfo& info) {
+    status_.AddInputs();
+    ++messages_;
+    viewer::RangeSetView view;
+    view.beacon_id = s.beacon_id;
+    const Beacon* beacon = state_.site.FindBeacon(s.beacon_id);
+    view.beacon_height_m = beacon != nullptr ? beacon->height_m : 0.0;
+    view.utime = s.utime;
+    view.recv_utime = info.recv_utime;
+    for (const range_t& r : s.ranges) {
+      viewer::RangeView rv;
+      rv.receiver_id = r.receiver_id;
+      rv.receiver_m = {r.receiver_position_m[0], r.receiver_position_m[1],
+                       r.receiver_position_m[2]};
+      rv.range_m = r.range_m;
+      view.ranges.push_back(rv);
+    }
+    auto it =
+        std::find_if(state_.range_sets.begin(), state_.range_sets.end(),
+                     [&](const viewer::RangeSetView& v) { return v.beacon_id == s.beacon_id; });
+    if (it == state_.range_sets.end()) {
+      state_.range_sets.push_back(std::move(view));
+    } else {
+      *it = std::move(view);
+    }
+  });
+  bus_->Subscribe<process_status_t>(
+      "STATUS", [this](const process_status_t& s, const MessageInfo& info) {
+        ++messages_;
+        const std::string key = s.process + "@" + s.host + ":" + std::to_string(s.pid);
+        auto it = std::find_if(state_.processes.begin(), state_.processes.end(),
+                               [&](const viewer::ProcessView& p) {
+                                 return p.name + "@" + p.host + ":" + std::to_string(p.pid) == key;
+                               });
+        if (it == state_.processes.end()) {
+          state_.processes.emplace_back();
+          it = state_.processes.end() - 1;
+        }
+        StatusHistory& h = status_history_[key];
+        it->output_rate_hz = h.prev_utime > 0 && s.utime > h.prev_utime
+                                 ? (s.outputs - h.prev_outputs) / ((s.utime - h.prev_utime) * 1e-6)
+                                 : 0.0;
+        h.prev_utime = s.utime;
+        h.prev_outputs = s.outputs;
+        it->name = s.process;
+        it->host = s.host;
+        it->pid = s.pid;
+        it->state = s.state;
+        it->inputs = s.inputs;
+        it->outputs = s.outputs;
+        it->dropped = s.dropped;
+        it->rejected.clear();
+        for (const counter_t& c : s.rejected) it->rejected.push_back({c.name, c.count});
+        std::sort(it->rejected.begin(), it->rejected.end(),
+                  [](const auto& a, const auto& b) { return a.second > b.second; });
+        it->last_error = s.last_error;
+        it->recv_utime = info.recv_utime;
+      });
+  bus_->Subscribe<image_t>(kCameraPreviewChannel, [this](const image_t& m, const MessageInfo&) {
+    ++messages_;
+    state_.has_preview = true;
+    viewer::PreviewView& p = state_.preview;
+    if (p.camera_id != m.camera_id || p.utime != m.utime) p.markers.clear();
+    p.camera_id = m.camera_id;
+    p.utime = m.utime;
+    p.encoded = m.data;
+    preview_scale_ =
+        m.source_width_px > 0 ? static_cast<double>(m.width_px) / m.source_width_px : 1.0;
+  });
+  bus_->Subscribe<marker_pixels_t>(
+      "MARKER_PIXELS", [this](const marker_pixels_t& m, const MessageInfo&) {
+        ++messages_;
+        // The markers of the newest frame, in the preview's pixels.
+        if (!state_.has_preview || m.camera_id != state_.preview.camera_id) return;
+        state_.preview.markers.clear();
+        for (const marker_t& k : m.markers) {
+          state_.preview.markers.push_back({k.u_px * preview_scale_, k.v_px * preview_scale_,
+                                            k.radius_px * preview_scale_, k.colour_class});
+        }
+      });
+}
+
+viewer::TrackView* ViewerNode::FindTrack(viewer::Source source, int robot_id) {
+  for (viewer::TrackView& t : state_.tracks) {
+    if (t.source == source && t.robot_id == robot_id) return &t;
+  }
+  state_.tracks.emplace_back();
+  state_.tracks.back().source = source;
+  state_.tracks.back().robot_id = robot_id;
+  std::sort(state_.tracks.begin(), state_.tracks.end(),
+            [](const viewer::TrackView& a, const viewer::TrackView& b) {
+              return std::make_pair(a.robot_id, static_cast<int>(a.source)) <
+                     std::make_pair(b.robot_id, static_cast<int>(b.source));
+            });
+  for (viewer::TrackView& t : state_.tracks) {
+    if (t.source == source && t.robot_id == robot_id) return &t;
+  }
+  return nullptr;
+}
+
+void ViewerNode::MarkRejectedRanges() {
+  // A range is rejected when it disagrees with the ultrasonic fix of its
+  // own firing (same utime); without that fix nothing is marked.
+  for (viewer::RangeSetView& set : state_.range_sets) {
+    int robot_id = -1;
+    for (const Robot& r : state_.site.robots) {
+      if (r.beacon_id && *r.beacon_id == set.beacon_id) robot_id = r.id;
+    }
+    const viewer::TrackView* fix = nullptr;
+    for (const viewer::TrackView& t : state_.tracks) {
+      if (t.source == viewer::Source::kUltrasound && t.robot_id == robot_id &&
+          t.utime == set.utime && !t.lost) {
+        fix = &t;
+      }
+    }
+    for (viewer::RangeView& r : set.ranges) {
+      if (fix == nullptr) {
+        r.rejected = false;
+        continue;
+      }
+      const double dx = r.receiver_m[0] - fix->x_m;
+      const double dy = r.receiver_m[1] - fix->y_m;
+      const double dz = r.receiver_m[2] - set.beacon_height_m;
+      r.rejected = std::abs(std::sqrt(dx * dx + dy * dy + dz * dz) - r.range_m) >
+                   options_.rejected_range_tolerance_m;
+    }
+  }
+}
+
+const viewer::ViewState& ViewerNode::StateAt(int64_t now_utime) {
+  state_.now_utime = now_utime;
+  state_.trail_s = options_.trail_s;
+  state_.stale_after_s = options_.stale_after_s;
+  const auto trail_us = static_cast<int64_t>(options_.trail_s * 1e6);
+  for (viewer::TrackView& t : state_.tracks) {
+    // Trails are kept by measurement time relative to the track's newest
+    // pose, so a replayed log keeps its trails whatever the wall clock.
+    while (!t.trail.empty() && t.trail.front().utime < t.utime - trail_us) t.trail.pop_front();
+    TrackHistory& h = history_[{static_cast<int>(t.source), t.robot_id}];
+    while (!h.recv_utimes.empty() && h.recv_utimes.front() < now_utime - kRateWindowUs) {
+      h.recv_utimes.pop_front();
+    }
+    t.rate_hz = h.recv_utimes.size() >= 2
+                    ? (h.recv_utimes.size() - 1) /
+                          ((h.recv_utimes.back() - h.recv_utimes.front()) * 1e-6 + 1e-9)
+                    : 0.0;
+    t.latency_ms = h.latencies_ms.empty()
+                       ? viewer::kNaN
+                       : analysis::Percentile({h.latencies_ms.begin(), h.latencies_ms.end()}, 0.5);
+  }
+  MarkRejectedRanges();
+  return state_;
+}
+
+void ViewerNode::Tick(int64_t now_utime) {
+  status_.SetCounter("tracks", static_cast<int64_t>(state_.tracks.size()));
+  status_.SetCounter("processes", static_cast<int64_t>(state_.processes.size()));
+  status_.MaybePublish(bus_, now_utime);
+}
+
+void ViewerNode::Stop(int64_t now_utime) {
+  status_.SetState(process_status_t::STATE_STOPPING);
+  status_.Publish(bus_, now_utime);
+}
+
+}  // namespace roomfix

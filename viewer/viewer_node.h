@@ -1,0 +1,74 @@
+#ifndef ROOMFIX_VIEWER_VIEWER_NODE_H_
+#define ROOMFIX_VIEWER_VIEWER_NODE_H_
+
+#include <cstdint>
+#include <deque>
+#include <map>
+#include <string>
+#include <utility>
+
+#include "core/world/site.h"
+#include "msgio/bus.h"
+#include "msgio/process.h"
+#include "viewer/view_state.h"
+
+namespace roomfix {
+
+inline constexpr char kCameraPreviewChannel[] = "CAMERA_PREVIEW";
+
+struct ViewerNodeOptions {
+  // Seconds of trail behind each pose.
+  double trail_s = 10.0;
+  // A source or process is stale after this long without a message.
+  double stale_after_s = 2.0;
+  // A range is drawn as rejected when it disagrees with the ultrasonic fix
+  // of its firing by more than this (the fix's own residuals are a few cm).
+  double rejected_range_tolerance_m = 0.15;
+
+  bool IsValid(std::string* error) const;
+};
+
+// Keeps the viewer's picture of the system up to date from the bus: every
+// pose2d_t on POSE_.*, the range sets on RANGES, the STATUS heartbeats, the
+// camera previews (CAMERA_PREVIEW) and the markers found (MARKER_PIXELS).
+// StateAt(now) gives the state to render as of `now` (trails pruned, rates,
+// stale marks, rejected ranges), so live and replayed logs are drawn by the
+// same code. Publishes its own STATUS heartbeat from Tick.
+class ViewerNode {
+ public:
+  ViewerNode(const Site& site, Bus* bus, const ViewerNodeOptions& options, int64_t start_utime);
+
+  const viewer::ViewState& StateAt(int64_t now_utime);
+  // Visibility toggles and other view settings the window changes.
+  viewer::ViewState* mutable_state() { return &state_; }
+  void Tick(int64_t now_utime);
+  void Stop(int64_t now_utime);
+  const StatusReporter& status() const { return status_; }
+  int64_t messages() const { return messages_; }
+
+ private:
+  struct TrackHistory {
+    std::deque<int64_t> recv_utimes;
+    std::deque<double> latencies_ms;
+  };
+  struct StatusHistory {
+    int64_t prev_utime = 0;
+    int64_t prev_outputs = 0;
+  };
+  viewer::TrackView* FindTrack(viewer::Source source, int robot_id);
+  void MarkRejectedRanges();
+
+  Bus* bus_;
+  ViewerNodeOptions options_;
+  StatusReporter status_;
+  viewer::ViewState state_;
+  std::map<std::pair<int, int>, TrackHistory> history_;
+  std::map<std::string, StatusHistory> status_history_;
+  // Preview pixels per full-frame pixel of the latest preview.
+  double preview_scale_ = 1.0;
+  int64_t messages_ = 0;
+};
+
+}  // namespace roomfix
+
+#endif  // ROOMFIX_VIEWER_VIEWER_NODE_H_
