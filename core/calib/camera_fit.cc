@@ -1,0 +1,321 @@
+#include "core/calib/camera_fit.h"
+
+#include <gsl/gsl_errno.h>
+#include <gsl/gsl_multifit_nlinear.h>
+#include <gsl/gsl_vector.h>
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+namespace roomfix::calib {
+namespace {
+
+// The full parameter vector; FitCamera frees a subset of it.
+enum Param { kFx, kFy, kCx, kCy, kK1, kK2, kK3, kK4, kW0, kW1, kW2, kC0, kC1, kC2, kNumParams };
+
+// The room point's pixel without ProjectToPixel's Z > 0 check: the formula
+// continues smoothly past 90 degrees, which keeps the least-squares cost
+// differentiable should an iterate swing a point behind the camera.
+Eigen::Vector2d ProjectAny(const CameraModel& m, const Eigen::Vector3d& room_m) {
+  const Eigen::Vector3d p = m.pose.R_room_from_camera.transpose() * (room_m - m.pose.position_m);
+  const double r_xy = std::hypot(p.x(), p.y());
+  const double theta = std::atan2(r_xy, p.z());
+  const double t2 = theta * theta;
+  const auto& k = m.intrinsics.k;
+  const double theta_d = theta * (1 + t2 * (k[0] + t2 * (k[1] + t2 * (k[2] + t2 * k[3]))));
+  const double scale = r_xy > 1e-12 * std::abs(p.z()) ? theta_d / r_xy : 1.0 / p.z();
+  return {m.intrinsics.fx_px * scale * p.x() + m.intrinsics.cx_px,
+          m.intrinsics.fy_px * scale * p.y() + m.intrinsics.cy_px};
+}
+
+Eigen::Matrix3d ExpRotation(const Eigen::Vector3d& w) {
+  const double angle = w.norm();
+  if (angle < 1e-300) return Eigen::Matrix3d::Identity();
+  return Eigen::AngleAxisd(angle, w / angle).toRotationMatrix();
+}
+
+struct Problem {
+  const std::vector<Correspondence>* points = nullptr;
+  std::vector<size_t> used;  // indices into *points
+  CameraModel initial;
+  CameraFitOptions options;
+  std::vector<int> free;  // Param of each free parameter
+  double full[kNumParams] = {};
+
+  size_t Residuals() const {
+    return 2 * used.size() + (options.position_prior_sigma_m > 0 ? 3 : 0);
+  }
+
+  // The model for the free parameters x (the rest from `full`).
+  CameraModel Model(const gsl_vector* x) const {
+    double q[kNumParams];
+    std::copy(full, full + kNumParams, q);
+    for (size_t i = 0; i < free.size(); ++i) q[free[i]] = gsl_vector_get(x, i);
+    if (options.equal_focal_lengths) {
+      q[kFy] = q[kFx] * initial.intrinsics.fy_px / initial.intrinsics.fx_px;
+    }
+    CameraModel m = initial;
+    m.intrinsics.fx_px = q[kFx];
+    m.intrinsics.fy_px = q[kFy];
+    m.intrinsics.cx_px = q[kCx];
+    m.intrinsics.cy_px = q[kCy];
+    for (int j = 0; j < 4; ++j) m.intrinsics.k[j] = q[kK1 + j];
+    m.pose.R_room_from_camera =
+        initial.pose.R_room_from_camera * ExpRotation(Eigen::Vector3d(q[kW0], q[kW1], q[kW2]));
+    m.pose.position_m = Eigen::Vector3d(q[kC0], q[kC1], q[kC2]);
+    return m;
+  }
+};
+
+int ResidualF(const gsl_vector* x, void* params, gsl_vector* f) {
+  const auto* problem = static_cast<const Problem*>(params);
+  const CameraModel m = problem->Model(x);
+  const auto& pts = *problem->points;
+  for (size_t i = 0; i < problem->used.size(); ++i) {
+    const Correspondence& c = pts[problem->used[i]];
+    const Eigen::Vector2d uv = ProjectAny(m, Eigen::Vector3d(c.x_m, c.y_m, c.height_m));
+    gsl_vector_set(f, 2 * i, uv.x() - c.u_px);
+    gsl_vector_set(f, 2 * i + 1, uv.y() - c.v_px);
+  }
+  if (problem->options.position_prior_sigma_m > 0) {
+    const double w = problem->options.pixel_sigma_px / problem->options.position_prior_sigma_m;
+    const Eigen::Vector3d d = m.pose.position_m - problem->initial.pose.position_m;
+    for (int a = 0; a < 3; ++a) gsl_vector_set(f, 2 * problem->used.size() + a, w * d[a]);
+  }
+  return GSL_SUCCESS;
+}
+
+struct SolveResult {
+  bool ok = false;
+  std::string message;
+  CameraModel model;
+  int iterations = 0;
+};
+
+// One Levenberg-Marquardt run over problem->used, from problem->full.
+SolveResult Solve(Problem* problem) {
+  SolveResult out;
+  const size_t p = problem->free.size();
+  const size_t n = problem->Residuals();
+  gsl_multifit_nlinear_fdf fdf;
+  fdf.f = ResidualF;
+  fdf.df = nullptr;  // finite differences (central, below)
+  fdf.fvv = nullptr;
+  fdf.n = n;
+  fdf.p = p;
+  fdf.params = problem;
+  gsl_multifit_nlinear_parameters params = gsl_multifit_nlinear_default_parameters();
+  params.fdtype = GSL_MULTIFIT_NLINEAR_CTRDIFF;
+  gsl_multifit_nlinear_workspace* w =
+      gsl_multifit_nlinear_alloc(gsl_multifit_nlinear_trust, &params, n, p);
+  gsl_vector* x0 = gsl_vector_alloc(p);
+  for (size_t j = 0; j < p; ++j) gsl_vector_set(x0, j, problem->full[problem->free[j]]);
+  gsl_error_handler_t* old_handler = gsl_set_error_handler_off();
+  int info = 0;
+  int status = gsl_multifit_nlinear_init(x0, &fdf, w);
+  if (status == GSL_SUCCESS) {
+    status = gsl_multifit_nlinear_driver(static_cast<size_t>(problem->options.max_iterations),
+                                         1e-12, 1e-12, 0.0, nullptr, nullptr, &info, w);
+  }
+  gsl_set_error_handler(old_handler);
+  out.iterations = static_cast<int>(gsl_multifit_nlinear_niter(w));
+  if (status != GSL_SUCCESS) {
+    out.message = std::string("the fit did not converge: ") + gsl_strerror(status) + " after " +
+                  std::to_string(out.iterations) + " iterations";
+  } else {
+    const gsl_vector* x = gsl_multifit_nlinear_position(w);
+    out.ok = true;
+    for (size_t j = 0; j < p; ++j) out.ok = out.ok && std::isfinite(gsl_vector_get(x, j));
+    if (out.ok) {
+      out.model = problem->Model(x);
+      for (size_t j = 0; j < p; ++j) problem->full[problem->free[j]] = gsl_vector_get(x, j);
+    } else {
+      out.message = "the fit did not converge: non-finite parameters";
+    }
+  }
+  gsl_vector_free(x0);
+  gsl_multifit_nlinear_free(w);
+  return out;
+}
+
+void Reject(const std::string& why, const CameraModel& initial, CameraFitSummary* s) {
+  s->usable = false;
+  s->model = initial;
+  s->message = why;
+}
+
+}  // namespace
+
+bool CameraFitOptions::IsValid(std::string* error) const {
+  std::string e;
+  if (max_iterations < 1) e = "max_iterations must be at least 1";
+  if (!(outlier_px > 0)) e = "outlier_px must be positive";
+  if (distortion_terms < 1 || distortion_terms > 4) e = "distortion_terms must be 1 to 4";
+  if (!(position_prior_sigma_m >= 0) || !std::isfinite(position_prior_sigma_m)) {
+    e = "position_prior_sigma_m must be finite and >= 0 (0: no prior)";
+  }
+  if (!(pixel_sigma_px > 0) || !std::isfinite(pixel_sigma_px)) {
+    e = "pixel_sigma_px must be finite and positive";
+  }
+  if (error != nullptr) *error = e;
+  return e.empty();
+}
+
+CameraFitSummary FitCamera(const std::vector<Correspondence>& points, const CameraModel& initial,
+                           const CameraFitOptions& options) {
+  CameraFitSummary s;
+  s.model = initial;
+  std::string error;
+  if (!options.IsValid(&error)) {
+    Reject("invalid options: " + error, initial, &s);
+    return s;
+  }
+  const int n = static_cast<int>(points.size());
+  if (n < kMinPoints) {
+    Reject("too few points: need at least " + std::to_string(kMinPoints) + ", got " +
+               std::to_string(n),
+           initial, &s);
+    return s;
+  }
+  const FisheyeIntrinsics& in = initial.intrinsics;
+  if (!(in.fx_px > 0 && in.fy_px > 0 && in.width_px > 0 && in.height_px > 0) ||
+      !initial.pose.position_m.allFinite() || !initial.pose.R_room_from_camera.allFinite()) {
+    Reject("invalid initial model: focal lengths and image size must be positive", initial, &s);
+    return s;
+  }
+  const double margin = CameraModel::kPixelMarginPx;
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  for (int i = 0; i < n; ++i) {
+    const Correspondence& c = points[i];
+    const std::string where = "point " + std::to_string(i) + ": ";
+    if (!std::isfinite(c.u_px) || !std::isfinite(c.v_px) || !std::isfinite(c.x_m) ||
+        !std::isfinite(c.y_m)) {
+      Reject(where + "non-finite pixel or position", initial, &s);
+      return s;
+    }
+    if (!(c.u_px >= -margin && c.u_px <= in.width_px + margin && c.v_px >= -margin &&
+          c.v_px <= in.height_px + margin)) {
+      std::ostringstream os;
+      os << where << "pixel (" << c.u_px << ", " << c.v_px << ") is outside the " << in.width_px
+         << " x " << in.height_px << " image";
+      Reject(os.str(), initial, &s);
+      return s;
+    }
+    if (!std::isfinite(c.height_m) || c.height_m < 0 || c.height_m >= initial.pose.position_m.z()) {
+      std::ostringstream os;
+      os << where << "height " << c.height_m << " m is inconsistent: must be >= 0 and below the "
+         << "camera at " << initial.pose.position_m.z() << " m";
+      Reject(os.str(), initial, &s);
+      return s;
+    }
+    const Eigen::Vector3d p_cam =
+        initial.pose.R_room_from_camera.transpose() *
+        (Eigen::Vector3d(c.x_m, c.y_m, c.height_m) - initial.pose.position_m);
+    if (!(p_cam.z() > 0)) {
+      Reject(where + "the marker is behind the initial camera: wrong initial pose", initial, &s);
+      return s;
+    }
+    mean += Eigen::Vector2d(c.x_m, c.y_m);
+  }
+  mean /= n;
+  Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
+  for (const Correspondence& c : points) {
+    const Eigen::Vector2d d = Eigen::Vector2d(c.x_m, c.y_m) - mean;
+    cov += d * d.transpose();
+  }
+  cov /= n;
+  const double smallest_spread_m = std::sqrt(
+      std::max(0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(cov).eigenvalues()(0)));
+  if (smallest_spread_m < 0.01) {
+    std::ostringstream os;
+    os << "all points lie on a line: their spread across it is " << smallest_spread_m * 1000
+       << " mm (need 10 mm)";
+    Reject(os.str(), initial, &s);
+    return s;
+  }
+
+  Problem problem;
+  problem.points = &points;
+  problem.initial = initial;
+  problem.options = options;
+  problem.full[kFx] = in.fx_px;
+  problem.full[kFy] = in.fy_px;
+  problem.full[kCx] = in.cx_px;
+  problem.full[kCy] = in.cy_px;
+  for (int j = 0; j < 4; ++j) problem.full[kK1 + j] = in.k[j];
+  for (int a = 0; a < 3; ++a) problem.full[kC0 + a] = initial.pose.position_m[a];
+  for (int q = 0; q < kNumParams; ++q) {
+    if (q == kFy && options.equal_focal_lengths) continue;
+    if (q >= kK1 && q <= kK4 && (!options.fit_distortion || q - kK1 >= options.distortion_terms)) {
+      continue;
+    }
+    problem.free.push_back(q);
+  }
+  for (int i = 0; i < n; ++i) problem.used.push_back(static_cast<size_t>(i));
+
+  // Fit, then leave out the worst point while it is an outlier.
+  std::vector<bool> outlier(n, false);
+  int iterations = 0;
+  SolveResult r;
+  std::vector<double> residual(n, 0.0);
+  for (;;) {
+    r = Solve(&problem);
+    iterations += r.iterations;
+    if (!r.ok) {
+      Reject(r.message, initial, &s);
+      s.iterations = iterations;
+      return s;
+    }
+    int worst = -1;
+    for (int i = 0; i < n; ++i) {
+      const Correspondence& c = points[i];
+      const Eigen::Vector2d uv = ProjectAny(r.model, Eigen::Vector3d(c.x_m, c.y_m, c.height_m));
+      residual[i] = std::hypot(uv.x() - c.u_px, uv.y() - c.v_px);
+      if (!outlier[i] && (worst < 0 || residual[i] > residual[worst])) worst = i;
+    }
+    if (residual[worst] <= options.outlier_px ||
+        static_cast<int>(problem.used.size()) <= kMinPoints) {
+      break;
+    }
+    outlier[worst] = true;
+    problem.used.erase(
+        std::find(problem.used.begin(), problem.used.end(), static_cast<size_t>(worst)));
+  }
+
+  s.usable = true;
+  s.model = r.model;
+  s.iterations = iterations;
+  s.residual_px = residual;
+  s.outlier = outlier;
+  double sum2 = 0;
+  int flagged = 0, still_above = 0;
+  for (int i = 0; i < n; ++i) {
+    if (outlier[i]) {
+      ++flagged;
+      continue;
+    }
+    sum2 += residual[i] * residual[i];
+    s.max_px = std::max(s.max_px, residual[i]);
+    if (residual[i] > options.outlier_px) {
+      ++still_above;
+      s.outlier[i] = true;
+    }
+  }
+  s.rms_px = std::sqrt(sum2 / static_cast<double>(problem.used.size()));
+  std::ostringstream os;
+  os.precision(3);
+  os << "fitted " << problem.used.size() << " points, rms " << s.rms_px << " px";
+  if (flagged > 0)
+    os << "; " << flagged << " outlier(s) above " << options.outlier_px << " px left out";
+  if (still_above > 0) {
+    os << "; " << still_above << " more above " << options.outlier_px
+       << " px kept (too few points to leave out)";
+  }
+  s.message = os.str();
+  return s;
+}
+
+}  // namespace roomfix::calib
