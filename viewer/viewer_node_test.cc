@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "msgio/log.h"
+#include "msgio/test_messages.h"
 #include "roomfix/pose2d_t.hpp"
 #include "roomfix/process_status_t.hpp"
 #include "roomfix/range_set_t.hpp"
@@ -25,13 +26,8 @@ Site DemoSite() {
 }
 
 pose2d_t Pose(int8_t source, int64_t utime, double x_m, double y_m) {
-  pose2d_t p{};
-  p.utime = utime;
+  pose2d_t p = testing::MakeTestPose(utime, 1, x_m, y_m);
   p.source = source;
-  p.robot_id = 1;
-  p.x_m = x_m;
-  p.y_m = y_m;
-  p.heading_rad = std::nan("");
   p.latency_us = 12'000;
   return p;
 }

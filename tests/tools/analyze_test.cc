@@ -10,6 +10,7 @@
 
 #include "core/world/trajectory.h"
 #include "msgio/log.h"
+#include "msgio/test_messages.h"
 #include "roomfix/pose2d_t.hpp"
 #include "tests/testing/test_paths.h"
 
@@ -33,13 +34,8 @@ class LogBuilder {
   }
   void Pose(int8_t source, int64_t utime, double x_m, double y_m, int64_t latency_us = 5000,
             int8_t status = pose2d_t::STATUS_OK) {
-    pose2d_t p{};
-    p.utime = utime;
+    pose2d_t p = testing::MakeTestPose(utime, 1, x_m, y_m);
     p.source = source;
-    p.robot_id = 1;
-    p.x_m = x_m;
-    p.y_m = y_m;
-    p.heading_rad = std::nan("");
     p.status = status;
     p.latency_us = latency_us;
     std::vector<uint8_t> buffer(static_cast<size_t>(p.getEncodedSize()));
