@@ -19,6 +19,8 @@ void AddBenchCommand(CLI::App* app, int* exit_code);
 void AddCompareCommand(CLI::App* app, int* exit_code);
 void AddFramesCommand(CLI::App* app, int* exit_code);
 void AddAnalyzeCommand(CLI::App* app, int* exit_code);
+void AddCalibrateCommand(CLI::App* app, int* exit_code);
+void AddMapCommand(CLI::App* app, int* exit_code);
 // Adds `logger` under the `bench` subcommand.
 void AddBenchLoggerCommand(CLI::App* bench, int* exit_code);
 // Adds `radio` under the `bench` subcommand.

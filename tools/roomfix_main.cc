@@ -16,6 +16,8 @@ int main(int argc, char** argv) {
   roomfix::AddCompareCommand(&app, &exit_code);
   roomfix::AddFramesCommand(&app, &exit_code);
   roomfix::AddAnalyzeCommand(&app, &exit_code);
+  roomfix::AddCalibrateCommand(&app, &exit_code);
+  roomfix::AddMapCommand(&app, &exit_code);
   CLI11_PARSE(app, argc, argv);
   return exit_code;
 }

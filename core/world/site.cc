@@ -14,114 +14,15 @@
 #include <tuple>
 #include <utility>
 
+#include "core/world/yaml_reader.h"
+
 namespace roomfix {
 namespace {
 
-// Thrown inside the parser only, and turned into the one-line error at the
-// API boundary; it never escapes ParseSite.
-struct SiteError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
-
-// Reads typed values out of the YAML tree, naming the file, the line and the
-// key path in every failure.
-class Reader {
+// The site's own value types on top of the shared strict reader.
+class Reader : public YamlReader {
  public:
-  explicit Reader(std::string file) : file_(std::move(file)) {}
-
-  [[noreturn]] void Fail(const YAML::Node& near, const std::string& key,
-                         const std::string& what) const {
-    std::ostringstream s;
-    s << file_;
-    if (near.IsDefined() && !near.Mark().is_null()) s << ":" << near.Mark().line + 1;
-    s << ": " << key << ": " << what;
-    throw SiteError(s.str());
-  }
-
-  void ExpectMap(const YAML::Node& node, const std::string& key) const {
-    if (!node.IsMap()) Fail(node, key, "expected a mapping of keys, got " + Kind(node));
-  }
-
-  void ExpectSequence(const YAML::Node& node, const std::string& key) const {
-    if (!node.IsSequence()) Fail(node, key, "expected a list, got " + Kind(node));
-  }
-
-  // Rejects keys the schema does not know, so a typo cannot silently leave a
-  // default in place.
-  void OnlyKeys(const YAML::Node& map, const std::string& key,
-                std::initializer_list<const char*> allowed) const {
-    for (const auto& kv : map) {
-      const std::string name = kv.first.as<std::string>();
-      bool known = false;
-      for (const char* a : allowed) known = known || name == a;
-      if (!known) Fail(kv.first, Join(key, name), "unknown key");
-    }
-  }
-
-  YAML::Node Required(const YAML::Node& map, const std::string& key,
-                      const std::string& name) const {
-    YAML::Node child = map[name];
-    if (!child.IsDefined() || child.IsNull()) Fail(map, Join(key, name), "missing key");
-    return child;
-  }
-
-  double Double(const YAML::Node& node, const std::string& key) const {
-    if (!node.IsScalar()) Fail(node, key, "expected a number, got " + Kind(node));
-    double value = 0.0;
-    if (!YAML::convert<double>::decode(node, value)) {
-      Fail(node, key, "expected a number, got '" + node.Scalar() + "'");
-    }
-    if (!std::isfinite(value)) Fail(node, key, "must be a finite number");
-    return value;
-  }
-
-  double Positive(const YAML::Node& node, const std::string& key) const {
-    const double value = Double(node, key);
-    if (value <= 0.0) Fail(node, key, "must be positive");
-    return value;
-  }
-
-  int Int(const YAML::Node& node, const std::string& key) const {
-    if (!node.IsScalar()) Fail(node, key, "expected an integer, got " + Kind(node));
-    int value = 0;
-    if (!YAML::convert<int>::decode(node, value)) {
-      Fail(node, key, "expected an integer, got '" + node.Scalar() + "'");
-    }
-    return value;
-  }
-
-  bool Bool(const YAML::Node& node, const std::string& key) const {
-    bool value = false;
-    if (!node.IsScalar() || !YAML::convert<bool>::decode(node, value)) {
-      Fail(node, key, "expected true or false");
-    }
-    return value;
-  }
-
-  std::string String(const YAML::Node& node, const std::string& key) const {
-    if (!node.IsScalar()) Fail(node, key, "expected a string, got " + Kind(node));
-    return node.Scalar();
-  }
-
-  template <size_t N>
-  std::array<double, N> Doubles(const YAML::Node& node, const std::string& key) const {
-    if (!node.IsSequence() || node.size() != N) {
-      Fail(node, key, "expected a list of " + std::to_string(N) + " numbers");
-    }
-    std::array<double, N> out{};
-    for (size_t i = 0; i < N; ++i) out[i] = Double(node[i], Index(key, i));
-    return out;
-  }
-
-  template <size_t N>
-  std::array<int, N> Ints(const YAML::Node& node, const std::string& key) const {
-    if (!node.IsSequence() || node.size() != N) {
-      Fail(node, key, "expected a list of " + std::to_string(N) + " integers");
-    }
-    std::array<int, N> out{};
-    for (size_t i = 0; i < N; ++i) out[i] = Int(node[i], Index(key, i));
-    return out;
-  }
+  explicit Reader(const YamlReader& base) : YamlReader(base) {}
 
   uint64_t Address(const YAML::Node& node, const std::string& key) const {
     uint64_t address = 0;
@@ -157,29 +58,6 @@ class Reader {
     }
     return id;
   }
-
-  static std::string Join(const std::string& key, const std::string& name) {
-    return key.empty() ? name : key + "." + name;
-  }
-  static std::string Index(const std::string& key, size_t i) {
-    return key + "[" + std::to_string(i) + "]";
-  }
-
- private:
-  static std::string Kind(const YAML::Node& node) {
-    switch (node.Type()) {
-      case YAML::NodeType::Map:
-        return "a mapping";
-      case YAML::NodeType::Sequence:
-        return "a list";
-      case YAML::NodeType::Scalar:
-        return "'" + node.Scalar() + "'";
-      default:
-        return "nothing";
-    }
-  }
-
-  std::string file_;
 };
 
 using K = Reader;  // K::Join / K::Index build key paths.
@@ -661,34 +539,22 @@ std::string FormatRadioAddress(uint64_t address) {
 
 bool ParseSite(const std::string& yaml_text, const std::string& name, const std::string& base_dir,
                Site* site, std::string* error) {
-  Reader r(name);
   Site parsed;
-  try {
-    YAML::Node root;
-    try {
-      root = YAML::Load(yaml_text);
-    } catch (const YAML::Exception& e) {
-      std::ostringstream s;
-      s << name << ":" << e.mark.line + 1 << ": YAML syntax: " << e.msg;
-      throw SiteError(s.str());
-    }
-    if (!root.IsMap()) r.Fail(root, "(document)", "expected a mapping of keys at the top level");
-    r.OnlyKeys(root, "",
-               {"name", "room", "receivers", "beacons", "robots", "cameras", "simulation"});
-    parsed.name = r.String(r.Required(root, "", "name"), "name");
-    parsed.room = ParseRoom(r, r.Required(root, "", "room"));
-    ParseRadios(r, root, &parsed);
-    ParseRobots(r, root, &parsed);
-    ParseCameras(r, root, base_dir, &parsed);
-    ParseSimulation(r, root, &parsed);
-  } catch (const SiteError& e) {
-    if (error != nullptr) *error = e.what();
-    return false;
-  } catch (const YAML::Exception& e) {
-    // A value of the wrong shape that a typed read did not anticipate.
-    if (error != nullptr) *error = name + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg;
-    return false;
-  }
+  const bool ok = ParseYamlDocument(
+      yaml_text, name,
+      [&](const YamlReader& base, const YAML::Node& root) {
+        const Reader r(base);
+        r.OnlyKeys(root, "",
+                   {"name", "room", "receivers", "beacons", "robots", "cameras", "simulation"});
+        parsed.name = r.String(r.Required(root, "", "name"), "name");
+        parsed.room = ParseRoom(r, r.Required(root, "", "room"));
+        ParseRadios(r, root, &parsed);
+        ParseRobots(r, root, &parsed);
+        ParseCameras(r, root, base_dir, &parsed);
+        ParseSimulation(r, root, &parsed);
+      },
+      error);
+  if (!ok) return false;
   *site = std::move(parsed);
   return true;
 }

@@ -1,0 +1,76 @@
+#ifndef ROOMFIX_CORE_CALIB_CALIBRATION_FILE_H_
+#define ROOMFIX_CORE_CALIB_CALIBRATION_FILE_H_
+
+#include <string>
+
+#include "core/calib/fisheye_camera.h"
+#include "core/calib/region_model.h"
+
+namespace roomfix::calib {
+
+// A camera calibration as a site file's cameras[].calibration names it:
+// either the full model (fisheye_camera.h) or the reference's 9-region
+// table (region_model.h).
+//
+// YAML, full model:
+//
+//   model: full
+//   intrinsics: {width_px: 1920, height_px: 1080, fx_px: 917.0, fy_px: 917.0,
+//                cx_px: 960.0, cy_px: 540.0, k: [0.0, 0.0, 0.0, 0.0]}
+//   pose:
+//     position_m: [2.0, 1.5, 3.1]
+//     rotation_matrix: [[1, 0, 0], [0, -1, 0], [0, 0, -1]]  # room from camera
+//     # or rotation_vector: [3.14159, 0, 0]  (axis * angle, radians)
+//
+// YAML, 9-region table (the reference's form; os1 in pixels, C_calib in
+// pixels per length unit, os2 in the length unit):
+//
+//   model: regions
+//   length_unit: m            # or cm: the reference's own table, unconverted
+//   width_px: 1920
+//   height_px: 1080
+//   calibration_height_m: 0.2
+//   u_boundaries_px: [640, 1280]   # optional, default thirds
+//   v_boundaries_px: [360, 720]
+//   regions:                  # 9, row-major, top row first
+//     - {row: 0, col: 0, x: {os1: 320, C_calib: 400.1, os2: 0.6},
+//                        y: {os1: 180, C_calib: -399.2, os2: 2.4}}
+//
+// The rotation matrix must be orthonormal with determinant +1 (to 1e-6).
+struct Calibration {
+  enum class Model { kFull, kRegions };
+  Model model = Model::kFull;
+  CameraModel camera;   // kFull
+  RegionModel regions;  // kRegions
+
+  int width_px() const;
+  int height_px() const;
+  // Pixel to floor at a marker height / floor to pixel. The full model
+  // serves every height; the 9-region model refuses any but its own
+  // (RegionModel::MapAtHeight). False with a one-line *error.
+  bool PixelToFloor(double u_px, double v_px, double height_m, double* x_m, double* y_m,
+                    std::string* error) const;
+  bool FloorToPixel(double x_m, double y_m, double height_m, double* u_px, double* v_px,
+                    std::string* error) const;
+};
+
+// Reads a calibration file. On failure false and *error is one line
+// "FILE:LINE: KEY: WHAT" (as LoadSite): YAML syntax, missing or unknown keys,
+// wrong types, non-finite numbers, non-positive sizes or focal lengths, a
+// rotation that is not a rotation, regions missing, repeated or out of
+// range, a zero C_calib, boundaries out of order.
+bool LoadCalibration(const std::string& path, Calibration* calibration, std::string* error);
+// As LoadCalibration, from text; `name` stands for the file in messages.
+bool ParseCalibration(const std::string& yaml_text, const std::string& name,
+                      Calibration* calibration, std::string* error);
+
+// The YAML text of a calibration (metres; full precision so that a reload
+// maps the same to 1e-9), preceded by `header_comment` with "# " prefixed to
+// each line.
+std::string FormatCalibration(const Calibration& calibration, const std::string& header_comment);
+bool SaveCalibration(const std::string& path, const Calibration& calibration,
+                     const std::string& header_comment, std::string* error);
+
+}  // namespace roomfix::calib
+
+#endif  // ROOMFIX_CORE_CALIB_CALIBRATION_FILE_H_

@@ -1,0 +1,131 @@
+#include "core/calib/calibration_file.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <string>
+
+#include "tests/testing/test_paths.h"
+
+namespace roomfix::calib {
+namespace {
+
+Calibration FullExample() {
+  Calibration c;
+  c.model = Calibration::Model::kFull;
+  c.camera = NominalCamera({2.0, 1.5, 3.1}, 120.0, 1920, 1080);
+  c.camera.intrinsics.k = {0.021, -0.0113, 0.0031, -0.0004};
+  c.camera.intrinsics.cx_px += 3.3;
+  c.camera.pose.R_room_from_camera =
+      c.camera.pose.R_room_from_camera *
+      Eigen::AngleAxisd(0.017, Eigen::Vector3d(1, 0.6, 0).normalized()).toRotationMatrix();
+  return c;
+}
+
+std::string RegionsText(const std::string& unit, double c_x, double os2_x) {
+  std::string text = "model: regions\nlength_unit: " + unit +
+                     "\nwidth_px: 1920\nheight_px: 1080\ncalibration_height_m: 0.2\nregions:\n";
+  for (int i = 0; i < 9; ++i) {
+    text += "  - {row: " + std::to_string(i / 3) + ", col: " + std::to_string(i % 3) +
+            ", x: {os1: 320, C_calib: " + std::to_string(c_x) + ", os2: " + std::to_string(os2_x) +
+            "}, y: {os1: 180, C_calib: -4, os2: 250}}\n";
+  }
+  return text;
+}
+
+TEST(CalibrationFile, FullModelSurvivesAWriteAndReadToFullPrecision) {
+  const Calibration c = FullExample();
+  Calibration back;
+  std::string error;
+  ASSERT_TRUE(ParseCalibration(FormatCalibration(c, "a test\n\nsecond line"), "mem", &back, &error))
+      << error;
+  ASSERT_EQ(back.model, Calibration::Model::kFull);
+  EXPECT_EQ(back.width_px(), 1920);
+  EXPECT_EQ(back.height_px(), 1080);
+  EXPECT_EQ(back.camera.intrinsics.k, c.camera.intrinsics.k);
+  EXPECT_EQ(back.camera.intrinsics.fx_px, c.camera.intrinsics.fx_px);
+  EXPECT_LT((back.camera.pose.R_room_from_camera - c.camera.pose.R_room_from_camera).norm(), 1e-15);
+  double x1, y1, x2, y2;
+  ASSERT_TRUE(c.PixelToFloor(1700, 900, 0.2, &x1, &y1, &error)) << error;
+  ASSERT_TRUE(back.PixelToFloor(1700, 900, 0.2, &x2, &y2, &error)) << error;
+  EXPECT_NEAR(x1, x2, 1e-12);
+  EXPECT_NEAR(y1, y2, 1e-12);
+}
+
+TEST(CalibrationFile, ReadsARotationVectorAsWellAsAMatrix) {
+  // Straight down: a half turn about room x (camera y along room -y).
+  const std::string text =
+      "model: full\nintrinsics: {width_px: 1920, height_px: 1080, fx_px: 917, fy_px: 917, "
+      "cx_px: 960, cy_px: 540, k: [0, 0, 0, 0]}\n"
+      "pose: {position_m: [2, 1.5, 3.1], rotation_vector: [3.141592653589793, 0, 0]}\n";
+  Calibration c;
+  std::string error;
+  ASSERT_TRUE(ParseCalibration(text, "mem", &c, &error)) << error;
+  double x, y;
+  ASSERT_TRUE(c.PixelToFloor(960, 540, 0.0, &x, &y, &error)) << error;
+  EXPECT_NEAR(x, 2.0, 1e-12);
+  EXPECT_NEAR(y, 1.5, 1e-12);
+}
+
+TEST(CalibrationFile, RegionTableInCentimetresIsTheSameAsInMetres) {
+  Calibration cm, m;
+  std::string error;
+  ASSERT_TRUE(ParseCalibration(RegionsText("cm", 4.0, 60.0), "cm", &cm, &error)) << error;
+  ASSERT_TRUE(ParseCalibration(RegionsText("m", 400.0, 0.6), "m", &m, &error)) << error;
+  EXPECT_DOUBLE_EQ(cm.regions.regions[4].x.c_px_per_m, 400.0);
+  EXPECT_DOUBLE_EQ(cm.regions.regions[4].x.os2_m, 0.6);
+  EXPECT_DOUBLE_EQ(cm.regions.regions[4].y.c_px_per_m, -400.0);
+  EXPECT_DOUBLE_EQ(cm.regions.regions[4].y.os2_m, 2.5);
+  EXPECT_DOUBLE_EQ(m.regions.regions[4].y.os2_m, 250.0);  // -4 and 250 read as metres here
+  // u 720: x = (720 - 320) / 400 + 0.6 = 1.6 m.
+  double x, y;
+  ASSERT_TRUE(cm.PixelToFloor(720, 180, 0.2, &x, &y, &error)) << error;
+  EXPECT_DOUBLE_EQ(x, 1.6);
+  EXPECT_DOUBLE_EQ(y, 2.5);
+  // Written back in metres, read again the same.
+  Calibration again;
+  ASSERT_TRUE(ParseCalibration(FormatCalibration(cm, ""), "again", &again, &error)) << error;
+  EXPECT_DOUBLE_EQ(again.regions.regions[8].x.c_px_per_m, 400.0);
+  EXPECT_FALSE(cm.PixelToFloor(720, 180, 0.0, &x, &y, &error));
+}
+
+TEST(CalibrationFile, ErrorsNameTheFileTheLineAndTheKey) {
+  Calibration c;
+  std::string error;
+  const std::string full = FormatCalibration(FullExample(), "");
+
+  EXPECT_FALSE(ParseCalibration("model: pinhole\n", "cal.yaml", &c, &error));
+  EXPECT_EQ(error, "cal.yaml:1: model: expected full or regions, got 'pinhole'");
+
+  EXPECT_FALSE(ParseCalibration(full + "extra: 1\n", "cal.yaml", &c, &error));
+  EXPECT_EQ(error, "cal.yaml:17: extra: unknown key");
+
+  std::string bent = full;
+  bent.replace(bent.find("rotation_matrix:\n    - [") + 24, 1, "7");
+  EXPECT_FALSE(ParseCalibration(bent, "cal.yaml", &c, &error));
+  EXPECT_EQ(error,
+            "cal.yaml:14: pose.rotation_matrix: not a rotation (R^T R must be the identity and "
+            "det R = +1, to 1e-6)");
+
+  std::string no_fx = full;
+  no_fx.erase(no_fx.find("  fx_px:"), no_fx.find("  fy_px:") - no_fx.find("  fx_px:"));
+  EXPECT_FALSE(ParseCalibration(no_fx, "cal.yaml", &c, &error));
+  EXPECT_EQ(error, "cal.yaml:3: intrinsics.fx_px: missing key");
+
+  std::string eight = RegionsText("m", 400, 0.6);
+  eight.erase(eight.rfind("  - {row: 2"));
+  EXPECT_FALSE(ParseCalibration(eight, "r.yaml", &c, &error));
+  EXPECT_EQ(error, "r.yaml:7: regions: expected a list of 9 regions (3 rows x 3 columns)");
+
+  std::string zero = RegionsText("m", 0.0, 0.6);
+  EXPECT_FALSE(ParseCalibration(zero, "r.yaml", &c, &error));
+  EXPECT_EQ(error, "r.yaml:7: regions[0].x.C_calib: must not be zero");
+
+  EXPECT_FALSE(ParseCalibration("model: [full\n", "bad.yaml", &c, &error));
+  EXPECT_EQ(error.rfind("bad.yaml:", 0), 0u) << error;
+  EXPECT_FALSE(LoadCalibration("/nonexistent/cal.yaml", &c, &error));
+  EXPECT_EQ(error, "/nonexistent/cal.yaml: cannot open: No such file or directory");
+}
+
+}  // namespace
+}  // namespace roomfix::calib

@@ -1,0 +1,307 @@
+// `roomfix calibrate` and `roomfix map`, run as a user would, on points
+// generated from a synthetic fisheye camera.
+#include <gtest/gtest.h>
+
+#include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
+#include <iostream>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "core/calib/calibration_file.h"
+#include "core/calib/fisheye_camera.h"
+#include "tests/testing/test_paths.h"
+
+namespace roomfix {
+namespace {
+
+using calib::Calibration;
+using calib::CameraModel;
+using testing::BinDir;
+using testing::ChildProcess;
+using testing::ReadFile;
+using testing::SourceDir;
+using testing::TempDir;
+using testing::WriteFile;
+
+constexpr double kCalibrationHeightM = 0.2;
+
+// The demo room's camera (config/sites/demo_room.yaml) as built: a few
+// centimetres off its nominal mount, tilted by a degree, fx 4 % long, with
+// a real lens's distortion.
+CameraModel TrueCamera() {
+  CameraModel m = calib::NominalCamera({2.0, 1.5, 3.1}, 120.0, 1920, 1080);
+  m.intrinsics.fx_px *= 1.04;
+  m.intrinsics.fy_px *= 1.04;
+  m.intrinsics.cx_px += 5.0;
+  m.intrinsics.cy_px -= 3.0;
+  m.intrinsics.k = {0.02, -0.01, 0.0, 0.0};
+  Eigen::Matrix3d tilt;
+  const double a = 1.0 * M_PI / 180;
+  tilt << 1, 0, 0, 0, std::cos(a), -std::sin(a), 0, std::sin(a), std::cos(a);
+  m.pose.R_room_from_camera = m.pose.R_room_from_camera * tilt;
+  m.pose.position_m += Eigen::Vector3d(0.004, -0.003, 0.003);
+  return m;
+}
+
+struct RunResult {
+  int exit_code = 0;
+  std::string out;
+};
+
+// Runs `roomfix ARGS...`; `stderr_only` captures standard error instead of
+// standard output (through sh: ChildProcess captures one stream).
+RunResult Roomfix(const std::vector<std::string>& args, bool stderr_only = false) {
+  TempDir dir;
+  std::vector<std::string> argv;
+  if (stderr_only) {
+    std::string command = "'" + BinDir() + "/roomfix'";
+    for (const auto& a : args) command += " '" + a + "'";
+    argv = {"/bin/sh", "-c", command + " 2>&1 >/dev/null"};
+  } else {
+    argv = {BinDir() + "/roomfix"};
+    argv.insert(argv.end(), args.begin(), args.end());
+  }
+  ChildProcess p(argv, dir.File("out.txt"));
+  RunResult r;
+  r.exit_code = p.Wait(120);
+  r.out = ReadFile(dir.File("out.txt"));
+  return r;
+}
+
+// 20 markers spread over the 4 x 3 m floor at 0.2 m, seen with 0.3 px
+// Gaussian noise, as CSV; `outlier` >= 0 moves that point's u by 15 px.
+std::string PointsCsv(int outlier = -1) {
+  std::mt19937 rng(11);
+  std::normal_distribution<double> noise(0.0, 0.3);
+  const CameraModel truth = TrueCamera();
+  std::ostringstream csv;
+  csv.precision(12);
+  csv << "u,v,x_m,y_m,height_m\n";
+  int k = 0;
+  for (int i = 0; i < 5; ++i) {
+    for (int j = 0; j < 4; ++j, ++k) {
+      const double x = 0.4 + 0.8 * i, y = 0.3 + 0.8 * j;
+      double u, v;
+      EXPECT_TRUE(truth.ProjectToPixel(Eigen::Vector3d(x, y, kCalibrationHeightM), &u, &v));
+      u += noise(rng) + (k == outlier ? 15.0 : 0.0);
+      v += noise(rng);
+      csv << u << "," << v << "," << x << "," << y << "," << kCalibrationHeightM << "\n";
+    }
+  }
+  return csv.str();
+}
+
+std::vector<std::vector<double>> ParseCsv(const std::string& text) {
+  std::vector<std::vector<double>> rows;
+  std::istringstream lines(text);
+  std::string line;
+  std::getline(lines, line);  // header
+  while (std::getline(lines, line)) {
+    std::vector<double> row;
+    std::stringstream fields(line);
+    std::string field;
+    while (std::getline(fields, field, ',')) row.push_back(std::stod(field));
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+TEST(RoomfixCalibrate, FitsTheSyntheticCameraFlagsTheOutlierAndWritesYamlAndPng) {
+  TempDir dir;
+  ASSERT_TRUE(WriteFile(dir.File("points.csv"), PointsCsv(/*outlier=*/7)));
+  const RunResult r = Roomfix(
+      {"calibrate", "--points", dir.File("points.csv"), "--out", dir.File("cam0.yaml"), "--site",
+       SourceDir() + "/config/sites/demo_room.yaml", "--camera", "0", "--pixel-sigma", "0.3"});
+  std::cout << r.out;
+  ASSERT_EQ(r.exit_code, 0);
+  // Point 7 is flagged in its table row and in its own line.
+  std::istringstream lines(r.out);
+  std::string line;
+  int outlier_rows = 0;
+  while (std::getline(lines, line)) {
+    if (line.find("OUTLIER") != std::string::npos) {
+      ++outlier_rows;
+      EXPECT_EQ(line.rfind("    7    9 ", 0), 0u) << line;
+    }
+  }
+  EXPECT_EQ(outlier_rows, 1);
+  EXPECT_NE(r.out.find("outlier: point 7 (line 9)"), std::string::npos);
+  EXPECT_NE(r.out.find("full model: RMS "), std::string::npos);
+  EXPECT_NE(r.out.find("9-region model: "), std::string::npos);
+
+  Calibration cal;
+  std::string error;
+  ASSERT_TRUE(calib::LoadCalibration(dir.File("cam0.yaml"), &cal, &error)) << error;
+  ASSERT_EQ(cal.model, Calibration::Model::kFull);
+  EXPECT_EQ(cal.width_px(), 1920);
+  EXPECT_EQ(cal.height_px(), 1080);
+  // The written model maps the floor at the calibration height to a few mm.
+  const CameraModel truth = TrueCamera();
+  double sum2 = 0;
+  int n = 0;
+  for (double x = 0.0; x <= 4.0; x += 0.25) {
+    for (double y = 0.0; y <= 3.0; y += 0.25, ++n) {
+      double u, v, mx, my;
+      ASSERT_TRUE(truth.ProjectToPixel(Eigen::Vector3d(x, y, kCalibrationHeightM), &u, &v));
+      ASSERT_TRUE(cal.PixelToFloor(u, v, kCalibrationHeightM, &mx, &my, &error)) << error;
+      sum2 += std::pow(mx - x, 2) + std::pow(my - y, 2);
+    }
+  }
+  EXPECT_LT(std::sqrt(sum2 / n), 0.003);
+
+  const std::string png = ReadFile(dir.File("cam0.png"));
+  ASSERT_GT(png.size(), 1000u);
+  EXPECT_EQ(png.substr(1, 3), "PNG");
+}
+
+TEST(RoomfixMap, FullModelRoundTripsPixelToFloorAndBackWithin1e6) {
+  TempDir dir;
+  ASSERT_TRUE(WriteFile(dir.File("points.csv"), PointsCsv()));
+  ASSERT_EQ(
+      Roomfix({"calibrate", "--points", dir.File("points.csv"), "--out", dir.File("cam0.yaml"),
+               "--mount", "2.0,1.5,3.1", "--mount-sigma", "0.005", "--size", "1920x1080"})
+          .exit_code,
+      0);
+  const std::vector<std::vector<double>> pixels = {
+      {960, 540, 0.2}, {100, 80, 0.0}, {1850, 1000, 0.5}, {1234.5, 321.25, 0.2}};
+  std::ostringstream in;
+  in << "u,v,height_m\n";
+  for (const auto& p : pixels) in << p[0] << "," << p[1] << "," << p[2] << "\n";
+  ASSERT_TRUE(WriteFile(dir.File("pixels.csv"), in.str()));
+
+  const RunResult forward =
+      Roomfix({"map", "--calibration", dir.File("cam0.yaml"), dir.File("pixels.csv")});
+  ASSERT_EQ(forward.exit_code, 0) << forward.out;
+  EXPECT_EQ(forward.out.rfind("x_m,y_m,height_m\n", 0), 0u);
+  ASSERT_TRUE(WriteFile(dir.File("floor.csv"), forward.out));
+  const RunResult back =
+      Roomfix({"map", "--calibration", dir.File("cam0.yaml"), "--inverse", dir.File("floor.csv")});
+  ASSERT_EQ(back.exit_code, 0) << back.out;
+  const auto floor = ParseCsv(forward.out);
+  const auto again = ParseCsv(back.out);
+  ASSERT_EQ(again.size(), pixels.size());
+  for (size_t i = 0; i < pixels.size(); ++i) {
+    EXPECT_NEAR(again[i][0], pixels[i][0], 1e-6) << i;
+    EXPECT_NEAR(again[i][1], pixels[i][1], 1e-6) << i;
+    EXPECT_EQ(again[i][2], pixels[i][2]);
+  }
+  // The image centre is near the nadir: below the 3.1 m mount.
+  EXPECT_NEAR(floor[0][0], 2.0, 0.1);
+  EXPECT_NEAR(floor[0][1], 1.5, 0.1);
+}
+
+TEST(RoomfixMap, TheShippedRegionTableMapsItsOwnHeightAndRefusesAnother) {
+  TempDir dir;
+  const std::string example = SourceDir() + "/config/calibration/reference_9_region_example.yaml";
+  // The image centre sees the nadir (2.0, 1.5); 0.0 m is not the table's
+  // height, so that line gives nan and the exit code 2.
+  ASSERT_TRUE(WriteFile(dir.File("in.csv"), "959.5,539.5,0.2\n959.5,539.5,0.0\n1500,300,0.2\n"));
+  const RunResult r = Roomfix({"map", "--calibration", example, dir.File("in.csv")});
+  EXPECT_EQ(r.exit_code, 2);
+  const auto rows = ParseCsv(r.out);
+  ASSERT_EQ(rows.size(), 3u);
+  EXPECT_NEAR(rows[0][0], 2.0, 0.01);
+  EXPECT_NEAR(rows[0][1], 1.5, 0.01);
+  EXPECT_TRUE(std::isnan(rows[1][0]));
+  const RunResult why = Roomfix({"map", "--calibration", example, dir.File("in.csv")}, true);
+  EXPECT_NE(why.out.find(":2: height 0 m differs from the calibration height 0.2 m"),
+            std::string::npos)
+      << why.out;
+
+  // Inside a region the table inverts exactly.
+  std::ostringstream floor;
+  floor.precision(12);
+  floor << "x_m,y_m,height_m\n" << rows[2][0] << "," << rows[2][1] << ",0.2\n";
+  ASSERT_TRUE(WriteFile(dir.File("floor.csv"), floor.str()));
+  const RunResult back =
+      Roomfix({"map", "--calibration", example, "--inverse", dir.File("floor.csv")});
+  ASSERT_EQ(back.exit_code, 0);
+  const auto pixel = ParseCsv(back.out);
+  ASSERT_EQ(pixel.size(), 1u);
+  EXPECT_NEAR(pixel[0][0], 1500, 1e-6);
+  EXPECT_NEAR(pixel[0][1], 300, 1e-6);
+}
+
+// Each refusal: exit code 1, one line on standard error, no file written.
+TEST(RoomfixCalibrate, RefusesBadPointSetsWithOneClearLine) {
+  TempDir dir;
+  const std::string good = PointsCsv();
+  std::vector<std::string> rows;
+  {
+    std::istringstream lines(good);
+    std::string line;
+    while (std::getline(lines, line)) rows.push_back(line);
+  }
+  auto csv = [&](size_t n) {
+    std::string text;
+    for (size_t i = 0; i < n && i < rows.size(); ++i) text += rows[i] + "\n";
+    return text;
+  };
+  struct Case {
+    std::string name;
+    std::string points;
+    std::vector<std::string> extra;
+    std::string message;
+  };
+  std::string outside = good;
+  outside.replace(outside.find('\n') + 1,
+                  outside.find(',', outside.find('\n')) - outside.find('\n') - 1, "2500");
+  std::string line_points = "u,v,x_m,y_m,height_m\n";
+  for (int i = 0; i < 12; ++i) {
+    line_points += std::to_string(300 + 100 * i) + ",540," + std::to_string(0.3 * i) + ",1.5,0.2\n";
+  }
+  std::string mixed = good;
+  mixed.replace(mixed.rfind(",0.2\n"), 5, ",0.5\n");
+  std::string above = good;
+  above.replace(above.rfind(",0.2\n"), 5, ",3.5\n");
+  const std::vector<Case> cases = {
+      {"too few",
+       csv(6),
+       {},
+       "roomfix calibrate: full model: too few points: need at least 10, got 5"},
+      {"line", line_points, {}, "roomfix calibrate: full model: all points lie on a line"},
+      {"outside", outside, {}, "roomfix calibrate: full model: point 0: pixel (2500, "},
+      {"heights, regions",
+       mixed,
+       {"--model", "regions"},
+       "roomfix calibrate: 9-region model: inconsistent heights: point 0 is at 0.2 m, point 19 at "
+       "0.5 m"},
+      {"heights, full",
+       above,
+       {},
+       "roomfix calibrate: full model: point 19: height 3.5 m is inconsistent"},
+      {"not converged",
+       good,
+       {"--max-iterations", "1"},
+       "roomfix calibrate: full model: the fit did not converge"},
+      {"no mount",
+       good,
+       {"--size", "1920x1080"},
+       "roomfix calibrate: full model: the camera's mount is unknown"},
+      {"bad csv",
+       "u,v,x_m,y_m,height_m\n1,2,3,four,5\n",
+       {},
+       ":2: y_m: expected a number, got 'four'"},
+  };
+  for (const Case& c : cases) {
+    ASSERT_TRUE(WriteFile(dir.File("p.csv"), c.points));
+    std::vector<std::string> args = {"calibrate", "--points", dir.File("p.csv"), "--out",
+                                     dir.File("cal.yaml")};
+    if (c.name != "no mount") {
+      args.insert(args.end(), {"--site", SourceDir() + "/config/sites/demo_room.yaml"});
+    }
+    args.insert(args.end(), c.extra.begin(), c.extra.end());
+    const RunResult r = Roomfix(args, /*stderr_only=*/true);
+    EXPECT_EQ(r.exit_code, 1) << c.name;
+    EXPECT_NE(r.out.find(c.message), std::string::npos) << c.name << ": " << r.out;
+    EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << c.name << ": " << r.out;
+    EXPECT_TRUE(ReadFile(dir.File("cal.yaml")).empty()) << c.name;
+  }
+}
+
+}  // namespace
+}  // namespace roomfix

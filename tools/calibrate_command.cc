@@ -1,0 +1,476 @@
+// roomfix calibrate: fits the camera model (and, for comparison, the
+// reference's 9-region table) to marker correspondences from a CSV file,
+// prints the residuals, writes the calibration YAML a site file can name,
+// and draws the fit on the image.
+#include <CLI/CLI.hpp>
+#include <Eigen/Core>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <limits>
+#include <memory>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <optional>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "core/calib/calibration_file.h"
+#include "core/calib/camera_fit.h"
+#include "core/calib/region_model.h"
+#include "core/world/site.h"
+#include "tools/commands.h"
+
+namespace roomfix {
+namespace {
+
+using calib::Calibration;
+using calib::CameraFitSummary;
+using calib::Correspondence;
+using calib::RegionFitSummary;
+
+struct Flags {
+  std::string points;
+  std::string out;
+  std::string model = "full";
+  std::string site;
+  int camera_id = -1;
+  std::string mount;
+  double mount_sigma_m = 0.005;
+  double fov_deg = 0.0;
+  std::string size;
+  std::string image;
+  std::string png;
+  double outlier_px = 3.0;
+  double pixel_sigma_px = 0.5;
+  int max_iterations = 200;
+};
+
+// Thrown inside the command for a one-line refusal.
+struct Refusal : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+std::vector<std::string> SplitComma(const std::string& line) {
+  std::vector<std::string> out;
+  std::stringstream s(line);
+  std::string field;
+  while (std::getline(s, field, ',')) {
+    const size_t a = field.find_first_not_of(" \t\r");
+    const size_t b = field.find_last_not_of(" \t\r");
+    out.push_back(a == std::string::npos ? "" : field.substr(a, b - a + 1));
+  }
+  return out;
+}
+
+bool ParseNumber(const std::string& text, double* value) {
+  char* end = nullptr;
+  *value = std::strtod(text.c_str(), &end);
+  return !text.empty() && end == text.c_str() + text.size() && std::isfinite(*value);
+}
+
+// The CSV: a header naming u, v, x_m, y_m, height_m (any order), then one
+// point per line. `lines` receives each point's line number for messages.
+std::vector<Correspondence> ReadPoints(const std::string& path, std::vector<int>* lines) {
+  std::ifstream in(path);
+  if (!in) throw Refusal(path + ": cannot open");
+  const char* names[5] = {"u", "v", "x_m", "y_m", "height_m"};
+  int column[5] = {-1, -1, -1, -1, -1};
+  std::string line;
+  int number = 0;
+  size_t width = 0;
+  std::vector<Correspondence> points;
+  while (std::getline(in, line)) {
+    ++number;
+    if (line.find_first_not_of(" \t\r") == std::string::npos || line[0] == '#') continue;
+    const auto fields = SplitComma(line);
+    if (width == 0) {
+      for (size_t i = 0; i < fields.size(); ++i) {
+        for (int k = 0; k < 5; ++k) {
+          if (fields[i] == names[k]) column[k] = static_cast<int>(i);
+        }
+      }
+      for (int k = 0; k < 5; ++k) {
+        if (column[k] < 0) {
+          throw Refusal(path + ":" + std::to_string(number) +
+                        ": the header must name the columns u,v,x_m,y_m,height_m (missing " +
+                        names[k] + ")");
+        }
+      }
+      width = fields.size();
+      continue;
+    }
+    if (fields.size() != width) {
+      throw Refusal(path + ":" + std::to_string(number) + ": expected " + std::to_string(width) +
+                    " fields, got " + std::to_string(fields.size()));
+    }
+    double v[5];
+    for (int k = 0; k < 5; ++k) {
+      if (!ParseNumber(fields[static_cast<size_t>(column[k])], &v[k])) {
+        throw Refusal(path + ":" + std::to_string(number) + ": " + names[k] +
+                      ": expected a number, got '" + fields[static_cast<size_t>(column[k])] + "'");
+      }
+    }
+    points.push_back(Correspondence{v[0], v[1], v[2], v[3], v[4]});
+    lines->push_back(number);
+  }
+  if (width == 0) throw Refusal(path + ": empty (expected a header u,v,x_m,y_m,height_m)");
+  return points;
+}
+
+std::array<double, 3> ParseTriple(const std::string& text, const std::string& flag) {
+  const auto fields = SplitComma(text);
+  std::array<double, 3> out{};
+  if (fields.size() != 3 || !ParseNumber(fields[0], &out[0]) || !ParseNumber(fields[1], &out[1]) ||
+      !ParseNumber(fields[2], &out[2])) {
+    throw Refusal(flag + ": expected X,Y,Z in metres, got '" + text + "'");
+  }
+  return out;
+}
+
+// The reprojection of room point `p` at its height under the chosen model.
+bool Reproject(const Calibration& c, const Correspondence& p, double* u, double* v) {
+  std::string ignored;
+  return c.FloorToPixel(p.x_m, p.y_m, p.height_m, u, v, &ignored);
+}
+
+struct Stats {
+  double rms_mm = 0, rms_px = 0, worst_mm = 0, worst_px = 0;
+  int worst = -1;
+};
+
+void Render(const Flags& f, const Calibration& c, const std::vector<Correspondence>& points,
+            const std::vector<bool>& outlier, const std::array<double, 4>& room_xy_m,
+            double grid_m) {
+  cv::Mat image;
+  if (!f.image.empty()) {
+    image = cv::imread(f.image, cv::IMREAD_COLOR);
+    if (image.empty()) throw Refusal(f.image + ": cannot read the image");
+    if (image.cols != c.width_px() || image.rows != c.height_px()) {
+      throw Refusal(f.image + ": the image is " + std::to_string(image.cols) + " x " +
+                    std::to_string(image.rows) + " px, the camera " + std::to_string(c.width_px()) +
+                    " x " + std::to_string(c.height_px()));
+    }
+  } else {
+    image = cv::Mat(c.height_px(), c.width_px(), CV_8UC3, cv::Scalar(48, 48, 48));
+  }
+  double height_m = 0;
+  for (const auto& p : points) height_m += p.height_m / static_cast<double>(points.size());
+  if (c.model == Calibration::Model::kRegions) height_m = c.regions.calibration_height_m;
+  // Grid lines at the calibration height, sampled every 2 cm so that the
+  // lens's curvature shows.
+  const cv::Scalar grid_colour(255, 200, 0);
+  auto draw_line = [&](double x0, double y0, double x1, double y1) {
+    const double length = std::hypot(x1 - x0, y1 - y0);
+    const int n = std::max(1, static_cast<int>(length / 0.02));
+    std::vector<cv::Point> run;
+    for (int i = 0; i <= n; ++i) {
+      const double t = static_cast<double>(i) / n;
+      double u, v;
+      Correspondence q{0, 0, x0 + t * (x1 - x0), y0 + t * (y1 - y0), height_m};
+      if (Reproject(c, q, &u, &v)) {
+        run.emplace_back(static_cast<int>(std::lround(u)), static_cast<int>(std::lround(v)));
+      } else if (!run.empty()) {
+        cv::polylines(image, run, false, grid_colour, 1, cv::LINE_AA);
+        run.clear();
+      }
+    }
+    if (run.size() > 1) cv::polylines(image, run, false, grid_colour, 1, cv::LINE_AA);
+  };
+  const double eps = 1e-9;
+  for (double x = room_xy_m[0]; x <= room_xy_m[2] + eps; x += grid_m) {
+    draw_line(x, room_xy_m[1], x, room_xy_m[3]);
+  }
+  for (double y = room_xy_m[1]; y <= room_xy_m[3] + eps; y += grid_m) {
+    draw_line(room_xy_m[0], y, room_xy_m[2], y);
+  }
+  if (c.model == Calibration::Model::kRegions) {
+    const cv::Scalar boundary(128, 128, 128);
+    for (double u : c.regions.u_boundaries_px) {
+      cv::line(image, cv::Point(static_cast<int>(u), 0), cv::Point(static_cast<int>(u), image.rows),
+               boundary, 1);
+    }
+    for (double v : c.regions.v_boundaries_px) {
+      cv::line(image, cv::Point(0, static_cast<int>(v)), cv::Point(image.cols, static_cast<int>(v)),
+               boundary, 1);
+    }
+  }
+  // Residual arrows from the measured pixel towards the reprojection,
+  // magnified: sub-pixel residuals would not show otherwise.
+  constexpr double kArrowScale = 20.0;
+  for (size_t i = 0; i < points.size(); ++i) {
+    const Correspondence& p = points[i];
+    const cv::Point measured(static_cast<int>(std::lround(p.u_px)),
+                             static_cast<int>(std::lround(p.v_px)));
+    cv::circle(image, measured, 4, cv::Scalar(0, 255, 0), 1, cv::LINE_AA);
+    double u, v;
+    if (Reproject(c, p, &u, &v)) {
+      const cv::Point tip(static_cast<int>(std::lround(p.u_px + kArrowScale * (u - p.u_px))),
+                          static_cast<int>(std::lround(p.v_px + kArrowScale * (v - p.v_px))));
+      cv::arrowedLine(image, measured, tip, cv::Scalar(0, 0, 255), 2, cv::LINE_AA, 0, 0.2);
+    }
+    if (outlier[i]) cv::circle(image, measured, 12, cv::Scalar(255, 0, 255), 2, cv::LINE_AA);
+    cv::putText(image, std::to_string(i), measured + cv::Point(6, -6), cv::FONT_HERSHEY_SIMPLEX,
+                0.4, cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
+  }
+  cv::putText(image,
+              std::string(c.model == Calibration::Model::kFull ? "full model" : "9-region model") +
+                  ": grid every " + std::to_string(grid_m).substr(0, 4) +
+                  " m, residual arrows x20, outliers circled",
+              cv::Point(10, 24), cv::FONT_HERSHEY_SIMPLEX, 0.6, cv::Scalar(255, 255, 255), 1,
+              cv::LINE_AA);
+  if (!cv::imwrite(f.png, image)) throw Refusal(f.png + ": cannot write the PNG");
+}
+
+std::string Fixed(double v, int digits) {
+  if (!std::isfinite(v)) return "-";
+  char buffer[64];
+  std::snprintf(buffer, sizeof(buffer), "%.*f", digits, v);
+  return buffer;
+}
+
+void Run(const Flags& f) {
+  if (f.model != "full" && f.model != "regions") {
+    throw Refusal("--model: expected full or regions, got '" + f.model + "'");
+  }
+  std::vector<int> lines;
+  const std::vector<Correspondence> points = ReadPoints(f.points, &lines);
+  if (points.empty()) throw Refusal(f.points + ": no points");
+
+  // Camera size, field of view and mount: flags over the site's camera.
+  int width_px = 0, height_px = 0;
+  double fov_deg = 120.0;
+  std::optional<std::array<double, 3>> mount;
+  std::array<double, 4> room_xy_m{};
+  double grid_m = 0.5;
+  bool have_room = false;
+  if (!f.site.empty()) {
+    Site site;
+    std::string error;
+    if (!LoadSite(f.site, &site, &error)) throw Refusal(error);
+    const roomfix::Camera* camera = nullptr;
+    for (const auto& c : site.cameras) {
+      if (f.camera_id < 0 ? camera == nullptr : c.id == f.camera_id) camera = &c;
+    }
+    if (camera == nullptr) {
+      throw Refusal(f.site + ": no camera " +
+                    (f.camera_id < 0 ? std::string("at all") : std::to_string(f.camera_id)));
+    }
+    width_px = camera->width_px;
+    height_px = camera->height_px;
+    fov_deg = camera->field_of_view_deg;
+    mount = camera->mount_position_m;
+    room_xy_m = {site.room.min_x_m, site.room.min_y_m, site.room.min_x_m + site.room.size_x_m,
+                 site.room.min_y_m + site.room.size_y_m};
+    grid_m = site.room.grid_m;
+    have_room = true;
+  }
+  if (!f.size.empty()) {
+    if (std::sscanf(f.size.c_str(), "%dx%d", &width_px, &height_px) != 2 || width_px <= 0 ||
+        height_px <= 0) {
+      throw Refusal("--size: expected WIDTHxHEIGHT in pixels, got '" + f.size + "'");
+    }
+  }
+  if (width_px <= 0 && !f.image.empty()) {
+    const cv::Mat image = cv::imread(f.image, cv::IMREAD_UNCHANGED);
+    if (image.empty()) throw Refusal(f.image + ": cannot read the image");
+    width_px = image.cols;
+    height_px = image.rows;
+  }
+  if (width_px <= 0) {
+    throw Refusal("the image size is unknown: give --size WxH, --image FILE or --site FILE");
+  }
+  if (f.fov_deg > 0) fov_deg = f.fov_deg;
+  if (!f.mount.empty()) mount = ParseTriple(f.mount, "--mount");
+  if (!have_room) {
+    // The points' extent rounded out to the grid.
+    room_xy_m = {INFINITY, INFINITY, -INFINITY, -INFINITY};
+    for (const auto& p : points) {
+      room_xy_m[0] = std::min(room_xy_m[0], std::floor(p.x_m / grid_m) * grid_m);
+      room_xy_m[1] = std::min(room_xy_m[1], std::floor(p.y_m / grid_m) * grid_m);
+      room_xy_m[2] = std::max(room_xy_m[2], std::ceil(p.x_m / grid_m) * grid_m);
+      room_xy_m[3] = std::max(room_xy_m[3], std::ceil(p.y_m / grid_m) * grid_m);
+    }
+  }
+
+  // The full model. Points at one height do not fix the camera's height
+  // (camera_fit.h): the mount measured on site enters as a prior.
+  CameraFitSummary full;
+  std::string full_why;
+  if (!mount) {
+    full_why =
+        "the camera's mount is unknown: give --mount X,Y,Z (metres) or --site FILE [--camera ID]";
+  } else {
+    calib::CameraFitOptions options;
+    options.equal_focal_lengths = true;
+    options.distortion_terms = 2;
+    options.position_prior_sigma_m = f.mount_sigma_m;
+    options.pixel_sigma_px = f.pixel_sigma_px;
+    options.outlier_px = f.outlier_px;
+    options.max_iterations = f.max_iterations;
+    full = calib::FitCamera(points, calib::NominalCamera(*mount, fov_deg, width_px, height_px),
+                            options);
+    if (!full.usable) full_why = full.message;
+  }
+  const RegionFitSummary regions =
+      calib::FitRegions(points, calib::ThirdsRegionModel(width_px, height_px));
+
+  const bool want_full = f.model == "full";
+  if (want_full && !full.usable) throw Refusal("full model: " + full_why);
+  if (!want_full && !regions.usable) throw Refusal("9-region model: " + regions.message);
+
+  Calibration full_cal, region_cal;
+  full_cal.model = Calibration::Model::kFull;
+  full_cal.camera = full.model;
+  region_cal.model = Calibration::Model::kRegions;
+  region_cal.regions = regions.model;
+  std::vector<bool> outlier = full.usable ? full.outlier : std::vector<bool>(points.size(), false);
+
+  // Residual table: floor distance of the mapped pixel from the marker (mm)
+  // and pixel distance of the reprojected marker from its pixel (px).
+  Stats fs, rs;
+  int n_full = 0;
+  std::cout << "point line        u_px        v_px     x_m     y_m  height_m | full_mm  full_px "
+               "| regions_mm regions_px\n";
+  for (size_t i = 0; i < points.size(); ++i) {
+    const Correspondence& p = points[i];
+    std::string ignored;
+    double fmm = NAN, fpx = NAN, rmm = NAN, rpx = NAN, x, y;
+    if (full.usable) {
+      if (full_cal.PixelToFloor(p.u_px, p.v_px, p.height_m, &x, &y, &ignored)) {
+        fmm = 1e3 * std::hypot(x - p.x_m, y - p.y_m);
+      }
+      fpx = full.residual_px[i];
+      if (!outlier[i]) {
+        ++n_full;
+        fs.rms_mm += fmm * fmm;
+        fs.rms_px += fpx * fpx;
+        if (fs.worst < 0 || fpx > fs.worst_px) {
+          fs.worst = static_cast<int>(i);
+          fs.worst_px = fpx;
+          fs.worst_mm = fmm;
+        }
+      }
+    }
+    if (regions.usable) {
+      rmm = 1e3 * regions.residual_m[i];
+      rpx = regions.residual_px[i];
+      rs.rms_mm += rmm * rmm;
+      rs.rms_px += rpx * rpx;
+      if (rs.worst < 0 || rmm > rs.worst_mm) {
+        rs.worst = static_cast<int>(i);
+        rs.worst_px = rpx;
+        rs.worst_mm = rmm;
+      }
+    }
+    char row[256];
+    std::snprintf(row, sizeof(row),
+                  "%5zu %4d %11.3f %11.3f %7.3f %7.3f %9.3f | %7s %8s | %10s %10s%s\n", i, lines[i],
+                  p.u_px, p.v_px, p.x_m, p.y_m, p.height_m, Fixed(fmm, 2).c_str(),
+                  Fixed(fpx, 3).c_str(), Fixed(rmm, 2).c_str(), Fixed(rpx, 3).c_str(),
+                  outlier[i] ? "  OUTLIER" : "");
+    std::cout << row;
+  }
+  if (full.usable) {
+    std::cout << "full model: RMS " << Fixed(std::sqrt(fs.rms_mm / n_full), 2) << " mm, "
+              << Fixed(std::sqrt(fs.rms_px / n_full), 3) << " px over " << n_full
+              << " points; worst point " << fs.worst << " (line "
+              << lines[static_cast<size_t>(fs.worst)] << "): " << Fixed(fs.worst_mm, 2) << " mm, "
+              << Fixed(fs.worst_px, 3) << " px; " << full.message << "\n";
+  } else {
+    std::cout << "full model: not fitted: " << full_why << "\n";
+  }
+  if (regions.usable) {
+    const double n = static_cast<double>(points.size());
+    std::cout << "9-region model: RMS " << Fixed(std::sqrt(rs.rms_mm / n), 2) << " mm, "
+              << Fixed(std::sqrt(rs.rms_px / n), 3) << " px over " << points.size()
+              << " points; worst point " << rs.worst << " (line "
+              << lines[static_cast<size_t>(rs.worst)] << "): " << Fixed(rs.worst_mm, 2) << " mm, "
+              << Fixed(rs.worst_px, 3) << " px; valid only at "
+              << regions.model.calibration_height_m << " m\n";
+  } else {
+    std::cout << "9-region model: not fitted: " << regions.message << "\n";
+  }
+  for (size_t i = 0; i < points.size(); ++i) {
+    if (outlier[i]) {
+      std::cout << "outlier: point " << i << " (line " << lines[i] << ") is "
+                << Fixed(full.residual_px[i], 2) << " px off the fit (over " << f.outlier_px
+                << " px), left out of it: check the marker's position or its pixel\n";
+    }
+  }
+
+  const Calibration& chosen = want_full ? full_cal : region_cal;
+  std::ostringstream header;
+  header << "Written by roomfix calibrate from " << f.points << " (" << points.size()
+         << " points), model " << f.model << ".\n";
+  if (want_full) {
+    header << "RMS " << Fixed(std::sqrt(fs.rms_mm / n_full), 2) << " mm / "
+           << Fixed(std::sqrt(fs.rms_px / n_full), 3) << " px over the points; " << full.message;
+  } else {
+    header << "Valid only for markers at " << regions.model.calibration_height_m
+           << " m (the 9-region model knows one height).";
+  }
+  std::string error;
+  if (!calib::SaveCalibration(f.out, chosen, header.str(), &error)) throw Refusal(error);
+  std::cout << "wrote " << f.out << "\n";
+  Render(f, chosen, points, outlier, room_xy_m, grid_m);
+  std::cout << "wrote " << f.png << "\n";
+}
+
+}  // namespace
+
+void AddCalibrateCommand(CLI::App* app, int* exit_code) {
+  auto* cmd = app->add_subcommand(
+      "calibrate",
+      "Fit the camera model to marker points (CSV u,v,x_m,y_m,height_m); print residuals; write "
+      "the calibration YAML and a PNG of the fit");
+  auto f = std::make_shared<Flags>();
+  cmd->add_option("--points", f->points, "CSV with header u,v,x_m,y_m,height_m")->required();
+  cmd->add_option("--out", f->out, "Calibration YAML to write")->required();
+  cmd->add_option("--model", f->model, "full (the fisheye model) or regions (the reference's 9)")
+      ->capture_default_str();
+  cmd->add_option("--site", f->site, "Site file: camera size, field of view, mount and room");
+  cmd->add_option("--camera", f->camera_id, "Camera id in the site file (default: the first)");
+  cmd->add_option("--mount", f->mount, "Measured lens position X,Y,Z in metres (over the site's)");
+  cmd->add_option("--mount-sigma", f->mount_sigma_m,
+                  "How well the mount is known (m): the prior's standard deviation")
+      ->capture_default_str();
+  cmd->add_option("--fov", f->fov_deg, "Field of view across the width, degrees (default 120)");
+  cmd->add_option("--size", f->size, "Image size WIDTHxHEIGHT in pixels");
+  cmd->add_option("--image", f->image, "Camera image to draw the fit on");
+  cmd->add_option("--png", f->png, "PNG to write (default: --out with .png)");
+  cmd->add_option("--outlier-px", f->outlier_px, "Residual above which a point is an outlier")
+      ->capture_default_str();
+  cmd->add_option("--pixel-sigma", f->pixel_sigma_px, "Expected pixel noise (weights the prior)")
+      ->capture_default_str();
+  cmd->add_option("--max-iterations", f->max_iterations, "Fit iterations before giving up")
+      ->capture_default_str();
+  cmd->callback([f, exit_code] {
+    if (f->png.empty()) {
+      const size_t dot = f->out.rfind('.');
+      const size_t slash = f->out.rfind('/');
+      f->png = (dot != std::string::npos && (slash == std::string::npos || dot > slash)
+                    ? f->out.substr(0, dot)
+                    : f->out) +
+               ".png";
+    }
+    try {
+      Run(*f);
+      *exit_code = 0;
+    } catch (const Refusal& e) {
+      std::cerr << "roomfix calibrate: " << e.what() << "\n";
+      *exit_code = 1;
+    } catch (const cv::Exception& e) {
+      std::cerr << "roomfix calibrate: OpenCV: " << e.msg << "\n";
+      *exit_code = 1;
+    }
+  });
+}
+
+}  // namespace roomfix
