@@ -16,6 +16,10 @@ std::unique_ptr<LogReader> LogReader::Open(const std::string& path, std::string*
     if (error != nullptr) *error = path + ": " + std::strerror(errno);
     return nullptr;
   }
+  if (!S_ISREG(st.st_mode)) {
+    if (error != nullptr) *error = path + ": not a regular file";
+    return nullptr;
+  }
   auto file = std::make_unique<lcm::LogFile>(path, "r");
   if (!file->good()) {
     if (error != nullptr) *error = path + ": cannot open as an LCM log";

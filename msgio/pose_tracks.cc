@@ -93,6 +93,13 @@ PoseLogs ReadPoseLogs(const std::vector<std::string>& paths,
   for (auto& [key, track] : out.tracks) {
     std::stable_sort(track.samples.begin(), track.samples.end(),
                      [](const PoseSample& a, const PoseSample& b) { return a.utime < b.utime; });
+    // The same pose recorded twice (overlapping logs, two loggers on one
+    // bus) is one measurement: keep the first copy.
+    track.samples.erase(std::unique(track.samples.begin(), track.samples.end(),
+                                    [](const PoseSample& a, const PoseSample& b) {
+                                      return a.utime == b.utime && a.x_m == b.x_m && a.y_m == b.y_m;
+                                    }),
+                        track.samples.end());
   }
   if (progress) progress(1.0);
   return out;

@@ -61,7 +61,8 @@ struct PoseLogs {
 };
 
 // Reads every pose2d_t on POSE_* channels of the logs (written by
-// roomfix_logger or lcm-logger). A log that cannot be opened or that is
+// roomfix_logger or lcm-logger). A pose that appears twice (same time and
+// position: overlapping logs) counts once. A log that cannot be opened or that is
 // damaged is reported in `logs` and its readable part used; nothing throws.
 // `progress`, when given, is called with the fraction of all bytes read so
 // far (0 to 1), at most every 64 KiB.

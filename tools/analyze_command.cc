@@ -2,7 +2,10 @@
 // recorded logs: static repeatability, timing, circle fits, motion, error
 // against ground truth, camera against ultrasound. A Markdown report and PNG
 // figures (gnuplot) in an output folder, and the same figures as JSON.
+#include <fcntl.h>
+#include <spawn.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
@@ -23,6 +26,8 @@
 #include "core/analysis/track_stats.h"
 #include "msgio/pose_tracks.h"
 #include "tools/commands.h"
+
+extern char** environ;
 
 namespace roomfix {
 namespace {
@@ -71,21 +76,41 @@ json CircleJson(const analysis::DriftingCircle& c) {
           {"vy_mps", c.vy_mps},     {"vy_sigma_mps", c.vy_sigma_mps}};
 }
 
-// Runs gnuplot on a script; false (with the reason) when gnuplot is missing
-// or fails. Figures are optional: the report says when one is missing.
+// A path as a gnuplot string literal: single-quoted, quotes doubled.
+std::string Gp(const std::string& path) {
+  std::string out = "'";
+  for (char c : path) out += c == '\'' ? std::string("''") : std::string(1, c);
+  return out + "'";
+}
+
+// Runs gnuplot on a script, with no shell in between (the output folder's
+// name is the user's); false (with the reason) when gnuplot is missing or
+// fails. Figures are optional: the report says when one is missing.
 bool RunGnuplot(const std::string& script_path, std::string* error) {
-  const std::string command = "gnuplot " + script_path + " 2>&1";
-  FILE* pipe = ::popen(command.c_str(), "r");
-  if (pipe == nullptr) {
-    *error = "cannot start gnuplot";
+  const std::string log_path = script_path + ".log";
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, 1, log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC,
+                                   0644);
+  posix_spawn_file_actions_adddup2(&actions, 1, 2);
+  std::string program = "gnuplot";
+  std::string script = script_path;
+  char* argv[] = {program.data(), script.data(), nullptr};
+  pid_t pid = -1;
+  const int rc = ::posix_spawnp(&pid, "gnuplot", &actions, nullptr, argv, environ);
+  posix_spawn_file_actions_destroy(&actions);
+  if (rc != 0) {
+    *error = std::string("cannot start gnuplot: ") + std::strerror(rc) + " (is it installed?)";
     return false;
   }
-  std::string output;
-  char buffer[256];
-  while (std::fgets(buffer, sizeof(buffer), pipe) != nullptr) output += buffer;
-  const int status = ::pclose(pipe);
-  if (status != 0) {
-    *error = "gnuplot failed: " + (output.empty() ? std::string("is it installed?") : output);
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+    std::ifstream log(log_path);
+    std::string first_line;
+    std::getline(log, first_line);
+    *error = "gnuplot failed" + (first_line.empty() ? std::string() : ": " + first_line);
     return false;
   }
   return true;
@@ -118,7 +143,7 @@ class Figures {
         for (const PoseSample& s : t->samples) o << s.x_m << " " << s.y_m << "\n";
       });
       plot += (plot.empty() ? "" : ", ") +
-              ("'" + data + "' using 1:2 with " +
+              (Gp(data) + " using 1:2 with " +
                (t->source == "ground_truth" ? "lines lw 2" : "points pt 7 ps 0.4") + " title '" +
                t->source + "'");
     }
@@ -143,22 +168,26 @@ class Figures {
     return Draw(stem, "set multiplot layout 1,2 title 'Time between successive fixes: mean " +
                           Fixed(t.mean_ms, 1) + " ms, std " + Fixed(t.std_ms, 1) +
                           " ms'\nset style fill solid 0.6\nset xlabel 'interval (ms)'\n"
-                          "set ylabel 'fixes'\nplot '" +
-                          ms + "' using 1:2 with boxes notitle\nset xlabel 'interval (frames at " +
-                          Fixed(1000.0 / t.frame_period_ms, 0) + " fps)'\nset xtics 1\nplot '" +
-                          frames + "' using 1:2 with boxes notitle\nunset multiplot\n");
+                          "set ylabel 'fixes'\nplot " +
+                          Gp(ms) +
+                          " using 1:2 with boxes notitle\nset xlabel 'interval (frames at " +
+                          Fixed(1000.0 / t.frame_period_ms, 0) + " fps)'\nset xtics 1\nplot " +
+                          Gp(frames) + " using 1:2 with boxes notitle\nunset multiplot\n");
   }
 
   std::string ErrorOverTime(const std::string& stem, const std::vector<analysis::ErrorSample>& e) {
     if (e.empty()) return "";
     const int64_t t0 = e.front().utime;
     const std::string data = WriteData(stem, [&](std::ostream& o) {
-      for (const auto& s : e) o << (s.utime - t0) * 1e-6 << " " << s.error_m * 100.0 << "\n";
+      for (const auto& s : e) {
+        o << (static_cast<double>(s.utime) - static_cast<double>(t0)) * 1e-6 << " "
+          << s.error_m * 100.0 << "\n";
+      }
     });
     return Draw(stem,
                 "set title 'Error against ground truth'\nset xlabel 'time (s)'\n"
-                "set ylabel 'error (cm)'\nplot '" +
-                    data + "' using 1:2 with lines notitle\n");
+                "set ylabel 'error (cm)'\nplot " +
+                    Gp(data) + " using 1:2 with lines notitle\n");
   }
 
   std::string Static(const std::string& stem, const analysis::Repeatability& r) {
@@ -177,8 +206,8 @@ class Figures {
     return Draw(stem, "set title 'Static repeatability: " + std::to_string(r.n) + " fixes, std " +
                           Fixed(r.std_x_m * 100, 2) + " cm x, " + Fixed(r.std_y_m * 100, 2) +
                           " cm y'\nset xlabel 'x - mean (cm)'\nset ylabel 'y - mean (cm)'\n"
-                          "set size ratio -1\nset view map\nplot '" +
-                          data + "' using 1:2:3 with image notitle\n");
+                          "set size ratio -1\nset view map\nplot " +
+                          Gp(data) + " using 1:2:3 with image notitle\n");
   }
 
   const std::vector<std::string>& notes() const { return notes_; }
@@ -198,8 +227,8 @@ class Figures {
     if (!enabled_) return "";
     const std::string png = stem + ".png";
     const std::string script = dir_ + "/data/" + stem + ".gp";
-    WriteText(script, "set terminal pngcairo size 900,600 noenhanced\nset output '" + dir_ + "/" +
-                          png + "'\nset grid\n" + body);
+    WriteText(script, "set terminal pngcairo size 900,600 noenhanced\nset output " +
+                          Gp(dir_ + "/" + png) + "\nset grid\n" + body);
     std::string error;
     if (!RunGnuplot(script, &error)) {
       notes_.push_back(png + ": " + error);
@@ -222,6 +251,21 @@ std::string DefaultOutDir(const std::string& log) {
 }
 
 int RunAnalyze(const AnalyzeOptions& options) {
+  const std::pair<const char*, bool> checks[] = {
+      {"--frame-rate must be in (0, 10000] fps",
+       options.frame_rate_hz > 0.0 && options.frame_rate_hz <= 10000.0},
+      {"--tolerance must be in (0, 10] m",
+       options.tolerance_m > 0.0 && options.tolerance_m <= 10.0},
+      {"--static-extent must be in (0, 100] m",
+       options.static_extent_m > 0.0 && options.static_extent_m <= 100.0},
+      {"--max-gap must be in (0, 86400] s",
+       options.max_gap_s > 0.0 && options.max_gap_s <= 86400.0}};
+  for (const auto& [message, ok] : checks) {
+    if (!ok) {
+      std::cerr << "roomfix analyze: " << message << "\n";
+      return 1;
+    }
+  }
   const std::string out_dir =
       options.out_dir.empty() ? DefaultOutDir(options.logs[0]) : options.out_dir;
   if (::mkdir(out_dir.c_str(), 0755) != 0 && errno != EEXIST) {
@@ -304,7 +348,9 @@ int RunAnalyze(const AnalyzeOptions& options) {
       for (const PoseSample& s : t->samples) {
         utimes.push_back(s.utime);
         publish_ms.push_back(s.latency_us * 1e-3);
-        arrival_ms.push_back((s.recv_utime - s.utime) * 1e-3);
+        // In double: a garbage utime must not overflow the subtraction.
+        arrival_ms.push_back((static_cast<double>(s.recv_utime) - static_cast<double>(s.utime)) *
+                             1e-3);
         degraded += s.degraded ? 1 : 0;
       }
       const std::string stem = t->source + "_robot" + std::to_string(robot_id);
@@ -377,7 +423,9 @@ int RunAnalyze(const AnalyzeOptions& options) {
       } else if (positions.size() >= 10) {
         std::vector<analysis::TimedPoint> points;
         for (const auto& p : positions) {
-          points.push_back({(p.utime - positions.front().utime) * 1e-6, p.x_m, p.y_m});
+          points.push_back(
+              {(static_cast<double>(p.utime) - static_cast<double>(positions.front().utime)) * 1e-6,
+               p.x_m, p.y_m});
         }
         const analysis::DriftingCircleFit a = analysis::FitDriftingCircle(points);
         const analysis::CircularMotionFit b = analysis::FitCircularMotion(points);
@@ -446,9 +494,9 @@ int RunAnalyze(const AnalyzeOptions& options) {
 
   // The per-source summary of the first robot, the shape `make demo` prints.
   out["sources"] = json::object();
-  for (const auto& [robot_id, robot] : out["robots"].items()) {
-    for (const auto& [source, j] : robot.items()) {
-      if (source == "ground_truth" || out["sources"].contains(source)) continue;
+  if (!out["robots"].empty()) {
+    for (const auto& [source, j] : out["robots"].begin()->items()) {
+      if (source == "ground_truth") continue;
       json s = {{"rate_hz", j["timing"]["rate_hz"]}};
       if (j.contains("ground_truth_error")) {
         s["rmse_m"] = j["ground_truth_error"]["rmse_m"];

@@ -189,12 +189,19 @@ Timing ComputeTiming(const std::vector<int64_t>& utimes, double frame_rate_hz) {
 
   constexpr double kShownShare = 0.995;
   constexpr double kMinBins = 10.0;
-  const double hi_ms = std::max(std::floor(Percentile(intervals_ms, kShownShare)) + 1.0, kMinBins);
+  // With few intervals the 99.5th percentile is the longest one: a single
+  // hour-long gap (two sessions merged) would make millions of 1 ms bins.
+  // The figure is about the sampling rhythm, so it stops at 20 medians (and
+  // never beyond 10 000 bins); longer gaps are counted in `above`.
+  const double cap_ms = std::min(std::max(20.0 * t.median_ms, kMinBins), 10000.0);
+  const double hi_ms =
+      std::min(std::max(std::floor(Percentile(intervals_ms, kShownShare)) + 1.0, kMinBins), cap_ms);
   t.interval_ms = MakeHistogram(intervals_ms, 0.0, hi_ms, 1.0);
   if (t.frame_period_ms > 0.0) {
     std::vector<double> frames;
     for (double ms : intervals_ms) frames.push_back(std::round(ms / t.frame_period_ms));
-    const double hi_frames = std::max(Percentile(frames, kShownShare) + 1.0, kMinBins);
+    const double hi_frames = std::min(std::max(Percentile(frames, kShownShare) + 1.0, kMinBins),
+                                      std::max(std::ceil(cap_ms / t.frame_period_ms), kMinBins));
     t.interval_frames = MakeHistogram(frames, 0.0, hi_frames, 1.0);
   }
   return t;

@@ -93,7 +93,10 @@ TEST(RoomfixAnalyze, RecoversTheStaticRepeatabilityAndTheCameraCycleOfTheReferen
   log.Close();
 
   int rc = -1;
-  const json out = Analyze({dir.File("static.lcm"), "--out", dir.File("report")}, &rc);
+  // A folder name with a space, a quote and a semicolon: gnuplot gets it as
+  // data, never a shell.
+  const std::string report = dir.File("it's a; report");
+  const json out = Analyze({dir.File("static.lcm"), "--out", report}, &rc);
   ASSERT_EQ(rc, 0);
   ASSERT_FALSE(out.is_discarded());
   const json& camera = out["robots"]["1"]["camera"];
@@ -121,9 +124,9 @@ TEST(RoomfixAnalyze, RecoversTheStaticRepeatabilityAndTheCameraCycleOfTheReferen
   EXPECT_NEAR(camera["timing"]["mean_ms"].get<double>(), 7 * 1000.0 / 30.0, 0.1);
   EXPECT_NEAR(camera["latency_publish_ms"]["median_ms"].get<double>(), 5.0, 1e-9);
 
-  EXPECT_TRUE(NonEmptyFile(dir.File("report/static_camera_robot1.png")));
-  EXPECT_TRUE(NonEmptyFile(dir.File("report/intervals_camera_robot1.png")));
-  const std::string md = ReadFile(dir.File("report/report.md"));
+  EXPECT_TRUE(NonEmptyFile(report + "/static_camera_robot1.png"));
+  EXPECT_TRUE(NonEmptyFile(report + "/intervals_camera_robot1.png"));
+  const std::string md = ReadFile(report + "/report.md");
   EXPECT_NE(md.find("static_camera_robot1.png"), std::string::npos);
   EXPECT_NE(md.find("0.38 cm, 0.49 cm"), std::string::npos) << "the reference beside ours";
 }
@@ -197,6 +200,34 @@ TEST(RoomfixAnalyze, FitsTheReferenceCircleAndComparesEachSourceWithTruthAndCame
   EXPECT_TRUE(NonEmptyFile(dir.File("report/error_ultrasound_robot1.png")));
 }
 
+TEST(RoomfixAnalyze, CountsAPoseRecordedInTwoLogsOnceAndKeepsTheFigureSmallAcrossAGap) {
+  // Two overlapping recordings of one session, then a second session an
+  // hour later.
+  TempDir dir;
+  for (const char* name : {"a.lcm", "b.lcm"}) {
+    LogBuilder log(dir.File(name));
+    for (int k = 0; k < 30; ++k) log.Pose(pose2d_t::SOURCE_ULTRASOUND, kT0 + k * 100'000, 1.0, 1.0);
+    log.Close();
+  }
+  {
+    LogBuilder log(dir.File("c.lcm"));
+    for (int k = 0; k < 30; ++k) {
+      log.Pose(pose2d_t::SOURCE_ULTRASOUND, kT0 + 3'600'000'000 + k * 100'000, 1.0, 1.0);
+    }
+    log.Close();
+  }
+  int rc = -1;
+  const json out = Analyze({dir.File("a.lcm"), dir.File("b.lcm"), dir.File("c.lcm"), "--no-figures",
+                            "--out", dir.File("r")},
+                           &rc);
+  ASSERT_EQ(rc, 0);
+  const json& u = out["robots"]["1"]["ultrasound"];
+  EXPECT_EQ(u["fixes"], 60);
+  // 20 medians of 100 ms: the hour-long gap is counted above the figure.
+  EXPECT_LE(u["timing"]["interval_ms"]["counts"].size(), 2000u);
+  EXPECT_EQ(u["timing"]["interval_ms"]["above"], 1);
+}
+
 TEST(RoomfixAnalyze, AnalysesTheReadablePartOfATruncatedLogAndSaysWhere) {
   TempDir dir;
   LogBuilder log(dir.File("cut.lcm"));
@@ -232,6 +263,10 @@ TEST(RoomfixAnalyze, ReportsEmptyCorruptAndMissingLogsWithoutCrashing) {
 
   out = Analyze({dir.File("missing.lcm"), "--out", dir.File("r2")}, &rc);
   EXPECT_EQ(rc, 1) << "nothing readable at all";
+  out = Analyze({dir.path(), "--out", dir.File("r3")}, &rc);
+  EXPECT_EQ(rc, 1) << "a folder is not a log";
+  out = Analyze({dir.File("empty.lcm"), "--max-gap", "nan", "--out", dir.File("r4")}, &rc);
+  EXPECT_EQ(rc, 1) << "options are checked";
 }
 
 }  // namespace
