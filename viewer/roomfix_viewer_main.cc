@@ -30,6 +30,10 @@ struct ViewerFlags {
   std::string screenshot_dir = ".";
 };
 
+// Longest stretch of log time a replay draws frame by frame; a longer gap
+// is skipped.
+constexpr int64_t kMaxReplayGapUs = 2'000'000;
+
 bool EndsWith(const std::string& s, const std::string& suffix) {
   return s.size() >= suffix.size() &&
          s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
@@ -153,51 +157,6 @@ int main(int argc, char** argv) {
   }
   const auto frame_us = static_cast<int64_t>(1e6 / flags.fps);
 
-  // A replay drives the same node through an in-process bus on log time.
-  if (!flags.log.empty()) {
-    roomfix::LoopbackBus bus;
-    roomfix::ViewerNode node(ctx->site, &bus, options, 0);
-    int64_t next_frame = 0;
-    roomfix::ReplayOptions replay;
-    if (!flags.video.empty() || !flags.headless) {
-      replay.on_time = [&](int64_t utime) {
-        if (next_frame == 0) next_frame = utime;
-        while (next_frame <= utime) {
-          roomfix::viewer::Render(node.StateAt(next_frame), render, &frame);
-          if (!flags.video.empty()) video.Write(frame);
-          if (!flags.headless) {
-            cv::imshow("roomfix_viewer", frame);
-            cv::waitKey(std::max(1, static_cast<int>(frame_us / 1000)));
-          }
-          next_frame += frame_us;
-        }
-      };
-    }
-    const roomfix::ReplaySummary summary = roomfix::ReplayLog(flags.log, &bus, replay);
-    if (!summary.ok) {
-      std::cerr << "roomfix_viewer: " << summary.error << "\n";
-      return 1;
-    }
-    if (summary.damaged) spdlog::warn("{}: damaged; replayed what was readable", flags.log);
-    roomfix::viewer::Render(node.StateAt(summary.last_utime), render, &frame);
-    if (!flags.png.empty() && !cv::imwrite(flags.png, frame)) {
-      std::cerr << "roomfix_viewer: cannot write " << flags.png << "\n";
-      return 1;
-    }
-    if (!flags.headless) {
-      // Keep the last picture up until a key is pressed or the window closes.
-      cv::imshow("roomfix_viewer", frame);
-      while (cv::getWindowProperty("roomfix_viewer", cv::WND_PROP_VISIBLE) > 0 &&
-             cv::waitKey(100) < 0 && !roomfix::ShutdownRequested()) {
-      }
-    }
-    spdlog::info("replayed {} events; {} frames written", summary.events_delivered, video.frames());
-    return 0;
-  }
-
-  roomfix::ViewerNode node(ctx->site, ctx->bus.get(), options, roomfix::NowUtime());
-  roomfix::viewer::ViewState* view = node.mutable_state();
-  int64_t next_frame = roomfix::NowUtime();
   // Mouse: the wheel zooms, a drag pans (by the floor's own scale).
   struct Mouse {
     roomfix::viewer::RenderOptions* render;
@@ -233,6 +192,128 @@ int main(int argc, char** argv) {
         },
         &mouse);
   }
+  // Keys, the same for a live view and a replay: zoom, pan, toggles,
+  // screenshot, quit.
+  roomfix::viewer::ViewState* view = nullptr;
+  auto handle_key = [&](int key) {
+    switch (key & 0xFF) {
+      case 'q':
+      case 27:
+        roomfix::RequestShutdown();
+        break;
+      case '+':
+      case '=':
+        render.zoom = std::min(render.zoom * 1.25, 50.0);
+        break;
+      case '-':
+        render.zoom = std::max(render.zoom * 0.8, 0.2);
+        break;
+      case 'r':
+        render.zoom = 1.0;
+        render.pan_x_m = render.pan_y_m = 0.0;
+        break;
+      case 'h':
+        render.pan_x_m -= 0.25 / render.zoom;
+        break;
+      case 'l':
+        render.pan_x_m += 0.25 / render.zoom;
+        break;
+      case 'k':
+        render.pan_y_m += 0.25 / render.zoom;
+        break;
+      case 'j':
+        render.pan_y_m -= 0.25 / render.zoom;
+        break;
+      case '1':
+      case '2':
+      case '3':
+      case '4':
+        view->visible[(key & 0xFF) - '1'] = !view->visible[(key & 0xFF) - '1'];
+        break;
+      case 's': {
+        const std::string path = Timestamped(flags.screenshot_dir);
+        if (cv::imwrite(path, frame)) {
+          spdlog::info("screenshot: {}", path);
+        } else {
+          spdlog::warn("cannot write {}", path);
+        }
+        break;
+      }
+      default:
+        break;
+    }
+  };
+  // Shows a frame and serves the window for wait_ms; false once the user
+  // quit (key, closed window) or a signal came.
+  auto show = [&](int wait_ms) {
+    cv::imshow("roomfix_viewer", frame);
+    const int key = cv::waitKey(std::max(1, wait_ms));
+    if (key >= 0) handle_key(key);
+    if (cv::getWindowProperty("roomfix_viewer", cv::WND_PROP_VISIBLE) < 1) {
+      roomfix::RequestShutdown();
+    }
+    return !roomfix::ShutdownRequested();
+  };
+  bool video_failed = false;
+  auto write_video = [&] {
+    if (flags.video.empty() || video_failed) return;
+    if (!video.Write(frame)) {
+      spdlog::error("cannot write frame {} of {}; stopping", video.frames(), flags.video);
+      video_failed = true;
+      roomfix::RequestShutdown();
+    }
+  };
+
+  // A replay drives the same node through an in-process bus on log time.
+  if (!flags.log.empty()) {
+    roomfix::LoopbackBus bus;
+    roomfix::ViewerNode node(ctx->site, &bus, options, 0);
+    view = node.mutable_state();
+    bool started = false;
+    int64_t next_frame = 0;
+    roomfix::ReplayOptions replay;
+    if (!flags.video.empty() || !flags.headless) {
+      replay.on_time = [&](int64_t utime) {
+        // After a signal or a quit the rest of the log is read without
+        // drawing, which takes no time.
+        if (roomfix::ShutdownRequested()) return;
+        // A gap in the log (two sessions, a paused recording) is skipped,
+        // not filled with identical frames.
+        if (!started || utime - next_frame > kMaxReplayGapUs) {
+          next_frame = utime;
+          started = true;
+        }
+        while (next_frame <= utime && !roomfix::ShutdownRequested()) {
+          roomfix::viewer::Render(node.StateAt(next_frame), render, &frame);
+          write_video();
+          if (!flags.headless) show(static_cast<int>(frame_us / 1000));
+          next_frame += frame_us;
+        }
+      };
+    }
+    const roomfix::ReplaySummary summary = roomfix::ReplayLog(flags.log, &bus, replay);
+    if (!summary.ok) {
+      std::cerr << "roomfix_viewer: " << summary.error << "\n";
+      return 1;
+    }
+    if (summary.damaged) spdlog::warn("{}: damaged; replayed what was readable", flags.log);
+    roomfix::viewer::Render(node.StateAt(summary.last_utime), render, &frame);
+    if (!flags.png.empty() && !cv::imwrite(flags.png, frame)) {
+      std::cerr << "roomfix_viewer: cannot write " << flags.png << "\n";
+      return 1;
+    }
+    // The last picture stays up until the user quits.
+    if (!flags.headless) {
+      while (show(100)) {
+      }
+    }
+    spdlog::info("replayed {} events; {} frames written", summary.events_delivered, video.frames());
+    return video_failed ? 1 : 0;
+  }
+
+  roomfix::ViewerNode node(ctx->site, ctx->bus.get(), options, roomfix::NowUtime());
+  view = node.mutable_state();
+  int64_t next_frame = roomfix::NowUtime();
   roomfix::RunLoopOptions loop;
   loop.duration_s = flags.duration_s;
   loop.tick_period_ms = std::max(1, static_cast<int>(frame_us / 1000));
@@ -243,60 +324,9 @@ int main(int argc, char** argv) {
         if (now < next_frame) return;
         next_frame = now + frame_us;
         roomfix::viewer::Render(node.StateAt(now), render, &frame);
-        if (!flags.video.empty()) video.Write(frame);
+        write_video();
         if (flags.headless) return;
-        cv::imshow("roomfix_viewer", frame);
-        const int key = cv::waitKey(1);
-        if (key < 0) return;
-        switch (key & 0xFF) {
-          case 'q':
-          case 27:
-            roomfix::RequestShutdown();
-            break;
-          case '+':
-          case '=':
-            render.zoom = std::min(render.zoom * 1.25, 50.0);
-            break;
-          case '-':
-            render.zoom = std::max(render.zoom * 0.8, 0.2);
-            break;
-          case 'r':
-            render.zoom = 1.0;
-            render.pan_x_m = render.pan_y_m = 0.0;
-            break;
-          case 'h':
-            render.pan_x_m -= 0.25 / render.zoom;
-            break;
-          case 'l':
-            render.pan_x_m += 0.25 / render.zoom;
-            break;
-          case 'k':
-            render.pan_y_m += 0.25 / render.zoom;
-            break;
-          case 'j':
-            render.pan_y_m -= 0.25 / render.zoom;
-            break;
-          case '1':
-          case '2':
-          case '3':
-          case '4':
-            view->visible[(key & 0xFF) - '1'] = !view->visible[(key & 0xFF) - '1'];
-            break;
-          case 's': {
-            const std::string path = Timestamped(flags.screenshot_dir);
-            if (cv::imwrite(path, frame)) {
-              spdlog::info("screenshot: {}", path);
-            } else {
-              spdlog::warn("cannot write {}", path);
-            }
-            break;
-          }
-          default:
-            break;
-        }
-        if (cv::getWindowProperty("roomfix_viewer", cv::WND_PROP_VISIBLE) < 1) {
-          roomfix::RequestShutdown();
-        }
+        show(1);
       },
       loop);
   roomfix::viewer::Render(node.StateAt(roomfix::NowUtime()), render, &frame);
@@ -305,5 +335,5 @@ int main(int argc, char** argv) {
     return 1;
   }
   node.Stop(roomfix::NowUtime());
-  return rc;
+  return video_failed ? 1 : rc;
 }

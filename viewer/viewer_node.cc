@@ -76,6 +76,7 @@ ViewerNode::ViewerNode(const Site& site, Bus* bus, const ViewerNodeOptions& opti
     t->recv_utime = info.recv_utime;
     t->lost = p.status == pose2d_t::STATUS_LOST || !std::isfinite(p.x_m) || !std::isfinite(p.y_m);
     TrackHistory& h = history_[{static_cast<int>(source), p.robot_id}];
+    if (h.recv_utimes.empty() && h.first_recv_utime == 0) h.first_recv_utime = info.recv_utime;
     h.recv_utimes.push_back(info.recv_utime);
     if (p.latency_us > 0 || source != viewer::Source::kGroundTruth) {
       h.latencies_ms.push_back(p.latency_us * 1e-3);
@@ -121,11 +122,12 @@ ViewerNode::ViewerNode(const Site& site, Bus* bus, const ViewerNodeOptions& opti
   bus_->Subscribe<process_status_t>(
       "STATUS", [this](const process_status_t& s, const MessageInfo& info) {
         ++messages_;
-        const std::string key = s.process + "@" + s.host + ":" + std::to_string(s.pid);
-        auto it = std::find_if(state_.processes.begin(), state_.processes.end(),
-                               [&](const viewer::ProcessView& p) {
-                                 return p.name + "@" + p.host + ":" + std::to_string(p.pid) == key;
-                               });
+        // One row per process name and host: a restarted process (new pid)
+        // takes over its row instead of leaving a stale one behind.
+        const std::string key = s.process + "@" + s.host;
+        auto it = std::find_if(
+            state_.processes.begin(), state_.processes.end(),
+            [&](const viewer::ProcessView& p) { return p.name + "@" + p.host == key; });
         if (it == state_.processes.end()) {
           state_.processes.emplace_back();
           it = state_.processes.end() - 1;
@@ -234,10 +236,15 @@ const viewer::ViewState& ViewerNode::StateAt(int64_t now_utime) {
     while (!h.recv_utimes.empty() && h.recv_utimes.front() < now_utime - kRateWindowUs) {
       h.recv_utimes.pop_front();
     }
-    t.rate_hz = h.recv_utimes.size() >= 2
-                    ? (h.recv_utimes.size() - 1) /
-                          ((h.recv_utimes.back() - h.recv_utimes.front()) * 1e-6 + 1e-9)
-                    : 0.0;
+    // Over a second or more of messages, intervals per second (exact for a
+    // steady stream); a burst with one receive time counts its messages
+    // over at least a second rather than as an infinite rate.
+    const double span_s =
+        h.recv_utimes.empty() ? 0.0 : (h.recv_utimes.back() - h.recv_utimes.front()) * 1e-6;
+    const double heard_s = (now_utime - h.first_recv_utime) * 1e-6;
+    t.rate_hz = span_s >= 1.0
+                    ? (h.recv_utimes.size() - 1) / span_s
+                    : h.recv_utimes.size() / std::max(1.0, std::min(kRateWindowUs * 1e-6, heard_s));
     t.latency_ms = h.latencies_ms.empty()
                        ? viewer::kNaN
                        : analysis::Percentile({h.latencies_ms.begin(), h.latencies_ms.end()}, 0.5);

@@ -48,6 +48,7 @@ class ViewerNode {
 
  private:
   struct TrackHistory {
+    int64_t first_recv_utime = 0;
     std::deque<int64_t> recv_utimes;
     std::deque<double> latencies_ms;
   };

@@ -106,6 +106,29 @@ TEST(ViewerNode, ShowsEachProcessFromItsHeartbeatWithItsOutputRate) {
   EXPECT_EQ(v.processes[0].last_error, "/dev/ttyUSB0: device gone");
 }
 
+TEST(ViewerNode, ABurstOfMessagesIsNotAnInfiniteRateAndARestartKeepsOneRow) {
+  const Site site = DemoSite();
+  LoopbackBus bus;
+  ViewerNode node(site, &bus, {}, kT0);
+  bus.set_now_utime(kT0);
+  for (int k = 0; k < 10; ++k) {
+    bus.Publish("POSE_CAMERA", Pose(pose2d_t::SOURCE_CAMERA, kT0 - k * 1000, 1.0, 1.0));
+  }
+  for (int pid : {100, 200}) {
+    process_status_t s{};
+    s.utime = kT0;
+    s.process = "trilat_proc";
+    s.host = "base";
+    s.pid = pid;
+    bus.Publish("STATUS", s);
+  }
+  const viewer::ViewState& v = node.StateAt(kT0);
+  ASSERT_EQ(v.tracks.size(), 1u);
+  EXPECT_LE(v.tracks[0].rate_hz, 10.0) << "10 messages at once, over at least a second";
+  ASSERT_EQ(v.processes.size(), 1u) << "the restarted process takes over its row";
+  EXPECT_EQ(v.processes[0].pid, 200);
+}
+
 TEST(ViewerNode, RendersARecordedSessionReplayedThroughTheSameNode) {
   const Site site = DemoSite();
   LoopbackBus bus;
