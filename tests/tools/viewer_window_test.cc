@@ -102,8 +102,8 @@ TEST(RoomfixViewerWindow, ShowsAReplayedLogInARealWindowUnderXvfb) {
   ::setenv("DISPLAY", display.c_str(), 1);
   // In the sanitizer build, the window's system libraries (Qt, D-Bus,
   // fontconfig) keep allocations until exit; only roomfix's leaks count.
-  ::setenv("LSAN_OPTIONS",
-           ("suppressions=" + SourceDir() + "/tests/lsan_suppressions.txt").c_str(), 0);
+  ::setenv("LSAN_OPTIONS", ("suppressions=" + SourceDir() + "/tests/lsan_suppressions.txt").c_str(),
+           0);
   // The server is ready when a client can talk to it.
   bool up = false;
   for (int i = 0; i < 100 && !up; ++i) {
