@@ -146,6 +146,12 @@ int main(int argc, char** argv) {
     std::cerr << "roomfix_sim: ranges: " << error << "\n";
     return 1;
   }
+  if (publish_ranges && radio_pty) {
+    // Both would put range sets of the same firings on RANGES.
+    std::cerr << "roomfix_sim: --ranges and --radio-pty exclude each other: the ideal radio "
+                 "publishes RANGES itself, the virtual devices feed zigbee_bridge\n";
+    return 1;
+  }
   if (!wall.IsValid(&error)) {
     std::cerr << "roomfix_sim: wall devices: " << error << "\n";
     return 1;

@@ -33,6 +33,8 @@ err=$("$build/bin/zigbee_bridge" --port /dev/ttyUSB0 --baud 12345 --config "$sit
 out=$("$build/bin/roomfix_sim" --config "$site" --radio-pty --faults all --check) ||
   fail "roomfix_sim --radio-pty --check failed"
 [[ "$out" == *"pseudo-terminal"* ]] || fail "roomfix_sim --radio-pty --check printed '$out'"
+err=$("$build/bin/roomfix_sim" --config "$site" --radio-pty --ranges --check 2>&1 >/dev/null)
+(($? != 0)) && [[ "$err" == *"exclude each other"* ]] || fail "roomfix_sim --ranges --radio-pty: '$err'"
 
 err=$(env -u DISPLAY "$build/bin/roomfix_viewer" --config "$site" 2>&1 >/dev/null)
 (($? != 0)) && [[ "$err" == *"no display"* ]] || fail "roomfix_viewer without a display: '$err'"
