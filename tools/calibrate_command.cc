@@ -1,7 +1,8 @@
 // roomfix calibrate: fits the camera model (and, for comparison, the
-// reference's 9-region table) to marker correspondences from a CSV file,
-// prints the residuals, writes the calibration YAML a site file can name,
-// and draws the fit on the image.
+// reference's 9-region table) to marker correspondences from a CSV file
+// and/or chessboards lying on the floor (detected with OpenCV), prints the
+// residuals, writes the calibration YAML a site file can name, and draws the
+// fit on the image.
 #include <CLI/CLI.hpp>
 #include <Eigen/Core>
 #include <algorithm>
@@ -12,6 +13,7 @@
 #include <iostream>
 #include <limits>
 #include <memory>
+#include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -37,6 +39,13 @@ using calib::RegionFitSummary;
 
 struct Flags {
   std::string points;
+  std::vector<std::string> chessboards;
+  std::string board;
+  double square_m = 0.0;
+  std::vector<std::string> board_origins;
+  std::string board_axes = "x";
+  double board_height_m = 0.0;
+  std::string corners_csv;
   std::string out;
   std::string model = "full";
   std::string site;
@@ -132,6 +141,145 @@ std::array<double, 3> ParseTriple(const std::string& text, const std::string& fl
     throw Refusal(flag + ": expected X,Y,Z in metres, got '" + text + "'");
   }
   return out;
+}
+
+// Inner corners of a chessboard, columns x rows in OpenCV's sense.
+struct BoardSize {
+  int cols = 0;
+  int rows = 0;
+  std::string Text() const { return std::to_string(cols) + "x" + std::to_string(rows); }
+};
+
+BoardSize ParseBoard(const std::string& text) {
+  BoardSize b;
+  char tail = 0;
+  if (std::sscanf(text.c_str(), "%dx%d%c", &b.cols, &b.rows, &tail) != 2 || b.cols < 2 ||
+      b.rows < 2) {
+    throw Refusal("--board: expected COLSxROWS inner corners (e.g. 9x6), got '" + text + "'");
+  }
+  return b;
+}
+
+// One detected corner: (i, j) = (column, row) index in OpenCV's order.
+struct DetectedCorner {
+  int i = 0;
+  int j = 0;
+  double u_px = 0.0;
+  double v_px = 0.0;
+};
+
+// Finds the board's inner corners in the image, row by row as OpenCV
+// orders them. The sector-based detector first: it copes with the strong
+// distortion of a fisheye lens and is sub-pixel by itself; the classic
+// detector with cornerSubPix is the fallback for images it misses.
+std::vector<DetectedCorner> DetectChessboard(const std::string& path, const BoardSize& board) {
+  // Checked first: imread on a missing file also logs an OpenCV warning,
+  // which would make the refusal two lines.
+  if (!std::ifstream(path)) throw Refusal(path + ": cannot read the image");
+  const cv::Mat gray = cv::imread(path, cv::IMREAD_GRAYSCALE);
+  if (gray.empty()) throw Refusal(path + ": cannot read the image");
+  const cv::Size pattern(board.cols, board.rows);
+  std::vector<cv::Point2f> corners;
+  bool found = cv::findChessboardCornersSB(
+      gray, pattern, corners,
+      cv::CALIB_CB_NORMALIZE_IMAGE | cv::CALIB_CB_EXHAUSTIVE | cv::CALIB_CB_ACCURACY);
+  if (!found) {
+    corners.clear();
+    found = cv::findChessboardCorners(gray, pattern, corners,
+                                      cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE);
+    if (found) {
+      cv::cornerSubPix(gray, corners, cv::Size(5, 5), cv::Size(-1, -1),
+                       cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 50, 0.01));
+    }
+  }
+  if (!found || corners.size() != static_cast<size_t>(board.cols * board.rows)) {
+    throw Refusal(path + ": no " + board.Text() + " chessboard found");
+  }
+  // With cols + rows even the board looks the same turned by 180 degrees,
+  // so which end of it OpenCV reports first is arbitrary (the two
+  // detectors differ): make it the end nearer the image's top-left corner,
+  // as cv::findChessboardCorners mostly does, so --board-origin names a
+  // corner the user can find in the image.
+  if ((board.cols + board.rows) % 2 == 0 &&
+      corners.front().x + corners.front().y > corners.back().x + corners.back().y) {
+    std::reverse(corners.begin(), corners.end());
+  }
+  std::vector<DetectedCorner> out;
+  out.reserve(corners.size());
+  for (size_t k = 0; k < corners.size(); ++k) {
+    const int index = static_cast<int>(k);
+    out.push_back(
+        DetectedCorner{index % board.cols, index / board.cols, corners[k].x, corners[k].y});
+  }
+  return out;
+}
+
+std::array<double, 2> ParsePair(const std::string& text, const std::string& flag) {
+  const auto fields = SplitComma(text);
+  std::array<double, 2> out{};
+  if (fields.size() != 2 || !ParseNumber(fields[0], &out[0]) || !ParseNumber(fields[1], &out[1])) {
+    throw Refusal(flag + ": expected X,Y in metres, got '" + text + "'");
+  }
+  return out;
+}
+
+// Detects every --chessboard and appends its corners to `points` as room
+// correspondences (and, with --corners-csv, writes them). `lines` gets 0
+// for each: the corners have no CSV line.
+void AddChessboards(const Flags& f, std::vector<Correspondence>* points, std::vector<int>* lines) {
+  if (f.chessboards.empty()) return;
+  const BoardSize board = ParseBoard(f.board);
+  const bool fitting = !f.out.empty();
+  if (fitting) {
+    if (!(f.square_m > 0.0) || !std::isfinite(f.square_m)) {
+      throw Refusal("--square: expected the square size in metres (> 0)");
+    }
+    if (f.board_origins.size() != f.chessboards.size()) {
+      throw Refusal("--board-origin: expected one per --chessboard (" +
+                    std::to_string(f.chessboards.size()) + "), got " +
+                    std::to_string(f.board_origins.size()));
+    }
+    if (f.board_axes != "x" && f.board_axes != "y") {
+      throw Refusal("--board-axes: expected x or y, got '" + f.board_axes + "'");
+    }
+    if (!(f.board_height_m >= 0.0) || !std::isfinite(f.board_height_m)) {
+      throw Refusal("--board-height: expected metres >= 0");
+    }
+  }
+  std::ofstream csv;
+  if (!f.corners_csv.empty()) {
+    csv.open(f.corners_csv);
+    if (!csv) throw Refusal(f.corners_csv + ": cannot write");
+    csv << "image,i,j,u_px,v_px\n";
+    csv.precision(10);
+  }
+  for (size_t b = 0; b < f.chessboards.size(); ++b) {
+    const std::vector<DetectedCorner> corners = DetectChessboard(f.chessboards[b], board);
+    std::cout << f.chessboards[b] << ": " << board.Text() << " chessboard, " << corners.size()
+              << " corners\n";
+    for (const DetectedCorner& c : corners) {
+      if (csv.is_open()) {
+        csv << f.chessboards[b] << "," << c.i << "," << c.j << "," << c.u_px << "," << c.v_px
+            << "\n";
+      }
+    }
+    if (!fitting) continue;
+    const std::array<double, 2> origin = ParsePair(f.board_origins[b], "--board-origin");
+    for (const DetectedCorner& c : corners) {
+      // The first row runs along room +x ("x") or +y ("y").
+      const double along_row = c.i * f.square_m, along_col = c.j * f.square_m;
+      const bool x_axes = f.board_axes == "x";
+      points->push_back(Correspondence{c.u_px, c.v_px, origin[0] + (x_axes ? along_row : along_col),
+                                       origin[1] + (x_axes ? along_col : along_row),
+                                       f.board_height_m});
+      lines->push_back(0);
+    }
+  }
+  if (csv.is_open()) {
+    csv.close();
+    if (!csv) throw Refusal(f.corners_csv + ": cannot write");
+    std::cout << "wrote " << f.corners_csv << "\n";
+  }
 }
 
 // The reprojection of room point `p` at its height under the chosen model.
@@ -239,9 +387,24 @@ void Run(const Flags& f) {
   if (f.model != "full" && f.model != "regions") {
     throw Refusal("--model: expected full or regions, got '" + f.model + "'");
   }
+  if (f.points.empty() && f.chessboards.empty()) {
+    throw Refusal("no points: give --points CSV and/or --chessboard IMAGE");
+  }
+  if (!f.chessboards.empty() && f.board.empty()) {
+    throw Refusal("--chessboard needs --board COLSxROWS (inner corners)");
+  }
+  // --corners-csv alone only detects: no fit, so no --out.
+  if (f.out.empty() && (f.corners_csv.empty() || f.chessboards.empty() || !f.points.empty())) {
+    throw Refusal("--out is required (only --chessboard with --corners-csv runs without it)");
+  }
   std::vector<int> lines;
-  const std::vector<Correspondence> points = ReadPoints(f.points, &lines);
-  if (points.empty()) throw Refusal(f.points + ": no points");
+  std::vector<Correspondence> points;
+  if (!f.points.empty()) {
+    points = ReadPoints(f.points, &lines);
+    if (points.empty()) throw Refusal(f.points + ": no points");
+  }
+  AddChessboards(f, &points, &lines);
+  if (f.out.empty()) return;
 
   // Camera size, field of view and mount: flags over the site's camera.
   int width_px = 0, height_px = 0;
@@ -407,8 +570,11 @@ void Run(const Flags& f) {
 
   const Calibration& chosen = want_full ? full_cal : region_cal;
   std::ostringstream header;
-  header << "Written by roomfix calibrate from " << f.points << " (" << points.size()
-         << " points), model " << f.model << ".\n";
+  header << "Written by roomfix calibrate from "
+         << (f.points.empty() ? std::string() : f.points + (f.chessboards.empty() ? "" : " and "))
+         << (f.chessboards.empty() ? std::string()
+                                   : std::to_string(f.chessboards.size()) + " chessboard image(s)")
+         << " (" << points.size() << " points), model " << f.model << ".\n";
   if (want_full) {
     header << "RMS " << Fixed(std::sqrt(fs.rms_mm / n_full), 2) << " mm / "
            << Fixed(std::sqrt(fs.rms_px / n_full), 3) << " px over the points; " << full.message;
@@ -428,11 +594,26 @@ void Run(const Flags& f) {
 void AddCalibrateCommand(CLI::App* app, int* exit_code) {
   auto* cmd = app->add_subcommand(
       "calibrate",
-      "Fit the camera model to marker points (CSV u,v,x_m,y_m,height_m); print residuals; write "
-      "the calibration YAML and a PNG of the fit");
+      "Fit the camera model to marker points (CSV u,v,x_m,y_m,height_m) and/or chessboards on "
+      "the floor; print residuals; write the calibration YAML and a PNG of the fit");
   auto f = std::make_shared<Flags>();
-  cmd->add_option("--points", f->points, "CSV with header u,v,x_m,y_m,height_m")->required();
-  cmd->add_option("--out", f->out, "Calibration YAML to write")->required();
+  cmd->add_option("--points", f->points, "CSV with header u,v,x_m,y_m,height_m");
+  cmd->add_option("--chessboard", f->chessboards,
+                  "Image of one chessboard lying flat on the floor (repeatable)");
+  cmd->add_option("--board", f->board, "Chessboard inner corners COLSxROWS, e.g. 9x6");
+  cmd->add_option("--square", f->square_m, "Chessboard square size in metres");
+  cmd->add_option("--board-origin", f->board_origins,
+                  "Room X,Y (m) of the board's first detected corner, one per --chessboard");
+  cmd->add_option("--board-axes", f->board_axes,
+                  "x: the board's rows run along room +x, columns along +y; y: swapped")
+      ->capture_default_str();
+  cmd->add_option("--board-height", f->board_height_m,
+                  "Height of the board's top surface above the floor (m)")
+      ->capture_default_str();
+  cmd->add_option("--corners-csv", f->corners_csv,
+                  "Write the detected corners (image,i,j,u_px,v_px); with --chessboard and "
+                  "--board but no --out: detect and write only, no fit");
+  cmd->add_option("--out", f->out, "Calibration YAML to write (required unless only detecting)");
   cmd->add_option("--model", f->model, "full (the fisheye model) or regions (the reference's 9)")
       ->capture_default_str();
   cmd->add_option("--site", f->site, "Site file: camera size, field of view, mount and room");
