@@ -168,6 +168,35 @@ struct DetectedCorner {
   double v_px = 0.0;
 };
 
+// Where a board's rows (corner index i) and columns (index j) run in the
+// room: "x" is +x+y, "y" is +y+x; a signed pair such as "+x-y" (rows along
+// +x, columns along -y: a board seen from the ceiling with its first corner
+// at the image's top-left) says both. Indices: 0 for x, 1 for y.
+struct BoardAxes {
+  int row_axis = 0;
+  double row_sign = 1.0;
+  int col_axis = 1;
+  double col_sign = 1.0;
+};
+
+bool ParseBoardAxes(const std::string& text, BoardAxes* out) {
+  BoardAxes a;
+  if (text == "x") {
+    a = BoardAxes{0, 1.0, 1, 1.0};
+  } else if (text == "y") {
+    a = BoardAxes{1, 1.0, 0, 1.0};
+  } else if (text.size() == 4 && (text[0] == '+' || text[0] == '-') &&
+             (text[2] == '+' || text[2] == '-') && (text[1] == 'x' || text[1] == 'y') &&
+             (text[3] == 'x' || text[3] == 'y') && text[1] != text[3]) {
+    a = BoardAxes{text[1] == 'x' ? 0 : 1, text[0] == '-' ? -1.0 : 1.0, text[3] == 'x' ? 0 : 1,
+                  text[2] == '-' ? -1.0 : 1.0};
+  } else {
+    return false;
+  }
+  if (out != nullptr) *out = a;
+  return true;
+}
+
 // Finds the board's inner corners in the image, row by row as OpenCV
 // orders them. The sector-based detector first: it copes with the strong
 // distortion of a fisheye lens and is sub-pixel by itself; the classic
@@ -239,8 +268,9 @@ void AddChessboards(const Flags& f, std::vector<Correspondence>* points, std::ve
                     std::to_string(f.chessboards.size()) + "), got " +
                     std::to_string(f.board_origins.size()));
     }
-    if (f.board_axes != "x" && f.board_axes != "y") {
-      throw Refusal("--board-axes: expected x or y, got '" + f.board_axes + "'");
+    if (!ParseBoardAxes(f.board_axes, nullptr)) {
+      throw Refusal("--board-axes: expected x, y or a signed pair such as +x-y, got '" +
+                    f.board_axes + "'");
     }
     if (!(f.board_height_m >= 0.0) || !std::isfinite(f.board_height_m)) {
       throw Refusal("--board-height: expected metres >= 0");
@@ -265,13 +295,13 @@ void AddChessboards(const Flags& f, std::vector<Correspondence>* points, std::ve
     }
     if (!fitting) continue;
     const std::array<double, 2> origin = ParsePair(f.board_origins[b], "--board-origin");
+    BoardAxes axes;
+    ParseBoardAxes(f.board_axes, &axes);
     for (const DetectedCorner& c : corners) {
-      // The first row runs along room +x ("x") or +y ("y").
-      const double along_row = c.i * f.square_m, along_col = c.j * f.square_m;
-      const bool x_axes = f.board_axes == "x";
-      points->push_back(Correspondence{c.u_px, c.v_px, origin[0] + (x_axes ? along_row : along_col),
-                                       origin[1] + (x_axes ? along_col : along_row),
-                                       f.board_height_m});
+      std::array<double, 2> p = origin;
+      p[axes.row_axis] += axes.row_sign * c.i * f.square_m;
+      p[axes.col_axis] += axes.col_sign * c.j * f.square_m;
+      points->push_back(Correspondence{c.u_px, c.v_px, p[0], p[1], f.board_height_m});
       lines->push_back(0);
     }
   }
@@ -605,7 +635,9 @@ void AddCalibrateCommand(CLI::App* app, int* exit_code) {
   cmd->add_option("--board-origin", f->board_origins,
                   "Room X,Y (m) of the board's first detected corner, one per --chessboard");
   cmd->add_option("--board-axes", f->board_axes,
-                  "x: the board's rows run along room +x, columns along +y; y: swapped")
+                  "Where the board's rows and columns run: x (+x+y), y (+y+x), or a signed "
+                  "pair such as +x-y (seen from the ceiling, first corner at the image's "
+                  "top-left)")
       ->capture_default_str();
   cmd->add_option("--board-height", f->board_height_m,
                   "Height of the board's top surface above the floor (m)")
