@@ -1,0 +1,115 @@
+#ifndef ROOMFIX_CAMERA_PROC_FRAME_SOURCE_H_
+#define ROOMFIX_CAMERA_PROC_FRAME_SOURCE_H_
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+namespace roomfix::camera {
+
+// One frame's pixels, decoded only as far as a caller asks: a webcam's MJPEG
+// frame stays compressed until the detector asks for a reduced-size view (the
+// full-frame search) or a full-resolution rectangle (the region search), and
+// libjpeg-turbo decodes just that (DCT scaling; cropped, skipped scanlines).
+class FrameImage {
+ public:
+  virtual ~FrameImage() = default;
+  int width_px() const { return width_px_; }
+  int height_px() const { return height_px_; }
+  // Whether the pixels are still compressed (JPEG).
+  virtual bool encoded() const = 0;
+  // BGR (CV_8UC3) of the full-resolution rectangle `rect`, clipped to the
+  // image; *out is exactly the clipped rectangle. False with a reason
+  // (corrupt or truncated data) when the pixels cannot be had.
+  virtual bool DecodeRegion(const cv::Rect& rect, cv::Mat* out, std::string* error) = 0;
+  // The whole frame shrunk by `scale` (1, 2, 4 or 8), each output pixel the
+  // mean of scale x scale input pixels (JPEG: DCT scaling, which is close
+  // to that). Size is ceil(width / scale) x ceil(height / scale).
+  virtual bool DecodeReduced(int scale, cv::Mat* out, std::string* error) = 0;
+
+ protected:
+  int width_px_ = 0;
+  int height_px_ = 0;
+};
+
+// A frame that is already BGR pixels (video files, image files, the sim).
+std::unique_ptr<FrameImage> MakeDecodedImage(cv::Mat bgr);
+// A JPEG frame. Reads the header only; nullptr with a reason when the data is
+// empty, not a JPEG, or its header is corrupt or truncated. A frame whose
+// body is truncated or corrupt fails later, at DecodeRegion/DecodeReduced
+// (libjpeg-turbo's warnings, such as premature end of data, are errors here:
+// a grey half-frame must not be searched).
+std::unique_ptr<FrameImage> MakeJpegImage(std::vector<uint8_t> bytes, std::string* error);
+
+struct Frame {
+  // Capture time (microseconds since the Unix epoch): the driver's buffer
+  // timestamp for V4L2 when it is on the realtime clock, otherwise the time
+  // the frame was read; for files and the sim, the source's virtual clock.
+  int64_t capture_utime = 0;
+  // 0, 1, 2 ... from the source; a gap means frames were dropped.
+  int64_t seq = 0;
+  std::unique_ptr<FrameImage> image;
+};
+
+enum class ReadStatus {
+  kFrame,        // *frame holds a frame
+  kBadFrame,     // this frame was unreadable (counted, *error says why); go on
+  kEndOfStream,  // a file or folder ran out
+  kDeviceLost,   // the device went away; Close(), then Open() again later
+};
+
+// Camera settings from the site file.
+struct CaptureSettings {
+  int width_px = 1920;
+  int height_px = 1080;
+  double fps = 30.0;
+  std::string pixel_format = "MJPG";
+  // brightness, contrast, saturation, hue, gamma, sharpness, exposure;
+  // an exposure turns auto-exposure off.
+  std::map<std::string, double> properties;
+  // Files: play at fps in real time (true) or as fast as read, stamping
+  // frames start_utime + seq / fps (false).
+  bool realtime = false;
+  int64_t start_utime = 0;
+  // Whether a file or folder starts again at the end instead of ending.
+  bool loop = false;
+};
+
+class FrameSource {
+ public:
+  virtual ~FrameSource() = default;
+  // False with a reason (missing device, unreadable file, no images match).
+  virtual bool Open(std::string* error) = 0;
+  virtual void Close() = 0;
+  // Blocks for at most about one frame interval.
+  virtual ReadStatus Read(Frame* frame, std::string* error) = 0;
+  // "v4l2 /dev/video0 1920x1080 MJPG 30 fps", "video run.avi", ...
+  virtual std::string Describe() const = 0;
+  // Whether the source is a live device that may come back after it is lost.
+  virtual bool live() const = 0;
+  // Properties the camera refused or changed, with what it reported back
+  // ("exposure: asked 156, got 250"), filled by Open().
+  virtual std::vector<std::string> refused_properties() const { return {}; }
+};
+
+// Chooses by the device string: "/dev/video*" (or a bare number) opens a V4L2
+// webcam through OpenCV; a folder, or a pattern with * or ?, a sorted list of
+// images (JPEG files stay compressed until searched); any other path a video
+// file (OpenCV's FFmpeg backend; MJPEG streams are read compressed when the
+// backend can). "sim:" sources are made by camera_proc itself (they need the
+// site). nullptr with a reason for an empty string.
+std::unique_ptr<FrameSource> MakeFrameSource(const std::string& device,
+                                             const CaptureSettings& settings, std::string* error);
+
+// The current time in microseconds since the Unix epoch (replaceable in tests
+// of the sources' pacing).
+using Clock = std::function<int64_t()>;
+
+}  // namespace roomfix::camera
+
+#endif  // ROOMFIX_CAMERA_PROC_FRAME_SOURCE_H_

@@ -1,0 +1,106 @@
+#ifndef ROOMFIX_CORE_VISION_MARKER_DETECTOR_H_
+#define ROOMFIX_CORE_VISION_MARKER_DETECTOR_H_
+
+#include <array>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+namespace roomfix::vision {
+
+// A colour class in OpenCV's 8-bit HSV: H in [0, 179], S and V in [0, 255].
+// hue_min > hue_max wraps through 0 (reds).
+struct ColourClass {
+  std::string name;
+  std::array<int, 3> hsv_min{};
+  std::array<int, 3> hsv_max{};
+  // Expected blob area in full-resolution pixels; blobs outside are dropped.
+  double min_area_px = 20.0;
+  double max_area_px = 1e6;
+  // 4 pi area / perimeter^2 below this is not a marker (1 for a disc).
+  double min_circularity = 0.6;
+};
+
+// How pixels of the given image map to the full-resolution frame: the image
+// is the full frame's rectangle starting at (offset_u_px, offset_v_px),
+// shrunk by `scale` (2 for a half-size decode). Pixel centres map as
+// u_full = offset_u_px + (u + 0.5) * scale - 0.5.
+struct ImageWindow {
+  int offset_u_px = 0;
+  int offset_v_px = 0;
+  int scale = 1;
+};
+
+// One blob of one class, in full-resolution coordinates (u right, v down,
+// origin at the centre of the top-left pixel).
+struct Blob {
+  int class_index = -1;
+  double u_px = 0.0;
+  double v_px = 0.0;
+  double radius_px = 0.0;    // radius of the disc with the blob's area
+  double circularity = 0.0;  // 4 pi area / perimeter^2
+  double area_px = 0.0;      // full-resolution pixels
+  // Mean colour of the blob's core (OpenCV HSV), for adaptive thresholds.
+  std::array<double, 3> mean_hsv{};
+};
+
+// How classification copes with lighting (see docs/camera.md for which works).
+enum class LightingMode {
+  kFixed,      // the site file's HSV ranges as they are (the reference)
+  kNormalised, // V (and S) judged against the local background brightness
+  kAdaptive,   // kNormalised, plus ranges that follow each tracked marker's colour
+};
+
+struct DetectorOptions {
+  LightingMode lighting = LightingMode::kNormalised;
+  // Gaussian smoothing of the class masks, full-resolution pixels; 0 = none.
+  double blur_sigma_px = 1.0;
+};
+
+// Finds coloured blobs. Stateless apart from its options and classes; one
+// instance serves full-frame and region searches at any scale.
+class MarkerDetector {
+ public:
+  MarkerDetector(std::vector<ColourClass> classes, DetectorOptions options);
+
+  // Blobs of the classes in `class_indices` (all classes when empty) in a
+  // BGR (CV_8UC3) image, sorted by class then descending area. Centroids are
+  // sub-pixel and, at scale 1, accurate to a small fraction of a pixel on an
+  // anti-aliased disc (edge pixels weighted by how much of the marker's
+  // colour they hold). Returns an empty list for an empty image.
+  std::vector<Blob> Detect(const cv::Mat& bgr, const ImageWindow& window,
+                           const std::vector<int>& class_indices = {}) const;
+
+  // Re-measures one blob found at a reduced scale on a full-resolution
+  // window around it (the node decodes that window).
+  bool Refine(const cv::Mat& bgr, const ImageWindow& window, int class_index, Blob* blob) const;
+
+  // kAdaptive only (a no-op otherwise): a blob the tracker confirmed as a
+  // marker; later searches for its class accept colours near the running
+  // statistics of such blobs as well as the site file's range, so a marker
+  // whose colour drifts with the light stays found. The range never grows
+  // into another class's range.
+  void ObserveTracked(const Blob& blob);
+
+  const std::vector<ColourClass>& classes() const { return classes_; }
+
+ private:
+  std::vector<ColourClass> classes_;
+  DetectorOptions options_;
+  // Per class: running mean and spread of confirmed blobs' colour (kAdaptive).
+  struct ColourStats {
+    int count = 0;
+    std::array<double, 3> mean{};
+    std::array<double, 3> var{};
+  };
+  std::vector<ColourStats> stats_;
+};
+
+// The reference pipeline, for the benchmark: full-frame HSV conversion,
+// inRange per class, 5x5 Gaussian blur, cv::SimpleBlobDetector on the mask.
+std::vector<Blob> DetectReference(const cv::Mat& bgr, const std::vector<ColourClass>& classes);
+
+}  // namespace roomfix::vision
+
+#endif  // ROOMFIX_CORE_VISION_MARKER_DETECTOR_H_

@@ -1,0 +1,113 @@
+#ifndef ROOMFIX_CORE_VISION_ROBOT_TRACKER_H_
+#define ROOMFIX_CORE_VISION_ROBOT_TRACKER_H_
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "core/vision/marker_detector.h"
+
+namespace roomfix::vision {
+
+// A robot as the camera sees it: the classes (indices into the detector's
+// classes) of its position and heading markers.
+struct TrackedRobotSpec {
+  int robot_id = 0;
+  int position_class = -1;
+  int heading_class = -1;
+  // Expected radius of the position marker in full-resolution pixels (from
+  // the calibration or the nominal lens); used to size windows and to judge
+  // how far the heading marker may be from the position marker.
+  double position_radius_px = 15.0;
+};
+
+struct TrackerOptions {
+  // Fastest the marker can move across the image, pixels per second (the
+  // node derives it from the robot's top speed and the lens).
+  double max_speed_px_per_s = 600.0;
+  // Window half-size = margin + radius * radius_factor + speed * dt.
+  double window_margin_px = 24.0;
+  double window_radius_factor = 4.0;
+  // The heading marker is looked for within this many position-marker
+  // radii of the position marker's centre.
+  double heading_search_radii = 5.0;
+  // After this long without a confirmed find, a robot is kLost and searched
+  // in the full frame.
+  double lost_after_s = 0.5;
+};
+
+enum class TrackState {
+  kSearching,  // never found, or lost: full-frame search
+  kTracking,   // found in the last frame(s): region search
+  kAmbiguous,  // a full-frame search found more than one candidate that fits
+  kLost,       // not confirmed for lost_after_s
+};
+const char* TrackStateName(TrackState state);
+
+// What the tracker wants searched for one robot in the next frame.
+struct SearchPlan {
+  int robot_id = 0;
+  bool full_frame = true;
+  // Full-resolution rectangle (clipped to the image) when !full_frame.
+  cv::Rect window;
+};
+
+struct RobotObservation {
+  int robot_id = 0;
+  TrackState state = TrackState::kSearching;
+  bool found = false;       // position marker confirmed in this frame
+  Blob position;            // valid when found
+  bool has_heading = false; // heading marker paired in this frame
+  Blob heading;
+  // Image-plane angle from the position to the heading marker, atan2(dv, du).
+  double image_angle_rad = 0.0;
+  // Candidates that fitted (kAmbiguous lists them all); for messages.
+  int num_candidates = 0;
+  std::string note;  // why not found / why ambiguous, one line
+};
+
+// Region-of-interest tracking of several robots, each a pair of marker
+// classes. Pure: time comes in as an argument. Per frame the caller asks
+// Plan(), searches what it says (a window, or the full frame), and hands the
+// blobs to Update(). Blobs outside a tracking robot's window are never
+// assigned to it, so a similar object elsewhere cannot steal the track; at
+// start-up (or when lost) a full-frame search that finds more than one
+// position-marker candidate with a heading marker beside it leaves the robot
+// kAmbiguous instead of picking one.
+class RobotTracker {
+ public:
+  RobotTracker(std::vector<TrackedRobotSpec> robots, TrackerOptions options, int width_px,
+               int height_px);
+
+  std::vector<SearchPlan> Plan(int64_t utime) const;
+
+  // `full_frame_blobs`: blobs from a full-frame search (empty when none ran);
+  // `window_blobs[i]`: blobs found in plans[i].window for each non-full plan
+  // (same order as Plan() returned). Returns one observation per robot, in
+  // the order of the specs.
+  std::vector<RobotObservation> Update(int64_t utime, const std::vector<SearchPlan>& plans,
+                                       const std::vector<Blob>& full_frame_blobs,
+                                       const std::vector<std::vector<Blob>>& window_blobs);
+
+  const std::vector<TrackedRobotSpec>& robots() const { return robots_; }
+
+ private:
+  struct Track {
+    TrackState state = TrackState::kSearching;
+    int64_t last_seen_utime = 0;
+    double u_px = 0.0, v_px = 0.0;     // last confirmed position
+    double du_px_per_s = 0.0, dv_px_per_s = 0.0;  // velocity estimate
+    bool has_velocity = false;
+  };
+  std::vector<TrackedRobotSpec> robots_;
+  TrackerOptions options_;
+  int width_px_;
+  int height_px_;
+  std::vector<Track> tracks_;
+};
+
+}  // namespace roomfix::vision
+
+#endif  // ROOMFIX_CORE_VISION_ROBOT_TRACKER_H_

@@ -1,0 +1,149 @@
+#ifndef ROOMFIX_SIM_SYNTHETIC_CAMERA_H_
+#define ROOMFIX_SIM_SYNTHETIC_CAMERA_H_
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "core/calib/fisheye_camera.h"
+#include "core/world/site.h"
+
+namespace roomfix::sim {
+
+// What the synthetic camera adds to a clean view of the floor. Everything is
+// a deterministic function of time and the seed, so a sequence re-renders
+// identically.
+struct SimScenario {
+  std::string name = "clean";
+  // Brightness: gain steps cycling through `gain_steps` every
+  // `gain_step_period_s`, with a linear ramp of `gain_ramp_s` between steps
+  // (the +-40 % of the lighting issue is {1.0, 1.4, 0.6}).
+  std::vector<double> gain_steps = {1.0};
+  double gain_step_period_s = 3.0;
+  double gain_ramp_s = 0.5;
+  // Gain across the floor: 1 - gradient at the room's min x, 1 + gradient at
+  // its max x (a window on one side).
+  double gradient = 0.0;
+  // Mains flicker seen through a rolling shutter: gain 1 + a sin(2 pi f
+  // (t + row * row_time_s)), so bands move through the image.
+  double flicker_amplitude = 0.0;
+  double flicker_hz = 100.0;
+  double row_time_s = 1.0 / 30.0 / 1125.0;
+  // Zero-mean Gaussian sensor noise, digital numbers (8-bit), per channel.
+  double noise_sigma_dn = 0.0;
+  // Objects of marker-like colour lying on the floor (height 0): each is
+  // a disc of `diameter_m` at (x_m, y_m) whose colour is the named class's.
+  struct Distractor {
+    std::string colour_class;
+    double x_m = 0.0;
+    double y_m = 0.0;
+    double diameter_m = 0.1;
+  };
+  std::vector<Distractor> distractors;
+};
+
+// "clean" (alias "reference_circle"), "lighting" (gain steps 1, 1.4, 0.6,
+// gradient 0.3, flicker 0.1 at 100 Hz, noise 2 DN), "distractors" (an orange
+// and a green disc on the floor away from the robots' paths, plus noise 2 DN),
+// "harsh" (both). Accepts the "sim:" prefix. False with a message naming the
+// known scenarios otherwise.
+bool ParseSimScenario(const std::string& text, SimScenario* scenario, std::string* error);
+
+// Where a robot is at the instant rendered.
+struct RobotState {
+  int robot_id = 0;
+  double x_m = 0.0;
+  double y_m = 0.0;
+  double heading_rad = 0.0;
+};
+
+// What the image shows of one marker, for ground truth.
+struct MarkerTruth {
+  int robot_id = -1;  // -1 for a distractor
+  std::string colour_class;
+  bool is_heading_marker = false;
+  // Centre of the marker disc in the room frame.
+  double x_m = 0.0;
+  double y_m = 0.0;
+  double z_m = 0.0;
+  // Projection of the disc's centre.
+  double u_px = 0.0;
+  double v_px = 0.0;
+  // Coverage-weighted centroid of the disc as rendered (what an ideal
+  // detector measures; differs from the centre's projection by the
+  // perspective and lens distortion of a disc of finite size, < 1 px).
+  double centroid_u_px = 0.0;
+  double centroid_v_px = 0.0;
+  double area_px = 0.0;
+  // Whole disc inside the image.
+  bool visible = false;
+};
+
+struct SyntheticCameraOptions {
+  // Distance from the position marker's centre to the heading marker's,
+  // along the heading, metres.
+  double heading_marker_offset_m = 0.10;
+  // Subsamples per pixel side when computing how much of a pixel a marker
+  // covers (anti-aliasing; 8 gives centroids exact to ~0.01 px).
+  int supersample = 8;
+  // Floor colour (BGR) and the grid lines' colour and width.
+  cv::Scalar floor_bgr = cv::Scalar(150, 160, 165);
+  cv::Scalar grid_bgr = cv::Scalar(60, 60, 60);
+  double grid_line_width_m = 0.01;
+  // Robot body: a dark disc under the markers, `body_diameter_m` across, at
+  // `body_height_m` below the markers.
+  double body_diameter_m = 0.30;
+  cv::Scalar body_bgr = cv::Scalar(45, 45, 45);
+};
+
+// Renders the site's floor, its 0.5 m grid, robots with their markers at
+// their true height, distractors, lighting and noise through a fisheye camera
+// model (core/calib, the model calibration fits), at the camera's resolution
+// (1920 x 1080 for the demo room). Marker colours are the middle of each
+// class's HSV range. The floor is rendered once at construction; a frame
+// costs the markers' pixels plus one pass for lighting and noise.
+class SyntheticCamera {
+ public:
+  // `camera` names the site camera (classes, robots, resolution); `model`
+  // is the truth the image is rendered through.
+  SyntheticCamera(const Site& site, const Camera& camera, const calib::CameraModel& model,
+                  SimScenario scenario, SyntheticCameraOptions options = {});
+
+  // Renders the instant t_s (seconds since the simulation started; it drives
+  // the lighting) with the robots at `robots`. `frame_seq` seeds the noise.
+  void Render(double t_s, int64_t frame_seq, const std::vector<RobotState>& robots, cv::Mat* bgr,
+              std::vector<MarkerTruth>* truth = nullptr) const;
+
+  // The robots at t_s from the site's simulation section.
+  std::vector<RobotState> SimulatedRobots(double t_s) const;
+
+  const calib::CameraModel& model() const { return model_; }
+  int width_px() const;
+  int height_px() const;
+
+ private:
+  struct Impl;
+  std::shared_ptr<const Impl> impl_;
+  calib::CameraModel model_;
+};
+
+// Writes a rendered sequence: PNG/JPEG frames into a folder (frame_000000.jpg
+// ...) or a video file (.avi MJPEG, .mp4), and `truth.csv` beside it with one
+// row per marker per frame: frame,t_s,utime,robot_id,colour_class,role,x_m,
+// y_m,z_m,u_px,v_px,centroid_u_px,centroid_v_px,visible and the robot's
+// heading_rad. False with a message when the output cannot be written.
+struct SequenceOptions {
+  double duration_s = 10.0;
+  double fps = 30.0;
+  int64_t start_utime = 0;
+  int jpeg_quality = 90;
+};
+bool WriteSequence(const SyntheticCamera& camera, const SequenceOptions& options,
+                   const std::string& out_path, std::string* error);
+
+}  // namespace roomfix::sim
+
+#endif  // ROOMFIX_SIM_SYNTHETIC_CAMERA_H_
