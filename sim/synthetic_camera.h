@@ -3,10 +3,9 @@
 
 #include <cstdint>
 #include <memory>
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "core/calib/fisheye_camera.h"
 #include "core/world/site.h"
@@ -20,7 +19,9 @@ struct SimScenario {
   std::string name = "clean";
   // Brightness: gain steps cycling through `gain_steps` every
   // `gain_step_period_s`, with a linear ramp of `gain_ramp_s` between steps
-  // (the +-40 % of the lighting issue is {1.0, 1.4, 0.6}).
+  // (the +-40 % of the lighting issue is {1.0, 1.4, 0.6}). Step n covers
+  // [n period, (n + 1) period) and ramps from step n - 1's gain over its
+  // first `gain_ramp_s`; step 0 (and any t < 0) is gain_steps[0] flat.
   std::vector<double> gain_steps = {1.0};
   double gain_step_period_s = 3.0;
   double gain_ramp_s = 0.5;
@@ -43,6 +44,8 @@ struct SimScenario {
     double diameter_m = 0.1;
   };
   std::vector<Distractor> distractors;
+  // Seeds the sensor noise (with the frame sequence number).
+  uint32_t seed = 1;
 };
 
 // "clean" (alias "reference_circle"), "lighting" (gain steps 1, 1.4, 0.6,
@@ -97,6 +100,8 @@ struct SyntheticCameraOptions {
   // `body_height_m` below the markers.
   double body_diameter_m = 0.30;
   cv::Scalar body_bgr = cv::Scalar(45, 45, 45);
+  // How far below the markers the body disc is (0 diameter: no body).
+  double body_height_m = 0.05;
 };
 
 // Renders the site's floor, its 0.5 m grid, robots with their markers at
@@ -130,11 +135,16 @@ class SyntheticCamera {
   calib::CameraModel model_;
 };
 
-// Writes a rendered sequence: PNG/JPEG frames into a folder (frame_000000.jpg
-// ...) or a video file (.avi MJPEG, .mp4), and `truth.csv` beside it with one
-// row per marker per frame: frame,t_s,utime,robot_id,colour_class,role,x_m,
-// y_m,z_m,u_px,v_px,centroid_u_px,centroid_v_px,visible and the robot's
-// heading_rad. False with a message when the output cannot be written.
+// Writes a rendered sequence: JPEG frames into a folder (frame_000000.jpg
+// ..., created if missing; a path without an extension is a folder) or a
+// video file (.avi MJPEG, .mp4 mp4v), and the truth beside it (DIR/truth.csv,
+// or FILE_truth.csv for FILE.avi) with one row per marker per frame:
+// frame,t_s,utime,robot_id,colour_class,role,x_m,y_m,z_m,u_px,v_px,
+// centroid_u_px,centroid_v_px,visible and the robot's heading_rad (role is
+// position, heading or distractor; a distractor has robot_id -1 and heading
+// nan). Frame f is t_s = f / fps, utime = start_utime + t_s 1e6, robots from
+// SimulatedRobots(t_s), noise seeded by f. False with a message when the
+// output cannot be written or the extension is not .avi or .mp4.
 struct SequenceOptions {
   double duration_s = 10.0;
   double fps = 30.0;

@@ -25,6 +25,7 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
   AddBenchLoggerCommand(bench, exit_code);
   AddBenchRadioCommand(bench, exit_code);
   AddBenchViewerCommand(bench, exit_code);
+  AddBenchCameraCommand(bench, exit_code);
 }
 
 }  // namespace roomfix

@@ -9,6 +9,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <limits>
@@ -26,6 +27,7 @@
 #include "core/calib/calibration_file.h"
 #include "core/calib/camera_fit.h"
 #include "core/calib/region_model.h"
+#include "core/vision/marker_detector.h"
 #include "core/world/site.h"
 #include "tools/commands.h"
 
@@ -46,6 +48,8 @@ struct Flags {
   std::string board_axes = "x";
   double board_height_m = 0.0;
   std::string corners_csv;
+  std::string marker_images;
+  std::string marker_class;
   std::string out;
   std::string model = "full";
   std::string site;
@@ -312,6 +316,91 @@ void AddChessboards(const Flags& f, std::vector<Correspondence>* points, std::ve
   }
 }
 
+std::string Fixed(double v, int digits);
+
+// The reference's tripod procedure: images of one marker placed at surveyed
+// points, listed in a CSV `image,x_m,y_m,height_m` (image paths relative to
+// the CSV). The marker is found by the same detector camera_proc runs, with
+// the site camera's colour class; an image must show exactly one blob of it.
+void AddMarkerImages(const Flags& f, std::vector<Correspondence>* points, std::vector<int>* lines) {
+  if (f.marker_images.empty()) return;
+  if (f.site.empty()) throw Refusal("--marker-images needs --site (the marker's colour class)");
+  Site site;
+  std::string error;
+  if (!LoadSite(f.site, &site, &error)) throw Refusal(error);
+  const roomfix::Camera* camera = nullptr;
+  for (const auto& c : site.cameras) {
+    if (f.camera_id < 0 ? camera == nullptr : c.id == f.camera_id) camera = &c;
+  }
+  if (camera == nullptr) throw Refusal(f.site + ": no such camera");
+  std::string class_name = f.marker_class;
+  if (class_name.empty() && !camera->robots.empty()) {
+    class_name = camera->robots.front().position_marker;
+  }
+  const MarkerClass* mc = nullptr;
+  for (const MarkerClass& c : camera->marker_classes) {
+    if (c.name == class_name) mc = &c;
+  }
+  if (mc == nullptr) throw Refusal("--marker-class: the camera has no class '" + class_name + "'");
+  vision::ColourClass cls;
+  cls.name = mc->name;
+  cls.hsv_min = mc->hsv_min;
+  cls.hsv_max = mc->hsv_max;
+  cls.min_area_px = 20.0;
+  vision::DetectorOptions options;
+  options.lighting = vision::LightingMode::kNormalised;
+  const vision::MarkerDetector detector({cls}, options);
+
+  std::ifstream in(f.marker_images);
+  if (!in) throw Refusal(f.marker_images + ": cannot read");
+  const std::string dir = std::filesystem::path(f.marker_images).parent_path().string();
+  std::string line;
+  int line_no = 0;
+  int used = 0;
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (line.empty() || line[0] == '#') continue;
+    const std::vector<std::string> cells = SplitComma(line);
+    if (line_no == 1) {
+      if (cells.size() != 4 || cells[0] != "image" || cells[1] != "x_m" || cells[2] != "y_m" ||
+          cells[3] != "height_m") {
+        throw Refusal(f.marker_images + ":1: expected the header image,x_m,y_m,height_m");
+      }
+      continue;
+    }
+    double x = 0, y = 0, h = 0;
+    if (cells.size() != 4 || !ParseNumber(cells[1], &x) || !ParseNumber(cells[2], &y) ||
+        !ParseNumber(cells[3], &h)) {
+      throw Refusal(f.marker_images + ":" + std::to_string(line_no) +
+                    ": expected image,x_m,y_m,height_m");
+    }
+    std::string path = cells[0];
+    if (!path.empty() && path[0] != '/' && !dir.empty()) path = dir + "/" + path;
+    const cv::Mat image = cv::imread(path, cv::IMREAD_COLOR);
+    if (image.empty()) {
+      throw Refusal(f.marker_images + ":" + std::to_string(line_no) + ": cannot read image " +
+                    path);
+    }
+    const std::vector<vision::Blob> blobs = detector.Detect(image, vision::ImageWindow{});
+    if (blobs.size() != 1) {
+      std::string where;
+      for (const vision::Blob& b : blobs) {
+        where += " (" + Fixed(b.u_px, 1) + ", " + Fixed(b.v_px, 1) + ")";
+      }
+      throw Refusal(path + ": expected one " + class_name + " marker, found " +
+                    std::to_string(blobs.size()) + (where.empty() ? "" : " at" + where));
+    }
+    std::cout << path << ": " << class_name << " marker at (" << Fixed(blobs[0].u_px, 2) << ", "
+              << Fixed(blobs[0].v_px, 2) << ") px for (" << Fixed(x, 3) << ", " << Fixed(y, 3)
+              << ", " << Fixed(h, 3) << ") m\n";
+    points->push_back(Correspondence{blobs[0].u_px, blobs[0].v_px, x, y, h});
+    lines->push_back(line_no);
+    ++used;
+  }
+  if (used == 0) throw Refusal(f.marker_images + ": no images listed");
+}
+
 // The reprojection of room point `p` at its height under the chosen model.
 bool Reproject(const Calibration& c, const Correspondence& p, double* u, double* v) {
   std::string ignored;
@@ -417,8 +506,8 @@ void Run(const Flags& f) {
   if (f.model != "full" && f.model != "regions") {
     throw Refusal("--model: expected full or regions, got '" + f.model + "'");
   }
-  if (f.points.empty() && f.chessboards.empty()) {
-    throw Refusal("no points: give --points CSV and/or --chessboard IMAGE");
+  if (f.points.empty() && f.chessboards.empty() && f.marker_images.empty()) {
+    throw Refusal("no points: give --points CSV, --chessboard IMAGE and/or --marker-images CSV");
   }
   if (!f.chessboards.empty() && f.board.empty()) {
     throw Refusal("--chessboard needs --board COLSxROWS (inner corners)");
@@ -434,6 +523,7 @@ void Run(const Flags& f) {
     if (points.empty()) throw Refusal(f.points + ": no points");
   }
   AddChessboards(f, &points, &lines);
+  AddMarkerImages(f, &points, &lines);
   if (f.out.empty()) return;
 
   // Camera size, field of view and mount: flags over the site's camera.
@@ -600,11 +690,16 @@ void Run(const Flags& f) {
 
   const Calibration& chosen = want_full ? full_cal : region_cal;
   std::ostringstream header;
-  header << "Written by roomfix calibrate from "
-         << (f.points.empty() ? std::string() : f.points + (f.chessboards.empty() ? "" : " and "))
-         << (f.chessboards.empty() ? std::string()
-                                   : std::to_string(f.chessboards.size()) + " chessboard image(s)")
-         << " (" << points.size() << " points), model " << f.model << ".\n";
+  std::vector<std::string> sources;
+  if (!f.points.empty()) sources.push_back(f.points);
+  if (!f.chessboards.empty()) {
+    sources.push_back(std::to_string(f.chessboards.size()) + " chessboard image(s)");
+  }
+  if (!f.marker_images.empty()) sources.push_back("the marker images in " + f.marker_images);
+  std::string from;
+  for (size_t i = 0; i < sources.size(); ++i) from += (i > 0 ? " and " : "") + sources[i];
+  header << "Written by roomfix calibrate from " << from << " (" << points.size()
+         << " points), model " << f.model << ".\n";
   if (want_full) {
     header << "RMS " << Fixed(std::sqrt(fs.rms_mm / n_full), 2) << " mm / "
            << Fixed(std::sqrt(fs.rms_px / n_full), 3) << " px over the points; " << full.message;
@@ -645,6 +740,12 @@ void AddCalibrateCommand(CLI::App* app, int* exit_code) {
   cmd->add_option("--corners-csv", f->corners_csv,
                   "Write the detected corners (image,i,j,u_px,v_px); with --chessboard and "
                   "--board but no --out: detect and write only, no fit");
+  cmd->add_option("--marker-images", f->marker_images,
+                  "CSV image,x_m,y_m,height_m: images of one marker placed at surveyed points "
+                  "(the reference's tripod procedure); the marker is detected in each");
+  cmd->add_option("--marker-class", f->marker_class,
+                  "Colour class of that marker in --site (default: the first robot's position "
+                  "marker)");
   cmd->add_option("--out", f->out, "Calibration YAML to write (required unless only detecting)");
   cmd->add_option("--model", f->model, "full (the fisheye model) or regions (the reference's 9)")
       ->capture_default_str();

@@ -21,11 +21,14 @@ void AddFramesCommand(CLI::App* app, int* exit_code);
 void AddAnalyzeCommand(CLI::App* app, int* exit_code);
 void AddCalibrateCommand(CLI::App* app, int* exit_code);
 void AddMapCommand(CLI::App* app, int* exit_code);
+void AddRenderCameraCommand(CLI::App* app, int* exit_code);
 // Adds `logger` under the `bench` subcommand.
 void AddBenchLoggerCommand(CLI::App* bench, int* exit_code);
 // Adds `radio` under the `bench` subcommand.
 void AddBenchRadioCommand(CLI::App* bench, int* exit_code);
 void AddBenchViewerCommand(CLI::App* bench, int* exit_code);
+// Adds `camera` under the `bench` subcommand.
+void AddBenchCameraCommand(CLI::App* bench, int* exit_code);
 
 }  // namespace roomfix
 

@@ -18,6 +18,7 @@ int main(int argc, char** argv) {
   roomfix::AddAnalyzeCommand(&app, &exit_code);
   roomfix::AddCalibrateCommand(&app, &exit_code);
   roomfix::AddMapCommand(&app, &exit_code);
+  roomfix::AddRenderCameraCommand(&app, &exit_code);
   CLI11_PARSE(app, argc, argv);
   return exit_code;
 }

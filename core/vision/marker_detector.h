@@ -2,10 +2,9 @@
 #define ROOMFIX_CORE_VISION_MARKER_DETECTOR_H_
 
 #include <array>
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 namespace roomfix::vision {
 
@@ -47,15 +46,19 @@ struct Blob {
 
 // How classification copes with lighting (see docs/camera.md for which works).
 enum class LightingMode {
-  kFixed,      // the site file's HSV ranges as they are (the reference)
-  kNormalised, // V (and S) judged against the local background brightness
-  kAdaptive,   // kNormalised, plus ranges that follow each tracked marker's colour
+  kFixed,       // the site file's HSV ranges as they are (the reference)
+  kNormalised,  // V (and S) judged against the local background brightness
+  kAdaptive,    // kNormalised, plus ranges that follow each tracked marker's colour
 };
 
 struct DetectorOptions {
   LightingMode lighting = LightingMode::kNormalised;
   // Gaussian smoothing of the class masks, full-resolution pixels; 0 = none.
   double blur_sigma_px = 1.0;
+  // kNormalised/kAdaptive: V (HSV value, 0..255) of the floor under the
+  // lighting the class ranges were tuned in. Each pixel is scaled by
+  // background_v_ref / (local floor V) before its class is looked up.
+  double background_v_ref = 128.0;
 };
 
 // Finds coloured blobs. Stateless apart from its options and classes; one
@@ -95,6 +98,12 @@ class MarkerDetector {
     std::array<double, 3> var{};
   };
   std::vector<ColourStats> stats_;
+  // Class membership by colour: 64^3 cells of the BGR cube (6 bits per
+  // channel), one bit per class; classes 8k..8k+7 are in bank k.
+  std::vector<std::vector<unsigned char>> lut_banks_;
+  std::vector<unsigned char> cell_hsv_;  // HSV of each cell's centre colour
+  void BuildLutBank(int bank);
+  bool AcceptsHsv(int class_index, int h, int s, int v) const;
 };
 
 // The reference pipeline, for the benchmark: full-frame HSV conversion,

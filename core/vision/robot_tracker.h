@@ -2,10 +2,9 @@
 #define ROOMFIX_CORE_VISION_ROBOT_TRACKER_H_
 
 #include <cstdint>
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 #include "core/vision/marker_detector.h"
 
@@ -36,6 +35,8 @@ struct TrackerOptions {
   // After this long without a confirmed find, a robot is kLost and searched
   // in the full frame.
   double lost_after_s = 0.5;
+  // A position hint (SetHint) counts for this long around its time.
+  double hint_max_age_s = 1.0;
 };
 
 enum class TrackState {
@@ -57,9 +58,9 @@ struct SearchPlan {
 struct RobotObservation {
   int robot_id = 0;
   TrackState state = TrackState::kSearching;
-  bool found = false;       // position marker confirmed in this frame
-  Blob position;            // valid when found
-  bool has_heading = false; // heading marker paired in this frame
+  bool found = false;        // position marker confirmed in this frame
+  Blob position;             // valid when found
+  bool has_heading = false;  // heading marker paired in this frame
   Blob heading;
   // Image-plane angle from the position to the heading marker, atan2(dv, du).
   double image_angle_rad = 0.0;
@@ -87,9 +88,30 @@ class RobotTracker {
   // `window_blobs[i]`: blobs found in plans[i].window for each non-full plan
   // (same order as Plan() returned). Returns one observation per robot, in
   // the order of the specs.
+  //
+  // `window_blobs` may hold one list per plan (empty for full-frame plans)
+  // or one per window plan only; both are accepted. A tracking robot's
+  // position marker must have its centroid inside its window (blobs outside
+  // are ignored even when handed in); its heading marker may lie anywhere
+  // within heading_search_radii * position_radius_px of it. A full-frame
+  // search with several candidates still re-acquires a robot whose last
+  // confirmed find was less than lost_after_s ago when exactly one
+  // candidate lies within window_margin_px + max_speed_px_per_s * dt of its
+  // last position. Robots with the same class pair never share a blob; a
+  // robot found from the full frame restarts its velocity estimate. Robots
+  // with the same class pair that were never found are kAmbiguous while the
+  // full frame holds two or more candidates; a single candidate goes to the
+  // first of them in spec order (such robots enter the view one at a time).
   std::vector<RobotObservation> Update(int64_t utime, const std::vector<SearchPlan>& plans,
                                        const std::vector<Blob>& full_frame_blobs,
                                        const std::vector<std::vector<Blob>>& window_blobs);
+
+  // Where another sensor (the ultrasound, the fused track) puts a robot, as
+  // a pixel and a radius of uncertainty: a full-frame search that finds
+  // several candidates takes the one inside the radius when it is the only
+  // one there, instead of staying kAmbiguous. A stale hint (older than
+  // hint_max_age_s at the frame's time) is ignored.
+  void SetHint(int robot_id, double u_px, double v_px, double radius_px, int64_t utime);
 
   const std::vector<TrackedRobotSpec>& robots() const { return robots_; }
 
@@ -97,9 +119,15 @@ class RobotTracker {
   struct Track {
     TrackState state = TrackState::kSearching;
     int64_t last_seen_utime = 0;
-    double u_px = 0.0, v_px = 0.0;     // last confirmed position
+    double u_px = 0.0, v_px = 0.0;                // last confirmed position
     double du_px_per_s = 0.0, dv_px_per_s = 0.0;  // velocity estimate
     bool has_velocity = false;
+    bool ever_found = false;
+    bool found_last_update = false;  // consecutive finds give a velocity
+    bool window_missed = false;      // last window search missed: full frame next
+    bool has_hint = false;
+    double hint_u_px = 0.0, hint_v_px = 0.0, hint_radius_px = 0.0;
+    int64_t hint_utime = 0;
   };
   std::vector<TrackedRobotSpec> robots_;
   TrackerOptions options_;

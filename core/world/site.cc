@@ -269,6 +269,44 @@ MarkerClass ParseMarkerClass(const Reader& r, const YAML::Node& node, const std:
   return mc;
 }
 
+// The hue range of a class as one or two plain intervals: a wrapping range
+// (hsv_min H above hsv_max H) covers min..179 and 0..max.
+std::vector<std::pair<int, int>> HueIntervals(const MarkerClass& c) {
+  if (c.hsv_min[0] <= c.hsv_max[0]) return {{c.hsv_min[0], c.hsv_max[0]}};
+  return {{c.hsv_min[0], 179}, {0, c.hsv_max[0]}};
+}
+
+std::vector<std::pair<int, int>> HueIntersection(const MarkerClass& a, const MarkerClass& b) {
+  std::vector<std::pair<int, int>> out;
+  for (const auto& [a_lo, a_hi] : HueIntervals(a)) {
+    for (const auto& [b_lo, b_hi] : HueIntervals(b)) {
+      const int lo = std::max(a_lo, b_lo);
+      const int hi = std::min(a_hi, b_hi);
+      if (lo <= hi) out.emplace_back(lo, hi);
+    }
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+// "hue 10..15, saturation 120..200, value 60..255" for the shared box; a
+// shared hue range through 0 reads "hue 175..179 and 0..5".
+std::string DescribeOverlap(const MarkerClass& a, const MarkerClass& b) {
+  std::ostringstream s;
+  s << "hue ";
+  const auto hue = HueIntersection(a, b);
+  for (size_t i = 0; i < hue.size(); ++i) {
+    if (i > 0) s << " and ";
+    s << hue[i].first << ".." << hue[i].second;
+  }
+  const char* names[] = {"hue", "saturation", "value"};
+  for (size_t c = 1; c < 3; ++c) {
+    s << ", " << names[c] << " " << std::max(a.hsv_min[c], b.hsv_min[c]) << ".."
+      << std::min(a.hsv_max[c], b.hsv_max[c]);
+  }
+  return s.str();
+}
+
 void ParseCameras(const Reader& r, const YAML::Node& root, const std::string& base_dir,
                   Site* site) {
   const YAML::Node cameras = root["cameras"];
@@ -334,6 +372,11 @@ void ParseCameras(const Reader& r, const YAML::Node& root, const std::string& ba
       for (const auto& other : cam.marker_classes) {
         if (other.name == mc.name) {
           r.Fail(classes[c], ckey + ".name", "duplicate marker class '" + mc.name + "'");
+        }
+        if (HsvRangesOverlap(mc, other)) {
+          r.Fail(classes[c], ckey,
+                 "colour class '" + mc.name + "' overlaps '" + other.name + "' (" +
+                     DescribeOverlap(mc, other) + "): a pixel could not be classified");
         }
       }
       cam.marker_classes.push_back(mc);
@@ -514,6 +557,13 @@ const Beacon* Site::FindBeaconByAddress(uint64_t address) const {
 }
 const Robot* Site::FindRobot(int id) const {
   return FindIf(robots, [id](const Robot& r) { return r.id == id; });
+}
+
+bool HsvRangesOverlap(const MarkerClass& a, const MarkerClass& b) {
+  for (size_t c = 1; c < 3; ++c) {
+    if (std::max(a.hsv_min[c], b.hsv_min[c]) > std::min(a.hsv_max[c], b.hsv_max[c])) return false;
+  }
+  return !HueIntersection(a, b).empty();
 }
 
 bool ParseRadioAddress(const std::string& text, uint64_t* address) {

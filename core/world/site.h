@@ -143,7 +143,8 @@ struct Site {
 // unique ids and radio addresses (receivers and beacons share one address
 // space), at least 3 receivers, receivers not all on one line in the floor
 // plane, receivers and beacon heights inside the room, robot and marker
-// references that resolve, HSV ranges in OpenCV's bounds, and no unknown keys
+// references that resolve, HSV ranges in OpenCV's bounds, no two colour
+// classes of one camera overlapping (HsvRangesOverlap), and no unknown keys
 // (a typo must not silently fall back to a default).
 bool LoadSite(const std::string& path, Site* site, std::string* error);
 
@@ -151,6 +152,13 @@ bool LoadSite(const std::string& path, Site* site, std::string* error);
 // relative paths resolve against `base_dir`.
 bool ParseSite(const std::string& yaml_text, const std::string& name, const std::string& base_dir,
                Site* site, std::string* error);
+
+// True when some HSV pixel falls in both classes' boxes: the hue ranges
+// (each wrapping through 0 when hsv_min H > hsv_max H) intersect and so do
+// the saturation and value intervals (all bounds inclusive, as cv::inRange).
+// LoadSite rejects two such classes on one camera: a pixel in both could not
+// be classified.
+bool HsvRangesOverlap(const MarkerClass& a, const MarkerClass& b);
 
 // Parses "0x0013A20040A1B2C3", "0013A200 40A1B2C3" or "00:13:a2:...":
 // 16 hex digits with optional 0x prefix and space, colon or dash separators.

@@ -181,6 +181,119 @@ TEST(Site, LiasPlanarSitesMatchTheDatasetAnchors) {
   EXPECT_EQ(checked, 16);
 }
 
+MarkerClass Hsv(const std::string& name, std::array<int, 3> lo, std::array<int, 3> hi) {
+  MarkerClass c;
+  c.name = name;
+  c.hsv_min = lo;
+  c.hsv_max = hi;
+  c.diameter_m = 0.05;
+  return c;
+}
+
+// The demo site's orange and green, which share no pixel.
+const MarkerClass kOrange = Hsv("orange", {5, 120, 120}, {22, 255, 255});
+const MarkerClass kGreen = Hsv("green", {40, 80, 60}, {85, 255, 255});
+
+TEST(HsvRangesOverlap, DisjointHuesDoNotOverlap) {
+  EXPECT_FALSE(HsvRangesOverlap(kOrange, kGreen));
+  EXPECT_FALSE(HsvRangesOverlap(kGreen, kOrange));
+}
+
+TEST(HsvRangesOverlap, SharedBoundsCountAsOverlap) {
+  // cv::inRange is inclusive: hue 22 falls in both.
+  const MarkerClass yellow = Hsv("yellow", {22, 120, 120}, {35, 255, 255});
+  EXPECT_TRUE(HsvRangesOverlap(kOrange, yellow));
+  EXPECT_TRUE(HsvRangesOverlap(yellow, kOrange));
+  const MarkerClass next = Hsv("yellow", {23, 120, 120}, {35, 255, 255});
+  EXPECT_FALSE(HsvRangesOverlap(kOrange, next));
+}
+
+TEST(HsvRangesOverlap, SameHueSeparatedBySaturationOrValueDoesNotOverlap) {
+  const MarkerClass pale = Hsv("pale", {5, 0, 120}, {22, 119, 255});
+  const MarkerClass dark = Hsv("dark", {5, 120, 0}, {22, 255, 119});
+  EXPECT_FALSE(HsvRangesOverlap(kOrange, pale));
+  EXPECT_FALSE(HsvRangesOverlap(kOrange, dark));
+  EXPECT_FALSE(HsvRangesOverlap(pale, dark));
+}
+
+TEST(HsvRangesOverlap, WrappingHueRange) {
+  // Red wraps through 0: 170..179 and 0..8.
+  const MarkerClass red = Hsv("red", {170, 120, 120}, {8, 255, 255});
+  EXPECT_TRUE(HsvRangesOverlap(red, kOrange));  // 5..8 shared
+  EXPECT_TRUE(HsvRangesOverlap(kOrange, red));
+  EXPECT_TRUE(HsvRangesOverlap(red, Hsv("magenta", {150, 120, 120}, {172, 255, 255})));
+  EXPECT_FALSE(HsvRangesOverlap(red, Hsv("pink", {150, 120, 120}, {169, 255, 255})));
+  EXPECT_FALSE(HsvRangesOverlap(red, Hsv("amber", {9, 120, 120}, {20, 255, 255})));
+  EXPECT_FALSE(HsvRangesOverlap(red, kGreen));
+  // Two wrapping ranges always share hue 179 and 0.
+  EXPECT_TRUE(HsvRangesOverlap(red, Hsv("crimson", {178, 120, 120}, {1, 255, 255})));
+  EXPECT_FALSE(HsvRangesOverlap(red, Hsv("crimson", {178, 0, 120}, {1, 100, 255})));
+}
+
+// A third receiver after kTwoReceivers and a camera with two classes; the
+// second class is on line 15.
+std::string SiteWithClasses(const std::string& class_a, const std::string& class_b) {
+  return std::string(kTwoReceivers) +
+         "  - {id: 3, address: '0x0000000000000003', position_m: [4, 3, 2]}\n"
+         "cameras:\n"
+         "  - id: 0\n"
+         "    device: /dev/video0\n"
+         "    resolution: [640, 480]\n"
+         "    fps: 30\n"
+         "    mount_position_m: [2, 1.5, 2.9]\n"
+         "    marker_classes:\n"
+         "      - " +
+         class_a +
+         "\n"
+         "      - " +
+         class_b +
+         "\n"
+         "    robots: []\n";
+}
+
+TEST(Site, RejectsOverlappingColourClassesNamingBothAndTheSharedBox) {
+  const std::string text = SiteWithClasses(
+      "{name: orange, hsv_min: [5, 120, 120], hsv_max: [22, 255, 255], diameter_m: 0.1}",
+      "{name: yellow, hsv_min: [15, 150, 100], hsv_max: [35, 200, 255], diameter_m: 0.05}");
+  Site site;
+  std::string error;
+  ASSERT_FALSE(ParseSite(text, "inline.yaml", "", &site, &error));
+  EXPECT_EQ(error,
+            "inline.yaml:15: cameras[0].marker_classes[1]: colour class 'yellow' overlaps 'orange' "
+            "(hue 15..22, saturation 150..200, value 120..255): a pixel could not be classified");
+}
+
+TEST(Site, RejectsOverlapThroughHueZero) {
+  const std::string text = SiteWithClasses(
+      "{name: red, hsv_min: [170, 120, 120], hsv_max: [8, 255, 255], diameter_m: 0.1}",
+      "{name: rose, hsv_min: [175, 100, 100], hsv_max: [3, 255, 255], diameter_m: 0.05}");
+  Site site;
+  std::string error;
+  ASSERT_FALSE(ParseSite(text, "inline.yaml", "", &site, &error));
+  EXPECT_NE(error.find("colour class 'rose' overlaps 'red' (hue 0..3 and 175..179, saturation "
+                       "120..255, value 120..255)"),
+            std::string::npos)
+      << error;
+}
+
+TEST(Site, AcceptsAWrappingRedBesideOrange) {
+  const std::string text = SiteWithClasses(
+      "{name: red, hsv_min: [170, 120, 120], hsv_max: [4, 255, 255], diameter_m: 0.1}",
+      "{name: orange, hsv_min: [5, 120, 120], hsv_max: [22, 255, 255], diameter_m: 0.05}");
+  Site site;
+  std::string error;
+  EXPECT_TRUE(ParseSite(text, "inline.yaml", "", &site, &error)) << error;
+}
+
+TEST(Site, DemoRoomColourClassesDoNotOverlap) {
+  Site site;
+  std::string error;
+  ASSERT_TRUE(LoadSite(SourceDir() + "/config/sites/demo_room.yaml", &site, &error)) << error;
+  const auto& classes = site.cameras.at(0).marker_classes;
+  ASSERT_EQ(classes.size(), 2u);
+  EXPECT_FALSE(HsvRangesOverlap(classes[0], classes[1]));
+}
+
 TEST(RadioAddress, ParsesTheCommonSpellings) {
   uint64_t a = 0;
   ASSERT_TRUE(ParseRadioAddress("0x0013A20040A1B2C3", &a));

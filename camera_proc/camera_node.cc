@@ -1,0 +1,494 @@
+#include "camera_proc/camera_node.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <utility>
+
+#include "core/calib/marker_projection.h"
+
+namespace roomfix {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+int64_t SteadyMicros() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(
+             std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+int ClassIndex(const std::vector<vision::ColourClass>& classes, const std::string& name) {
+  for (size_t i = 0; i < classes.size(); ++i) {
+    if (classes[i].name == name) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+// Radius in pixels of a disc of radius_m at (x, y, height) seen by the lens:
+// the mean distance of four projected rim points from the projected centre.
+double ImageRadiusPx(const calib::CameraModel& lens, double x_m, double y_m, double height_m,
+                     double radius_m) {
+  double u0 = 0, v0 = 0;
+  if (!lens.ProjectToPixel(Eigen::Vector3d(x_m, y_m, height_m), &u0, &v0)) return 0.0;
+  double sum = 0.0;
+  int n = 0;
+  for (int i = 0; i < 4; ++i) {
+    const double a = i * M_PI / 2.0;
+    double u = 0, v = 0;
+    if (lens.ProjectToPixel(
+            Eigen::Vector3d(x_m + radius_m * std::cos(a), y_m + radius_m * std::sin(a), height_m),
+            &u, &v)) {
+      sum += std::hypot(u - u0, v - v0);
+      ++n;
+    }
+  }
+  return n > 0 ? sum / n : 0.0;
+}
+
+}  // namespace
+
+bool CameraNodeOptions::IsValid(std::string* error) const {
+  if (full_search_scale != 1 && full_search_scale != 2 && full_search_scale != 4 &&
+      full_search_scale != 8) {
+    *error = "full search scale must be 1, 2, 4 or 8, not " + std::to_string(full_search_scale);
+    return false;
+  }
+  if (!(max_speed_mps > 0.0) || !std::isfinite(max_speed_mps)) {
+    *error = "maximum speed must be positive";
+    return false;
+  }
+  if (!(centroid_sigma_px > 0.0) || !std::isfinite(centroid_sigma_px)) {
+    *error = "centroid sigma must be positive";
+    return false;
+  }
+  if (!(blur_sigma_px >= 0.0)) {
+    *error = "blur sigma must not be negative";
+    return false;
+  }
+  return true;
+}
+
+bool MakeCameraSetup(const Room& room, const Camera& camera, const calib::CameraModel& lens,
+                     const CameraNodeOptions& options, CameraSetup* setup, std::string* error) {
+  *setup = CameraSetup{};
+  if (camera.marker_classes.empty()) {
+    *error = "camera " + std::to_string(camera.id) + " has no marker classes";
+    return false;
+  }
+  // The camera sees a marker largest straight below it and smallest at the
+  // floor's far corners; the area filter spans both with a margin for
+  // partial occlusion (half the radius) and for blur (1.8 times).
+  const Eigen::Vector3d& mount = lens.pose.position_m;
+  double far_x = mount.x(), far_y = mount.y();
+  for (const double x : {room.min_x_m, room.min_x_m + room.size_x_m}) {
+    for (const double y : {room.min_y_m, room.min_y_m + room.size_y_m}) {
+      if (std::hypot(x - mount.x(), y - mount.y()) >
+          std::hypot(far_x - mount.x(), far_y - mount.y())) {
+        far_x = x;
+        far_y = y;
+      }
+    }
+  }
+  const double min_height_m = 0.0;
+  double max_height_m = 0.0;
+  for (const CameraRobot& r : camera.robots) {
+    max_height_m = std::max(max_height_m, r.marker_height_m);
+  }
+  for (const MarkerClass& mc : camera.marker_classes) {
+    vision::ColourClass c;
+    c.name = mc.name;
+    c.hsv_min = mc.hsv_min;
+    c.hsv_max = mc.hsv_max;
+    const double radius_m = mc.diameter_m > 0.0 ? mc.diameter_m / 2.0 : 0.05;
+    const double near_px = ImageRadiusPx(lens, mount.x(), mount.y(), max_height_m, radius_m);
+    // A far corner may lie outside the image; the marker is then never seen
+    // smaller than at the image's edge, which a quarter of the near radius
+    // bounds for a 120-degree lens.
+    double far_px = ImageRadiusPx(lens, far_x, far_y, min_height_m, radius_m);
+    if (!(far_px > 0.0)) far_px = 0.25 * near_px;
+    c.min_area_px = std::max(6.0, M_PI * std::pow(0.5 * far_px, 2));
+    c.max_area_px = std::max(c.min_area_px * 4.0, M_PI * std::pow(1.8 * near_px + 2.0, 2));
+    c.min_circularity = 0.6;
+    setup->classes.push_back(c);
+  }
+  for (const CameraRobot& r : camera.robots) {
+    vision::TrackedRobotSpec spec;
+    spec.robot_id = r.robot_id;
+    spec.position_class = ClassIndex(setup->classes, r.position_marker);
+    spec.heading_class = ClassIndex(setup->classes, r.heading_marker);
+    if (spec.position_class < 0 || spec.heading_class < 0) {
+      *error = "robot " + std::to_string(r.robot_id) + " names a marker class the camera lacks";
+      return false;
+    }
+    const MarkerClass& pos = camera.marker_classes[static_cast<size_t>(spec.position_class)];
+    const MarkerClass& head = camera.marker_classes[static_cast<size_t>(spec.heading_class)];
+    spec.position_radius_px =
+        ImageRadiusPx(lens, mount.x(), mount.y(), r.marker_height_m, pos.diameter_m / 2.0);
+    setup->robots.push_back(spec);
+    setup->marker_height_m.push_back(r.marker_height_m);
+    setup->position_radius_m.push_back(pos.diameter_m / 2.0);
+    setup->heading_radius_m.push_back(head.diameter_m / 2.0);
+  }
+  // Pixels per metre on the floor are largest straight below the lens.
+  double px_per_m = 0.0;
+  if (!setup->robots.empty()) {
+    const double h = setup->marker_height_m.front();
+    px_per_m = ImageRadiusPx(lens, mount.x(), mount.y(), h, 0.1) / 0.1;
+  }
+  setup->tracker.max_speed_px_per_s = std::max(50.0, options.max_speed_mps * px_per_m);
+  return true;
+}
+
+CameraNode::CameraNode(const Site& site, const Camera& camera,
+                       std::optional<calib::Calibration> calibration, Bus* bus,
+                       const CameraNodeOptions& options, int64_t start_utime)
+    : camera_(camera),
+      calibration_(std::move(calibration)),
+      bus_(bus),
+      options_(options),
+      status_("camera_proc", start_utime) {
+  if (!options_.steady_clock) options_.steady_clock = SteadyMicros;
+  // The lens that sizes windows and blobs: the calibrated one when there is
+  // a full model, else the nominal lens at the mount position.
+  calib::CameraModel lens = calib::NominalCamera(camera.mount_position_m, camera.field_of_view_deg,
+                                                 camera.width_px, camera.height_px);
+  if (calibration_ && calibration_->model == calib::Calibration::Model::kFull) {
+    lens = calibration_->camera;
+  }
+  if (!MakeCameraSetup(site.room, camera, lens, options_, &setup_, &setup_error_)) return;
+  vision::DetectorOptions detector_options;
+  detector_options.lighting = options_.lighting;
+  detector_options.blur_sigma_px = options_.blur_sigma_px;
+  detector_ = std::make_unique<vision::MarkerDetector>(setup_.classes, detector_options);
+  tracker_ = std::make_unique<vision::RobotTracker>(setup_.robots, setup_.tracker, camera.width_px,
+                                                    camera.height_px);
+  // Hints need the floor-to-pixel direction, so a calibration.
+  if (calibration_) {
+    for (const std::string& channel : options_.hint_channels) {
+      bus_->Subscribe<pose2d_t>(channel,
+                                [this](const pose2d_t& p, const MessageInfo&) { OnHint(p); });
+    }
+  }
+}
+
+void CameraNode::OnHint(const pose2d_t& pose) {
+  if (pose.status == pose2d_t::STATUS_LOST || !std::isfinite(pose.x_m) ||
+      !std::isfinite(pose.y_m)) {
+    return;
+  }
+  for (size_t i = 0; i < setup_.robots.size(); ++i) {
+    if (setup_.robots[i].robot_id != pose.robot_id) continue;
+    const double h = setup_.marker_height_m[i];
+    double u = 0, v = 0, u1 = 0, v1 = 0;
+    std::string error;
+    // Radius on the floor: 3 sigma of the larger axis, clamped; in pixels
+    // by the local scale (one floor step of 0.1 m imaged).
+    double var = std::max(pose.covariance[0][0], pose.covariance[1][1]);
+    if (!std::isfinite(var) || var < 0.0) var = 0.0;
+    const double radius_m =
+        std::clamp(3.0 * std::sqrt(var), options_.hint_min_radius_m, options_.hint_max_radius_m);
+    if (!calibration_->FloorToPixel(pose.x_m, pose.y_m, h, &u, &v, &error) ||
+        !calibration_->FloorToPixel(pose.x_m + 0.1, pose.y_m, h, &u1, &v1, &error)) {
+      return;
+    }
+    const double px_per_m = std::hypot(u1 - u, v1 - v) / 0.1;
+    tracker_->SetHint(pose.robot_id, u, v, radius_m * px_per_m, pose.utime);
+    status_.Count("hints");
+  }
+}
+
+bool CameraNode::ok(std::string* error) const {
+  if (!setup_error_.empty()) {
+    *error = setup_error_;
+    return false;
+  }
+  return true;
+}
+
+bool CameraNode::SearchFullFrame(camera::FrameImage* image, std::vector<vision::Blob>* blobs,
+                                 std::string* error) {
+  const int scale = options_.full_search_scale;
+  cv::Mat reduced;
+  if (!image->DecodeReduced(scale, &reduced, error)) return false;
+  vision::ImageWindow whole;
+  whole.scale = scale;
+  std::vector<vision::Blob> coarse = detector_->Detect(reduced, whole);
+  if (scale == 1) {
+    *blobs = std::move(coarse);
+    return true;
+  }
+  // Each blob found on the reduced view is re-measured on a full-resolution
+  // window a few radii across (the reduced view's centroid is good to about
+  // a quarter of the scale; the full-resolution one to a hundredth of a
+  // pixel).
+  blobs->clear();
+  for (vision::Blob& b : coarse) {
+    const double half = 2.5 * b.radius_px + 3.0 * scale + 4.0;
+    const cv::Rect rect(
+        static_cast<int>(std::floor(b.u_px - half)), static_cast<int>(std::floor(b.v_px - half)),
+        static_cast<int>(std::ceil(2.0 * half)) + 1, static_cast<int>(std::ceil(2.0 * half)) + 1);
+    const cv::Rect clipped = rect & cv::Rect(0, 0, image->width_px(), image->height_px());
+    cv::Mat window;
+    if (clipped.empty() || !image->DecodeRegion(clipped, &window, error)) return false;
+    vision::ImageWindow w;
+    w.offset_u_px = clipped.x;
+    w.offset_v_px = clipped.y;
+    vision::Blob refined = b;
+    if (detector_->Refine(window, w, b.class_index, &refined)) blobs->push_back(refined);
+  }
+  return true;
+}
+
+void CameraNode::OnFrame(camera::Frame* frame, int64_t now_utime) {
+  if (tracker_ == nullptr || frame->image == nullptr) return;
+  const int64_t begin_us = options_.steady_clock();
+  status_.AddInputs();
+  if (last_seq_ >= 0 && frame->seq > last_seq_ + 1) status_.AddDropped(frame->seq - last_seq_ - 1);
+  last_seq_ = frame->seq;
+  camera::FrameImage* image = frame->image.get();
+  if (image->width_px() != camera_.width_px || image->height_px() != camera_.height_px) {
+    status_.Reject("wrong_frame_size");
+    status_.SetError("frame " + std::to_string(frame->seq) + " is " +
+                         std::to_string(image->width_px()) + "x" +
+                         std::to_string(image->height_px()) + ", the site says " +
+                         std::to_string(camera_.width_px) + "x" + std::to_string(camera_.height_px),
+                     now_utime);
+    return;
+  }
+
+  std::vector<vision::SearchPlan> plans = tracker_->Plan(frame->capture_utime);
+  if (options_.always_full_search) {
+    for (vision::SearchPlan& p : plans) p.full_frame = true;
+  }
+  bool full = false;
+  for (const vision::SearchPlan& p : plans) full = full || p.full_frame;
+  std::string error;
+  std::vector<vision::Blob> full_blobs;
+  std::vector<std::vector<vision::Blob>> window_blobs(plans.size());
+  bool decoded = true;
+  if (full) decoded = SearchFullFrame(image, &full_blobs, &error);
+  for (size_t i = 0; decoded && i < plans.size(); ++i) {
+    if (plans[i].full_frame || plans[i].window.empty()) continue;
+    cv::Mat window;
+    if (!image->DecodeRegion(plans[i].window, &window, &error)) {
+      decoded = false;
+      break;
+    }
+    vision::ImageWindow w;
+    w.offset_u_px = plans[i].window.x;
+    w.offset_v_px = plans[i].window.y;
+    const vision::TrackedRobotSpec& spec = tracker_->robots()[i];
+    window_blobs[i] = detector_->Detect(window, w, {spec.position_class, spec.heading_class});
+  }
+  if (!decoded) {
+    status_.Reject("corrupt_frame");
+    status_.SetError("frame " + std::to_string(frame->seq) + ": " + error, now_utime);
+    return;
+  }
+  observations_ = tracker_->Update(frame->capture_utime, plans, full_blobs, window_blobs);
+  ++frames_processed_;
+  status_.Count(full ? "full_searches" : "window_searches");
+
+  // Every blob seen, once: a robot's markers may be in its window and in the
+  // full-frame search of the same frame.
+  marker_pixels_t msg{};
+  msg.utime = frame->capture_utime;
+  msg.camera_id = camera_.id;
+  msg.frame_seq = frame->seq;
+  msg.width_px = image->width_px();
+  msg.height_px = image->height_px();
+  msg.search_mode =
+      full ? marker_pixels_t::SEARCH_FULL_FRAME : marker_pixels_t::SEARCH_REGION_OF_INTEREST;
+  std::vector<vision::Blob> all = full_blobs;
+  for (const auto& list : window_blobs) {
+    for (const vision::Blob& b : list) {
+      const bool seen = std::any_of(all.begin(), all.end(), [&](const vision::Blob& a) {
+        return a.class_index == b.class_index && std::hypot(a.u_px - b.u_px, a.v_px - b.v_px) < 1.0;
+      });
+      if (!seen) all.push_back(b);
+    }
+  }
+  for (const vision::Blob& b : all) {
+    marker_t m{};
+    m.colour_class = setup_.classes[static_cast<size_t>(b.class_index)].name;
+    m.robot_id = -1;
+    m.role = marker_t::ROLE_NONE;
+    for (const vision::RobotObservation& o : observations_) {
+      auto same = [&](const vision::Blob& x) {
+        return x.class_index == b.class_index && std::hypot(x.u_px - b.u_px, x.v_px - b.v_px) < 1.0;
+      };
+      if (o.found && same(o.position)) {
+        m.robot_id = o.robot_id;
+        m.role = marker_t::ROLE_POSITION;
+      } else if (o.found && o.has_heading && same(o.heading)) {
+        m.robot_id = o.robot_id;
+        m.role = marker_t::ROLE_HEADING;
+      }
+    }
+    m.u_px = b.u_px;
+    m.v_px = b.v_px;
+    m.radius_px = b.radius_px;
+    m.circularity = b.circularity;
+    m.area_px = b.area_px;
+    msg.markers.push_back(m);
+  }
+  msg.num_markers = static_cast<int32_t>(msg.markers.size());
+  for (const vision::RobotObservation& o : observations_) {
+    if (!o.found) continue;
+    detector_->ObserveTracked(o.position);
+    if (o.has_heading) detector_->ObserveTracked(o.heading);
+  }
+  const int64_t elapsed_us = options_.steady_clock() - begin_us;
+  // Capture to end of detection: the wait before the frame reached us (for
+  // a live source) plus the work on it.
+  msg.processing_time_us = static_cast<int32_t>(
+      std::clamp<int64_t>(std::max<int64_t>(0, now_utime - frame->capture_utime) + elapsed_us, 0,
+                          std::numeric_limits<int32_t>::max()));
+  status_.SetCounter("last_frame_us", elapsed_us);
+  if (bus_->Publish(kMarkerPixelsChannel, msg)) status_.AddOutputs();
+  last_pixels_ = std::move(msg);
+
+  // A line per robot when its state changes, so STATUS and the log say why
+  // a robot is not tracked (ambiguous start-up, lost) without one per frame.
+  last_states_.resize(observations_.size(), -1);
+  for (size_t i = 0; i < observations_.size(); ++i) {
+    const vision::RobotObservation& o = observations_[i];
+    const int state = static_cast<int>(o.state);
+    if (state != last_states_[i]) {
+      const std::string note =
+          std::string(vision::TrackStateName(o.state)) + (o.note.empty() ? "" : ": " + o.note);
+      if (o.state == vision::TrackState::kAmbiguous || o.state == vision::TrackState::kLost) {
+        status_.SetError("robot " + std::to_string(o.robot_id) + " " + note, now_utime);
+        spdlog::warn("robot {} {}", o.robot_id, note);
+      } else {
+        spdlog::info("robot {} {}", o.robot_id, note);
+      }
+      last_states_[i] = state;
+    }
+    if (o.state == vision::TrackState::kAmbiguous) status_.Count("ambiguous_frames");
+    if (!o.found) status_.Count("robot_not_found");
+  }
+  if (calibration_) PublishPoses(*frame, now_utime + elapsed_us);
+}
+
+bool CameraNode::MapMarker(const vision::Blob& blob, double radius_m, double height_m, double* x_m,
+                           double* y_m) const {
+  if (calibration_->model == calib::Calibration::Model::kFull && options_.correct_disc_centroid) {
+    return calib::DiscCentroidToFloor(calibration_->camera, blob.u_px, blob.v_px, radius_m,
+                                      height_m, x_m, y_m);
+  }
+  std::string error;
+  return calibration_->PixelToFloor(blob.u_px, blob.v_px, height_m, x_m, y_m, &error);
+}
+
+void CameraNode::PublishPoses(const camera::Frame& frame, int64_t now_utime) {
+  for (size_t i = 0; i < observations_.size(); ++i) {
+    const vision::RobotObservation& o = observations_[i];
+    const double height_m = setup_.marker_height_m[i];
+    pose2d_t p{};
+    p.utime = frame.capture_utime;
+    p.source = pose2d_t::SOURCE_CAMERA;
+    p.robot_id = o.robot_id;
+    p.measurement_seq = frame.seq;
+    p.z_m = height_m;
+    p.x_m = p.y_m = p.heading_rad = kNaN;
+    for (auto& row : p.covariance) {
+      for (double& c : row) c = kNaN;
+    }
+    p.status = pose2d_t::STATUS_LOST;
+    double x = 0, y = 0;
+    std::string error;
+    if (o.found && MapMarker(o.position, setup_.position_radius_m[i], height_m, &x, &y)) {
+      p.x_m = x;
+      p.y_m = y;
+      p.num_measurements = 1;
+      // Covariance of the position: the centroid's pixel noise through the
+      // mapping's Jacobian, J = d(x, y)/d(u, v) by central differences,
+      // Sigma = sigma_px^2 J J^T.
+      const double h_px = 0.5;
+      double xu0, yu0, xu1, yu1, xv0, yv0, xv1, yv1;
+      const bool jac = calibration_->PixelToFloor(o.position.u_px - h_px, o.position.v_px, height_m,
+                                                  &xu0, &yu0, &error) &&
+                       calibration_->PixelToFloor(o.position.u_px + h_px, o.position.v_px, height_m,
+                                                  &xu1, &yu1, &error) &&
+                       calibration_->PixelToFloor(o.position.u_px, o.position.v_px - h_px, height_m,
+                                                  &xv0, &yv0, &error) &&
+                       calibration_->PixelToFloor(o.position.u_px, o.position.v_px + h_px, height_m,
+                                                  &xv1, &yv1, &error);
+      Eigen::Matrix2d J = Eigen::Matrix2d::Zero();
+      if (jac) {
+        J << (xu1 - xu0) / (2 * h_px), (xv1 - xv0) / (2 * h_px), (yu1 - yu0) / (2 * h_px),
+            (yv1 - yv0) / (2 * h_px);
+      }
+      const double s2 = options_.centroid_sigma_px * options_.centroid_sigma_px;
+      const Eigen::Matrix2d cov = s2 * J * J.transpose();
+      for (int r = 0; r < 2; ++r) {
+        for (int c = 0; c < 2; ++c) p.covariance[r][c] = cov(r, c);
+      }
+      p.status = pose2d_t::STATUS_DEGRADED;
+      double hx = 0, hy = 0;
+      if (o.has_heading && MapMarker(o.heading, setup_.heading_radius_m[i], height_m, &hx, &hy)) {
+        const double dx = hx - x, dy = hy - y;
+        const double d2 = dx * dx + dy * dy;
+        if (d2 > 1e-6) {
+          p.heading_rad = std::atan2(dy, dx);
+          p.num_measurements = 2;
+          p.status = pose2d_t::STATUS_OK;
+          // Both centroids move by about sigma * |J| each, perpendicular to
+          // the baseline: var(heading) = 2 sigma_m^2 / d^2.
+          const double sigma_m2 = cov.trace() / 2.0;
+          p.covariance[2][2] = 2.0 * sigma_m2 / d2;
+          p.covariance[0][2] = p.covariance[2][0] = 0.0;
+          p.covariance[1][2] = p.covariance[2][1] = 0.0;
+        }
+      }
+      p.residual_m = 0.0;
+    }
+    p.latency_us = now_utime - frame.capture_utime;
+    if (bus_->Publish(kCameraPoseChannel, p)) status_.Count("poses");
+  }
+}
+
+void CameraNode::OnBadFrame(const std::string& reason, const std::string& error,
+                            int64_t now_utime) {
+  status_.Reject(reason);
+  status_.SetError(error, now_utime);
+  spdlog::warn("{}", error);
+}
+
+void CameraNode::OnSourceUp(const std::string& description, const std::vector<std::string>& refused,
+                            int64_t now_utime) {
+  status_.SetState(process_status_t::STATE_RUNNING);
+  for (const std::string& r : refused) {
+    status_.Count("refused_properties");
+    status_.SetError("camera refused " + r, now_utime);
+    spdlog::warn("camera refused {}", r);
+  }
+  spdlog::info("reading {}", description);
+  status_.Publish(bus_, now_utime);
+}
+
+void CameraNode::OnSourceDown(const std::string& error, int64_t now_utime) {
+  status_.SetState(process_status_t::STATE_DEGRADED);
+  status_.Count("source_lost");
+  status_.SetError(error, now_utime);
+  status_.Publish(bus_, now_utime);
+}
+
+void CameraNode::OnEndOfStream(int64_t now_utime) {
+  spdlog::info("end of the frame source after {} frames", frames_processed_);
+  status_.Publish(bus_, now_utime);
+}
+
+void CameraNode::Tick(int64_t now_utime) { status_.MaybePublish(bus_, now_utime); }
+
+void CameraNode::Stop(int64_t now_utime) {
+  status_.SetState(process_status_t::STATE_STOPPING);
+  status_.Publish(bus_, now_utime);
+}
+
+}  // namespace roomfix

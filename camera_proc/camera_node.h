@@ -1,0 +1,136 @@
+#ifndef ROOMFIX_CAMERA_PROC_CAMERA_NODE_H_
+#define ROOMFIX_CAMERA_PROC_CAMERA_NODE_H_
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "camera_proc/frame_source.h"
+#include "core/calib/calibration_file.h"
+#include "core/vision/marker_detector.h"
+#include "core/vision/robot_tracker.h"
+#include "core/world/site.h"
+#include "msgio/bus.h"
+#include "msgio/process.h"
+#include "roomfix/marker_pixels_t.hpp"
+#include "roomfix/pose2d_t.hpp"
+
+namespace roomfix {
+
+inline constexpr char kMarkerPixelsChannel[] = "MARKER_PIXELS";
+inline constexpr char kCameraPoseChannel[] = "POSE_CAMERA";
+
+struct CameraNodeOptions {
+  vision::LightingMode lighting = vision::LightingMode::kAdaptive;
+  // The full-frame search looks at the frame shrunk by this factor (1, 2, 4
+  // or 8; a JPEG is decoded at that size by DCT scaling) and then re-measures
+  // each blob on a full-resolution window. 2 keeps a 5 cm heading marker
+  // 8 px across at the corners of the demo floor.
+  int full_search_scale = 2;
+  // A robot's top speed on the floor; the tracking window grows with it and
+  // with the time since the last find.
+  double max_speed_mps = 1.0;
+  // One-sigma centroid noise assumed for the pose covariance, pixels.
+  double centroid_sigma_px = 0.1;
+  // Blur of the class masks, full-resolution pixels.
+  double blur_sigma_px = 1.0;
+  // Remove the centroid's perspective bias (calib/marker_projection.h);
+  // full camera model only.
+  bool correct_disc_centroid = true;
+  // Search the full frame in every frame, as the reference did (for the
+  // benchmark and for comparison; never needed in operation).
+  bool always_full_search = false;
+  // Poses on these channels (the ultrasound, the fused track) tell the
+  // tracker roughly where a robot is, so a start-up with a look-alike in view
+  // resolves itself; empty: none.
+  std::vector<std::string> hint_channels = {"POSE_ULTRASOUND"};
+  // The hint's radius: 3 sigma of its covariance, at least this (m).
+  double hint_min_radius_m = 0.15;
+  double hint_max_radius_m = 0.5;
+  // Measures processing time (microseconds, any monotonic epoch).
+  std::function<int64_t()> steady_clock;
+
+  bool IsValid(std::string* error) const;
+};
+
+// What the node derives from the site's camera entry: the detector's classes
+// and the tracker's robots, sized from the lens (the calibration when there
+// is one, else the nominal lens at the mount position).
+struct CameraSetup {
+  std::vector<vision::ColourClass> classes;
+  std::vector<vision::TrackedRobotSpec> robots;
+  vision::TrackerOptions tracker;
+  // Per tracked robot: marker height, and the two markers' radii (m).
+  std::vector<double> marker_height_m;
+  std::vector<double> position_radius_m;
+  std::vector<double> heading_radius_m;
+};
+bool MakeCameraSetup(const Room& room, const Camera& camera, const calib::CameraModel& lens,
+                     const CameraNodeOptions& options, CameraSetup* setup, std::string* error);
+
+// camera_proc's logic with no camera and no clock of its own: frames come in
+// with their capture time; per frame the node asks the tracker where to
+// look, decodes only that (a reduced-size view for a full-frame search,
+// full-resolution windows while tracking), detects, tracks, and publishes
+// MARKER_PIXELS (every processed frame, found or not) and, with a
+// calibration, POSE_CAMERA per robot (lost when not seen). Unreadable frames
+// are counted by reason (corrupt_frame, empty_frame) and skipped; gaps in
+// the frame sequence are counted as dropped frames.
+class CameraNode {
+ public:
+  // `calibration` may be empty: then only MARKER_PIXELS is published.
+  CameraNode(const Site& site, const Camera& camera, std::optional<calib::Calibration> calibration,
+             Bus* bus, const CameraNodeOptions& options, int64_t start_utime);
+
+  // False (with the reason in *error) when the site's camera cannot be
+  // tracked (no classes, a robot naming an unknown class).
+  bool ok(std::string* error) const;
+
+  void OnFrame(camera::Frame* frame, int64_t now_utime);
+  // The source gave an unreadable frame (`reason` lower_case) or lost the
+  // device, or reopened it.
+  void OnBadFrame(const std::string& reason, const std::string& error, int64_t now_utime);
+  void OnSourceUp(const std::string& description, const std::vector<std::string>& refused,
+                  int64_t now_utime);
+  void OnSourceDown(const std::string& error, int64_t now_utime);
+  void OnEndOfStream(int64_t now_utime);
+  void Tick(int64_t now_utime);
+  void Stop(int64_t now_utime);
+
+  const StatusReporter& status() const { return status_; }
+  int64_t frames_processed() const { return frames_processed_; }
+  // The last frame's results, for tests and the benchmark.
+  const std::vector<vision::RobotObservation>& last_observations() const { return observations_; }
+  const marker_pixels_t& last_marker_pixels() const { return last_pixels_; }
+  bool calibrated() const { return calibration_.has_value(); }
+
+ private:
+  bool SearchFullFrame(camera::FrameImage* image, std::vector<vision::Blob>* blobs,
+                       std::string* error);
+  void PublishPoses(const camera::Frame& frame, int64_t now_utime);
+  void OnHint(const pose2d_t& pose);
+  bool MapMarker(const vision::Blob& blob, double radius_m, double height_m, double* x_m,
+                 double* y_m) const;
+
+  const Camera& camera_;
+  std::optional<calib::Calibration> calibration_;
+  Bus* bus_;
+  CameraNodeOptions options_;
+  StatusReporter status_;
+  CameraSetup setup_;
+  std::string setup_error_;
+  std::unique_ptr<vision::MarkerDetector> detector_;
+  std::unique_ptr<vision::RobotTracker> tracker_;
+  std::vector<vision::RobotObservation> observations_;
+  std::vector<int> last_states_;
+  marker_pixels_t last_pixels_{};
+  int64_t last_seq_ = -1;
+  int64_t frames_processed_ = 0;
+};
+
+}  // namespace roomfix
+
+#endif  // ROOMFIX_CAMERA_PROC_CAMERA_NODE_H_

@@ -1,0 +1,451 @@
+#include "core/vision/robot_tracker.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <map>
+#include <utility>
+
+namespace roomfix::vision {
+namespace {
+
+// Weight of the newest measured velocity in the smoothed estimate.
+constexpr double kVelocityAlpha = 0.5;
+// Two blobs of one class closer than this are the same blob (the same
+// marker handed in both from a window and from the full frame).
+constexpr double kSameBlobPx = 1.0;
+
+double Seconds(int64_t from_utime, int64_t to_utime) {
+  return std::max(0.0, static_cast<double>(to_utime - from_utime) * 1e-6);
+}
+
+double Distance(double u0, double v0, double u1, double v1) { return std::hypot(u1 - u0, v1 - v0); }
+
+bool Inside(const cv::Rect& r, const Blob& b) {
+  return b.u_px >= r.x && b.u_px < r.x + r.width && b.v_px >= r.y && b.v_px < r.y + r.height;
+}
+
+std::string Pixel(double u, double v) {
+  char text[48];
+  std::snprintf(text, sizeof(text), "(%.1f, %.1f)", u, v);
+  return text;
+}
+
+// Blobs already given to a robot in this frame.
+class Taken {
+ public:
+  bool Contains(const Blob& b) const {
+    return std::any_of(blobs_.begin(), blobs_.end(), [&](const Blob& t) {
+      return t.class_index == b.class_index &&
+             Distance(t.u_px, t.v_px, b.u_px, b.v_px) < kSameBlobPx;
+    });
+  }
+  void Add(const Blob& b) { blobs_.push_back(b); }
+
+ private:
+  std::vector<Blob> blobs_;
+};
+
+// A position marker with its heading marker (if any) paired.
+struct Candidate {
+  Blob position;
+  bool has_heading = false;
+  Blob heading;
+};
+
+// Nearest free heading-class blob within `reach_px` of `position`.
+bool PairHeading(const Blob& position, int heading_class, double reach_px,
+                 const std::vector<const Blob*>& blobs, const Taken& taken, Blob* heading) {
+  double best = std::numeric_limits<double>::infinity();
+  for (const Blob* b : blobs) {
+    if (b->class_index != heading_class || taken.Contains(*b)) continue;
+    const double d = Distance(position.u_px, position.v_px, b->u_px, b->v_px);
+    if (d <= reach_px && d < best) {
+      best = d;
+      *heading = *b;
+    }
+  }
+  return std::isfinite(best);
+}
+
+void Fill(const Candidate& c, RobotObservation* obs) {
+  obs->found = true;
+  obs->position = c.position;
+  obs->has_heading = c.has_heading;
+  if (c.has_heading) {
+    obs->heading = c.heading;
+    obs->image_angle_rad =
+        std::atan2(c.heading.v_px - c.position.v_px, c.heading.u_px - c.position.u_px);
+  }
+}
+
+}  // namespace
+
+const char* TrackStateName(TrackState state) {
+  switch (state) {
+    case TrackState::kSearching:
+      return "searching";
+    case TrackState::kTracking:
+      return "tracking";
+    case TrackState::kAmbiguous:
+      return "ambiguous";
+    case TrackState::kLost:
+      return "lost";
+  }
+  return "unknown";
+}
+
+RobotTracker::RobotTracker(std::vector<TrackedRobotSpec> robots, TrackerOptions options,
+                           int width_px, int height_px)
+    : robots_(std::move(robots)),
+      options_(options),
+      width_px_(width_px),
+      height_px_(height_px),
+      tracks_(robots_.size()) {}
+
+std::vector<SearchPlan> RobotTracker::Plan(int64_t utime) const {
+  std::vector<SearchPlan> plans;
+  plans.reserve(robots_.size());
+  const cv::Rect image(0, 0, width_px_, height_px_);
+  for (size_t i = 0; i < robots_.size(); ++i) {
+    const TrackedRobotSpec& spec = robots_[i];
+    const Track& t = tracks_[i];
+    SearchPlan plan;
+    plan.robot_id = spec.robot_id;
+    if (t.state == TrackState::kTracking && !t.window_missed) {
+      const double fixed =
+          options_.window_margin_px + spec.position_radius_px * options_.window_radius_factor;
+      // The window never needs to be larger than the image: cap dt there.
+      const double max_half = 0.5 * std::max(width_px_, height_px_);
+      double dt = Seconds(t.last_seen_utime, utime);
+      if (options_.max_speed_px_per_s > 0.0) {
+        dt = std::min(dt, std::max(0.0, (max_half - fixed) / options_.max_speed_px_per_s));
+      }
+      const double half = std::min(max_half, fixed + options_.max_speed_px_per_s * dt);
+      double u = t.u_px, v = t.v_px;
+      if (t.has_velocity) {
+        u += t.du_px_per_s * dt;
+        v += t.dv_px_per_s * dt;
+      }
+      const int x0 = static_cast<int>(std::floor(u - half));
+      const int y0 = static_cast<int>(std::floor(v - half));
+      const int x1 = static_cast<int>(std::ceil(u + half)) + 1;
+      const int y1 = static_cast<int>(std::ceil(v + half)) + 1;
+      plan.window = cv::Rect(x0, y0, x1 - x0, y1 - y0) & image;
+      plan.full_frame = plan.window.empty();
+      if (plan.full_frame) plan.window = cv::Rect();
+    }
+    plans.push_back(plan);
+  }
+  return plans;
+}
+
+std::vector<RobotObservation> RobotTracker::Update(
+    int64_t utime, const std::vector<SearchPlan>& plans, const std::vector<Blob>& full_frame_blobs,
+    const std::vector<std::vector<Blob>>& window_blobs) {
+  const size_t n = robots_.size();
+  std::vector<RobotObservation> obs(n);
+  // Per robot: its plan (default full frame) and the blobs it may look at.
+  std::vector<SearchPlan> plan_of(n);
+  std::vector<std::vector<const Blob*>> blobs_of(n);
+  std::vector<bool> used_window(n, false);
+  const bool per_plan_lists = window_blobs.size() == plans.size();
+  size_t next_window_list = 0;
+  std::map<int, size_t> index_of_id;
+  for (size_t i = 0; i < n; ++i) index_of_id[robots_[i].robot_id] = i;
+  for (size_t p = 0; p < plans.size(); ++p) {
+    const std::vector<Blob>* list = nullptr;
+    if (!plans[p].full_frame) {
+      const size_t k = per_plan_lists ? p : next_window_list++;
+      if (k < window_blobs.size()) list = &window_blobs[k];
+    }
+    auto it = index_of_id.find(plans[p].robot_id);
+    if (it == index_of_id.end()) continue;
+    const size_t i = it->second;
+    plan_of[i] = plans[p];
+    if (list != nullptr) {
+      for (const Blob& b : *list) blobs_of[i].push_back(&b);
+    }
+  }
+  for (size_t i = 0; i < n; ++i) {
+    obs[i].robot_id = robots_[i].robot_id;
+    // A full-frame search run for another robot covers this one's window too.
+    for (const Blob& b : full_frame_blobs) blobs_of[i].push_back(&b);
+  }
+
+  Taken taken;
+  std::vector<bool> from_full_frame(n, false);
+  std::vector<bool> ambiguous(n, false);
+  std::vector<Candidate> chosen(n);
+
+  // 1. Window searches, nearest prediction first across all robots, so two
+  // robots with the same classes cannot take one blob.
+  struct Option {
+    double distance;
+    size_t robot;
+    const Blob* blob;
+  };
+  std::vector<Option> options;
+  std::vector<double> predicted_u(n), predicted_v(n);
+  for (size_t i = 0; i < n; ++i) {
+    if (plan_of[i].full_frame) continue;
+    const Track& t = tracks_[i];
+    const double dt = Seconds(t.last_seen_utime, utime);
+    predicted_u[i] = t.u_px + (t.has_velocity ? t.du_px_per_s * dt : 0.0);
+    predicted_v[i] = t.v_px + (t.has_velocity ? t.dv_px_per_s * dt : 0.0);
+    int inside = 0;
+    for (const Blob* b : blobs_of[i]) {
+      if (b->class_index != robots_[i].position_class || !Inside(plan_of[i].window, *b)) continue;
+      ++inside;
+      options.push_back({Distance(predicted_u[i], predicted_v[i], b->u_px, b->v_px), i, b});
+    }
+    obs[i].num_candidates = inside;
+  }
+  std::stable_sort(options.begin(), options.end(),
+                   [](const Option& a, const Option& b) { return a.distance < b.distance; });
+  std::vector<bool> done(n, false);
+  for (const Option& o : options) {
+    if (done[o.robot] || taken.Contains(*o.blob)) continue;
+    done[o.robot] = true;
+    taken.Add(*o.blob);
+    chosen[o.robot].position = *o.blob;
+  }
+  for (size_t i = 0; i < n; ++i) {
+    if (plan_of[i].full_frame) continue;
+    if (done[i]) {
+      const TrackedRobotSpec& spec = robots_[i];
+      Candidate& c = chosen[i];
+      c.has_heading = PairHeading(c.position, spec.heading_class,
+                                  options_.heading_search_radii * spec.position_radius_px,
+                                  blobs_of[i], taken, &c.heading);
+      if (c.has_heading) taken.Add(c.heading);
+      Fill(c, &obs[i]);
+      if (!c.has_heading) obs[i].note = "no heading marker beside the position marker";
+    } else {
+      const cv::Rect& w = plan_of[i].window;
+      obs[i].note = "no free class " + std::to_string(robots_[i].position_class) +
+                    " blob in the window at (" + std::to_string(w.x) + ", " + std::to_string(w.y) +
+                    ") size " + std::to_string(w.width) + "x" + std::to_string(w.height) +
+                    "; full-frame search next frame";
+    }
+  }
+
+  // 2. Full-frame searches, grouped by class pair: robots that look alike
+  // compete for the same candidates.
+  std::map<std::pair<int, int>, std::vector<size_t>> groups;
+  for (size_t i = 0; i < n; ++i) {
+    if (plan_of[i].full_frame) {
+      groups[{robots_[i].position_class, robots_[i].heading_class}].push_back(i);
+    }
+  }
+  for (auto& [pair, members] : groups) {
+    const TrackedRobotSpec& spec0 = robots_[members[0]];
+    std::vector<const Blob*> blobs;
+    for (const Blob& b : full_frame_blobs) blobs.push_back(&b);
+    // Candidates: free position-class blobs with a heading marker beside.
+    std::vector<Candidate> candidates;
+    std::string rejected;
+    for (const Blob* b : blobs) {
+      if (b->class_index != pair.first || taken.Contains(*b)) continue;
+      Candidate c;
+      c.position = *b;
+      const double reach = options_.heading_search_radii * spec0.position_radius_px;
+      c.has_heading = PairHeading(*b, pair.second, reach, blobs, taken, &c.heading);
+      if (c.has_heading) {
+        candidates.push_back(c);
+      } else {
+        rejected += (rejected.empty() ? "" : ", ") + Pixel(b->u_px, b->v_px);
+      }
+    }
+    const std::string rejected_note =
+        rejected.empty() ? ""
+                         : "; class " + std::to_string(pair.first) + " blob(s) at " + rejected +
+                               " have no heading marker beside them: not a robot";
+    std::vector<bool> candidate_taken(candidates.size(), false);
+
+    // Re-acquisition after a brief occlusion: exactly one candidate within
+    // reach of where a recently tracked robot was; nearest robots first.
+    std::vector<std::pair<double, std::pair<size_t, size_t>>> recent;
+    for (size_t m = 0; m < members.size(); ++m) {
+      const size_t i = members[m];
+      const Track& t = tracks_[i];
+      // Where the robot should be: its last find when that is recent, else
+      // a fresh hint from another sensor.
+      double ref_u = 0.0, ref_v = 0.0, reach = 0.0;
+      const double dt = Seconds(t.last_seen_utime, utime);
+      if (t.ever_found && dt < options_.lost_after_s) {
+        ref_u = t.u_px;
+        ref_v = t.v_px;
+        reach = options_.window_margin_px + options_.max_speed_px_per_s * dt;
+      } else if (t.has_hint && std::abs(Seconds(t.hint_utime, utime)) <= options_.hint_max_age_s) {
+        ref_u = t.hint_u_px;
+        ref_v = t.hint_v_px;
+        reach = t.hint_radius_px;
+      } else {
+        continue;
+      }
+      int within = 0;
+      size_t which = 0;
+      for (size_t k = 0; k < candidates.size(); ++k) {
+        const double d =
+            Distance(ref_u, ref_v, candidates[k].position.u_px, candidates[k].position.v_px);
+        if (d <= reach) {
+          ++within;
+          which = k;
+        }
+      }
+      if (within == 1) {
+        recent.push_back({Distance(ref_u, ref_v, candidates[which].position.u_px,
+                                   candidates[which].position.v_px),
+                          {m, which}});
+      }
+    }
+    std::sort(recent.begin(), recent.end());
+    std::vector<bool> member_done(members.size(), false);
+    for (const auto& [d, mk] : recent) {
+      const auto [m, k] = mk;
+      if (member_done[m] || candidate_taken[k]) continue;
+      member_done[m] = true;
+      candidate_taken[k] = true;
+      const size_t i = members[m];
+      chosen[i] = candidates[k];
+      Fill(candidates[k], &obs[i]);
+      obs[i].num_candidates = static_cast<int>(candidates.size());
+      if (candidates.size() > 1) {
+        const bool by_hint = !(tracks_[i].ever_found &&
+                               Seconds(tracks_[i].last_seen_utime, utime) < options_.lost_after_s);
+        obs[i].note = std::string(by_hint ? "chosen by the position hint"
+                                          : "re-acquired near the last position") +
+                      " among " + std::to_string(candidates.size()) + " candidates";
+      }
+      from_full_frame[i] = true;
+      taken.Add(candidates[k].position);
+      taken.Add(candidates[k].heading);
+    }
+
+    std::vector<size_t> open_members;
+    for (size_t m = 0; m < members.size(); ++m) {
+      if (!member_done[m]) open_members.push_back(members[m]);
+    }
+    std::vector<size_t> open_candidates;
+    std::string positions;
+    for (size_t k = 0; k < candidates.size(); ++k) {
+      if (candidate_taken[k]) continue;
+      open_candidates.push_back(k);
+      positions += (positions.empty() ? "" : ", ") +
+                   Pixel(candidates[k].position.u_px, candidates[k].position.v_px);
+    }
+    const int count = static_cast<int>(open_candidates.size());
+    // Look-alike robots that were never found, with a single candidate in
+    // view: the robots enter the view one at a time in spec order, so it is
+    // the first of them; the others find nothing left.
+    const bool none_found_before = std::none_of(open_members.begin(), open_members.end(),
+                                                [&](size_t j) { return tracks_[j].ever_found; });
+    bool single_given = false;
+    for (size_t i : open_members) {
+      if (single_given) {
+        obs[i].num_candidates = 0;
+        obs[i].note = "the only candidate went to robot " +
+                      std::to_string(robots_[open_members[0]].robot_id) +
+                      ", first in spec order of the robots with these marker classes";
+        continue;
+      }
+      obs[i].num_candidates = count;
+      if (count == 0) {
+        obs[i].note = "no class " + std::to_string(pair.first) + " blob with a class " +
+                      std::to_string(pair.second) + " heading marker beside it in the full frame" +
+                      rejected_note;
+      } else if (open_members.size() > 1 && !(count == 1 && none_found_before)) {
+        std::string ids;
+        for (size_t j : open_members) {
+          ids += (ids.empty() ? "" : ", ") + std::to_string(robots_[j].robot_id);
+        }
+        ambiguous[i] = true;
+        obs[i].note = "robots " + ids + " share marker classes " + std::to_string(pair.first) +
+                      "/" + std::to_string(pair.second) + ": " + std::to_string(count) +
+                      " candidate(s) at " + positions + ", cannot tell which robot is which" +
+                      rejected_note;
+      } else if (count > 1) {
+        ambiguous[i] = true;
+        obs[i].note = std::to_string(count) + " candidates with a heading marker beside them at " +
+                      positions + rejected_note;
+      } else {
+        const Candidate& c = candidates[open_candidates[0]];
+        chosen[i] = c;
+        Fill(c, &obs[i]);
+        obs[i].note = rejected_note.empty() ? "" : rejected_note.substr(2);
+        from_full_frame[i] = true;
+        taken.Add(c.position);
+        taken.Add(c.heading);
+        single_given = true;
+      }
+    }
+  }
+
+  // 3. Track bookkeeping.
+  for (size_t i = 0; i < n; ++i) {
+    Track& t = tracks_[i];
+    RobotObservation& o = obs[i];
+    if (o.found) {
+      const double u = o.position.u_px;
+      const double v = o.position.v_px;
+      const double dt = Seconds(t.last_seen_utime, utime);
+      if (from_full_frame[i] && !t.found_last_update) {
+        t.has_velocity = false;  // a re-acquisition: the old motion is stale
+      } else if (t.found_last_update && dt > 0.0) {
+        const double du = (u - t.u_px) / dt;
+        const double dv = (v - t.v_px) / dt;
+        if (t.has_velocity) {
+          t.du_px_per_s = kVelocityAlpha * du + (1.0 - kVelocityAlpha) * t.du_px_per_s;
+          t.dv_px_per_s = kVelocityAlpha * dv + (1.0 - kVelocityAlpha) * t.dv_px_per_s;
+        } else {
+          t.du_px_per_s = du;
+          t.dv_px_per_s = dv;
+          t.has_velocity = true;
+        }
+      }
+      if (!t.has_velocity) {
+        t.du_px_per_s = 0.0;
+        t.dv_px_per_s = 0.0;
+      }
+      t.u_px = u;
+      t.v_px = v;
+      t.last_seen_utime = utime;
+      t.ever_found = true;
+      t.found_last_update = true;
+      t.window_missed = false;
+      t.state = TrackState::kTracking;
+    } else {
+      t.found_last_update = false;
+      t.window_missed = true;
+      if (ambiguous[i]) {
+        t.state = TrackState::kAmbiguous;
+      } else if (!t.ever_found) {
+        t.state = TrackState::kSearching;
+      } else if (Seconds(t.last_seen_utime, utime) >= options_.lost_after_s) {
+        t.state = TrackState::kLost;
+        t.has_velocity = false;
+      } else {
+        t.state = TrackState::kTracking;
+      }
+    }
+    o.state = t.state;
+  }
+  return obs;
+}
+
+void RobotTracker::SetHint(int robot_id, double u_px, double v_px, double radius_px,
+                           int64_t utime) {
+  for (size_t i = 0; i < robots_.size(); ++i) {
+    if (robots_[i].robot_id != robot_id) continue;
+    Track& t = tracks_[i];
+    t.has_hint = true;
+    t.hint_u_px = u_px;
+    t.hint_v_px = v_px;
+    t.hint_radius_px = radius_px;
+    t.hint_utime = utime;
+  }
+}
+
+}  // namespace roomfix::vision

@@ -1,0 +1,491 @@
+#include "core/vision/robot_tracker.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace roomfix::vision {
+namespace {
+
+// A 1920 x 1080 camera at 30 frames per second.
+constexpr int kWidthPx = 1920;
+constexpr int kHeightPx = 1080;
+constexpr int64_t kFramePeriodUs = 33333;
+constexpr int64_t kStartUs = 1'700'000'000'000'000;
+constexpr double kFramePeriodS = kFramePeriodUs * 1e-6;
+
+// Marker classes as the detector numbers them.
+constexpr int kOrange = 0;
+constexpr int kGreen = 1;
+constexpr int kBlue = 2;
+constexpr int kPink = 3;
+
+constexpr double kRadiusPx = 15.0;
+// The heading marker sits this far from the position marker (well inside
+// heading_search_radii * radius = 75 px).
+constexpr double kHeadingOffsetPx = 40.0;
+// Centroid agreement: the tracker copies blobs, so exact up to rounding.
+constexpr double kTolPx = 1e-9;
+// Angles from atan2 of exact offsets.
+constexpr double kTolRad = 1e-12;
+
+Blob MakeBlob(int class_index, double u, double v, double radius = kRadiusPx) {
+  Blob b;
+  b.class_index = class_index;
+  b.u_px = u;
+  b.v_px = v;
+  b.radius_px = radius;
+  b.area_px = M_PI * radius * radius;
+  b.circularity = 0.9;
+  return b;
+}
+
+// A robot's two markers: position at (u, v), heading `offset` to the right.
+std::vector<Blob> Robot(double u, double v, int position_class = kOrange,
+                        int heading_class = kGreen, double du = kHeadingOffsetPx, double dv = 0.0) {
+  return {MakeBlob(position_class, u, v), MakeBlob(heading_class, u + du, v + dv, 8.0)};
+}
+
+std::vector<Blob> Join(std::vector<Blob> a, const std::vector<Blob>& b) {
+  a.insert(a.end(), b.begin(), b.end());
+  return a;
+}
+
+TrackedRobotSpec Spec(int id, int position_class = kOrange, int heading_class = kGreen) {
+  TrackedRobotSpec s;
+  s.robot_id = id;
+  s.position_class = position_class;
+  s.heading_class = heading_class;
+  s.position_radius_px = kRadiusPx;
+  return s;
+}
+
+// Plays the node: asks for a plan, "detects" by handing every blob of the
+// scene to the searches the plan asked for (a full-frame search sees all;
+// a window search gets only the blobs inside its window unless
+// `leak_into_windows`, which hands it the whole scene to prove the tracker
+// filters by window itself).
+struct Frame {
+  std::vector<SearchPlan> plans;
+  std::vector<RobotObservation> obs;
+};
+
+Frame Step(RobotTracker* tracker, int64_t utime, const std::vector<Blob>& scene,
+           bool leak_into_windows = false) {
+  Frame f;
+  f.plans = tracker->Plan(utime);
+  bool any_full = false;
+  std::vector<std::vector<Blob>> windows;
+  for (const SearchPlan& p : f.plans) {
+    any_full |= p.full_frame;
+    std::vector<Blob> in_window;
+    if (!p.full_frame) {
+      for (const Blob& b : scene) {
+        if (leak_into_windows ||
+            p.window.contains(cv::Point(static_cast<int>(b.u_px), static_cast<int>(b.v_px)))) {
+          in_window.push_back(b);
+        }
+      }
+    }
+    windows.push_back(in_window);
+  }
+  f.obs = tracker->Update(utime, f.plans, any_full ? scene : std::vector<Blob>{}, windows);
+  return f;
+}
+
+TEST(TrackStateName, NamesEveryState) {
+  EXPECT_STREQ(TrackStateName(TrackState::kSearching), "searching");
+  EXPECT_STREQ(TrackStateName(TrackState::kTracking), "tracking");
+  EXPECT_STREQ(TrackStateName(TrackState::kAmbiguous), "ambiguous");
+  EXPECT_STREQ(TrackStateName(TrackState::kLost), "lost");
+}
+
+TEST(RobotTracker, SearchesTheFullFrameBeforeTheFirstFind) {
+  RobotTracker tracker({Spec(1)}, TrackerOptions{}, kWidthPx, kHeightPx);
+  const auto plans = tracker.Plan(kStartUs);
+  ASSERT_EQ(plans.size(), 1u);
+  EXPECT_EQ(plans[0].robot_id, 1);
+  EXPECT_TRUE(plans[0].full_frame);
+}
+
+TEST(RobotTracker, WindowIsSizedFromSpeedAndTimeSinceTheLastFind) {
+  TrackerOptions options;
+  options.max_speed_px_per_s = 600.0;
+  options.window_margin_px = 24.0;
+  options.window_radius_factor = 4.0;
+  RobotTracker tracker({Spec(1)}, options, kWidthPx, kHeightPx);
+  constexpr double kU = 960.0, kV = 540.0;
+  const Frame first = Step(&tracker, kStartUs, Robot(kU, kV));
+  ASSERT_TRUE(first.obs[0].found);
+  EXPECT_EQ(first.obs[0].state, TrackState::kTracking);
+
+  constexpr int64_t kDtUs = 100'000;  // 0.1 s
+  const auto plans = tracker.Plan(kStartUs + kDtUs);
+  ASSERT_FALSE(plans[0].full_frame);
+  // Half-size 24 + 15 * 4 + 600 * 0.1 = 144 px around the last position
+  // (no velocity yet after one find).
+  constexpr int kHalf = 144;
+  EXPECT_EQ(plans[0].window, cv::Rect(960 - kHalf, 540 - kHalf, 2 * kHalf + 1, 2 * kHalf + 1));
+
+  // Twice the time: the speed term doubles.
+  const auto later = tracker.Plan(kStartUs + 2 * kDtUs);
+  constexpr int kHalf2 = 24 + 60 + 120;
+  EXPECT_EQ(later[0].window, cv::Rect(960 - kHalf2, 540 - kHalf2, 2 * kHalf2 + 1, 2 * kHalf2 + 1));
+}
+
+TEST(RobotTracker, WindowIsClippedAtTheImageBorders) {
+  RobotTracker tracker({Spec(1)}, TrackerOptions{}, kWidthPx, kHeightPx);
+  constexpr double kU = 20.0, kV = kHeightPx - 30.0;  // near the bottom-left corner
+  ASSERT_TRUE(Step(&tracker, kStartUs, Robot(kU, kV)).obs[0].found);
+  const auto plans = tracker.Plan(kStartUs + 100'000);
+  ASSERT_FALSE(plans[0].full_frame);
+  const cv::Rect& w = plans[0].window;
+  EXPECT_EQ(w.x, 0);
+  EXPECT_EQ(w.y + w.height, kHeightPx);
+  EXPECT_EQ(w.y, static_cast<int>(kV) - 144);
+  EXPECT_EQ(w.x + w.width, static_cast<int>(kU) + 144 + 1);
+}
+
+TEST(RobotTracker, WindowNeverExceedsTheImageAfterALongGap) {
+  TrackerOptions options;
+  options.lost_after_s = 100.0;  // keep tracking through the gap
+  RobotTracker tracker({Spec(1)}, options, kWidthPx, kHeightPx);
+  ASSERT_TRUE(Step(&tracker, kStartUs, Robot(960, 540)).obs[0].found);
+  const auto plans = tracker.Plan(kStartUs + 50'000'000);  // 50 s: 30000 px of travel
+  ASSERT_FALSE(plans[0].full_frame);
+  EXPECT_EQ(plans[0].window, cv::Rect(0, 0, kWidthPx, kHeightPx));
+}
+
+TEST(RobotTracker, ConstantVelocityMarkerStaysTrackedWithWindowsCentredOnThePrediction) {
+  RobotTracker tracker({Spec(1)}, TrackerOptions{}, kWidthPx, kHeightPx);
+  constexpr double kU0 = 300.0, kV0 = 200.0;
+  constexpr double kVu = 240.0, kVv = 120.0;  // px/s
+  for (int k = 0; k < 40; ++k) {
+    const int64_t t = kStartUs + k * kFramePeriodUs;
+    const double dt = (t - kStartUs) * 1e-6;
+    const double u = kU0 + kVu * dt;
+    const double v = kV0 + kVv * dt;
+    const Frame f = Step(&tracker, t, Robot(u, v));
+    ASSERT_TRUE(f.obs[0].found) << "frame " << k << ": " << f.obs[0].note;
+    EXPECT_EQ(f.obs[0].state, TrackState::kTracking);
+    EXPECT_NEAR(f.obs[0].position.u_px, u, kTolPx);
+    EXPECT_EQ(f.plans[0].full_frame, k == 0) << "frame " << k;
+    if (k >= 2) {
+      // Two consecutive finds give the velocity: the window's centre is the
+      // predicted (here: true) position, to the pixel rounding of the rect.
+      const cv::Rect& w = f.plans[0].window;
+      EXPECT_NEAR(w.x + (w.width - 1) / 2.0, u, 1.0) << "frame " << k;
+      EXPECT_NEAR(w.y + (w.height - 1) / 2.0, v, 1.0) << "frame " << k;
+    }
+  }
+}
+
+TEST(RobotTracker, MarkerJumpingOutOfTheWindowIsMissedThenReacquiredFromTheFullFrame) {
+  RobotTracker tracker({Spec(1)}, TrackerOptions{}, kWidthPx, kHeightPx);
+  int64_t t = kStartUs;
+  ASSERT_TRUE(Step(&tracker, t, Robot(400, 400)).obs[0].found);
+  t += kFramePeriodUs;
+  ASSERT_TRUE(Step(&tracker, t, Robot(400, 400)).obs[0].found);
+
+  constexpr double kJumpU = 1400.0, kJumpV = 800.0;  // far beyond any window
+  t += kFramePeriodUs;
+  const Frame missed = Step(&tracker, t, Robot(kJumpU, kJumpV));
+  EXPECT_FALSE(missed.plans[0].full_frame);
+  EXPECT_FALSE(missed.obs[0].found);
+  EXPECT_EQ(missed.obs[0].state, TrackState::kTracking);  // not lost yet
+  EXPECT_NE(missed.obs[0].note.find("full-frame search next frame"), std::string::npos)
+      << missed.obs[0].note;
+
+  t += kFramePeriodUs;
+  const Frame again = Step(&tracker, t, Robot(kJumpU, kJumpV));
+  EXPECT_TRUE(again.plans[0].full_frame);
+  ASSERT_TRUE(again.obs[0].found) << again.obs[0].note;
+  EXPECT_EQ(again.obs[0].state, TrackState::kTracking);
+  EXPECT_NEAR(again.obs[0].position.u_px, kJumpU, kTolPx);
+
+  // Back to windows, centred on the new place: the old velocity was reset.
+  const auto plans = tracker.Plan(t + kFramePeriodUs);
+  ASSERT_FALSE(plans[0].full_frame);
+  const cv::Rect& w = plans[0].window;
+  EXPECT_NEAR(w.x + (w.width - 1) / 2.0, kJumpU, 1.0);
+  EXPECT_NEAR(w.y + (w.height - 1) / 2.0, kJumpV, 1.0);
+}
+
+TEST(RobotTracker, SameClassDistractorOutsideTheWindowIsIgnoredWhileTracking) {
+  RobotTracker tracker({Spec(1)}, TrackerOptions{}, kWidthPx, kHeightPx);
+  int64_t t = kStartUs;
+  ASSERT_TRUE(Step(&tracker, t, Robot(500, 500)).obs[0].found);
+  // An orange object (with something green beside it) appears far away;
+  // the window search is even handed it directly.
+  const auto distractor = Robot(1500, 300);
+  for (int k = 1; k < 10; ++k) {
+    t += kFramePeriodUs;
+    const Frame f = Step(&tracker, t, Join(Robot(500, 500), distractor), true);
+    ASSERT_TRUE(f.obs[0].found);
+    EXPECT_FALSE(f.plans[0].full_frame);
+    EXPECT_NEAR(f.obs[0].position.u_px, 500.0, kTolPx);
+    EXPECT_EQ(f.obs[0].num_candidates, 1);
+  }
+  // The robot vanishes: the distractor, alone in the image, is still not
+  // taken from the window.
+  t += kFramePeriodUs;
+  const Frame gone = Step(&tracker, t, distractor, true);
+  EXPECT_FALSE(gone.plans[0].full_frame);
+  EXPECT_FALSE(gone.obs[0].found);
+}
+
+TEST(RobotTracker, StartUpWithALookalikeIsAmbiguousUntilItLeaves) {
+  RobotTracker tracker({Spec(1)}, TrackerOptions{}, kWidthPx, kHeightPx);
+  int64_t t = kStartUs;
+  const auto robot = Robot(600, 500);
+  const auto lookalike = Robot(1300, 700);  // orange with green beside it
+  for (int k = 0; k < 3; ++k) {
+    const Frame f = Step(&tracker, t, Join(robot, lookalike));
+    EXPECT_TRUE(f.plans[0].full_frame);
+    EXPECT_FALSE(f.obs[0].found);
+    EXPECT_EQ(f.obs[0].state, TrackState::kAmbiguous);
+    EXPECT_EQ(f.obs[0].num_candidates, 2);
+    EXPECT_NE(f.obs[0].note.find("(600.0, 500.0)"), std::string::npos) << f.obs[0].note;
+    EXPECT_NE(f.obs[0].note.find("(1300.0, 700.0)"), std::string::npos) << f.obs[0].note;
+    t += kFramePeriodUs;
+  }
+  const Frame f = Step(&tracker, t, robot);
+  ASSERT_TRUE(f.obs[0].found);
+  EXPECT_EQ(f.obs[0].state, TrackState::kTracking);
+  EXPECT_NEAR(f.obs[0].position.u_px, 600.0, kTolPx);
+  EXPECT_EQ(f.obs[0].num_candidates, 1);
+}
+
+TEST(RobotTracker, APositionHintFromAnotherSensorResolvesALookalike) {
+  // The ultrasound puts the robot within 40 px of (610, 490): of the two
+  // look-alike pairs only the one at (600, 500) is inside, so it is taken.
+  constexpr double kHintRadiusPx = 40.0;
+  RobotTracker tracker({Spec(1)}, TrackerOptions{}, kWidthPx, kHeightPx);
+  int64_t t = kStartUs;
+  const auto scene = Join(Robot(600, 500), Robot(1300, 700));
+  EXPECT_EQ(Step(&tracker, t, scene).obs[0].state, TrackState::kAmbiguous);
+  tracker.SetHint(1, 610, 490, kHintRadiusPx, t);
+  t += kFramePeriodUs;
+  const Frame f = Step(&tracker, t, scene);
+  ASSERT_TRUE(f.obs[0].found) << f.obs[0].note;
+  EXPECT_NEAR(f.obs[0].position.u_px, 600.0, kTolPx);
+  EXPECT_NE(f.obs[0].note.find("position hint"), std::string::npos) << f.obs[0].note;
+  // From then on the window keeps the look-alike out.
+  t += kFramePeriodUs;
+  const Frame next = Step(&tracker, t, scene);
+  EXPECT_FALSE(next.plans[0].full_frame);
+  EXPECT_TRUE(next.obs[0].found);
+}
+
+TEST(RobotTracker, AStaleOrVagueHintDecidesNothing) {
+  TrackerOptions options;
+  options.hint_max_age_s = 1.0;
+  RobotTracker tracker({Spec(1)}, options, kWidthPx, kHeightPx);
+  const auto scene = Join(Robot(600, 500), Robot(700, 520));
+  int64_t t = kStartUs;
+  // Both candidates inside a wide hint: still ambiguous.
+  tracker.SetHint(1, 650, 510, 200.0, t);
+  EXPECT_EQ(Step(&tracker, t, scene).obs[0].state, TrackState::kAmbiguous);
+  // A sharp hint, but two seconds old.
+  tracker.SetHint(1, 600, 500, 20.0, t - 2'000'000);
+  EXPECT_EQ(Step(&tracker, t, scene).obs[0].state, TrackState::kAmbiguous);
+}
+
+TEST(RobotTracker, LookalikeAfterABriefOcclusionDoesNotBlockReacquisitionNearby) {
+  RobotTracker tracker({Spec(1)}, TrackerOptions{}, kWidthPx, kHeightPx);
+  int64_t t = kStartUs;
+  ASSERT_TRUE(Step(&tracker, t, Robot(600, 500)).obs[0].found);
+  t += kFramePeriodUs;
+  EXPECT_FALSE(Step(&tracker, t, {}).obs[0].found);  // occluded: window misses
+  t += kFramePeriodUs;
+  const Frame f = Step(&tracker, t, Join(Robot(605, 502), Robot(1300, 700)));
+  EXPECT_TRUE(f.plans[0].full_frame);
+  ASSERT_TRUE(f.obs[0].found) << f.obs[0].note;
+  EXPECT_NEAR(f.obs[0].position.u_px, 605.0, kTolPx);
+  EXPECT_EQ(f.obs[0].num_candidates, 2);
+}
+
+TEST(RobotTracker, MarkerLeavingTheImageIsLostAfterLostAfterS) {
+  TrackerOptions options;
+  options.lost_after_s = 0.5;
+  RobotTracker tracker({Spec(1)}, options, kWidthPx, kHeightPx);
+  int64_t t = kStartUs;
+  ASSERT_TRUE(Step(&tracker, t, Robot(1900, 500)).obs[0].found);
+  const int64_t last_seen = t;
+  const int frames_until_lost = static_cast<int>(std::ceil(options.lost_after_s / kFramePeriodS));
+  for (int k = 1; k < frames_until_lost; ++k) {
+    t += kFramePeriodUs;
+    const Frame f = Step(&tracker, t, {});
+    EXPECT_FALSE(f.obs[0].found);
+    ASSERT_EQ(f.obs[0].state, TrackState::kTracking) << "frame " << k;
+    // After the first miss every search is full frame.
+    EXPECT_EQ(f.plans[0].full_frame, k > 1) << "frame " << k;
+  }
+  t += kFramePeriodUs;
+  ASSERT_GE((t - last_seen) * 1e-6, options.lost_after_s);
+  const Frame lost = Step(&tracker, t, {});
+  EXPECT_EQ(lost.obs[0].state, TrackState::kLost);
+  EXPECT_STREQ(TrackStateName(lost.obs[0].state), "lost");
+  EXPECT_TRUE(tracker.Plan(t + kFramePeriodUs)[0].full_frame);
+
+  // It comes back: found from the full frame, tracking again.
+  t += kFramePeriodUs;
+  const Frame back = Step(&tracker, t, Robot(1800, 520));
+  ASSERT_TRUE(back.obs[0].found);
+  EXPECT_STREQ(TrackStateName(back.obs[0].state), "tracking");
+}
+
+TEST(RobotTracker, NeverFoundRobotStaysSearching) {
+  RobotTracker tracker({Spec(1)}, TrackerOptions{}, kWidthPx, kHeightPx);
+  const Frame f = Step(&tracker, kStartUs + 10'000'000, {});
+  EXPECT_EQ(f.obs[0].state, TrackState::kSearching);
+  EXPECT_STREQ(TrackStateName(f.obs[0].state), "searching");
+  EXPECT_FALSE(f.obs[0].note.empty());
+}
+
+TEST(RobotTracker, PositionMarkerWithoutHeadingIsTrackedButNotAcceptedAtStartUp) {
+  const std::vector<Blob> bare = {MakeBlob(kOrange, 700, 400)};
+  {
+    RobotTracker tracker({Spec(1)}, TrackerOptions{}, kWidthPx, kHeightPx);
+    const Frame f = Step(&tracker, kStartUs, bare);
+    EXPECT_FALSE(f.obs[0].found);
+    EXPECT_EQ(f.obs[0].state, TrackState::kSearching);
+    EXPECT_EQ(f.obs[0].num_candidates, 0);
+    EXPECT_NE(f.obs[0].note.find("(700.0, 400.0)"), std::string::npos) << f.obs[0].note;
+    EXPECT_NE(f.obs[0].note.find("not a robot"), std::string::npos) << f.obs[0].note;
+  }
+  {
+    RobotTracker tracker({Spec(1)}, TrackerOptions{}, kWidthPx, kHeightPx);
+    ASSERT_TRUE(Step(&tracker, kStartUs, Robot(700, 400)).obs[0].found);
+    // The heading marker is covered: the position alone is still confirmed.
+    const Frame f = Step(&tracker, kStartUs + kFramePeriodUs, bare);
+    EXPECT_FALSE(f.plans[0].full_frame);
+    ASSERT_TRUE(f.obs[0].found);
+    EXPECT_FALSE(f.obs[0].has_heading);
+    EXPECT_EQ(f.obs[0].state, TrackState::kTracking);
+  }
+}
+
+TEST(RobotTracker, RobotsWithDifferentClassPairsAreTrackedIndependently) {
+  RobotTracker tracker({Spec(1, kOrange, kGreen), Spec(2, kBlue, kPink)}, TrackerOptions{},
+                       kWidthPx, kHeightPx);
+  int64_t t = kStartUs;
+  for (int k = 0; k < 20; ++k) {
+    const double s = k * kFramePeriodS;
+    const double u1 = 300 + 200 * s, v1 = 300;
+    const double u2 = 1500 - 150 * s, v2 = 800 - 100 * s;
+    // Robot 2 is covered for a few frames; robot 1 is unaffected.
+    const bool hide2 = k >= 8 && k < 11;
+    auto scene = Robot(u1, v1, kOrange, kGreen);
+    if (!hide2) scene = Join(scene, Robot(u2, v2, kBlue, kPink, 0.0, -kHeadingOffsetPx));
+    const Frame f = Step(&tracker, t, scene);
+    ASSERT_EQ(f.obs.size(), 2u);
+    EXPECT_EQ(f.obs[0].robot_id, 1);
+    EXPECT_EQ(f.obs[1].robot_id, 2);
+    ASSERT_TRUE(f.obs[0].found) << "frame " << k;
+    EXPECT_NEAR(f.obs[0].position.u_px, u1, kTolPx);
+    EXPECT_EQ(f.plans[0].full_frame, k == 0) << "frame " << k;
+    EXPECT_EQ(f.obs[1].found, !hide2) << "frame " << k;
+    if (!hide2) {
+      EXPECT_NEAR(f.obs[1].position.u_px, u2, kTolPx);
+      EXPECT_EQ(f.obs[1].position.class_index, kBlue);
+      EXPECT_NEAR(f.obs[1].image_angle_rad, -M_PI / 2, kTolRad);
+    }
+    EXPECT_NEAR(f.obs[0].image_angle_rad, 0.0, kTolRad);
+    t += kFramePeriodUs;
+  }
+}
+
+TEST(RobotTracker, TwoLookalikeRobotsWithTwoCandidatesAreAmbiguousAtStartUp) {
+  RobotTracker tracker({Spec(1), Spec(2)}, TrackerOptions{}, kWidthPx, kHeightPx);
+  const Frame f = Step(&tracker, kStartUs, Join(Robot(400, 400), Robot(1400, 600)));
+  for (const auto& o : f.obs) {
+    EXPECT_FALSE(o.found);
+    EXPECT_EQ(o.state, TrackState::kAmbiguous);
+    EXPECT_EQ(o.num_candidates, 2);
+    EXPECT_NE(o.note.find("share marker classes"), std::string::npos) << o.note;
+  }
+}
+
+TEST(RobotTracker, LookalikeRobotsNeverTakeTheSameBlob) {
+  TrackerOptions options;
+  RobotTracker tracker({Spec(1), Spec(2)}, options, kWidthPx, kHeightPx);
+  // Robot 1 alone at first (look-alikes enter in spec order), then robot 2
+  // drives in.
+  int64_t t = kStartUs;
+  const Frame first = Step(&tracker, t, Robot(400, 400));
+  ASSERT_TRUE(first.obs[0].found);
+  EXPECT_FALSE(first.obs[1].found);
+  EXPECT_EQ(first.obs[1].state, TrackState::kSearching);
+  t += kFramePeriodUs;
+  const Frame f = Step(&tracker, t, Join(Robot(405, 400), Robot(1400, 600)));
+  ASSERT_TRUE(f.obs[0].found);
+  ASSERT_TRUE(f.obs[1].found) << f.obs[1].note;
+  EXPECT_NEAR(f.obs[0].position.u_px, 405.0, kTolPx);
+  EXPECT_NEAR(f.obs[1].position.u_px, 1400.0, kTolPx);
+  // Both now tracked in windows; they pass close: each keeps the blob
+  // nearest its own prediction, never both the same one.
+  t += kFramePeriodUs;
+  const Frame g = Step(&tracker, t, Join(Robot(410, 400), Robot(1395, 600)));
+  ASSERT_TRUE(g.obs[0].found && g.obs[1].found);
+  EXPECT_NE(g.obs[0].position.u_px, g.obs[1].position.u_px);
+}
+
+TEST(RobotTracker, SharedBlobGoesToTheRobotWhosePredictionIsNearest) {
+  RobotTracker tracker({Spec(1), Spec(2)}, TrackerOptions{}, kWidthPx, kHeightPx);
+  constexpr double kU1 = 400.0, kU2 = 470.0, kV = 400.0;  // windows overlap
+  int64_t t = kStartUs;
+  ASSERT_TRUE(
+      Step(&tracker, t, Robot(kU1, kV, kOrange, kGreen, 0.0, kHeadingOffsetPx)).obs[0].found);
+  t += kFramePeriodUs;
+  const Frame both = Step(&tracker, t,
+                          Join(Robot(kU1, kV, kOrange, kGreen, 0.0, kHeadingOffsetPx),
+                               Robot(kU2, kV, kOrange, kGreen, 0.0, kHeadingOffsetPx)));
+  ASSERT_TRUE(both.obs[0].found && both.obs[1].found) << both.obs[1].note;
+  EXPECT_NEAR(both.obs[1].position.u_px, kU2, kTolPx);
+
+  // Robot 1 is covered; the one blob left lies in both windows, nearer
+  // robot 2's prediction: robot 2 takes it and robot 1 misses.
+  t += kFramePeriodUs;
+  const Frame one = Step(&tracker, t, Robot(kU2 - 5.0, kV, kOrange, kGreen, 0.0, kHeadingOffsetPx));
+  ASSERT_FALSE(one.plans[0].full_frame);
+  ASSERT_FALSE(one.plans[1].full_frame);
+  EXPECT_EQ(one.obs[0].num_candidates, 1);
+  EXPECT_FALSE(one.obs[0].found);
+  ASSERT_TRUE(one.obs[1].found);
+  EXPECT_NEAR(one.obs[1].position.u_px, kU2 - 5.0, kTolPx);
+}
+
+TEST(RobotTracker, HeadingAngleInAllFourQuadrants) {
+  constexpr double kD = 30.0;
+  struct Case {
+    double du, dv, expected_rad;
+  };
+  // v points down the image, so atan2(dv, du) turns clockwise on screen.
+  const Case cases[] = {
+      {kD, kD, M_PI / 4},   {-kD, kD, 3 * M_PI / 4}, {-kD, -kD, -3 * M_PI / 4},
+      {kD, -kD, -M_PI / 4}, {kD, 0.0, 0.0},          {0.0, kD, M_PI / 2},
+  };
+  for (const Case& c : cases) {
+    RobotTracker tracker({Spec(1)}, TrackerOptions{}, kWidthPx, kHeightPx);
+    const Frame f = Step(&tracker, kStartUs, Robot(900, 500, kOrange, kGreen, c.du, c.dv));
+    ASSERT_TRUE(f.obs[0].found);
+    ASSERT_TRUE(f.obs[0].has_heading);
+    EXPECT_NEAR(f.obs[0].image_angle_rad, c.expected_rad, kTolRad) << c.du << ", " << c.dv;
+  }
+}
+
+TEST(RobotTracker, HeadingMarkerFartherThanTheSearchRadiusIsNotPaired) {
+  TrackerOptions options;
+  RobotTracker tracker({Spec(1)}, options, kWidthPx, kHeightPx);
+  const double far = options.heading_search_radii * kRadiusPx + 5.0;
+  const Frame f = Step(&tracker, kStartUs, Robot(900, 500, kOrange, kGreen, far, 0.0));
+  EXPECT_FALSE(f.obs[0].found);
+  EXPECT_EQ(f.obs[0].num_candidates, 0);
+}
+
+}  // namespace
+}  // namespace roomfix::vision

@@ -1,0 +1,530 @@
+#include "sim/synthetic_camera.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+#include <string>
+#include <vector>
+
+#include "tests/testing/test_paths.h"
+
+namespace roomfix::sim {
+namespace {
+
+// The truth centroid against an independent 16 x 16 brute force: the ray
+// map's bilinear interpolation and 8 x 8 coverage agree with exact rays to
+// this (the header promises ~0.01 px).
+constexpr double kCentroidTolerancePx = 0.01;
+// The marker's area against the brute force, relative.
+constexpr double kAreaRelativeTolerance = 0.005;
+// A perspective bias of a 10 cm disc 20 cm above the floor is a fraction of
+// a pixel; at the image centre it vanishes by symmetry (to rounding).
+constexpr double kMaxBiasPx = 1.0;
+constexpr double kCentreBiasPx = 1e-3;
+// Gains measured on a flat floor patch: the 8-bit rounding of one DN over a
+// brightness of ~160.
+constexpr double kGainTolerance = 0.01;
+// Measured sigma of noise over a 60 x 60 patch (10800 samples per channel:
+// the estimate's own spread is sigma / sqrt(2 N) ~ 0.7 %; rounding to 8 bits
+// adds 1/12 DN^2 of variance).
+constexpr double kSigmaTolerance = 0.1;
+
+struct Demo {
+  Site site;
+  Camera camera;
+  calib::CameraModel model;
+};
+
+const Demo& DemoRoom() {
+  static const Demo* demo = [] {
+    auto* d = new Demo;
+    std::string error;
+    const std::string path = testing::SourceDir() + "/config/sites/demo_room.yaml";
+    if (!LoadSite(path, &d->site, &error)) {
+      ADD_FAILURE() << error;
+      return d;
+    }
+    d->camera = d->site.cameras.at(0);
+    d->model = calib::NominalCamera(d->camera.mount_position_m, d->camera.field_of_view_deg,
+                                    d->camera.width_px, d->camera.height_px);
+    return d;
+  }();
+  return *demo;
+}
+
+const SyntheticCamera& CleanCamera() {
+  static const SyntheticCamera* camera = [] {
+    const Demo& d = DemoRoom();
+    return new SyntheticCamera(d.site, d.camera, d.model, SimScenario{});
+  }();
+  return *camera;
+}
+
+cv::Point Pixel(const calib::CameraModel& model, double x, double y, double z) {
+  double u = 0, v = 0;
+  EXPECT_TRUE(model.ProjectToPixel(Eigen::Vector3d(x, y, z), &u, &v));
+  return cv::Point(static_cast<int>(std::lround(u)), static_cast<int>(std::lround(v)));
+}
+
+// Mean of a (2 half + 1)^2 patch, all channels.
+double PatchMean(const cv::Mat& image, cv::Point centre, int half) {
+  const cv::Rect r(centre.x - half, centre.y - half, 2 * half + 1, 2 * half + 1);
+  const cv::Scalar m = cv::mean(image(r));
+  return (m[0] + m[1] + m[2]) / 3.0;
+}
+
+bool InClassRange(const cv::Vec3b& bgr, const MarkerClass& c) {
+  cv::Mat px(1, 1, CV_8UC3, cv::Scalar(bgr[0], bgr[1], bgr[2]));
+  cv::Mat hsv;
+  cv::cvtColor(px, hsv, cv::COLOR_BGR2HSV);
+  const cv::Vec3b p = hsv.at<cv::Vec3b>(0, 0);
+  for (int i = 0; i < 3; ++i) {
+    if (p[i] < c.hsv_min[i] || p[i] > c.hsv_max[i]) return false;
+  }
+  return true;
+}
+
+const MarkerClass& Class(const std::string& name) {
+  for (const auto& c : DemoRoom().camera.marker_classes) {
+    if (c.name == name) return c;
+  }
+  ADD_FAILURE() << name;
+  return DemoRoom().camera.marker_classes.at(0);
+}
+
+// Coverage-weighted centroid of a disc by brute force: 16 x 16 subsamples
+// per pixel, each through CameraModel::PixelToRay (no ray map).
+void BruteForceCentroid(const calib::CameraModel& model, double cx, double cy, double z, double r,
+                        double* cu, double* cv_px, double* area) {
+  double u_min = 1e9, u_max = -1e9, v_min = 1e9, v_max = -1e9;
+  for (int k = 0; k < 64; ++k) {
+    const double phi = 2 * M_PI * k / 64;
+    double u, v;
+    ASSERT_TRUE(model.ProjectToPixel(
+        Eigen::Vector3d(cx + r * std::cos(phi), cy + r * std::sin(phi), z), &u, &v));
+    u_min = std::min(u_min, u), u_max = std::max(u_max, u);
+    v_min = std::min(v_min, v), v_max = std::max(v_max, v);
+  }
+  constexpr int kSub = 16;
+  double sum = 0, su = 0, sv = 0;
+  for (int j = static_cast<int>(v_min) - 2; j <= static_cast<int>(v_max) + 2; ++j) {
+    for (int i = static_cast<int>(u_min) - 2; i <= static_cast<int>(u_max) + 2; ++i) {
+      int hits = 0;
+      for (int sj = 0; sj < kSub; ++sj) {
+        for (int si = 0; si < kSub; ++si) {
+          Eigen::Vector3d ray;
+          ASSERT_TRUE(
+              model.PixelToRay(i - 0.5 + (si + 0.5) / kSub, j - 0.5 + (sj + 0.5) / kSub, &ray));
+          const Eigen::Vector3d d = model.pose.R_room_from_camera * ray;
+          const double t = (z - model.pose.position_m.z()) / d.z();
+          const double x = model.pose.position_m.x() + t * d.x() - cx;
+          const double y = model.pose.position_m.y() + t * d.y() - cy;
+          if (x * x + y * y <= r * r) ++hits;
+        }
+      }
+      const double c = static_cast<double>(hits) / (kSub * kSub);
+      sum += c;
+      su += c * i;
+      sv += c * j;
+    }
+  }
+  *area = sum;
+  *cu = su / sum;
+  *cv_px = sv / sum;
+}
+
+TEST(SyntheticCamera, RendersAtTheCameraResolutionAsBgr8) {
+  cv::Mat image;
+  CleanCamera().Render(0.0, 0, {}, &image);
+  EXPECT_EQ(image.cols, 1920);
+  EXPECT_EQ(image.rows, 1080);
+  EXPECT_EQ(image.type(), CV_8UC3);
+  EXPECT_EQ(CleanCamera().width_px(), 1920);
+  EXPECT_EQ(CleanCamera().height_px(), 1080);
+}
+
+TEST(SyntheticCamera, GridLineAppearsWhereTheModelProjectsIt) {
+  const SyntheticCameraOptions defaults;
+  cv::Mat image;
+  CleanCamera().Render(0.0, 0, {}, &image);
+  // On the line x = 1.0 m (3 px wide under the camera): grid colour.
+  const cv::Vec3b line = image.at<cv::Vec3b>(Pixel(DemoRoom().model, 1.0, 1.25, 0.0));
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(line[c], defaults.grid_bgr[c], 12) << c;
+  // Half a cell away, in the middle of a cell: the floor colour exactly.
+  const cv::Vec3b floor = image.at<cv::Vec3b>(Pixel(DemoRoom().model, 1.25, 1.25, 0.0));
+  for (int c = 0; c < 3; ++c) EXPECT_EQ(floor[c], defaults.floor_bgr[c]) << c;
+  // Outside the room: the darker wall colour.
+  const cv::Vec3b wall = image.at<cv::Vec3b>(Pixel(DemoRoom().model, -0.3, 1.25, 0.0));
+  EXPECT_LT(wall[1], floor[1] * 0.7);
+}
+
+class TruthCentroid : public ::testing::TestWithParam<std::pair<double, double>> {};
+
+TEST_P(TruthCentroid, MatchesBruteForceWithExactRays) {
+  const auto [x, y] = GetParam();
+  cv::Mat image;
+  std::vector<MarkerTruth> truth;
+  CleanCamera().Render(0.0, 0, {{1, x, y, 0.0}}, &image, &truth);
+  ASSERT_EQ(truth.size(), 2u);
+  for (const MarkerTruth& t : truth) {
+    SCOPED_TRACE(t.colour_class);
+    double cu = 0, cv_px = 0, area = 0;
+    BruteForceCentroid(DemoRoom().model, t.x_m, t.y_m, t.z_m,
+                       0.5 * Class(t.colour_class).diameter_m, &cu, &cv_px, &area);
+    std::printf(
+        "marker %s at (%.2f, %.2f): truth centroid (%.4f, %.4f) brute force (%.4f, %.4f)"
+        " diff (%.5f, %.5f) px, area %.2f vs %.2f px, bias %.4f px\n",
+        t.colour_class.c_str(), t.x_m, t.y_m, t.centroid_u_px, t.centroid_v_px, cu, cv_px,
+        t.centroid_u_px - cu, t.centroid_v_px - cv_px, t.area_px, area,
+        std::hypot(t.centroid_u_px - t.u_px, t.centroid_v_px - t.v_px));
+    EXPECT_NEAR(t.centroid_u_px, cu, kCentroidTolerancePx);
+    EXPECT_NEAR(t.centroid_v_px, cv_px, kCentroidTolerancePx);
+    EXPECT_NEAR(t.area_px, area, kAreaRelativeTolerance * area);
+    EXPECT_TRUE(t.visible);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(CentreAndCorner, TruthCentroid,
+                         ::testing::Values(std::make_pair(2.0, 1.5), std::make_pair(0.3, 0.3),
+                                           std::make_pair(3.7, 2.7)));
+
+TEST(SyntheticCamera, TruthCentroidMatchesBruteForceThroughADistortedTiltedLens) {
+  // A calibrated-looking model: distortion, unequal focal lengths, an
+  // off-centre principal point and a 1-degree tilt.
+  const Demo& d = DemoRoom();
+  calib::CameraModel lens = d.model;
+  lens.intrinsics.fx_px = 905.0;
+  lens.intrinsics.fy_px = 900.0;
+  lens.intrinsics.cx_px = 955.0;
+  lens.intrinsics.cy_px = 545.0;
+  lens.intrinsics.k = {0.02, -0.01, 0.003, 0.0};
+  lens.pose.R_room_from_camera =
+      Eigen::AngleAxisd(0.0175, Eigen::Vector3d::UnitY()).toRotationMatrix() *
+      lens.pose.R_room_from_camera;
+  const SyntheticCamera camera(d.site, d.camera, lens, SimScenario{});
+  for (const auto& [x, y] : {std::make_pair(2.0, 1.5), std::make_pair(0.3, 2.7)}) {
+    cv::Mat image;
+    std::vector<MarkerTruth> truth;
+    camera.Render(0.0, 0, {{1, x, y, 0.3}}, &image, &truth);
+    ASSERT_EQ(truth.size(), 2u);
+    for (const MarkerTruth& t : truth) {
+      double cu = 0, cv_px = 0, area = 0;
+      BruteForceCentroid(lens, t.x_m, t.y_m, t.z_m, 0.5 * Class(t.colour_class).diameter_m, &cu,
+                         &cv_px, &area);
+      std::printf("distorted lens, %s at (%.2f, %.2f): diff (%.5f, %.5f) px\n",
+                  t.colour_class.c_str(), t.x_m, t.y_m, t.centroid_u_px - cu,
+                  t.centroid_v_px - cv_px);
+      EXPECT_NEAR(t.centroid_u_px, cu, kCentroidTolerancePx);
+      EXPECT_NEAR(t.centroid_v_px, cv_px, kCentroidTolerancePx);
+      EXPECT_NEAR(t.area_px, area, kAreaRelativeTolerance * area);
+    }
+  }
+}
+
+TEST(SyntheticCamera, PerspectiveBiasIsBelowOnePixelAndVanishesAtTheCentre) {
+  cv::Mat image;
+  std::vector<MarkerTruth> centre, corner;
+  CleanCamera().Render(0.0, 0, {{1, 2.0, 1.5, 0.0}}, &image, &centre);
+  CleanCamera().Render(0.0, 0, {{1, 0.3, 0.3, 0.0}}, &image, &corner);
+  ASSERT_FALSE(centre.empty());
+  ASSERT_FALSE(corner.empty());
+  // Camera at (2, 1.5): the position marker below it is symmetric.
+  EXPECT_LT(std::hypot(centre[0].centroid_u_px - centre[0].u_px,
+                       centre[0].centroid_v_px - centre[0].v_px),
+            kCentreBiasPx);
+  const double bias = std::hypot(corner[0].centroid_u_px - corner[0].u_px,
+                                 corner[0].centroid_v_px - corner[0].v_px);
+  EXPECT_GT(bias, 0.01);
+  EXPECT_LT(bias, kMaxBiasPx);
+}
+
+TEST(SyntheticCamera, MarkerMiddleHasTheClassColour) {
+  cv::Mat image;
+  std::vector<MarkerTruth> truth;
+  CleanCamera().Render(0.0, 0, {{1, 1.2, 0.9, 0.7}}, &image, &truth);
+  ASSERT_EQ(truth.size(), 2u);
+  for (const MarkerTruth& t : truth) {
+    const cv::Vec3b p = image.at<cv::Vec3b>(static_cast<int>(std::lround(t.v_px)),
+                                            static_cast<int>(std::lround(t.u_px)));
+    EXPECT_TRUE(InClassRange(p, Class(t.colour_class)))
+        << t.colour_class << " " << static_cast<int>(p[0]) << "," << static_cast<int>(p[1]) << ","
+        << static_cast<int>(p[2]);
+  }
+  EXPECT_FALSE(truth[0].is_heading_marker);
+  EXPECT_TRUE(truth[1].is_heading_marker);
+  EXPECT_NEAR(truth[1].x_m, 1.2 + 0.1 * std::cos(0.7), 1e-12);
+  EXPECT_NEAR(truth[1].y_m, 0.9 + 0.1 * std::sin(0.7), 1e-12);
+  EXPECT_DOUBLE_EQ(truth[0].z_m, 0.20);
+}
+
+TEST(SyntheticCamera, FloorBrightnessFollowsTheGainSteps) {
+  const Demo& d = DemoRoom();
+  SimScenario s;
+  s.gain_steps = {1.0, 1.4, 0.6};
+  const SyntheticCamera camera(d.site, d.camera, d.model, s);
+  const cv::Point flat = Pixel(d.model, 1.25, 1.25, 0.0);
+  auto brightness = [&](double t) {
+    cv::Mat image;
+    camera.Render(t, 0, {}, &image);
+    return PatchMean(image, flat, 5);
+  };
+  const double b0 = brightness(1.0);
+  EXPECT_NEAR(brightness(2.9) / b0, 1.0, kGainTolerance);
+  EXPECT_NEAR(brightness(3.25) / b0, 1.2, kGainTolerance);  // half-way up the ramp
+  EXPECT_NEAR(brightness(4.0) / b0, 1.4, kGainTolerance);
+  EXPECT_NEAR(brightness(7.0) / b0, 0.6, kGainTolerance);
+  EXPECT_NEAR(brightness(10.0) / b0, 1.0, kGainTolerance);  // the cycle repeats
+}
+
+TEST(SyntheticCamera, GradientBrightensThePlusXSide) {
+  const Demo& d = DemoRoom();
+  SimScenario s;
+  s.gradient = 0.3;
+  const SyntheticCamera camera(d.site, d.camera, d.model, s);
+  cv::Mat image;
+  camera.Render(0.0, 0, {}, &image);
+  const double low = PatchMean(image, Pixel(d.model, 0.25, 1.25, 0.0), 3);
+  const double high = PatchMean(image, Pixel(d.model, 3.75, 1.25, 0.0), 3);
+  EXPECT_GT(high, low);
+  // Gains 1 - 0.3 * 0.875 and 1 + 0.3 * 0.875.
+  EXPECT_NEAR(high / low, (1 + 0.2625) / (1 - 0.2625), 0.02);
+}
+
+TEST(SyntheticCamera, FlickerMakesRowBands) {
+  const Demo& d = DemoRoom();
+  SimScenario s;
+  s.flicker_amplitude = 0.1;
+  const SyntheticCamera camera(d.site, d.camera, d.model, s);
+  cv::Mat image;
+  camera.Render(0.0, 0, {}, &image);
+  // 100 Hz over 1125 rows of 1/30 s: a period of 337.5 rows.
+  const double a = PatchMean(image, Pixel(d.model, 1.25, 1.25, 0.0), 0);
+  cv::Mat clean;
+  CleanCamera().Render(0.0, 0, {}, &clean);
+  const cv::Point p = Pixel(d.model, 1.25, 1.25, 0.0);
+  const double expected =
+      PatchMean(clean, p, 0) * (1 + 0.1 * std::sin(2 * M_PI * 100 * p.y * s.row_time_s));
+  EXPECT_NEAR(a, expected, 1.0);
+}
+
+TEST(SyntheticCamera, NoiseHasTheRequestedSigma) {
+  const Demo& d = DemoRoom();
+  SimScenario s;
+  s.noise_sigma_dn = 2.0;
+  const SyntheticCamera camera(d.site, d.camera, d.model, s);
+  cv::Mat image;
+  camera.Render(0.0, 5, {}, &image);
+  const cv::Point c = Pixel(d.model, 1.75, 1.25, 0.0);
+  const cv::Rect r(c.x - 30, c.y - 30, 60, 60);
+  cv::Scalar mean, sigma;
+  cv::meanStdDev(image(r), mean, sigma);
+  const SyntheticCameraOptions defaults;
+  for (int ch = 0; ch < 3; ++ch) {
+    std::printf("channel %d: mean %.3f sigma %.3f DN\n", ch, mean[ch], sigma[ch]);
+    EXPECT_NEAR(sigma[ch], std::sqrt(4.0 + 1.0 / 12.0), kSigmaTolerance);
+    EXPECT_NEAR(mean[ch], defaults.floor_bgr[ch], 0.1);
+  }
+}
+
+TEST(SyntheticCamera, SameSeedTimeAndFrameGiveTheSameImage) {
+  const Demo& d = DemoRoom();
+  SimScenario s;
+  ASSERT_TRUE(ParseSimScenario("harsh", &s, nullptr));
+  const SyntheticCamera a(d.site, d.camera, d.model, s);
+  const SyntheticCamera b(d.site, d.camera, d.model, s);
+  const std::vector<RobotState> robots = a.SimulatedRobots(2.5);
+  cv::Mat ia, ib, ic;
+  a.Render(2.5, 75, robots, &ia);
+  b.Render(2.5, 75, robots, &ib);
+  a.Render(2.5, 76, robots, &ic);
+  EXPECT_EQ(cv::norm(ia, ib, cv::NORM_INF), 0.0);
+  EXPECT_GT(cv::norm(ia, ic, cv::NORM_INF), 0.0);  // another frame, other noise
+}
+
+TEST(SyntheticCamera, DistractorsAppearWherePlaced) {
+  const Demo& d = DemoRoom();
+  SimScenario s;
+  ASSERT_TRUE(ParseSimScenario("sim:distractors", &s, nullptr));
+  ASSERT_EQ(s.distractors.size(), 3u);
+  const SyntheticCamera camera(d.site, d.camera, d.model, s);
+  cv::Mat image;
+  std::vector<MarkerTruth> truth;
+  camera.Render(0.0, 0, camera.SimulatedRobots(0.0), &image, &truth);
+  int distractors = 0;
+  for (const MarkerTruth& t : truth) {
+    if (t.robot_id != -1) continue;
+    ++distractors;
+    EXPECT_TRUE(t.visible);
+    EXPECT_EQ(t.z_m, 0.0);
+    const cv::Vec3b p = image.at<cv::Vec3b>(Pixel(d.model, t.x_m, t.y_m, 0.0));
+    EXPECT_TRUE(InClassRange(p, Class(t.colour_class))) << t.colour_class;
+  }
+  EXPECT_EQ(distractors, 3);
+}
+
+TEST(SyntheticCamera, SimulatedRobotsFollowTheSiteTrajectories) {
+  const Demo& d = DemoRoom();
+  ASSERT_EQ(d.site.simulation.robots.size(), 1u);
+  const auto robots = CleanCamera().SimulatedRobots(4.0);
+  ASSERT_EQ(robots.size(), 1u);
+  const GroundTruthPose pose = d.site.simulation.robots[0].trajectory->PoseAt(4.0);
+  EXPECT_EQ(robots[0].robot_id, 1);
+  EXPECT_DOUBLE_EQ(robots[0].x_m, pose.x_m);
+  EXPECT_DOUBLE_EQ(robots[0].y_m, pose.y_m);
+  EXPECT_DOUBLE_EQ(robots[0].heading_rad, pose.heading_rad);
+}
+
+TEST(SyntheticCamera, PrintsTheFrameCost) {
+  const Demo& d = DemoRoom();
+  for (const char* name : {"clean", "harsh"}) {
+    SimScenario s;
+    ASSERT_TRUE(ParseSimScenario(name, &s, nullptr));
+    const auto t0 = std::chrono::steady_clock::now();
+    const SyntheticCamera camera(d.site, d.camera, d.model, s);
+    const auto t1 = std::chrono::steady_clock::now();
+    const std::clock_t c1 = std::clock();
+    cv::Mat image;
+    std::vector<MarkerTruth> truth;
+    constexpr int kFrames = 30;
+    for (int f = 0; f < kFrames; ++f) {
+      camera.Render(f / 30.0, f, camera.SimulatedRobots(f / 30.0), &image, &truth);
+    }
+    const auto t2 = std::chrono::steady_clock::now();
+    const std::clock_t c2 = std::clock();
+    std::printf(
+        "%s: construction %.0f ms, frame %.2f ms wall, %.2f ms CPU (1920 x 1080, one "
+        "robot)\n",
+        name, std::chrono::duration<double, std::milli>(t1 - t0).count(),
+        std::chrono::duration<double, std::milli>(t2 - t1).count() / kFrames,
+        1000.0 * static_cast<double>(c2 - c1) / CLOCKS_PER_SEC / kFrames);
+  }
+}
+
+TEST(ParseSimScenario, KnowsTheScenarios) {
+  SimScenario s;
+  std::string error;
+  ASSERT_TRUE(ParseSimScenario("clean", &s, &error));
+  EXPECT_TRUE(s.distractors.empty());
+  EXPECT_EQ(s.noise_sigma_dn, 0.0);
+  ASSERT_TRUE(ParseSimScenario("sim:reference_circle", &s, &error));
+  EXPECT_EQ(s.gain_steps, std::vector<double>{1.0});
+  ASSERT_TRUE(ParseSimScenario("lighting", &s, &error));
+  EXPECT_EQ(s.gain_steps, (std::vector<double>{1.0, 1.4, 0.6}));
+  EXPECT_EQ(s.gradient, 0.3);
+  EXPECT_EQ(s.flicker_amplitude, 0.1);
+  EXPECT_EQ(s.flicker_hz, 100.0);
+  EXPECT_EQ(s.noise_sigma_dn, 2.0);
+  EXPECT_TRUE(s.distractors.empty());
+  ASSERT_TRUE(ParseSimScenario("distractors", &s, &error));
+  EXPECT_EQ(s.gain_steps, std::vector<double>{1.0});
+  EXPECT_EQ(s.noise_sigma_dn, 2.0);
+  EXPECT_EQ(s.distractors.size(), 3u);
+  ASSERT_TRUE(ParseSimScenario("sim:harsh", &s, &error));
+  EXPECT_EQ(s.gradient, 0.3);
+  EXPECT_EQ(s.distractors.size(), 3u);
+  EXPECT_EQ(s.name, "harsh");
+}
+
+TEST(ParseSimScenario, RejectsAnUnknownNameListingTheKnownOnes) {
+  SimScenario s;
+  std::string error;
+  EXPECT_FALSE(ParseSimScenario("sim:foggy", &s, &error));
+  EXPECT_NE(error.find("foggy"), std::string::npos);
+  for (const char* name : {"clean", "reference_circle", "lighting", "distractors", "harsh"}) {
+    EXPECT_NE(error.find(name), std::string::npos) << name;
+  }
+}
+
+// A small camera for the sequence tests (the same room and lens).
+SyntheticCamera SmallCamera() {
+  const Demo& d = DemoRoom();
+  Camera c = d.camera;
+  c.width_px = 320;
+  c.height_px = 180;
+  return SyntheticCamera(d.site, c, calib::NominalCamera(c.mount_position_m, 120, 320, 180),
+                         SimScenario{});
+}
+
+int CountLines(const std::string& path) {
+  std::ifstream in(path);
+  std::string line;
+  int n = 0;
+  while (std::getline(in, line)) ++n;
+  return n;
+}
+
+TEST(WriteSequence, WritesFramesAndTruthIntoAFolder) {
+  testing::TempDir dir;
+  const SyntheticCamera camera = SmallCamera();
+  SequenceOptions o;
+  o.duration_s = 0.5;
+  o.fps = 10;
+  std::string error;
+  const std::string out = dir.File("seq");
+  ASSERT_TRUE(WriteSequence(camera, o, out, &error)) << error;
+  for (int f = 0; f < 5; ++f) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "/frame_%06d.jpg", f);
+    EXPECT_TRUE(std::filesystem::exists(out + name)) << name;
+  }
+  EXPECT_FALSE(std::filesystem::exists(out + "/frame_000005.jpg"));
+  // Header and two markers (position, heading) per frame.
+  EXPECT_EQ(CountLines(out + "/truth.csv"), 1 + 5 * 2);
+  const std::string csv = testing::ReadFile(out + "/truth.csv");
+  EXPECT_EQ(csv.rfind("frame,t_s,utime,robot_id,colour_class,role,x_m,y_m,z_m,u_px,v_px,"
+                      "centroid_u_px,centroid_v_px,visible,heading_rad\n",
+                      0),
+            0u);
+  EXPECT_NE(csv.find(",position,"), std::string::npos);
+  EXPECT_NE(csv.find(",heading,"), std::string::npos);
+}
+
+TEST(WriteSequence, WritesAnAviThatVideoCaptureReadsBack) {
+  testing::TempDir dir;
+  const SyntheticCamera camera = SmallCamera();
+  SequenceOptions o;
+  o.duration_s = 0.6;
+  o.fps = 10;
+  std::string error;
+  ASSERT_TRUE(WriteSequence(camera, o, dir.File("seq.avi"), &error)) << error;
+  cv::VideoCapture capture(dir.File("seq.avi"));
+  ASSERT_TRUE(capture.isOpened());
+  int frames = 0;
+  cv::Mat frame;
+  while (capture.read(frame)) {
+    EXPECT_EQ(frame.cols, 320);
+    EXPECT_EQ(frame.rows, 180);
+    ++frames;
+  }
+  EXPECT_EQ(frames, 6);
+  EXPECT_EQ(CountLines(dir.File("seq_truth.csv")), 1 + 6 * 2);
+}
+
+TEST(WriteSequence, RefusesAnUnwritablePathOrUnknownExtension) {
+  const SyntheticCamera camera = SmallCamera();
+  SequenceOptions o;
+  o.duration_s = 0.1;
+  o.fps = 10;
+  std::string error;
+  EXPECT_FALSE(WriteSequence(camera, o, "/proc/roomfix_no_such/seq", &error));
+  EXPECT_NE(error.find("/proc/roomfix_no_such/seq"), std::string::npos) << error;
+  error.clear();
+  EXPECT_FALSE(WriteSequence(camera, o, "/proc/roomfix_no_such/seq.avi", &error));
+  EXPECT_FALSE(error.empty());
+  testing::TempDir dir;
+  error.clear();
+  EXPECT_FALSE(WriteSequence(camera, o, dir.File("seq.mkv"), &error));
+  EXPECT_NE(error.find(".mkv"), std::string::npos) << error;
+}
+
+}  // namespace
+}  // namespace roomfix::sim
