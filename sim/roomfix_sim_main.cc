@@ -39,6 +39,10 @@ int main(int argc, char** argv) {
                  "Share of receivers that miss a firing")
       ->capture_default_str();
   app.add_option("--seed", ranges.seed, "Noise generator seed")->capture_default_str();
+  int64_t start_utime = 0;
+  app.add_option("--start-utime", start_utime,
+                 "The simulation's t = 0, microseconds since the Unix epoch (default: now); give "
+                 "camera_proc's synthetic camera the same so both see the robot in one place");
 
   roomfix::WallDevicesOptions wall;
   bool radio_pty = false;
@@ -191,7 +195,7 @@ int main(int argc, char** argv) {
                  pty_link.empty() ? "" : " (link " + pty_link + ")");
   }
 
-  options.start_utime = roomfix::NowUtime();
+  options.start_utime = start_utime > 0 ? start_utime : roomfix::NowUtime();
   roomfix::GroundTruthNode node(ctx->site, ctx->bus.get(), options);
   ranges.start_utime = options.start_utime;
   roomfix::SimRangesNode ranges_node(ctx->site, ctx->bus.get(), ranges);
