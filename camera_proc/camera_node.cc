@@ -247,7 +247,13 @@ void CameraNode::OnFrame(camera::Frame* frame, int64_t now_utime) {
   if (tracker_ == nullptr || frame->image == nullptr) return;
   const int64_t begin_us = options_.steady_clock();
   status_.AddInputs();
-  if (last_seq_ >= 0 && frame->seq > last_seq_ + 1) status_.AddDropped(frame->seq - last_seq_ - 1);
+  // A gap in the source's numbering is frames the camera dropped, less the
+  // ones that came but were unreadable (counted as such in OnBadFrame).
+  if (last_seq_ >= 0 && frame->seq > last_seq_ + 1) {
+    const int64_t dropped = frame->seq - last_seq_ - 1 - bad_since_last_;
+    if (dropped > 0) status_.AddDropped(dropped);
+  }
+  bad_since_last_ = 0;
   last_seq_ = frame->seq;
   camera::FrameImage* image = frame->image.get();
   if (image->width_px() != camera_.width_px || image->height_px() != camera_.height_px) {
@@ -456,6 +462,7 @@ void CameraNode::PublishPoses(const camera::Frame& frame, int64_t now_utime) {
 void CameraNode::OnBadFrame(const std::string& reason, const std::string& error,
                             int64_t now_utime) {
   status_.Reject(reason);
+  ++bad_since_last_;
   status_.SetError(error, now_utime);
   spdlog::warn("{}", error);
 }

@@ -128,6 +128,7 @@ class CameraNode {
   std::vector<int> last_states_;
   marker_pixels_t last_pixels_{};
   int64_t last_seq_ = -1;
+  int64_t bad_since_last_ = 0;
   int64_t frames_processed_ = 0;
 };
 

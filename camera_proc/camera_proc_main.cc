@@ -23,6 +23,16 @@ const roomfix::Camera* FindCamera(const roomfix::Site& site, int id) {
   return nullptr;
 }
 
+// The STATUS counter for a frame the source could not hand over.
+std::string BadFrameReason(const std::string& error) {
+  if (error.find("empty") != std::string::npos) return "empty_frame";
+  if (error.find("truncated") != std::string::npos ||
+      error.find("remature end") != std::string::npos) {
+    return "truncated_frame";
+  }
+  return "unreadable_frame";
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -170,8 +180,9 @@ int main(int argc, char** argv) {
       return 1;
     }
     if (process.check) {
-      std::cout << "camera_proc: ok: camera " << camera->id << ", " << source->Describe() << ", "
-                << camera->robots.size() << " robots, "
+      std::cout << "camera_proc: ok: camera " << camera->id << ", " << device << " "
+                << camera->width_px << "x" << camera->height_px << " " << camera->pixel_format
+                << " at " << camera->fps << " fps, " << camera->robots.size() << " robots, "
                 << (calibration ? "calibrated (" + calibration_path + ")" : "pixels only")
                 << ", on " << process.lcm_url << "\n";
       return 0;
@@ -212,7 +223,12 @@ int main(int argc, char** argv) {
       node.OnSourceDown(error, now);
       spdlog::warn("{}; retrying in {:.1f} s", error, backoff_s);
       node.Tick(now);
-      std::this_thread::sleep_for(std::chrono::duration<double>(backoff_s));
+      auto wait = std::chrono::duration<double>(backoff_s);
+      if (duration_s > 0.0) {
+        wait = std::min<std::chrono::duration<double>>(wait,
+                                                       stop_at - std::chrono::steady_clock::now());
+      }
+      if (wait.count() > 0.0) std::this_thread::sleep_for(wait);
       backoff_s = std::min(reopen_max_s, backoff_s * 2.0);
       continue;
     }
@@ -230,7 +246,7 @@ int main(int argc, char** argv) {
         node.OnFrame(&frame, read_utime);
         break;
       case roomfix::camera::ReadStatus::kBadFrame:
-        node.OnBadFrame("bad_frame", error, read_utime);
+        node.OnBadFrame(BadFrameReason(error), error, read_utime);
         break;
       case roomfix::camera::ReadStatus::kEndOfStream:
         node.OnEndOfStream(read_utime);

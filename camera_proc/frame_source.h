@@ -5,10 +5,9 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
-
-#include <opencv2/core.hpp>
 
 namespace roomfix::camera {
 

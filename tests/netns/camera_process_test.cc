@@ -1,0 +1,184 @@
+// camera_proc as a process, over LCM's UDP multicast in a private network
+// namespace: frames from a folder written by the synthetic camera (with a
+// truncated and an empty file among them), a webcam that is not there, and
+// the live synthetic camera against roomfix_sim's ground truth.
+#include <gtest/gtest.h>
+#include <signal.h>
+
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <sstream>
+
+#include "msgio/bus.h"
+#include "msgio/process.h"
+#include "roomfix/marker_pixels_t.hpp"
+#include "roomfix/pose2d_t.hpp"
+#include "roomfix/process_status_t.hpp"
+#include "tests/testing/test_paths.h"
+
+namespace roomfix {
+namespace {
+
+using testing::BinDir;
+using testing::ChildProcess;
+using testing::SourceDir;
+
+constexpr int64_t kStartUtime = 1'700'000'000'000'000;
+constexpr double kRmseTargetM = 0.005;
+
+std::string DemoSite() { return SourceDir() + "/config/sites/demo_room.yaml"; }
+
+int64_t Counter(const std::vector<counter_t>& counters, const std::string& name) {
+  for (const counter_t& c : counters) {
+    if (c.name == name) return c.count;
+  }
+  return 0;
+}
+
+// truth.csv of render-camera: frame -> (x, y) of the robot's position marker.
+std::map<int64_t, std::pair<double, double>> ReadTruth(const std::string& path) {
+  std::map<int64_t, std::pair<double, double>> truth;
+  std::ifstream in(path);
+  std::string line;
+  std::getline(in, line);
+  while (std::getline(in, line)) {
+    std::vector<std::string> cells;
+    std::stringstream ss(line);
+    std::string cell;
+    while (std::getline(ss, cell, ',')) cells.push_back(cell);
+    if (cells.size() < 8 || cells[5] != "position") continue;
+    truth[std::stoll(cells[0])] = {std::stod(cells[6]), std::stod(cells[7])};
+  }
+  return truth;
+}
+
+class CameraProcess : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string error;
+    bus_ = LcmBus::Create(kDefaultLcmUrl, &error);
+    ASSERT_NE(bus_, nullptr) << error;
+    bus_->Subscribe<pose2d_t>(
+        "POSE_CAMERA", [this](const pose2d_t& p, const MessageInfo&) { poses_.push_back(p); });
+    bus_->Subscribe<pose2d_t>("POSE_GROUND_TRUTH", [this](const pose2d_t& p, const MessageInfo&) {
+      truth_.push_back(p);
+    });
+    bus_->Subscribe<marker_pixels_t>(
+        "MARKER_PIXELS",
+        [this](const marker_pixels_t& m, const MessageInfo&) { pixels_.push_back(m); });
+    bus_->Subscribe<process_status_t>("STATUS",
+                                      [this](const process_status_t& s, const MessageInfo&) {
+                                        if (s.process == "camera_proc") status_.push_back(s);
+                                      });
+  }
+
+  std::unique_ptr<LcmBus> bus_;
+  std::vector<pose2d_t> poses_;
+  std::vector<pose2d_t> truth_;
+  std::vector<marker_pixels_t> pixels_;
+  std::vector<process_status_t> status_;
+  testing::TempDir dir_;
+};
+
+TEST_F(CameraProcess, AFolderOfFramesBecomesPosesAndBadFilesAreCounted) {
+  const std::string frames = dir_.File("frames");
+  ChildProcess render({BinDir() + "/roomfix", "render-camera", "--site", DemoSite(), "--scenario",
+                       "lighting", "--duration", "2", "--out", frames},
+                      dir_.File("render.out"));
+  ASSERT_EQ(render.Wait(60), 0) << testing::ReadFile(dir_.File("render.out"));
+  const auto truth = ReadTruth(frames + "/truth.csv");
+  ASSERT_EQ(truth.size(), 60u);
+  std::rename((frames + "/truth.csv").c_str(), dir_.File("truth.csv").c_str());
+  // Sorted last, so the good frames keep their numbers: half a JPEG and an
+  // empty file, as a camera that died mid-write would leave.
+  {
+    const std::string jpeg = testing::ReadFile(frames + "/frame_000010.jpg");
+    std::ofstream(frames + "/zz_truncated.jpg") << jpeg.substr(0, jpeg.size() / 2);
+    std::ofstream(frames + "/zz_empty.jpg");
+  }
+  ChildProcess camera({BinDir() + "/camera_proc", "--config", DemoSite(), "--device", frames,
+                       "--start-utime", std::to_string(kStartUtime), "--log-level", "warn"});
+  ASSERT_TRUE(HandleUntil(
+      bus_.get(),
+      [&] {
+        return !status_.empty() && Counter(status_.back().rejected, "empty_frame") == 1 &&
+               pixels_.size() == 60;
+      },
+      30))
+      << pixels_.size() << " frames";
+  EXPECT_EQ(camera.Wait(10), 0) << "camera_proc ends at the end of the folder";
+  EXPECT_EQ(Counter(status_.back().rejected, "truncated_frame"), 1);
+  EXPECT_EQ(status_.back().dropped, 0);
+  ASSERT_EQ(poses_.size(), 60u);
+  double sum2 = 0.0;
+  for (const pose2d_t& p : poses_) {
+    ASSERT_EQ(p.status, pose2d_t::STATUS_OK) << p.measurement_seq;
+    EXPECT_EQ(p.utime, kStartUtime + std::llround(p.measurement_seq * 1e6 / 30.0));
+    const auto& [x, y] = truth.at(p.measurement_seq);
+    sum2 += std::pow(p.x_m - x, 2) + std::pow(p.y_m - y, 2);
+  }
+  const double rmse = std::sqrt(sum2 / poses_.size());
+  std::printf("folder of 60 frames under changing light: %.2f mm RMS\n", rmse * 1e3);
+  EXPECT_LT(rmse, kRmseTargetM);
+}
+
+TEST_F(CameraProcess, AMissingWebcamIsRetriedAndReported) {
+  ChildProcess camera({BinDir() + "/camera_proc", "--config", DemoSite(), "--device",
+                       "/dev/video99", "--reopen-max", "0.5", "--log-level", "error"});
+  ASSERT_TRUE(HandleUntil(
+      bus_.get(),
+      [&] {
+        return !status_.empty() && status_.back().state == process_status_t::STATE_DEGRADED &&
+               Counter(status_.back().counters, "source_lost") >= 3;
+      },
+      10));
+  EXPECT_NE(status_.back().last_error.find("/dev/video99"), std::string::npos)
+      << status_.back().last_error;
+  camera.Signal(SIGTERM);
+  EXPECT_EQ(camera.Wait(5), 0);
+}
+
+TEST_F(CameraProcess, TheLiveSyntheticCameraAgreesWithTheSimulatorsGroundTruth) {
+  // Both processes take t = 0 from the same flag: the camera renders the
+  // robot where roomfix_sim says it is, at the frame's capture time.
+  const int64_t start = NowUtime() + 500'000;
+  ChildProcess sim({BinDir() + "/roomfix_sim", "--config", DemoSite(), "--start-utime",
+                    std::to_string(start), "--log-level", "warn"});
+  ChildProcess camera({BinDir() + "/camera_proc", "--config", DemoSite(), "--device",
+                       "sim:reference_circle", "--start-utime", std::to_string(start),
+                       "--log-level", "warn"});
+  ASSERT_TRUE(HandleUntil(
+      bus_.get(), [&] { return poses_.size() >= 60; }, 30));
+  const double span_s = (poses_.back().utime - poses_.front().utime) * 1e-6;
+  const double rate_hz = (poses_.size() - 1) / span_s;
+  // Interpolate the ground truth (published at its own rate) to each frame.
+  double sum2 = 0.0;
+  int n = 0;
+  for (const pose2d_t& p : poses_) {
+    for (size_t i = 1; i < truth_.size(); ++i) {
+      if (truth_[i - 1].utime <= p.utime && p.utime <= truth_[i].utime) {
+        const double a = static_cast<double>(p.utime - truth_[i - 1].utime) /
+                         std::max<int64_t>(1, truth_[i].utime - truth_[i - 1].utime);
+        const double x = truth_[i - 1].x_m + a * (truth_[i].x_m - truth_[i - 1].x_m);
+        const double y = truth_[i - 1].y_m + a * (truth_[i].y_m - truth_[i - 1].y_m);
+        sum2 += std::pow(p.x_m - x, 2) + std::pow(p.y_m - y, 2);
+        ++n;
+        break;
+      }
+    }
+  }
+  ASSERT_GT(n, 30);
+  const double rmse = std::sqrt(sum2 / n);
+  std::printf("live synthetic camera: %zu poses at %.1f Hz, %.2f mm RMS against ground truth\n",
+              poses_.size(), rate_hz, rmse * 1e3);
+  EXPECT_LT(rmse, kRmseTargetM);
+  // 30 fps on a quiet machine; a loaded 2-core CI machine drops some.
+  EXPECT_GT(rate_hz, 10.0);
+  camera.Signal(SIGINT);
+  sim.Signal(SIGINT);
+  EXPECT_EQ(camera.Wait(5), 0);
+}
+
+}  // namespace
+}  // namespace roomfix

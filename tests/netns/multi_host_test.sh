@@ -1,0 +1,167 @@
+#!/usr/bin/env bash
+# Several hosts on one LAN, simulated: three network namespaces ("camera",
+# "radio", "solver"), each with its own hostname (UTS namespace) and one veth
+# cable to a Linux bridge, addresses 10.77.0.1-3/24, 224.0.0.0/4 routed to the
+# veth. The processes speak LCM at ttl=1 as on a real LAN:
+#
+#   camera host  camera_proc (synthetic camera)           -> POSE_CAMERA, MARKER_PIXELS
+#   radio host   roomfix_sim --radio-pty + zigbee_bridge  -> RANGES (the pty is local to it)
+#   solver host  trilat_proc + roomfix_logger             -> POSE_ULTRASOUND, the log
+#
+# After a few seconds everything stops with SIGINT and the solver host's log
+# must hold POSE_CAMERA from the camera host, RANGES from the radio host,
+# POSE_ULTRASOUND, and STATUS from every process stamped with its own host's
+# name. Nothing leaves this machine: the namespaces are private (user + net +
+# mount + UTS namespaces, no root needed).
+#
+#   multi_host_test.sh BIN_DIR SOURCE_DIR [SECONDS]
+#
+# Exits 77 (ctest's skip code) with one line when this machine does not allow
+# the namespaces, a bridge or veth pairs.
+set -euo pipefail
+
+bin=${1:?usage: multi_host_test.sh BIN_DIR SOURCE_DIR [SECONDS]}
+src=${2:?usage: multi_host_test.sh BIN_DIR SOURCE_DIR [SECONDS]}
+seconds=${3:-8}
+site=$src/config/sites/demo_room.yaml
+url='udpm://239.255.76.67:7667?ttl=1'
+
+skip() {
+  echo "multi_host_test: skipped: $*" >&2
+  exit 77
+}
+fail() {
+  echo "multi_host_test: FAILED: $*" >&2
+  exit 1
+}
+
+if [[ "${ROOMFIX_MULTI_HOST_INNER:-}" != "1" ]]; then
+  unshare -rnmu true 2>/dev/null ||
+    skip "cannot create user + network + mount + UTS namespaces (unshare -rnmu failed)"
+  exec unshare -rnmu env ROOMFIX_MULTI_HOST_INNER=1 "$0" "$@"
+fi
+
+# --- Inside: root of a private user namespace, in the "LAN" namespace. ------
+work=$(mktemp -d "${TMPDIR:-/tmp}/roomfix_multi_host.XXXXXX")
+pids=()
+cleanup() {
+  local pid
+  for pid in "${pids[@]}"; do kill -KILL "$pid" 2>/dev/null || true; done
+  wait 2>/dev/null || true
+  if [[ "${ROOMFIX_KEEP_TEMP:-}" == "1" ]]; then
+    echo "multi_host_test: kept $work" >&2
+  else
+    rm -rf "$work"
+  fi
+}
+trap cleanup EXIT
+
+# `ip netns add` needs a writable /run/netns: a private tmpfs on /run (this
+# mount namespace only).
+mount -t tmpfs roomfix_run /run 2>/dev/null || skip "cannot mount a private /run"
+mkdir -p /run/netns
+ip link set lo up
+ip link add br0 type bridge 2>/dev/null || skip "cannot create a bridge (no bridge module?)"
+ip link set br0 up
+
+hosts=(camera radio solver)
+declare -A addr=([camera]=10.77.0.1 [radio]=10.77.0.2 [solver]=10.77.0.3)
+for h in "${hosts[@]}"; do
+  ip netns add "$h" 2>/dev/null || skip "ip netns add failed"
+  ip link add "v-$h" type veth peer name "lan-$h" 2>/dev/null || skip "cannot create veth pairs"
+  ip link set "v-$h" master br0
+  ip link set "v-$h" up
+  ip link set "lan-$h" netns "$h"
+  ip -n "$h" link set lo up
+  ip -n "$h" link set "lan-$h" name eth0
+  ip -n "$h" addr add "${addr[$h]}/24" dev eth0
+  ip -n "$h" link set eth0 up
+  ip -n "$h" link set eth0 multicast on
+  # What a real host without a default route needs: the multicast route on
+  # the LAN interface.
+  ip -n "$h" route add 224.0.0.0/4 dev eth0
+done
+
+# Runs a command on host $1 with that host's name; the command replaces the
+# shell, so $! is its pid.
+on_host() {
+  local h=$1
+  shift
+  ip netns exec "$h" unshare -u sh -c 'hostname "$0"; exec "$@"' "roomfix-$h" "$@"
+}
+
+start=$(( $(date +%s%N) / 1000 ))
+log=$work/solver.lcm
+radio=$work/radio
+
+on_host solver "$bin/roomfix_logger" "$log" --lcm-url "$url" --log-level warn \
+  2>"$work/roomfix_logger.err" &
+logger=$!
+pids+=("$logger")
+on_host solver "$bin/trilat_proc" --config "$site" --lcm-url "$url" --method robust \
+  --log-level warn 2>"$work/trilat_proc.err" &
+trilat=$!
+pids+=("$trilat")
+sleep 0.5  # the logger joins the group before anything publishes
+
+on_host radio "$bin/roomfix_sim" --config "$site" --lcm-url "$url" --start-utime "$start" \
+  --radio-pty --pty-link "$radio" --log-level warn >"$work/sim.out" 2>"$work/roomfix_sim.err" &
+sim=$!
+pids+=("$sim")
+for _ in $(seq 100); do [[ -e "$radio" ]] && break; sleep 0.05; done
+[[ -e "$radio" ]] || fail "roomfix_sim made no pseudo-terminal: $(cat "$work/roomfix_sim.err")"
+on_host radio "$bin/zigbee_bridge" --config "$site" --lcm-url "$url" --port "$radio" \
+  --log-level warn 2>"$work/zigbee_bridge.err" &
+bridge=$!
+pids+=("$bridge")
+
+on_host camera "$bin/camera_proc" --config "$site" --lcm-url "$url" --start-utime "$start" \
+  --log-level warn 2>"$work/camera_proc.err" &
+camera=$!
+pids+=("$camera")
+
+sleep "$seconds"
+for p in camera bridge sim trilat; do
+  pid=${!p}
+  kill -0 "$pid" 2>/dev/null || fail "$p died early (see $work)"
+done
+# Producers first, so the logger sees their last heartbeats.
+for pid in "$camera" "$bridge" "$sim" "$trilat"; do kill -INT "$pid"; done
+rc=0
+for pid in "$camera" "$bridge" "$sim" "$trilat"; do wait "$pid" || rc=$?; done
+((rc == 0)) || fail "a process did not stop cleanly on SIGINT (exit $rc)"
+sleep 0.3
+kill -INT "$logger"
+wait "$logger" || fail "roomfix_logger did not stop cleanly"
+pids=()
+
+"$bin/roomfix" log-info "$log" | sed 's/^/  /'
+"$bin/roomfix" listen --lcm-url "file://$log?speed=0" >"$work/log.jsonl" 2>/dev/null || true
+
+count() { jq -s "[.[] | select($1)] | length" "$work/log.jsonl"; }
+n_camera=$(count '.channel == "POSE_CAMERA"')
+n_ranges=$(count '.channel == "RANGES"')
+n_ultra=$(count '.channel == "POSE_ULTRASOUND"')
+echo "  logged on roomfix-solver: $n_camera POSE_CAMERA, $n_ranges RANGES, $n_ultra POSE_ULTRASOUND"
+# Camera at up to 30 fps and the radio at 10 Hz for $seconds s; generous floors
+# for a loaded machine.
+((n_camera >= 2 * seconds)) || fail "only $n_camera POSE_CAMERA from the camera host"
+((n_ranges >= 5 * seconds)) || fail "only $n_ranges RANGES from the radio host"
+((n_ultra >= 3 * seconds)) || fail "only $n_ultra POSE_ULTRASOUND from the solver host"
+
+echo "  STATUS heartbeats by process and host:"
+jq -r 'select(.channel == "STATUS") | "\(.message.process) \(.message.host)"' \
+  "$work/log.jsonl" | sort | uniq -c | sed 's/^/    /'
+expect_host() {
+  local process=$1 host=$2 n
+  n=$(count ".channel == \"STATUS\" and .message.process == \"$process\" and .message.host == \"$host\"")
+  ((n >= 2)) || fail "$n STATUS from $process on $host"
+  n=$(count ".channel == \"STATUS\" and .message.process == \"$process\" and .message.host != \"$host\"")
+  ((n == 0)) || fail "$n STATUS from $process on a host other than $host"
+}
+expect_host camera_proc roomfix-camera
+expect_host roomfix_sim roomfix-radio
+expect_host zigbee_bridge roomfix-radio
+expect_host trilat_proc roomfix-solver
+expect_host roomfix_logger roomfix-solver
+echo "multi_host_test: passed"
