@@ -1,14 +1,14 @@
 # roomfix: `make demo` runs the pipeline on the simulator, `make test` builds
 # and runs every test. Both install missing Debian packages first.
 #
-#   make demo [DEMO_SECONDS=N]   the simulated pipeline for N seconds (default 10)
+#   make demo [DEMO_SECONDS=N]   the simulated pipeline for N seconds (default 30)
 #   make test [SANITIZE=1]       the whole suite through ctest (ASan+UBSan build)
 #   make build                   configure and build into build/
 #   make spy                     lcm-spy with roomfix's types
 #   make format                  clang-format every C++ file
 
 SANITIZE ?= 0
-DEMO_SECONDS ?= 10
+DEMO_SECONDS ?= 30
 JOBS ?= $(shell nproc)
 BUILD_TYPE ?= RelWithDebInfo
 

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <opencv2/imgcodecs.hpp>
 #include <utility>
 
 #include "core/calib/marker_projection.h"
@@ -379,6 +380,31 @@ void CameraNode::OnFrame(camera::Frame* frame, int64_t now_utime) {
     if (!o.found) status_.Count("robot_not_found");
   }
   if (calibration_) PublishPoses(*frame, now_utime + elapsed_us);
+  MaybePublishPreview(*frame);
+}
+
+void CameraNode::MaybePublishPreview(const camera::Frame& frame) {
+  if (!(options_.preview_hz > 0.0)) return;
+  const int64_t period_us = static_cast<int64_t>(1e6 / options_.preview_hz);
+  if (last_preview_utime_ != 0 && frame.capture_utime - last_preview_utime_ < period_us) return;
+  last_preview_utime_ = frame.capture_utime;
+  cv::Mat small;
+  std::string error;
+  if (!frame.image->DecodeReduced(4, &small, &error)) return;
+  image_t preview{};
+  preview.utime = frame.capture_utime;
+  preview.camera_id = camera_.id;
+  preview.frame_seq = frame.seq;
+  preview.width_px = small.cols;
+  preview.height_px = small.rows;
+  preview.source_width_px = frame.image->width_px();
+  preview.source_height_px = frame.image->height_px();
+  preview.format = "jpeg";
+  std::vector<uint8_t> bytes;
+  if (!cv::imencode(".jpg", small, bytes, {cv::IMWRITE_JPEG_QUALITY, 70})) return;
+  preview.data.assign(bytes.begin(), bytes.end());
+  preview.num_bytes = static_cast<int32_t>(preview.data.size());
+  bus_->Publish(kCameraPreviewChannel, preview);
 }
 
 bool CameraNode::MapMarker(const vision::Blob& blob, double radius_m, double height_m, double* x_m,

@@ -15,6 +15,7 @@
 #include "core/world/site.h"
 #include "msgio/bus.h"
 #include "msgio/process.h"
+#include "roomfix/image_t.hpp"
 #include "roomfix/marker_pixels_t.hpp"
 #include "roomfix/pose2d_t.hpp"
 
@@ -22,6 +23,7 @@ namespace roomfix {
 
 inline constexpr char kMarkerPixelsChannel[] = "MARKER_PIXELS";
 inline constexpr char kCameraPoseChannel[] = "POSE_CAMERA";
+inline constexpr char kCameraPreviewChannel[] = "CAMERA_PREVIEW";
 
 struct CameraNodeOptions {
   vision::LightingMode lighting = vision::LightingMode::kAdaptive;
@@ -50,6 +52,9 @@ struct CameraNodeOptions {
   // The hint's radius: 3 sigma of its covariance, at least this (m).
   double hint_min_radius_m = 0.15;
   double hint_max_radius_m = 0.5;
+  // A reduced JPEG of a frame on CAMERA_PREVIEW this often, for the viewer
+  // (0: never). Costs one 1/8-size decode and a small encode.
+  double preview_hz = 1.0;
   // Measures processing time (microseconds, any monotonic epoch).
   std::function<int64_t()> steady_clock;
 
@@ -112,6 +117,7 @@ class CameraNode {
                        std::string* error);
   void PublishPoses(const camera::Frame& frame, int64_t now_utime);
   void OnHint(const pose2d_t& pose);
+  void MaybePublishPreview(const camera::Frame& frame);
   bool MapMarker(const vision::Blob& blob, double radius_m, double height_m, double* x_m,
                  double* y_m) const;
 
@@ -129,6 +135,7 @@ class CameraNode {
   marker_pixels_t last_pixels_{};
   int64_t last_seq_ = -1;
   int64_t bad_since_last_ = 0;
+  int64_t last_preview_utime_ = 0;
   int64_t frames_processed_ = 0;
 };
 

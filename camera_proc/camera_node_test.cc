@@ -32,6 +32,7 @@ constexpr int64_t kStartUtime = 1'700'000'000'000'000;
 struct PipelineRun {
   std::vector<pose2d_t> poses;
   std::vector<marker_pixels_t> pixels;
+  std::vector<image_t> previews;
   std::vector<std::vector<sim::RobotState>> truth;  // per frame
   std::unique_ptr<CameraNode> node;
 };
@@ -90,6 +91,9 @@ class CameraNodeTest : public ::testing::Test {
     bus_->Subscribe<marker_pixels_t>(
         kMarkerPixelsChannel,
         [&run](const marker_pixels_t& m, const MessageInfo&) { run.pixels.push_back(m); });
+    bus_->Subscribe<image_t>(kCameraPreviewChannel, [&run](const image_t& m, const MessageInfo&) {
+      run.previews.push_back(m);
+    });
     run.node =
         std::make_unique<CameraNode>(site_, camera_, calibration, bus_.get(), options, kStartUtime);
     EXPECT_TRUE(run.node->ok(&error)) << error;
@@ -185,6 +189,12 @@ TEST_F(CameraNodeTest, ReferenceCircleIsTrackedToFiveMillimetres) {
     windows += m.search_mode == marker_pixels_t::SEARCH_REGION_OF_INTEREST;
   }
   EXPECT_GE(windows, 295);
+  // A quarter-size JPEG preview once a second for the viewer: 10 s, 10.
+  ASSERT_EQ(run.previews.size(), 10u);
+  EXPECT_EQ(run.previews.front().width_px, 480);
+  EXPECT_EQ(run.previews.front().source_width_px, 1920);
+  EXPECT_EQ(run.previews.front().format, "jpeg");
+  EXPECT_EQ(cv::imdecode(run.previews.front().data, cv::IMREAD_COLOR).cols, 480);
   // Poses are stamped with the frame's capture time, not the publish time.
   for (size_t i = 0; i < run.poses.size(); ++i) {
     EXPECT_EQ(run.poses[i].utime, run.pixels[i].utime);

@@ -7,8 +7,7 @@
 #
 # Runs inside a private network namespace when this machine allows one, so the
 # multicast traffic stays private; otherwise on the host-only LCM default
-# (ttl=0). As later parts land (camera_proc, the viewer) they join the
-# process list below.
+# (ttl=0).
 set -euo pipefail
 build=${1:-build}
 seconds=${2:-10}
@@ -31,14 +30,33 @@ if [[ "${3:-}" == "--inner" ]]; then
   pids+=($!)
   "$bin/trilat_proc" --config "$site" --method robust --log-level info 2>"$out/trilat_proc.txt" &
   pids+=($!)
+  if [[ -x "$bin/fusion_proc" ]]; then
+    "$bin/fusion_proc" --config "$site" --log-level info 2>"$out/fusion_proc.txt" &
+    pids+=($!)
+  fi
+  # The viewer: a window when there is a display, else headless, saving the
+  # last picture.
+  viewer_args=(--png "$out/viewer.png")
+  [[ -n "${DISPLAY:-}" ]] || viewer_args+=(--headless)
+  "$bin/roomfix_viewer" --config "$site" "${viewer_args[@]}" --log-level warn \
+    2>"$out/roomfix_viewer.txt" &
+  viewer=$!
   sleep 0.5  # let the logger and the solver join the group before anything publishes
+  # One t = 0 for the simulator and the synthetic camera, a moment ahead so
+  # both are up when the robot starts.
+  start_utime=$(( $(date +%s%6N) + 1000000 ))
+  # The ceiling camera: the synthetic camera renders the robot at 1920 x 1080
+  # and 30 fps and hands camera_proc JPEG frames, as a webcam's MJPEG stream.
+  "$bin/camera_proc" --config "$site" --start-utime "$start_utime" --log-level info \
+    2>"$out/camera_proc.txt" &
+  pids+=($!)
   # The simulator publishes the true poses and plays the beacon and the wall
   # receivers on a pseudo-terminal, with a radio that buffers, reorders,
   # duplicates, loses and corrupts, and a neighbour's module on the air;
   # zigbee_bridge reads it as it would a ZigBee coordinator on /dev/ttyUSB0.
   radio=$out/radio
   rm -f "$radio"
-  "$bin/roomfix_sim" --config "$site" --log-level info \
+  "$bin/roomfix_sim" --config "$site" --log-level info --start-utime "$start_utime" \
     --radio-pty --pty-link "$radio" \
     --range-noise 0.02 --nlos-probability 0.05 --dropout-probability 0.02 \
     --buffering 0.05 --buffer-hold 0.04 --reorder 0.01 --duplicate 0.05 --lost-report 0.01 \
@@ -52,6 +70,8 @@ if [[ "${3:-}" == "--inner" ]]; then
   bridge=$!
   pids+=("$bridge" "$sim")
   sleep "$seconds"
+  kill -INT "$viewer" 2>/dev/null || true
+  wait "$viewer" 2>/dev/null || true
   # The bridge stops before its device goes away, so its last word is a
   # clean summary rather than a lost device.
   kill -INT "$bridge"
@@ -80,10 +100,14 @@ echo
 echo "Recorded log: $out/demo.lcm (replay with: lcm-logplayer $out/demo.lcm)"
 "$bin/roomfix" log-info "$out/demo.lcm" | sed 's/^/  /'
 echo
-echo "Each pose source against the simulator's ground truth (summary: $out/summary.json):"
-"$bin/roomfix" compare "$out/demo.lcm" --json "$out/summary.json" --fit-circle | sed 's/^/  /'
-"$bin/roomfix_viewer" --config "$site" --headless --log "$out/demo.lcm" \
-  --png "$out/viewer.png" --log-level warn && echo "  viewer picture: $out/viewer.png"
-echo
 echo "The reference paper's measurements (timing, circle fits, errors, figures):"
 "$bin/roomfix" analyze "$out/demo.lcm" --out "$out/analysis" | sed 's/^/  /'
+echo
+echo "Each pose source against the simulator's ground truth:"
+"$bin/roomfix" compare "$out/demo.lcm" --json "$out/summary.json" \
+  --report "$out/analysis/report.md" | sed 's/^/  /'
+echo
+echo "  log:     $out/demo.lcm (replay: lcm-logplayer $out/demo.lcm)"
+echo "  report:  $out/analysis/report.md (figures in $out/analysis/)"
+echo "  viewer:  $out/viewer.png"
+echo "  summary: $out/summary.json"

@@ -32,7 +32,10 @@ void AddCompareCommand(CLI::App* app, int* exit_code) {
   cmd->add_option("--json", *json_path, "Also write the summary as JSON to this file");
   cmd->add_flag("--fit-circle", *fit_circle,
                 "Also fit the reference paper's circle models to each source's track");
-  cmd->callback([log_path, json_path, fit_circle, exit_code] {
+  auto report_path = std::make_shared<std::string>();
+  cmd->add_option("--report", *report_path,
+                  "Name this analysis report in the JSON (the demo's summary points to it)");
+  cmd->callback([log_path, json_path, report_path, fit_circle, exit_code] {
     PoseLogs logs = ReadPoseLogs({*log_path});
     const LogReadReport& report = logs.logs.front();
     if (!report.error.empty()) {
@@ -55,6 +58,7 @@ void AddCompareCommand(CLI::App* app, int* exit_code) {
     }
     nlohmann::json out;
     out["log"] = *log_path;
+    if (!report_path->empty()) out["report"] = *report_path;
     std::printf("%-12s %5s %7s %8s %8s %8s %8s %12s %5s\n", "source", "robot", "fixes", "rate_hz",
                 "rmse_m", "p95_m", "max_m", "latency_ms", "lost");
     for (auto& [key, t] : tracks) {
