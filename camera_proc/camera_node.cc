@@ -161,6 +161,21 @@ CameraNode::CameraNode(const Site& site, const Camera& camera,
     lens = calibration_->camera;
   }
   if (!MakeCameraSetup(site.room, camera, lens, options_, &setup_, &setup_error_)) return;
+  // The 9-region table holds at its calibration height only: a robot whose
+  // markers sit elsewhere would be mapped wrong on every frame.
+  if (calibration_ && calibration_->model == calib::Calibration::Model::kRegions) {
+    for (size_t i = 0; i < setup_.robots.size(); ++i) {
+      const double h = setup_.marker_height_m[i];
+      if (std::abs(h - calibration_->regions.calibration_height_m) >
+          calib::RegionModel::kHeightToleranceM) {
+        setup_error_ = "robot " + std::to_string(setup_.robots[i].robot_id) + "'s markers are " +
+                       std::to_string(h) + " m high but the 9-region calibration holds at " +
+                       std::to_string(calibration_->regions.calibration_height_m) +
+                       " m only; recalibrate at that height or use the full model";
+        return;
+      }
+    }
+  }
   vision::DetectorOptions detector_options;
   detector_options.lighting = options_.lighting;
   detector_options.blur_sigma_px = options_.blur_sigma_px;
@@ -256,6 +271,11 @@ void CameraNode::OnFrame(camera::Frame* frame, int64_t now_utime) {
   }
   bad_since_last_ = 0;
   last_seq_ = frame->seq;
+  // A frame handed over more than two frame periods after its capture
+  // waited behind a slow one: the pipeline is not keeping up.
+  if (camera_.fps > 0.0 && now_utime - frame->capture_utime > 2.0e6 / camera_.fps) {
+    status_.Count("late_frames");
+  }
   camera::FrameImage* image = frame->image.get();
   if (image->width_px() != camera_.width_px || image->height_px() != camera_.height_px) {
     status_.Reject("wrong_frame_size");

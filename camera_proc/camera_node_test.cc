@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <map>
 #include <memory>
 #include <opencv2/imgcodecs.hpp>
 #include <random>
@@ -234,6 +235,89 @@ TEST_F(CameraNodeTest, AnUltrasoundHintResolvesTheLookalikeAndTheTrackHolds) {
   EXPECT_GE(e.detection_rate, kDetectionRate);
   EXPECT_LT(e.worst_m, kFalseTrackM);
   EXPECT_GT(run.node->status().counter("hints"), 0);
+}
+
+TEST_F(CameraNodeTest, TwoRobotsWithTheirOwnMarkerPairsKeepTheirIds) {
+  // A second robot with blue and magenta markers, on a circle of its own.
+  camera_.marker_classes.push_back({"blue", {100, 120, 60}, {125, 255, 255}, 0.10});
+  camera_.marker_classes.push_back({"magenta", {145, 100, 60}, {170, 255, 255}, 0.05});
+  camera_.robots.push_back({2, "blue", "magenta", 0.15});
+  site_.robots.push_back({2, "robot2", std::nullopt});
+  CircleTrajectoryOptions circle;
+  circle.cx_m = 1.0;
+  circle.cy_m = 1.0;
+  circle.radius_m = 0.3;
+  circle.angular_speed_radps = 0.5;
+  std::string error;
+  site_.simulation.robots.push_back({2, MakeCircleTrajectory(circle, &error)});
+  site_.cameras.front() = camera_;
+  const PipelineRun run = RunFrames("clean", 60);
+  std::map<int, std::pair<double, int>> sum2_and_count;
+  for (size_t i = 0; i < run.poses.size(); ++i) {
+    const pose2d_t& p = run.poses[i];
+    ASSERT_NE(p.status, pose2d_t::STATUS_LOST) << "robot " << p.robot_id;
+    const int frame = static_cast<int>(p.measurement_seq);
+    for (const sim::RobotState& t : run.truth[static_cast<size_t>(frame)]) {
+      if (t.robot_id != p.robot_id) continue;
+      auto& [sum2, n] = sum2_and_count[p.robot_id];
+      sum2 += std::pow(p.x_m - t.x_m, 2) + std::pow(p.y_m - t.y_m, 2);
+      ++n;
+    }
+  }
+  ASSERT_EQ(sum2_and_count.size(), 2u);
+  for (const auto& [id, s] : sum2_and_count) {
+    const double rmse = std::sqrt(s.first / s.second);
+    std::printf("robot %d: %d poses, %.2f mm RMS\n", id, s.second, rmse * 1e3);
+    EXPECT_EQ(s.second, 60);
+    EXPECT_LT(rmse, kCircleRmseM);
+  }
+}
+
+TEST_F(CameraNodeTest, AReferenceNineRegionTableStillWorks) {
+  // The reference's calibration form, loaded from its table: the robot is
+  // found and mapped, to the table's (centimetre-level) accuracy; a robot at
+  // another height than the table's is refused up front.
+  constexpr double kNineRegionRmseM = 0.05;
+  lens_ = calib::NominalCamera(camera_.mount_position_m, camera_.field_of_view_deg,
+                               camera_.width_px, camera_.height_px);
+  calib::Calibration table;
+  std::string error;
+  ASSERT_TRUE(calib::LoadCalibration(
+      testing::SourceDir() + "/config/calibration/reference_9_region_example.yaml", &table, &error))
+      << error;
+  MakeStatic(1.2, 1.0, 0.3);
+  bus_ = std::make_unique<LoopbackBus>();
+  std::vector<pose2d_t> poses;
+  bus_->Subscribe<pose2d_t>(kCameraPoseChannel,
+                            [&](const pose2d_t& p, const MessageInfo&) { poses.push_back(p); });
+  CameraNode node(site_, camera_, table, bus_.get(), CameraNodeOptions{}, kStartUtime);
+  ASSERT_TRUE(node.ok(&error)) << error;
+  sim::SimScenario scenario;
+  ASSERT_TRUE(sim::ParseSimScenario("clean", &scenario, &error));
+  sim::SyntheticCamera camera(site_, camera_, lens_, scenario);
+  for (int i = 0; i < 10; ++i) {
+    cv::Mat bgr;
+    camera.Render(i / 30.0, i, camera.SimulatedRobots(i / 30.0), &bgr);
+    camera::Frame frame;
+    frame.seq = i;
+    frame.capture_utime = kStartUtime + i * 33'333;
+    frame.image = camera::MakeDecodedImage(bgr);
+    node.OnFrame(&frame, frame.capture_utime);
+  }
+  ASSERT_EQ(poses.size(), 10u);
+  double sum2 = 0.0;
+  for (const pose2d_t& p : poses) {
+    ASSERT_NE(p.status, pose2d_t::STATUS_LOST);
+    sum2 += std::pow(p.x_m - 1.2, 2) + std::pow(p.y_m - 1.0, 2);
+  }
+  const double rmse = std::sqrt(sum2 / poses.size());
+  std::printf("9-region table: %.1f mm RMS at (1.2, 1.0)\n", rmse * 1e3);
+  EXPECT_LT(rmse, kNineRegionRmseM);
+
+  camera_.robots.front().marker_height_m = 0.35;
+  CameraNode wrong_height(site_, camera_, table, bus_.get(), CameraNodeOptions{}, kStartUtime);
+  EXPECT_FALSE(wrong_height.ok(&error));
+  EXPECT_NE(error.find("9-region"), std::string::npos) << error;
 }
 
 TEST_F(CameraNodeTest, WithoutCalibrationPublishesPixelsOnly) {
