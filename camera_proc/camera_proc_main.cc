@@ -12,6 +12,7 @@
 #include "camera_proc/frame_source.h"
 #include "camera_proc/sim_frame_source.h"
 #include "msgio/process.h"
+#include "roomfix/process_status_t.hpp"
 #include "sim/synthetic_camera.h"
 
 namespace {
@@ -73,6 +74,11 @@ int main(int argc, char** argv) {
   app.add_option("--start-utime", start_utime,
                  "Simulation and file clock: t = 0 of the simulated robots (give roomfix_sim the "
                  "same), or the first file frame's time; default now");
+  double sim_wait_s = 5.0;
+  app.add_option("--sim-wait", sim_wait_s,
+                 "sim: without --start-utime, wait this long for roomfix_sim's heartbeat to "
+                 "share its clock")
+      ->capture_default_str();
   app.add_flag("--realtime", realtime,
                "Files: play at the camera's frame rate instead of as fast as they are read");
   app.add_flag("--loop", loop_files, "Files: start again at the end");
@@ -126,6 +132,33 @@ int main(int argc, char** argv) {
       return 1;
     }
     calibration = c;
+  }
+  // The synthetic camera must share roomfix_sim's t = 0 to show the robot
+  // where the simulator says it is. Without --start-utime, take it from
+  // roomfix_sim's heartbeat (its STATUS time minus its uptime), so that
+  // separately started processes (bot-procman) agree too.
+  if (start_utime == 0 && device.rfind("sim:", 0) == 0 && !process.check) {
+    const auto sub = ctx->bus->Subscribe<roomfix::process_status_t>(
+        roomfix::kStatusChannel,
+        [&](const roomfix::process_status_t& s, const roomfix::MessageInfo&) {
+          if (s.process == "roomfix_sim" && start_utime == 0) {
+            start_utime = s.utime - s.uptime_us;
+            spdlog::info("synthetic camera on roomfix_sim's clock (pid {} on {})", s.pid, s.host);
+          }
+        });
+    const auto give_up =
+        std::chrono::steady_clock::now() + std::chrono::duration<double>(sim_wait_s);
+    while (start_utime == 0 && !roomfix::ShutdownRequested() &&
+           std::chrono::steady_clock::now() < give_up) {
+      if (ctx->bus->Handle(100) < 0) break;
+    }
+    ctx->bus->Unsubscribe(sub);
+    if (start_utime == 0) {
+      spdlog::warn(
+          "no roomfix_sim heard in {} s: the synthetic camera keeps its own clock, so "
+          "its robot will not match roomfix_sim's ground truth",
+          sim_wait_s);
+    }
   }
   if (start_utime == 0) start_utime = roomfix::NowUtime();
 

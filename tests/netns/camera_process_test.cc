@@ -5,10 +5,12 @@
 #include <gtest/gtest.h>
 #include <signal.h>
 
+#include <chrono>
 #include <cmath>
 #include <fstream>
 #include <map>
 #include <sstream>
+#include <thread>
 
 #include "msgio/bus.h"
 #include "msgio/process.h"
@@ -140,14 +142,13 @@ TEST_F(CameraProcess, AMissingWebcamIsRetriedAndReported) {
 }
 
 TEST_F(CameraProcess, TheLiveSyntheticCameraAgreesWithTheSimulatorsGroundTruth) {
-  // Both processes take t = 0 from the same flag: the camera renders the
-  // robot where roomfix_sim says it is, at the frame's capture time.
-  const int64_t start = NowUtime() + 500'000;
-  ChildProcess sim({BinDir() + "/roomfix_sim", "--config", DemoSite(), "--start-utime",
-                    std::to_string(start), "--log-level", "warn"});
+  // Started separately, as bot-procman would start them, with no shared
+  // flag: camera_proc takes t = 0 from roomfix_sim's heartbeat, so it
+  // renders the robot where roomfix_sim says it is, at the capture time.
+  ChildProcess sim({BinDir() + "/roomfix_sim", "--config", DemoSite(), "--log-level", "warn"});
+  std::this_thread::sleep_for(std::chrono::milliseconds(700));
   ChildProcess camera({BinDir() + "/camera_proc", "--config", DemoSite(), "--device",
-                       "sim:reference_circle", "--start-utime", std::to_string(start),
-                       "--log-level", "warn"});
+                       "sim:reference_circle", "--log-level", "warn"});
   ASSERT_TRUE(HandleUntil(
       bus_.get(), [&] { return poses_.size() >= 60; }, 30));
   const double span_s = (poses_.back().utime - poses_.front().utime) * 1e-6;

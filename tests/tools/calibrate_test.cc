@@ -487,3 +487,68 @@ TEST(RoomfixCalibrate, CalibratesFromAChessboardOnTheFloorToMillimetres) {
 
 }  // namespace
 }  // namespace roomfix
+
+namespace roomfix {
+namespace {
+
+TEST(RoomfixCalibrate, CalibratesFromImagesOfAMarkerAtSurveyedPoints) {
+  // The reference's procedure, automated: the synthetic camera renders the
+  // marker at every 0.5 m grid point through the true lens (written as a
+  // calibration file for render-camera), calibrate finds the marker in each
+  // image and fits; the result maps the floor at the marker's height to
+  // within the 2 mm.
+  constexpr double kMappingRmsM = 0.002;
+  TempDir dir;
+  Calibration truth;
+  truth.model = Calibration::Model::kFull;
+  truth.camera = TrueCamera();
+  truth.camera.intrinsics.width_px = 1920;
+  truth.camera.intrinsics.height_px = 1080;
+  std::string error;
+  ASSERT_TRUE(calib::SaveCalibration(dir.File("truth.yaml"), truth, "true lens", &error)) << error;
+  const std::string site = SourceDir() + "/config/sites/demo_room.yaml";
+  const RunResult render =
+      Roomfix({"render-camera", "--site", site, "--calibration", dir.File("truth.yaml"),
+               "--scenario", "lighting", "--tripod-grid", dir.File("tripod")});
+  ASSERT_EQ(render.exit_code, 0) << render.out;
+  const RunResult fit = Roomfix({"calibrate", "--site", site, "--marker-images",
+                                 dir.File("tripod/points.csv"), "--out", dir.File("cam.yaml")});
+  ASSERT_EQ(fit.exit_code, 0) << fit.out;
+  EXPECT_NE(fit.out.find("orange marker at"), std::string::npos) << fit.out;
+  Calibration fitted;
+  ASSERT_TRUE(calib::LoadCalibration(dir.File("cam.yaml"), &fitted, &error)) << error;
+  double sum2 = 0.0;
+  int n = 0;
+  for (double x = 0.25; x < 4.0; x += 0.25) {
+    for (double y = 0.25; y < 3.0; y += 0.25) {
+      double u, v, fx, fy;
+      ASSERT_TRUE(truth.camera.ProjectToPixel(Eigen::Vector3d(x, y, kCalibrationHeightM), &u, &v));
+      if (u < 0 || v < 0 || u > 1919 || v > 1079) continue;
+      ASSERT_TRUE(fitted.PixelToFloor(u, v, kCalibrationHeightM, &fx, &fy, &error)) << error;
+      sum2 += std::pow(fx - x, 2) + std::pow(fy - y, 2);
+      ++n;
+    }
+  }
+  const double rms = std::sqrt(sum2 / n);
+  std::printf("tripod calibration: %d floor points mapped to %.2f mm RMS\n", n, rms * 1e3);
+  EXPECT_LT(rms, kMappingRmsM);
+}
+
+TEST(RoomfixCalibrate, RefusesAMarkerImageWithTwoMarkersNamingIt) {
+  TempDir dir;
+  const std::string site = SourceDir() + "/config/sites/demo_room.yaml";
+  // "distractors" puts two more orange discs on the floor.
+  ASSERT_EQ(Roomfix({"render-camera", "--site", site, "--scenario", "distractors", "--png",
+                     dir.File("busy.png")})
+                .exit_code,
+            0);
+  ASSERT_TRUE(WriteFile(dir.File("points.csv"), "image,x_m,y_m,height_m\nbusy.png,1,1,0.2\n"));
+  const RunResult r = Roomfix({"calibrate", "--site", site, "--marker-images",
+                               dir.File("points.csv"), "--out", dir.File("cam.yaml")},
+                              /*stderr_only=*/true);
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.out.find("busy.png: expected one orange marker, found 3"), std::string::npos) << r.out;
+}
+
+}  // namespace
+}  // namespace roomfix
