@@ -22,6 +22,7 @@ void AddAnalyzeCommand(CLI::App* app, int* exit_code);
 void AddCalibrateCommand(CLI::App* app, int* exit_code);
 void AddMapCommand(CLI::App* app, int* exit_code);
 void AddRenderCameraCommand(CLI::App* app, int* exit_code);
+void AddSurveyCommand(CLI::App* app, int* exit_code);
 // Adds `logger` under the `bench` subcommand.
 void AddBenchLoggerCommand(CLI::App* bench, int* exit_code);
 // Adds `radio` under the `bench` subcommand.

@@ -19,6 +19,7 @@ int main(int argc, char** argv) {
   roomfix::AddCalibrateCommand(&app, &exit_code);
   roomfix::AddMapCommand(&app, &exit_code);
   roomfix::AddRenderCameraCommand(&app, &exit_code);
+  roomfix::AddSurveyCommand(&app, &exit_code);
   CLI11_PARSE(app, argc, argv);
   return exit_code;
 }

@@ -1,0 +1,356 @@
+// roomfix survey: each receiver's position and range offset (and scale) from
+// a log in which a robot drives around with range sets and a reference track
+// (camera, ground truth or fused), or from the range sets alone with two
+// surveyed receivers pinned. Prints site value, estimate, 1-sigma and change
+// per receiver, the held-out trilateration error before and after, and
+// writes a site-file fragment. The maths is in core/survey and docs/survey.md.
+#include <CLI/CLI.hpp>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "core/survey/receiver_survey.h"
+#include "core/world/site.h"
+#include "msgio/log.h"
+#include "msgio/pose_tracks.h"
+#include "roomfix/range_set_t.hpp"
+#include "tools/commands.h"
+
+namespace roomfix {
+namespace {
+
+using nlohmann::json;
+
+// A reference sampled at 30 Hz or more; a longer gap means it was not
+// running, and no firing there is aligned.
+constexpr int64_t kMaxReferenceGap_us = 200000;
+
+struct SurveyArgs {
+  std::string log;
+  std::string site;
+  std::string reference = "camera";
+  int robot = -1;
+  bool scale = false;
+  bool auto_scale = false;
+  bool fix_heights = false;
+  bool offsets_only = false;
+  bool no_reference = false;
+  std::string pin;
+  std::string out;
+  std::string json_path;
+  double block_s = 10.0;
+  int period = 3;
+};
+
+json Number(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+
+json ErrorJson(const survey::TrilaterationError& e) {
+  return {{"firings", e.firings},       {"fixes", e.fixes},
+          {"rmse_m", Number(e.rmse_m)}, {"median_m", Number(e.median_m)},
+          {"p95_m", Number(e.p95_m)},   {"max_m", Number(e.max_m)}};
+}
+
+bool ParsePins(const std::string& text, std::vector<int>* ids) {
+  std::stringstream s(text);
+  std::string item;
+  while (std::getline(s, item, ',')) {
+    try {
+      size_t used = 0;
+      ids->push_back(std::stoi(item, &used));
+      if (used != item.size()) return false;
+    } catch (const std::exception&) {
+      return false;
+    }
+  }
+  return !ids->empty();
+}
+
+int Run(const SurveyArgs& a) {
+  Site site;
+  std::string error;
+  if (!LoadSite(a.site, &site, &error)) {
+    std::cerr << "roomfix survey: " << error << "\n";
+    return 1;
+  }
+  // The robot and its beacon.
+  const Robot* robot = nullptr;
+  for (const Robot& r : site.robots) {
+    if ((a.robot < 0 || r.id == a.robot) && r.beacon_id.has_value()) {
+      robot = &r;
+      break;
+    }
+  }
+  if (robot == nullptr) {
+    std::cerr << "roomfix survey: no robot with a beacon"
+              << (a.robot >= 0 ? " and id " + std::to_string(a.robot) : std::string()) << " in "
+              << a.site << "\n";
+    return 1;
+  }
+  const Beacon* beacon = site.FindBeacon(*robot->beacon_id);
+  if (beacon == nullptr) {
+    std::cerr << "roomfix survey: robot " << robot->id << "'s beacon is not in the site\n";
+    return 1;
+  }
+  std::vector<int> pins;
+  if (a.no_reference && !ParsePins(a.pin, &pins)) {
+    std::cerr << "roomfix survey: --no-reference needs --pin ID,ID (two surveyed receivers)\n";
+    return 1;
+  }
+  // Range sets of the robot's beacon.
+  auto reader = LogReader::Open(a.log, &error);
+  if (!reader) {
+    std::cerr << "roomfix survey: " << error << "\n";
+    return 1;
+  }
+  std::vector<survey::Firing> firings;
+  int undecodable = 0;
+  LogEvent event;
+  while (reader->Next(&event)) {
+    if (event.channel != "RANGES") continue;
+    range_set_t set;
+    if (set.decode(event.data.data(), 0, static_cast<int>(event.data.size())) < 0) {
+      ++undecodable;
+      continue;
+    }
+    if (set.beacon_id != beacon->id) continue;
+    survey::Firing f;
+    f.utime = set.utime;
+    f.beacon_height_m = beacon->height_m;
+    for (const range_t& r : set.ranges) {
+      // The raw range: time of flight times the speed of sound; from the
+      // corrected range and the site's offset when the time is missing.
+      double raw = r.time_of_flight_us * 1e-6 * set.speed_of_sound_mps;
+      if (!(std::isfinite(raw) && raw > 0)) {
+        const Receiver* rx = site.FindReceiver(r.receiver_id);
+        raw = r.range_m + (rx != nullptr ? rx->range_offset_m : 0.0);
+      }
+      f.ranges.push_back({r.receiver_id, raw});
+    }
+    firings.push_back(f);
+  }
+  const bool damaged = reader->damaged();
+  reader.reset();
+  if (firings.empty()) {
+    std::cerr << "roomfix survey: no RANGES from beacon " << beacon->id << " in " << a.log << "\n";
+    return 1;
+  }
+  std::sort(firings.begin(), firings.end(),
+            [](const auto& x, const auto& y) { return x.utime < y.utime; });
+  // The reference track, when there is one.
+  PoseLogs poses = ReadPoseLogs({a.log});
+  auto track = poses.tracks.find({a.reference, robot->id});
+  std::vector<survey::ReferenceSample> reference;
+  if (track != poses.tracks.end()) {
+    for (const PoseSample& s : track->second.samples) {
+      if (std::isfinite(s.x_m) && std::isfinite(s.y_m)) {
+        reference.push_back({s.utime, s.x_m, s.y_m});
+      }
+    }
+  }
+  if (reference.empty() && !a.no_reference) {
+    std::string have;
+    for (const auto& [key, t] : poses.tracks) {
+      have += " " + key.first + "/" + std::to_string(key.second);
+    }
+    std::cerr << "roomfix survey: no " << a.reference << " poses of robot " << robot->id << " in "
+              << a.log << " (tracks:" << (have.empty() ? " none" : have)
+              << "); use --reference or --no-reference --pin ID,ID\n";
+    return 1;
+  }
+  survey::AlignmentSummary alignment;
+  if (!reference.empty()) {
+    alignment = survey::AlignToReference(reference, kMaxReferenceGap_us, &firings);
+  }
+
+  std::vector<survey::ReceiverModel> site_models;
+  for (const Receiver& r : site.receivers) {
+    site_models.push_back(
+        {r.id, Eigen::Map<const Eigen::Vector3d>(r.position_m.data()), r.range_offset_m, 1.0});
+  }
+  survey::SurveyOptions options;
+  options.scale = a.scale        ? survey::ScaleMode::kOn
+                  : a.auto_scale ? survey::ScaleMode::kAuto
+                                 : survey::ScaleMode::kOff;
+  options.estimate_heights = !a.fix_heights;
+  options.estimate_positions = !a.offsets_only;
+  options.pinned_ids = pins;
+  auto fit_with = [&](const std::vector<survey::Firing>& data) {
+    return a.no_reference ? survey::SurveyWithoutReference(site_models, data, options)
+                          : survey::SurveyWithReference(site_models, data, options);
+  };
+  // Held-out evaluation: fit on most blocks, evaluate on the others.
+  std::vector<survey::Firing> fit_part, held_out;
+  survey::SplitByTime(firings, a.block_s, a.period, &fit_part, &held_out);
+  const survey::SurveyResult split_result = fit_with(fit_part);
+  // The fragment: every firing.
+  const survey::SurveyResult result = fit_with(firings);
+  if (!result.usable) {
+    std::cerr << "roomfix survey: " << result.message << "\n";
+    return 1;
+  }
+  const bool can_evaluate = !reference.empty() && split_result.usable;
+  survey::TrilaterationError before, after;
+  if (can_evaluate) {
+    before = survey::EvaluateTrilateration(site_models, held_out);
+    after = survey::EvaluateTrilateration(split_result.Models(), held_out);
+  }
+
+  std::printf("roomfix survey %s: robot %d, beacon %d at %.3f m, %zu firings", a.log.c_str(),
+              robot->id, beacon->id, beacon->height_m, firings.size());
+  if (a.no_reference) {
+    std::printf(", no reference (pinned %s)\n", a.pin.c_str());
+  } else {
+    std::printf(", reference %s: %d aligned, %d outside its span, %d in gaps > %.1f s\n",
+                a.reference.c_str(), alignment.aligned, alignment.outside_span, alignment.in_gap,
+                kMaxReferenceGap_us * 1e-6);
+  }
+  std::printf("%d ranges used, %d rejected as outliers, %d invalid; residual rms %.4f m\n\n",
+              result.ranges_used, result.ranges_rejected, result.ranges_invalid,
+              result.residual_rms_m);
+  std::printf("%4s %-9s %9s %9s %9s %9s   %9s %9s %9s   %7s %7s %7s   %8s %7s\n", "id", "", "x_m",
+              "y_m", "z_m", "offset_m", "sigma_x", "sigma_y", "sigma_z", "dx_mm", "dy_mm", "dz_mm",
+              "doff_mm", "used");
+  json receivers = json::array();
+  for (const Receiver& r : site.receivers) {
+    const survey::ReceiverEstimate* e = result.Find(r.id);
+    if (e == nullptr) continue;
+    const Eigen::Vector3d p0 = Eigen::Map<const Eigen::Vector3d>(r.position_m.data());
+    const Eigen::Vector3d d = (e->position_m - p0) * 1e3;
+    std::printf("%4d %-9s %9.4f %9.4f %9.4f %9.4f\n", r.id, "site", p0.x(), p0.y(), p0.z(),
+                r.range_offset_m);
+    std::printf(
+        "%4s %-9s %9.4f %9.4f %9.4f %9.4f   %9.4f %9.4f %9.4f   %7.1f %7.1f %7.1f   %8.1f %7d\n",
+        "", e->pinned ? "pinned" : "estimate", e->position_m.x(), e->position_m.y(),
+        e->position_m.z(), e->range_offset_m, e->position_sigma_m.x(), e->position_sigma_m.y(),
+        e->position_sigma_m.z(), d.x(), d.y(), d.z(), (e->range_offset_m - r.range_offset_m) * 1e3,
+        e->ranges_used);
+    if (e->scale_estimated) {
+      std::printf("%4s %-9s scale %.5f +- %.5f\n", "", "", e->range_scale, e->range_scale_sigma);
+    }
+    receivers.push_back(
+        {{"id", r.id},
+         {"site_position_m", {p0.x(), p0.y(), p0.z()}},
+         {"site_range_offset_m", r.range_offset_m},
+         {"position_m", {e->position_m.x(), e->position_m.y(), e->position_m.z()}},
+         {"position_sigma_m",
+          {e->position_sigma_m.x(), e->position_sigma_m.y(), e->position_sigma_m.z()}},
+         {"range_offset_m", e->range_offset_m},
+         {"range_offset_sigma_m", e->range_offset_sigma_m},
+         {"range_scale", e->range_scale},
+         {"range_scale_sigma", e->range_scale_sigma},
+         {"scale_estimated", e->scale_estimated},
+         {"pinned", e->pinned},
+         {"ranges_used", e->ranges_used},
+         {"ranges_rejected", e->ranges_rejected}});
+  }
+  std::printf("\n");
+  for (const auto& n : result.notes) std::printf("note: %s\n", n.c_str());
+  if (can_evaluate) {
+    std::printf(
+        "\nheld-out trilateration error (one %.0f s block in %d, %d firings; fitted on the "
+        "others):\n",
+        a.block_s, a.period, before.firings);
+    std::printf("  before (site file): RMSE %.4f m, median %.4f, p95 %.4f, max %.4f (%d fixes)\n",
+                before.rmse_m, before.median_m, before.p95_m, before.max_m, before.fixes);
+    std::printf("  after  (surveyed):  RMSE %.4f m, median %.4f, p95 %.4f, max %.4f (%d fixes)\n",
+                after.rmse_m, after.median_m, after.p95_m, after.max_m, after.fixes);
+  } else {
+    std::printf("\nno reference track: the held-out error against a reference is not available\n");
+  }
+  if (undecodable > 0) std::printf("%d RANGES events did not decode\n", undecodable);
+  if (damaged) std::printf("the log is damaged; its readable part was used\n");
+
+  if (!a.out.empty()) {
+    std::ofstream f(a.out);
+    f << "# roomfix survey of " << a.log << " ("
+      << (a.no_reference ? "no reference, pinned " + a.pin : "reference " + a.reference) << ", "
+      << result.firings_used << " firings, residual rms " << result.residual_rms_m
+      << " m).\n# Paste over the site file's receivers.\nreceivers:\n";
+    char line[512];
+    for (const Receiver& r : site.receivers) {
+      const survey::ReceiverEstimate* e = result.Find(r.id);
+      if (e == nullptr) continue;
+      std::string shrt;
+      if (r.short_address.has_value()) {
+        char buffer[32];
+        std::snprintf(buffer, sizeof(buffer), ", short_address: 0x%04X", *r.short_address);
+        shrt = buffer;
+      }
+      std::snprintf(line, sizeof(line),
+                    "  - {id: %d, address: \"%s\"%s, position_m: [%.4f, %.4f, %.4f], "
+                    "range_offset_m: %.4f}\n",
+                    r.id, FormatRadioAddress(r.address).c_str(), shrt.c_str(), e->position_m.x(),
+                    e->position_m.y(), e->position_m.z(), e->range_offset_m);
+      f << line;
+      if (e->scale_estimated) {
+        std::snprintf(line, sizeof(line),
+                      "    # range scale %.5f +- %.5f (not a site-file key: correct the speed of "
+                      "sound or the receiver's clock)\n",
+                      e->range_scale, e->range_scale_sigma);
+        f << line;
+      }
+    }
+    if (!f) {
+      std::cerr << "roomfix survey: cannot write " << a.out << "\n";
+      return 1;
+    }
+  }
+  if (!a.json_path.empty()) {
+    json out = {{"log", a.log},
+                {"reference", a.no_reference ? json(nullptr) : json(a.reference)},
+                {"firings", firings.size()},
+                {"ranges_used", result.ranges_used},
+                {"ranges_rejected", result.ranges_rejected},
+                {"residual_rms_m", Number(result.residual_rms_m)},
+                {"condition_number", Number(result.condition_number)},
+                {"scale_estimated", result.scale_estimated},
+                {"receivers", receivers},
+                {"notes", result.notes}};
+    if (can_evaluate) {
+      out["held_out"] = {{"before", ErrorJson(before)}, {"after", ErrorJson(after)}};
+    }
+    std::ofstream f(a.json_path);
+    f << out.dump(2) << "\n";
+    if (!f) {
+      std::cerr << "roomfix survey: cannot write " << a.json_path << "\n";
+      return 1;
+    }
+  }
+  return 0;
+}
+
+}  // namespace
+
+void AddSurveyCommand(CLI::App* app, int* exit_code) {
+  auto* cmd = app->add_subcommand(
+      "survey", "Receiver positions and range offsets from a drive with a reference track");
+  auto a = std::make_shared<SurveyArgs>();
+  cmd->add_option("LOG", a->log, "LCM log with RANGES and a POSE_* reference")->required();
+  cmd->add_option("--site", a->site, "Site file: starting values and the 'before'")->required();
+  cmd->add_option("--reference", a->reference, "Reference pose source")
+      ->check(CLI::IsMember({"camera", "ground_truth", "fused"}));
+  cmd->add_option("--robot", a->robot, "Robot id (default: the first with a beacon)");
+  cmd->add_flag("--scale", a->scale, "Also estimate a range scale per receiver");
+  cmd->add_flag("--auto-scale", a->auto_scale,
+                "Estimate scales only when significant and the ranges span enough");
+  cmd->add_flag("--fix-heights", a->fix_heights, "Keep the receivers' heights from the site");
+  cmd->add_flag("--offsets-only", a->offsets_only, "Keep positions; estimate range offsets only");
+  cmd->add_flag("--no-reference", a->no_reference,
+                "Self-calibration: beacon positions unknown, two receivers pinned");
+  cmd->add_option("--pin", a->pin, "With --no-reference: ids of two surveyed receivers, ID,ID");
+  cmd->add_option("--block", a->block_s, "Held-out split: block length, seconds");
+  cmd->add_option("--period", a->period, "Held-out split: every N-th block is held out")
+      ->check(CLI::Range(2, 100));
+  cmd->add_option("--out", a->out, "Write the receivers as a site-file fragment (YAML)");
+  cmd->add_option("--json", a->json_path, "Also write the result as JSON to this file");
+  cmd->callback([a, exit_code] { *exit_code = Run(*a); });
+}
+
+}  // namespace roomfix
