@@ -1,0 +1,409 @@
+#include "core/fusion/pose_filter.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "core/fusion/synthetic_streams.h"
+#include "core/world/trajectory.h"
+
+namespace roomfix {
+namespace fusion {
+namespace {
+
+using synthetic::kStartUtime;
+using synthetic::MakeStream;
+using synthetic::Rms;
+using synthetic::SecondsSinceStart;
+using synthetic::StreamItem;
+using synthetic::StreamOptions;
+using synthetic::TruthAt;
+using synthetic::UtimeAt;
+
+// Re-filtering the same measurements in the same order repeats the same
+// arithmetic; only rounding could differ.
+constexpr double kSameResult = 1e-9;
+// The filter needs a few frames to learn the velocity: errors are compared
+// from this time on.
+constexpr double kSettle_s = 2.0;
+// The bound on the fused error during a 5 s camera outage.
+constexpr double kOutageRms_m = 0.05;
+// "Camera level" after an outage: within this factor of the camera's RMSE.
+constexpr double kCameraLevelFactor = 1.5;
+// A radio outage "changes nothing noticeable": the RMSE grows by less than
+// this fraction.
+constexpr double kUnnoticeable = 0.10;
+
+std::unique_ptr<Trajectory> ReferenceCircle() {
+  std::string error;
+  auto trajectory = MakeCircleTrajectory(CircleTrajectoryOptions(), &error);
+  EXPECT_NE(trajectory, nullptr) << error;
+  return trajectory;
+}
+
+double PositionError(const Estimate& e, double x, double y) {
+  return std::hypot(e.state[kX] - x, e.state[kY] - y);
+}
+
+// What a run of the filter over a stream gave.
+struct FilterRun {
+  std::vector<Outcome> outcomes;
+  // Estimate right after each measurement that entered, with its truth.
+  std::vector<Estimate> estimates;
+  std::vector<StreamItem> estimated_items;
+  std::vector<double> fused_errors;
+  std::vector<double> camera_errors;
+  int outputs = 0;
+};
+
+FilterRun RunFilter(PoseFilter* filter, const std::vector<StreamItem>& stream) {
+  FilterRun run;
+  for (const StreamItem& item : stream) {
+    Estimate e;
+    const Outcome outcome = filter->Add(item.measurement, item.recv_utime, &e);
+    run.outcomes.push_back(outcome);
+    if (!Entered(outcome)) continue;
+    ++run.outputs;
+    run.estimates.push_back(e);
+    run.estimated_items.push_back(item);
+    const double t = SecondsSinceStart(item.measurement.utime);
+    if (t < kSettle_s) continue;
+    run.fused_errors.push_back(PositionError(e, item.truth_x_m, item.truth_y_m));
+    if (item.measurement.source == Source::kCamera) {
+      run.camera_errors.push_back(std::hypot(item.measurement.position_m.x() - item.truth_x_m,
+                                             item.measurement.position_m.y() - item.truth_y_m));
+    }
+  }
+  return run;
+}
+
+// Errors of the fused estimates whose time lies in [from_s, to_s).
+std::vector<double> ErrorsBetween(const FilterRun& run, double from_s, double to_s) {
+  std::vector<double> errors;
+  for (size_t i = 0; i < run.estimates.size(); ++i) {
+    const StreamItem& item = run.estimated_items[i];
+    const double t = SecondsSinceStart(item.measurement.utime);
+    if (t >= from_s && t < to_s) {
+      errors.push_back(PositionError(run.estimates[i], item.truth_x_m, item.truth_y_m));
+    }
+  }
+  return errors;
+}
+
+Measurement CameraAt(double t_s, double x, double y) {
+  Measurement m;
+  m.utime = UtimeAt(t_s);
+  m.source = Source::kCamera;
+  m.position_m = {x, y};
+  m.position_cov_m2 = Eigen::Matrix2d::Identity() * 1e-6;
+  return m;
+}
+
+Measurement UltrasoundAt(double t_s, double x, double y) {
+  Measurement m = CameraAt(t_s, x, y);
+  m.source = Source::kUltrasound;
+  m.position_cov_m2 = Eigen::Matrix2d::Identity() * 4e-4;
+  return m;
+}
+
+TEST(PoseFilter, FusedIsNoWorseThanTheCameraOnTheReferenceCircle) {
+  auto circle = ReferenceCircle();
+  const std::vector<StreamItem> stream = MakeStream(*circle, StreamOptions());
+  PoseFilter filter{PoseFilterOptions()};
+  const FilterRun run = RunFilter(&filter, stream);
+  const double camera = Rms(run.camera_errors);
+  const double fused = Rms(run.fused_errors);
+  std::printf("reference circle: camera RMSE %.3f mm, fused RMSE %.3f mm over %zu estimates\n",
+              camera * 1e3, fused * 1e3, run.fused_errors.size());
+  EXPECT_LE(fused, camera);
+  // One estimate per measurement: the combined rate of both sensors.
+  EXPECT_EQ(run.outputs, static_cast<int>(stream.size()));
+}
+
+TEST(PoseFilter, TracksTheHeadingAndTurnRate) {
+  auto circle = ReferenceCircle();
+  const std::vector<StreamItem> stream = MakeStream(*circle, StreamOptions());
+  PoseFilter filter{PoseFilterOptions()};
+  const FilterRun run = RunFilter(&filter, stream);
+  // Over the last 10 s: the camera's heading sigma is 0.02 rad, and the
+  // filter averages it down; the turn rate is the circle's angular speed.
+  std::vector<double> heading_errors, rate_errors;
+  for (size_t i = 0; i < run.estimates.size(); ++i) {
+    const Estimate& e = run.estimates[i];
+    if (SecondsSinceStart(e.utime) < 30.0) continue;
+    ASSERT_TRUE(e.heading_known);
+    EXPECT_EQ(e.status, TrackStatus::kOk);
+    heading_errors.push_back(
+        WrapAngle(e.state[kHeading] - run.estimated_items[i].truth_heading_rad));
+    rate_errors.push_back(e.state[kTurnRate] - CircleTrajectoryOptions().angular_speed_radps);
+  }
+  std::printf("heading RMSE %.4f rad, turn rate RMSE %.4f rad/s\n", Rms(heading_errors),
+              Rms(rate_errors));
+  EXPECT_LT(Rms(heading_errors), 0.02);
+  EXPECT_LT(Rms(rate_errors), 0.1);  // A quarter of the 0.44 rad/s it estimates.
+}
+
+TEST(PoseFilter, StaysBoundedThroughAFiveSecondCameraOutageAndRecoversWithinASecond) {
+  auto circle = ReferenceCircle();
+  StreamOptions options;
+  options.camera_outage_start_s = 20.0;
+  options.camera_outage_end_s = 25.0;
+  PoseFilter filter{PoseFilterOptions()};
+  const FilterRun run = RunFilter(&filter, MakeStream(*circle, options));
+  const double camera = Rms(run.camera_errors);
+  const double during = Rms(ErrorsBetween(run, 20.0, 25.0));
+  const double after = Rms(ErrorsBetween(run, 26.0, 40.0));
+  std::printf("camera outage: RMS %.1f mm during, %.3f mm from 1 s after (camera %.3f mm)\n",
+              during * 1e3, after * 1e3, camera * 1e3);
+  EXPECT_LT(during, kOutageRms_m);
+  EXPECT_LT(after, kCameraLevelFactor * camera);
+  // Ultrasound only: reported degraded, never lost.
+  for (size_t i = 0; i < run.estimates.size(); ++i) {
+    const double t = SecondsSinceStart(run.estimated_items[i].measurement.utime);
+    if (t >= 20.6 && t < 25.0) {
+      EXPECT_EQ(run.estimates[i].status, TrackStatus::kDegraded) << "at " << t << " s";
+    }
+  }
+}
+
+TEST(PoseFilter, ARadioOutageChangesNothingNoticeable) {
+  auto circle = ReferenceCircle();
+  StreamOptions options;
+  PoseFilter plain_filter{PoseFilterOptions()};
+  const FilterRun plain = RunFilter(&plain_filter, MakeStream(*circle, options));
+  options.radio_outage_start_s = 20.0;
+  options.radio_outage_end_s = 25.0;
+  PoseFilter outage_filter{PoseFilterOptions()};
+  const FilterRun outage = RunFilter(&outage_filter, MakeStream(*circle, options));
+  const double during = Rms(ErrorsBetween(outage, 20.0, 25.0));
+  const double plain_during = Rms(ErrorsBetween(plain, 20.0, 25.0));
+  std::printf("radio outage: RMS %.3f mm during (%.3f mm without outage), %.3f mm overall\n",
+              during * 1e3, plain_during * 1e3, Rms(outage.fused_errors) * 1e3);
+  EXPECT_LT(Rms(outage.fused_errors), (1.0 + kUnnoticeable) * Rms(plain.fused_errors));
+  EXPECT_LT(during, (1.0 + kUnnoticeable) * plain_during);
+  for (const Estimate& e : outage.estimates) EXPECT_NE(e.status, TrackStatus::kLost);
+}
+
+TEST(PoseFilter, OutOfOrderDeliveryGivesTheSameResultAsTimeOrder) {
+  auto circle = ReferenceCircle();
+  StreamOptions options;
+  options.duration_s = 10.0;
+  std::vector<StreamItem> ordered = MakeStream(*circle, options);
+  std::stable_sort(ordered.begin(), ordered.end(), [](const StreamItem& a, const StreamItem& b) {
+    return a.measurement.utime < b.measurement.utime;
+  });
+  // Shuffle within 200 ms: each message is received up to 200 ms late.
+  std::vector<StreamItem> shuffled = ordered;
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<int64_t> delay(0, 200000);
+  for (StreamItem& item : shuffled) item.recv_utime = item.measurement.utime + delay(rng);
+  std::stable_sort(shuffled.begin(), shuffled.end(), [](const StreamItem& a, const StreamItem& b) {
+    return a.recv_utime < b.recv_utime;
+  });
+  int out_of_order = 0;
+  for (size_t i = 1; i < shuffled.size(); ++i) {
+    out_of_order += shuffled[i].measurement.utime < shuffled[i - 1].measurement.utime;
+  }
+  ASSERT_GT(out_of_order, 50);
+  // The ordered run receives each message when the shuffled one's last
+  // message has arrived, so both see the same clock at the end.
+  const int64_t end = shuffled.back().recv_utime;
+  for (StreamItem& item : ordered) item.recv_utime = std::min(item.recv_utime, end);
+
+  PoseFilter a{PoseFilterOptions()};
+  PoseFilter b{PoseFilterOptions()};
+  RunFilter(&a, ordered);
+  const FilterRun run_b = RunFilter(&b, shuffled);
+  for (Outcome o : run_b.outcomes) EXPECT_TRUE(Entered(o)) << OutcomeName(o);
+  const std::vector<Estimate> ha = a.History();
+  const std::vector<Estimate> hb = b.History();
+  ASSERT_EQ(ha.size(), hb.size());
+  ASSERT_GT(ha.size(), 30u);
+  for (size_t i = 0; i < ha.size(); ++i) {
+    EXPECT_EQ(ha[i].utime, hb[i].utime);
+    EXPECT_LT((ha[i].state - hb[i].state).cwiseAbs().maxCoeff(), kSameResult) << i;
+    EXPECT_LT((ha[i].covariance - hb[i].covariance).cwiseAbs().maxCoeff(), kSameResult) << i;
+  }
+  const Estimate pa = a.Predict(end);
+  const Estimate pb = b.Predict(end);
+  EXPECT_LT((pa.state - pb.state).cwiseAbs().maxCoeff(), kSameResult);
+}
+
+TEST(PoseFilter, CountsAMeasurementOlderThanTheHistoryAsTooLate) {
+  PoseFilter filter{PoseFilterOptions()};
+  for (int k = 0; k <= 60; ++k) {
+    const double t = k / 30.0;
+    ASSERT_TRUE(Entered(filter.Add(CameraAt(t, 1.0, 1.0), UtimeAt(t))));
+  }
+  // 2 s behind the newest: the history holds 1 s.
+  EXPECT_EQ(filter.Add(UltrasoundAt(0.0, 1.0, 1.0), UtimeAt(2.01)), Outcome::kTooLate);
+  // 0.5 s behind: inserted and re-filtered.
+  EXPECT_EQ(filter.Add(UltrasoundAt(1.5, 1.0, 1.0), UtimeAt(2.01)), Outcome::kAccepted);
+}
+
+TEST(PoseFilter, RefusesMeasurementsFromTheFutureAndInvalidOnes) {
+  PoseFilter filter{PoseFilterOptions()};
+  EXPECT_EQ(filter.Add(CameraAt(5.0, 1.0, 1.0), UtimeAt(3.0)), Outcome::kFromFuture);
+  Measurement bad = CameraAt(1.0, std::nan(""), 1.0);
+  EXPECT_EQ(filter.Add(bad, UtimeAt(1.0)), Outcome::kInvalid);
+  bad = CameraAt(1.0, 1.0, 1.0);
+  bad.position_cov_m2(0, 0) = std::nan("");
+  EXPECT_EQ(filter.Add(bad, UtimeAt(1.0)), Outcome::kInvalid);
+  EXPECT_FALSE(filter.initialised());
+}
+
+TEST(PoseFilter, GatesOutliersWithoutMovingTheEstimate) {
+  auto circle = ReferenceCircle();
+  StreamOptions options;
+  options.outlier_fraction = 0.1;
+  const std::vector<StreamItem> stream = MakeStream(*circle, options);
+  PoseFilter filter{PoseFilterOptions()};
+  int outliers = 0, gated = 0;
+  for (const StreamItem& item : stream) {
+    const Estimate before = filter.Predict(item.measurement.utime);
+    Estimate after;
+    const Outcome outcome = filter.Add(item.measurement, item.recv_utime, &after);
+    if (!item.outlier) continue;
+    ++outliers;
+    EXPECT_EQ(outcome, Outcome::kGated);
+    if (outcome != Outcome::kGated) continue;
+    ++gated;
+    // Arriving late, the outlier is applied among measurements the
+    // prediction has already seen; in time order nothing moves at all.
+    EXPECT_LT(PositionError(after, item.truth_x_m, item.truth_y_m), 0.01);
+    if (before.utime == after.utime) {
+      EXPECT_LT((after.state - before.state).cwiseAbs().maxCoeff(), kSameResult);
+    }
+  }
+  EXPECT_GT(outliers, 20);
+  EXPECT_EQ(gated, outliers);
+}
+
+TEST(PoseFilter, HandlesACameraPoseWithUnknownHeading) {
+  PoseFilter filter{PoseFilterOptions()};
+  Measurement m = CameraAt(0.0, 1.0, 2.0);
+  m.heading_rad = 0.5;
+  m.heading_var_rad2 = std::nan("");  // The NaN covariance row of pose2d_t.
+  ASSERT_EQ(filter.Add(m, UtimeAt(0.0)), Outcome::kInitialised);
+  EXPECT_FALSE(filter.Latest().heading_known);
+  m = CameraAt(0.1, 1.0, 2.0);
+  m.heading_rad = 0.5;
+  m.heading_var_rad2 = 1e-3;
+  ASSERT_EQ(filter.Add(m, UtimeAt(0.1)), Outcome::kAccepted);
+  EXPECT_TRUE(filter.Latest().heading_known);
+  EXPECT_NEAR(filter.Latest().state[kHeading], 0.5, 0.01);
+}
+
+TEST(PoseFilter, IsLostAfterASilenceAndReinitialisesOnTheNextMeasurement) {
+  PoseFilter filter{PoseFilterOptions()};
+  for (int k = 0; k < 30; ++k) filter.Add(CameraAt(k / 30.0, 1.0, 1.0), UtimeAt(k / 30.0));
+  EXPECT_EQ(filter.Predict(UtimeAt(1.4)).status, TrackStatus::kOk);
+  EXPECT_EQ(filter.Predict(UtimeAt(2.5)).status, TrackStatus::kLost);
+  // 3 s of silence, then the robot is somewhere else.
+  Estimate e;
+  EXPECT_EQ(filter.Add(UltrasoundAt(4.0, 3.0, 2.0), UtimeAt(4.0), &e), Outcome::kInitialised);
+  EXPECT_NEAR(e.state[kX], 3.0, kSameResult);
+  EXPECT_EQ(e.status, TrackStatus::kDegraded);  // Ultrasound only.
+  EXPECT_EQ(filter.Add(CameraAt(4.03, 3.0, 2.0), UtimeAt(4.03), &e), Outcome::kAccepted);
+  EXPECT_EQ(e.status, TrackStatus::kOk);
+}
+
+TEST(PoseFilter, FollowsARobotCarriedAwayOnceTheGateReopens) {
+  auto circle = ReferenceCircle();
+  StreamOptions options;
+  options.duration_s = 15.0;
+  options.jump_at_s = 10.0;
+  options.outlier_fraction = 0.0;
+  PoseFilterOptions filter_options;
+  PoseFilter filter{filter_options};
+  const std::vector<StreamItem> stream = MakeStream(*circle, options);
+  int after_jump = 0, reinitialised = 0, followed_at = -1;
+  for (const StreamItem& item : stream) {
+    Estimate e;
+    const Outcome outcome = filter.Add(item.measurement, item.recv_utime, &e);
+    if (SecondsSinceStart(item.measurement.utime) < options.jump_at_s) continue;
+    ++after_jump;
+    if (after_jump == 1) {
+      EXPECT_EQ(outcome, Outcome::kGated);
+    }
+    if (outcome == Outcome::kReinitialised) ++reinitialised;
+    if (followed_at < 0 && PositionError(e, item.truth_x_m, item.truth_y_m) < 0.01) {
+      followed_at = after_jump;
+    }
+  }
+  std::printf("carried 2 m: followed within 1 cm from measurement %d after the jump\n",
+              followed_at);
+  EXPECT_GE(reinitialised, 1);
+  // Five camera rejections reopen the gate, with a few ultrasound ones
+  // among them.
+  EXPECT_GT(followed_at, filter_options.reopen_after_rejections - 1);
+  EXPECT_LE(followed_at, filter_options.reopen_after_rejections + 4);
+  EXPECT_LT(PositionError(filter.Latest(), TruthAt(*circle, options, 15.0).x_m,
+                          TruthAt(*circle, options, 15.0).y_m),
+            0.01);
+}
+
+TEST(PoseFilter, FollowsARectangleWithTurnsOnTheSpot) {
+  // Corners change the velocity at once (0.3 m/s) and jump the heading by
+  // 90 degrees: the 1 mm camera's gate closes for a few frames, then
+  // reopens; the track is never lost.
+  WaypointTrajectoryOptions options;
+  options.points_m = {{1.0, 1.0}, {2.5, 1.0}, {2.5, 2.0}, {1.0, 2.0}};
+  options.speed_mps = 0.3;
+  std::string error;
+  auto rectangle = MakeWaypointTrajectory(options, &error);
+  ASSERT_NE(rectangle, nullptr) << error;
+  PoseFilter filter{PoseFilterOptions()};
+  const FilterRun run = RunFilter(&filter, MakeStream(*rectangle, StreamOptions()));
+  double worst = 0.0;
+  for (double e : run.fused_errors) worst = std::max(worst, e);
+  std::printf("rectangle at 0.3 m/s: RMSE %.2f mm, worst %.1f mm\n", Rms(run.fused_errors) * 1e3,
+              worst * 1e3);
+  EXPECT_LT(Rms(run.fused_errors), 0.01);
+  EXPECT_LT(worst, 0.1);
+  for (const Estimate& e : run.estimates) EXPECT_NE(e.status, TrackStatus::kLost);
+}
+
+TEST(PoseFilter, PrefersTheCameraWhenTheUltrasoundDisagrees) {
+  PoseFilter filter{PoseFilterOptions()};
+  // The ultrasound reads 30 cm off, consistently; the camera is right.
+  for (int k = 0; k < 90; ++k) {
+    const double t = k / 30.0;
+    filter.Add(CameraAt(t, 1.0, 1.0), UtimeAt(t));
+    if (k % 3 == 0) {
+      EXPECT_EQ(filter.Add(UltrasoundAt(t + 0.01, 1.3, 1.0), UtimeAt(t + 0.01)), Outcome::kGated);
+    }
+  }
+  EXPECT_NEAR(filter.Latest().state[kX], 1.0, 0.001);
+}
+
+TEST(PoseFilterOptions, RefusesNonPositiveNoiseAndGates) {
+  std::string error;
+  EXPECT_TRUE(PoseFilterOptions().IsValid(&error)) << error;
+  PoseFilterOptions o;
+  o.q_accel_mps2 = 0.0;
+  EXPECT_FALSE(o.IsValid(&error));
+  EXPECT_NE(error.find("q_accel"), std::string::npos);
+  o = PoseFilterOptions();
+  o.ultrasound_sigma_floor_m = std::nan("");
+  EXPECT_FALSE(o.IsValid(&error));
+  o = PoseFilterOptions();
+  o.reopen_after_rejections = 0;
+  EXPECT_FALSE(o.IsValid(&error));
+}
+
+TEST(WrapAngle, MapsOntoTheHalfOpenInterval) {
+  EXPECT_DOUBLE_EQ(WrapAngle(-M_PI), M_PI);
+  EXPECT_DOUBLE_EQ(WrapAngle(M_PI), M_PI);
+  EXPECT_NEAR(WrapAngle(3.0 * M_PI / 2.0), -M_PI / 2.0, 1e-12);
+}
+
+}  // namespace
+}  // namespace fusion
+}  // namespace roomfix

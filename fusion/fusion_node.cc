@@ -1,0 +1,189 @@
+#include "fusion/fusion_node.h"
+
+#include <cmath>
+#include <limits>
+#include <string>
+
+namespace roomfix {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+int8_t StatusOf(fusion::TrackStatus status) {
+  switch (status) {
+    case fusion::TrackStatus::kOk:
+      return pose2d_t::STATUS_OK;
+    case fusion::TrackStatus::kDegraded:
+      return pose2d_t::STATUS_DEGRADED;
+    case fusion::TrackStatus::kLost:
+      break;
+  }
+  return pose2d_t::STATUS_LOST;
+}
+
+}  // namespace
+
+bool FusionNodeOptions::IsValid(std::string* error) const {
+  if (!filter.IsValid(error)) return false;
+  if (!std::isfinite(rate_hz) || rate_hz < 0.0) {
+    *error = "rate_hz must be finite and not negative";
+    return false;
+  }
+  if (camera_channel.empty() || ultrasound_channel.empty() || fused_channel.empty()) {
+    *error = "channel names must not be empty";
+    return false;
+  }
+  return true;
+}
+
+FusionNode::FusionNode(Bus* bus, const FusionNodeOptions& options, int64_t start_utime)
+    : bus_(bus), options_(options), status_("fusion_proc", start_utime) {
+  bus_->Subscribe<pose2d_t>(options_.camera_channel,
+                            [this](const pose2d_t& pose, const MessageInfo& info) {
+                              OnPose(pose, info, fusion::Source::kCamera);
+                            });
+  bus_->Subscribe<pose2d_t>(options_.ultrasound_channel,
+                            [this](const pose2d_t& pose, const MessageInfo& info) {
+                              OnPose(pose, info, fusion::Source::kUltrasound);
+                            });
+  status_.SetState(process_status_t::STATE_RUNNING);
+}
+
+const fusion::PoseFilter* FusionNode::filter(int robot_id) const {
+  auto it = tracks_.find(robot_id);
+  return it == tracks_.end() ? nullptr : &it->second.filter;
+}
+
+void FusionNode::OnPose(const pose2d_t& pose, const MessageInfo& info, fusion::Source source) {
+  const std::string name = fusion::SourceName(source);
+  status_.AddInputs();
+  status_.Count("inputs_" + name);
+  if (pose.status == pose2d_t::STATUS_LOST || !std::isfinite(pose.x_m) ||
+      !std::isfinite(pose.y_m)) {
+    // The sensor saw nothing: not a measurement, and not an error.
+    status_.Count("lost_input_" + name);
+    return;
+  }
+  fusion::Measurement m;
+  m.utime = pose.utime;
+  m.source = source;
+  m.seq = pose.measurement_seq;
+  m.position_m = {pose.x_m, pose.y_m};
+  m.position_cov_m2 << pose.covariance[0][0], pose.covariance[0][1], pose.covariance[1][0],
+      pose.covariance[1][1];
+  m.heading_rad = pose.heading_rad;
+  m.heading_var_rad2 = pose.covariance[2][2];
+
+  auto it = tracks_.find(pose.robot_id);
+  if (it == tracks_.end()) {
+    it = tracks_.emplace(pose.robot_id, Track(options_.filter)).first;
+  }
+  Track& track = it->second;
+  const bool was_initialised = track.filter.initialised();
+  fusion::Estimate estimate;
+  const fusion::Outcome outcome = track.filter.Add(m, info.recv_utime, &estimate);
+  switch (outcome) {
+    case fusion::Outcome::kAccepted:
+      break;
+    case fusion::Outcome::kInitialised:
+      status_.Count(was_initialised ? "reinitialised" : "initialised");
+      break;
+    case fusion::Outcome::kReinitialised:
+      status_.Count("reinitialised");
+      break;
+    case fusion::Outcome::kGated:
+      status_.Reject("gated_" + name);
+      break;
+    case fusion::Outcome::kTooLate:
+      status_.Reject("too_late");
+      return;
+    case fusion::Outcome::kFromFuture:
+      status_.Reject("from_future");
+      status_.SetError(name + " pose of robot " + std::to_string(pose.robot_id) + " is " +
+                           std::to_string((pose.utime - info.recv_utime) / 1000) +
+                           " ms ahead of the clock",
+                       info.recv_utime);
+      return;
+    case fusion::Outcome::kInvalid:
+      status_.Reject("invalid_" + name);
+      return;
+  }
+  if (outcome != fusion::Outcome::kGated) {
+    track.lost_reported = false;
+    if (std::isfinite(pose.z_m)) track.z_m = pose.z_m;
+  }
+  Publish(pose.robot_id, estimate, track.z_m, info.recv_utime);
+}
+
+void FusionNode::Publish(int32_t robot_id, const fusion::Estimate& e, double z_m,
+                         int64_t now_utime) {
+  pose2d_t p{};
+  p.utime = e.utime;
+  p.source = pose2d_t::SOURCE_FUSED;
+  p.robot_id = robot_id;
+  p.measurement_seq = e.seq;
+  p.z_m = z_m;
+  p.status = e.valid ? StatusOf(e.status) : pose2d_t::STATUS_LOST;
+  p.num_measurements = e.num_measurements;
+  p.latency_us = now_utime - e.utime;
+  p.residual_m = std::isfinite(e.innovation_m) ? e.innovation_m : kNaN;
+  if (p.status == pose2d_t::STATUS_LOST) {
+    p.x_m = p.y_m = p.heading_rad = kNaN;
+    for (auto& row : p.covariance) {
+      for (double& v : row) v = kNaN;
+    }
+  } else {
+    p.x_m = e.state[fusion::kX];
+    p.y_m = e.state[fusion::kY];
+    p.heading_rad = e.heading_known ? e.state[fusion::kHeading] : kNaN;
+    const int index[3] = {fusion::kX, fusion::kY, fusion::kHeading};
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) {
+        const bool heading = r == 2 || c == 2;
+        p.covariance[r][c] = heading && !e.heading_known ? kNaN : e.covariance(index[r], index[c]);
+      }
+    }
+  }
+  if (bus_->Publish(options_.fused_channel, p)) {
+    status_.AddOutputs();
+  } else {
+    status_.AddDropped();
+  }
+}
+
+void FusionNode::Tick(int64_t now_utime) {
+  bool rate_tick = false;
+  if (options_.rate_hz > 0.0 && now_utime >= next_rate_utime_) {
+    rate_tick = true;
+    const int64_t period = std::llround(1e6 / options_.rate_hz);
+    next_rate_utime_ = next_rate_utime_ == 0 || now_utime - next_rate_utime_ > period
+                           ? now_utime + period
+                           : next_rate_utime_ + period;
+  }
+  for (auto& [robot_id, track] : tracks_) {
+    if (!track.filter.initialised()) continue;
+    fusion::Estimate e = track.filter.Predict(now_utime);
+    const bool lost = e.status == fusion::TrackStatus::kLost;
+    if (lost && !track.lost_reported) {
+      track.lost_reported = true;
+      status_.Count("lost");
+      if (options_.rate_hz <= 0.0) {  // Else the rate ticks report it.
+        e.utime = now_utime;
+        Publish(robot_id, e, track.z_m, now_utime);
+      }
+    }
+    if (rate_tick) {
+      e.utime = now_utime;
+      e.seq = -1;
+      Publish(robot_id, e, track.z_m, now_utime);
+    }
+  }
+  status_.MaybePublish(bus_, now_utime);
+}
+
+void FusionNode::Stop(int64_t now_utime) {
+  status_.SetState(process_status_t::STATE_STOPPING);
+  status_.Publish(bus_, now_utime);
+}
+
+}  // namespace roomfix

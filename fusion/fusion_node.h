@@ -1,0 +1,74 @@
+#ifndef ROOMFIX_FUSION_FUSION_NODE_H_
+#define ROOMFIX_FUSION_FUSION_NODE_H_
+
+#include <cstdint>
+#include <map>
+#include <string>
+
+#include "core/fusion/pose_filter.h"
+#include "msgio/bus.h"
+#include "msgio/process.h"
+#include "roomfix/pose2d_t.hpp"
+
+namespace roomfix {
+
+inline constexpr char kFusedPoseChannel[] = "POSE_FUSED";
+
+struct FusionNodeOptions {
+  fusion::PoseFilterOptions filter;
+  std::string camera_channel = "POSE_CAMERA";
+  std::string ultrasound_channel = "POSE_ULTRASOUND";
+  std::string fused_channel = kFusedPoseChannel;
+  // Besides one pose per measurement, publish every robot's newest estimate
+  // predicted to "now" at this rate, Hz (0: only per measurement). A lost
+  // robot then gets a lost pose at every tick.
+  double rate_hz = 0.0;
+
+  bool IsValid(std::string* error) const;
+};
+
+// Fuses POSE_CAMERA and POSE_ULTRASOUND into POSE_FUSED: one extended
+// Kalman filter (core/fusion/pose_filter.h) per robot id seen in the
+// messages.
+//
+// Every measurement that enters the filter gets a fused pose at its own time
+// (utime = the measurement time, latency_us = receive time - utime), also
+// when it was gated or arrived late (then the pose is the filter's
+// re-filtered estimate at that time). When a robot's track becomes lost (no
+// accepted measurement for lost_after_s, judged on the receive clock) one
+// lost pose is published, or one per tick with rate_hz. "Now" is always the
+// receive time of a message or the tick's argument, so a replay is
+// deterministic. STATUS counters: inputs_<source>, rejected gated_<source>,
+// too_late, from_future, invalid_<source>, lost_input_<source>; counters
+// initialised, reinitialised, lost.
+class FusionNode {
+ public:
+  FusionNode(Bus* bus, const FusionNodeOptions& options, int64_t start_utime);
+
+  void Tick(int64_t now_utime);
+  void Stop(int64_t now_utime);
+  const StatusReporter& status() const { return status_; }
+  // The filter of a robot, or nullptr before its first measurement.
+  const fusion::PoseFilter* filter(int robot_id) const;
+
+ private:
+  struct Track {
+    explicit Track(const fusion::PoseFilterOptions& options) : filter(options) {}
+    fusion::PoseFilter filter;
+    bool lost_reported = false;
+    double z_m = 0.0;
+  };
+
+  void OnPose(const pose2d_t& pose, const MessageInfo& info, fusion::Source source);
+  void Publish(int32_t robot_id, const fusion::Estimate& estimate, double z_m, int64_t now_utime);
+
+  Bus* bus_;
+  FusionNodeOptions options_;
+  StatusReporter status_;
+  std::map<int32_t, Track> tracks_;
+  int64_t next_rate_utime_ = 0;
+};
+
+}  // namespace roomfix
+
+#endif  // ROOMFIX_FUSION_FUSION_NODE_H_

@@ -1,0 +1,300 @@
+#include "fusion/fusion_node.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/fusion/synthetic_streams.h"
+#include "core/world/trajectory.h"
+#include "roomfix/pose2d_t.hpp"
+
+namespace roomfix {
+namespace {
+
+using fusion::synthetic::MakeStream;
+using fusion::synthetic::Merge;
+using fusion::synthetic::Rms;
+using fusion::synthetic::SecondsSinceStart;
+using fusion::synthetic::StreamItem;
+using fusion::synthetic::StreamOptions;
+using fusion::synthetic::UtimeAt;
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+// The filter needs a few frames to learn the velocity.
+constexpr double kSettle_s = 2.0;
+
+pose2d_t PoseOf(const StreamItem& item) {
+  const fusion::Measurement& m = item.measurement;
+  pose2d_t p{};
+  p.utime = m.utime;
+  const bool camera = m.source == fusion::Source::kCamera;
+  p.source = camera ? pose2d_t::SOURCE_CAMERA : pose2d_t::SOURCE_ULTRASOUND;
+  p.robot_id = item.robot_id;
+  p.measurement_seq = m.seq;
+  p.x_m = m.position_m.x();
+  p.y_m = m.position_m.y();
+  p.z_m = camera ? 0.3 : 0.25;
+  p.heading_rad = camera ? m.heading_rad : kNaN;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) {
+      p.covariance[r][c] = r < 2 && c < 2 ? m.position_cov_m2(r, c) : kNaN;
+    }
+  }
+  if (camera) {
+    p.covariance[2][2] = m.heading_var_rad2;
+    p.covariance[0][2] = p.covariance[1][2] = p.covariance[2][0] = p.covariance[2][1] = 0.0;
+  }
+  p.num_measurements = camera ? 2 : 4;
+  p.status = pose2d_t::STATUS_OK;
+  p.latency_us = item.recv_utime - m.utime;
+  return p;
+}
+
+class FusionNodeTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string error;
+    circle_ = MakeCircleTrajectory(CircleTrajectoryOptions(), &error);
+    ASSERT_NE(circle_, nullptr) << error;
+    bus_.Subscribe<pose2d_t>(kFusedPoseChannel, [this](const pose2d_t& p, const MessageInfo& info) {
+      fused_.push_back(p);
+      publish_utimes_.push_back(info.recv_utime);
+    });
+  }
+
+  void Deliver(const pose2d_t& pose, int64_t recv_utime) {
+    const std::string channel =
+        pose.source == pose2d_t::SOURCE_CAMERA ? "POSE_CAMERA" : "POSE_ULTRASOUND";
+    std::vector<uint8_t> bytes(pose.getEncodedSize());
+    pose.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+    bus_.Inject(channel, bytes.data(), static_cast<int>(bytes.size()), recv_utime);
+  }
+
+  void DeliverAll(FusionNode* node, const std::vector<StreamItem>& stream) {
+    for (const StreamItem& item : stream) {
+      Deliver(PoseOf(item), item.recv_utime);
+      node->Tick(item.recv_utime);
+    }
+  }
+
+  double ErrorOf(const pose2d_t& p) const {
+    const GroundTruthPose truth = circle_->PoseAt(SecondsSinceStart(p.utime));
+    return std::hypot(p.x_m - truth.x_m, p.y_m - truth.y_m);
+  }
+
+  std::unique_ptr<Trajectory> circle_;
+  LoopbackBus bus_;
+  std::vector<pose2d_t> fused_;
+  std::vector<int64_t> publish_utimes_;
+};
+
+TEST_F(FusionNodeTest, FusesTheReferenceCircleNoWorseThanTheCameraAtTheCombinedRate) {
+  FusionNode node(&bus_, FusionNodeOptions(), fusion::synthetic::kStartUtime);
+  const std::vector<StreamItem> stream = MakeStream(*circle_, StreamOptions());
+  DeliverAll(&node, stream);
+
+  std::vector<double> camera_errors, fused_errors;
+  for (const StreamItem& item : stream) {
+    if (item.measurement.source != fusion::Source::kCamera) continue;
+    if (SecondsSinceStart(item.measurement.utime) < kSettle_s) continue;
+    camera_errors.push_back(std::hypot(item.measurement.position_m.x() - item.truth_x_m,
+                                       item.measurement.position_m.y() - item.truth_y_m));
+  }
+  for (size_t i = 0; i < fused_.size(); ++i) {
+    const pose2d_t& p = fused_[i];
+    EXPECT_EQ(p.source, pose2d_t::SOURCE_FUSED);
+    EXPECT_EQ(p.robot_id, 1);
+    EXPECT_EQ(p.latency_us, publish_utimes_[i] - p.utime);
+    ASSERT_NE(p.status, pose2d_t::STATUS_LOST);
+    if (SecondsSinceStart(p.utime) >= kSettle_s) fused_errors.push_back(ErrorOf(p));
+  }
+  std::printf("node, reference circle: camera RMSE %.3f mm, fused RMSE %.3f mm\n",
+              Rms(camera_errors) * 1e3, Rms(fused_errors) * 1e3);
+  EXPECT_LE(Rms(fused_errors), Rms(camera_errors));
+  // One fused pose per measurement: the combined rate (30 + 10 Hz).
+  EXPECT_EQ(fused_.size(), stream.size());
+  EXPECT_EQ(node.status().counter("inputs_camera") + node.status().counter("inputs_ultrasound"),
+            static_cast<int64_t>(stream.size()));
+  EXPECT_EQ(node.status().counter("initialised"), 1);
+  EXPECT_EQ(node.status().counter("reinitialised"), 0);
+  // In steady state: heading known, covariance of (x, y, heading) finite,
+  // about a second's worth of measurements.
+  const pose2d_t& last = fused_.back();
+  EXPECT_EQ(last.status, pose2d_t::STATUS_OK);
+  EXPECT_TRUE(std::isfinite(last.heading_rad));
+  for (const auto& row : last.covariance) {
+    for (double v : row) EXPECT_TRUE(std::isfinite(v));
+  }
+  EXPECT_NEAR(last.num_measurements, 40, 3);
+}
+
+TEST_F(FusionNodeTest, CountsGatedOutliersAndTooLateMeasurements) {
+  FusionNode node(&bus_, FusionNodeOptions(), fusion::synthetic::kStartUtime);
+  StreamOptions options;
+  options.duration_s = 20.0;
+  options.outlier_fraction = 0.1;
+  const std::vector<StreamItem> stream = MakeStream(*circle_, options);
+  int outliers = 0;
+  for (const StreamItem& item : stream) outliers += item.outlier;
+  DeliverAll(&node, stream);
+  EXPECT_GT(outliers, 10);
+  // Every outlier, and a few genuine firings: the stream's ultrasound noise
+  // (2.5 cm) is above the 2 cm floor its optimistic covariance is raised to.
+  const int firings = static_cast<int>(options.duration_s * options.ultrasound_hz);
+  EXPECT_GE(node.status().rejected("gated_ultrasound"), outliers);
+  EXPECT_LE(node.status().rejected("gated_ultrasound"), outliers + firings / 20);
+  EXPECT_EQ(node.status().rejected("gated_camera"), 0);
+  // A firing from 3 s ago, beyond the 1 s history.
+  pose2d_t late = PoseOf(stream.back());
+  late.source = pose2d_t::SOURCE_ULTRASOUND;
+  late.utime -= 3000000;
+  const size_t before = fused_.size();
+  Deliver(late, stream.back().recv_utime);
+  EXPECT_EQ(node.status().rejected("too_late"), 1);
+  EXPECT_EQ(fused_.size(), before);
+}
+
+TEST_F(FusionNodeTest, PublishesLostAtEveryTickAfterASilenceThenReinitialises) {
+  FusionNodeOptions options;
+  options.rate_hz = 10.0;
+  FusionNode node(&bus_, options, fusion::synthetic::kStartUtime);
+  StreamOptions stream_options;
+  stream_options.duration_s = 5.0;
+  DeliverAll(&node, MakeStream(*circle_, stream_options));
+  // 3 s of silence, ticking at 100 Hz.
+  fused_.clear();
+  for (double t = 5.1; t < 8.0; t += 0.01) node.Tick(UtimeAt(t));
+  int lost = 0, predictions = 0;
+  for (const pose2d_t& p : fused_) {
+    if (p.status == pose2d_t::STATUS_LOST) {
+      ++lost;
+      EXPECT_TRUE(std::isnan(p.x_m));
+      EXPECT_TRUE(std::isnan(p.heading_rad));
+    } else {
+      ++predictions;
+      EXPECT_LT(ErrorOf(p), 0.1);  // Predicted along the circle's tangent.
+    }
+  }
+  // Ticks at 10 Hz for 2.9 s; lost from 1 s after the last measurement.
+  std::printf("silence: %d predictions, %d lost poses\n", predictions, lost);
+  EXPECT_NEAR(lost + predictions, 29, 1);
+  EXPECT_NEAR(lost, 20, 2);
+  EXPECT_EQ(node.status().counter("lost"), 1);
+  // The robot reappears.
+  fused_.clear();
+  StreamItem next = MakeStream(*circle_, StreamOptions()).back();
+  next.measurement.utime = UtimeAt(8.0);
+  next.measurement.source = fusion::Source::kCamera;
+  pose2d_t pose = PoseOf(next);
+  pose.x_m = 1.0;
+  pose.y_m = 1.0;
+  Deliver(pose, UtimeAt(8.04));
+  EXPECT_EQ(node.status().counter("reinitialised"), 1);
+  ASSERT_EQ(fused_.size(), 1u);
+  EXPECT_EQ(fused_[0].status, pose2d_t::STATUS_OK);
+  EXPECT_EQ(fused_[0].x_m, 1.0);
+}
+
+TEST_F(FusionNodeTest, PublishesOneLostPoseWithoutAFixedRate) {
+  FusionNode node(&bus_, FusionNodeOptions(), fusion::synthetic::kStartUtime);
+  StreamOptions stream_options;
+  stream_options.duration_s = 2.0;
+  DeliverAll(&node, MakeStream(*circle_, stream_options));
+  fused_.clear();
+  for (double t = 2.1; t < 6.0; t += 0.01) node.Tick(UtimeAt(t));
+  ASSERT_EQ(fused_.size(), 1u);
+  EXPECT_EQ(fused_[0].status, pose2d_t::STATUS_LOST);
+}
+
+TEST_F(FusionNodeTest, KeepsTwoRobotsIndependent) {
+  StreamOptions one;
+  one.duration_s = 10.0;
+  const std::vector<StreamItem> alone = MakeStream(*circle_, one);
+  FusionNode single(&bus_, FusionNodeOptions(), fusion::synthetic::kStartUtime);
+  DeliverAll(&single, alone);
+  const std::vector<pose2d_t> robot1_alone = fused_;
+  fused_.clear();
+
+  LoopbackBus other_bus;
+  CircleTrajectoryOptions far;
+  far.cx_m = 3.0;
+  far.cy_m = 1.0;
+  std::string error;
+  auto second = MakeCircleTrajectory(far, &error);
+  ASSERT_NE(second, nullptr) << error;
+  StreamOptions two = one;
+  two.robot_id = 2;
+  two.seed = 99;
+  const std::vector<StreamItem> both = Merge(alone, MakeStream(*second, two));
+  // The same robot 1 stream, merged with robot 2's, through a node on a
+  // bus of its own.
+  std::vector<pose2d_t> fused_both;
+  other_bus.Subscribe<pose2d_t>(
+      kFusedPoseChannel, [&](const pose2d_t& p, const MessageInfo&) { fused_both.push_back(p); });
+  FusionNode node(&other_bus, FusionNodeOptions(), fusion::synthetic::kStartUtime);
+  for (const StreamItem& item : both) {
+    const pose2d_t p = PoseOf(item);
+    std::vector<uint8_t> bytes(p.getEncodedSize());
+    p.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+    other_bus.Inject(
+        item.measurement.source == fusion::Source::kCamera ? "POSE_CAMERA" : "POSE_ULTRASOUND",
+        bytes.data(), static_cast<int>(bytes.size()), item.recv_utime);
+  }
+  std::vector<pose2d_t> robot1, robot2;
+  for (const pose2d_t& p : fused_both) (p.robot_id == 1 ? robot1 : robot2).push_back(p);
+  ASSERT_EQ(robot1.size(), robot1_alone.size());
+  for (size_t i = 0; i < robot1.size(); ++i) {
+    EXPECT_EQ(robot1[i].utime, robot1_alone[i].utime);
+    EXPECT_EQ(robot1[i].x_m, robot1_alone[i].x_m);
+    EXPECT_EQ(robot1[i].y_m, robot1_alone[i].y_m);
+  }
+  ASSERT_FALSE(robot2.empty());
+  const GroundTruthPose truth = second->PoseAt(SecondsSinceStart(robot2.back().utime));
+  EXPECT_LT(std::hypot(robot2.back().x_m - truth.x_m, robot2.back().y_m - truth.y_m), 0.01);
+  EXPECT_EQ(node.status().counter("initialised"), 2);
+}
+
+TEST_F(FusionNodeTest, ReportsAnUnknownHeadingAsNaNAndUltrasoundOnlyAsDegraded) {
+  FusionNode node(&bus_, FusionNodeOptions(), fusion::synthetic::kStartUtime);
+  StreamOptions options;
+  options.duration_s = 3.0;
+  options.camera_outage_start_s = 0.0;
+  options.camera_outage_end_s = 10.0;
+  options.outlier_fraction = 0.0;
+  DeliverAll(&node, MakeStream(*circle_, options));
+  ASSERT_FALSE(fused_.empty());
+  const pose2d_t& last = fused_.back();
+  EXPECT_EQ(last.status, pose2d_t::STATUS_DEGRADED);
+  EXPECT_TRUE(std::isnan(last.heading_rad));
+  EXPECT_TRUE(std::isnan(last.covariance[2][2]));
+  EXPECT_TRUE(std::isnan(last.covariance[0][2]));
+  EXPECT_GT(last.covariance[0][0], 0.0);
+  EXPECT_LT(ErrorOf(last), 0.05);
+}
+
+TEST_F(FusionNodeTest, IgnoresLostInputsAndCountsThem) {
+  FusionNode node(&bus_, FusionNodeOptions(), fusion::synthetic::kStartUtime);
+  pose2d_t p = PoseOf(MakeStream(*circle_, StreamOptions()).front());
+  p.status = pose2d_t::STATUS_LOST;
+  p.x_m = p.y_m = kNaN;
+  Deliver(p, p.utime + 1000);
+  EXPECT_EQ(node.status().counter("lost_input_camera"), 1);
+  EXPECT_TRUE(fused_.empty());
+  EXPECT_EQ(node.filter(p.robot_id), nullptr);
+}
+
+TEST(FusionNodeOptions, RefusesANegativeRate) {
+  FusionNodeOptions options;
+  std::string error;
+  EXPECT_TRUE(options.IsValid(&error)) << error;
+  options.rate_hz = -1.0;
+  EXPECT_FALSE(options.IsValid(&error));
+}
+
+}  // namespace
+}  // namespace roomfix
