@@ -1,0 +1,139 @@
+// The fusion issue's targets on the simulator, with the real processes over
+// multicast in a private network namespace: roomfix_sim (ground truth and
+// range sets), camera_proc on the synthetic camera, trilat_proc and
+// fusion_proc. The fused track must be no worse than the camera's alone at
+// the combined rate, and keep a bounded error through a 5 s camera outage
+// and a 5 s radio outage (each process frozen with SIGSTOP, as a hung
+// device would leave it).
+#include <gtest/gtest.h>
+#include <signal.h>
+
+#include <chrono>
+#include <cmath>
+#include <thread>
+
+#include "msgio/bus.h"
+#include "msgio/process.h"
+#include "roomfix/pose2d_t.hpp"
+#include "tests/testing/test_paths.h"
+
+namespace roomfix {
+namespace {
+
+using testing::BinDir;
+using testing::ChildProcess;
+using testing::SourceDir;
+
+// A 5 s outage of the camera leaves the ultrasound (about 1 cm) to carry
+// the track; of the radio, the camera (sub-millimetre).
+constexpr double kCameraOutageRmseM = 0.03;
+constexpr double kRadioOutageRmseM = 0.002;
+// "No worse than the camera alone", with room for the two estimates'
+// sampling noise over the same stretch.
+constexpr double kFusedOverCameraMax = 1.2;
+
+std::string DemoSite() { return SourceDir() + "/config/sites/demo_room.yaml"; }
+
+struct Window {
+  int64_t begin_utime;
+  int64_t end_utime;
+};
+
+class FusionProcess : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string error;
+    bus_ = LcmBus::Create(kDefaultLcmUrl, &error);
+    ASSERT_NE(bus_, nullptr) << error;
+    bus_->Subscribe<pose2d_t>("POSE_.*", [this](const pose2d_t& p, const MessageInfo& info) {
+      if (info.channel == "POSE_GROUND_TRUTH") truth_.push_back(p);
+      if (info.channel == "POSE_CAMERA") camera_.push_back(p);
+      if (info.channel == "POSE_FUSED") fused_.push_back(p);
+    });
+  }
+
+  void Listen(double seconds) {
+    const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+    while (std::chrono::steady_clock::now() < until) bus_->Handle(50);
+  }
+
+  // RMSE of a track's ok/degraded poses in a window against the ground
+  // truth interpolated to each pose's time, and their rate.
+  std::pair<double, double> Score(const std::vector<pose2d_t>& track, const Window& w) const {
+    double sum2 = 0.0;
+    int n = 0;
+    for (const pose2d_t& p : track) {
+      if (p.utime < w.begin_utime || p.utime > w.end_utime) continue;
+      if (p.status == pose2d_t::STATUS_LOST) continue;
+      for (size_t i = 1; i < truth_.size(); ++i) {
+        if (truth_[i - 1].utime <= p.utime && p.utime <= truth_[i].utime) {
+          const double a = static_cast<double>(p.utime - truth_[i - 1].utime) /
+                           std::max<int64_t>(1, truth_[i].utime - truth_[i - 1].utime);
+          const double x = truth_[i - 1].x_m + a * (truth_[i].x_m - truth_[i - 1].x_m);
+          const double y = truth_[i - 1].y_m + a * (truth_[i].y_m - truth_[i - 1].y_m);
+          sum2 += std::pow(p.x_m - x, 2) + std::pow(p.y_m - y, 2);
+          ++n;
+          break;
+        }
+      }
+    }
+    const double span_s = (w.end_utime - w.begin_utime) * 1e-6;
+    return {n > 0 ? std::sqrt(sum2 / n) : NAN, n / span_s};
+  }
+
+  std::unique_ptr<LcmBus> bus_;
+  std::vector<pose2d_t> truth_, camera_, fused_;
+};
+
+TEST_F(FusionProcess, FusedIsNoWorseThanTheCameraAndRidesOutEachSensorsOutage) {
+  ChildProcess sim({BinDir() + "/roomfix_sim", "--config", DemoSite(), "--ranges", "--range-noise",
+                    "0.01", "--log-level", "warn"});
+  ChildProcess trilat({BinDir() + "/trilat_proc", "--config", DemoSite(), "--method", "robust",
+                       "--log-level", "warn"});
+  ChildProcess fusion({BinDir() + "/fusion_proc", "--config", DemoSite(), "--log-level", "warn"});
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  ChildProcess camera({BinDir() + "/camera_proc", "--config", DemoSite(), "--log-level", "warn"});
+  Listen(3.0);  // start-up and the filter's first second
+  auto now = [] { return NowUtime(); };
+
+  Window normal{now(), 0};
+  Listen(6.0);
+  normal.end_utime = now();
+
+  camera.Signal(SIGSTOP);
+  Window camera_out{now() + 300'000, 0};
+  Listen(5.0);
+  camera_out.end_utime = now();
+  camera.Signal(SIGCONT);
+  Listen(2.0);
+
+  trilat.Signal(SIGSTOP);
+  Window radio_out{now() + 300'000, 0};
+  Listen(5.0);
+  radio_out.end_utime = now();
+  trilat.Signal(SIGCONT);
+  Listen(1.0);
+
+  const auto [camera_rmse, camera_hz] = Score(camera_, normal);
+  const auto [fused_rmse, fused_hz] = Score(fused_, normal);
+  const auto [outage_rmse, outage_hz] = Score(fused_, camera_out);
+  const auto [radio_rmse, radio_hz] = Score(fused_, radio_out);
+  std::printf(
+      "normal: camera %.3f mm at %.1f Hz, fused %.3f mm at %.1f Hz\n"
+      "camera outage: fused %.2f mm at %.1f Hz\n"
+      "radio outage: fused %.3f mm at %.1f Hz\n",
+      camera_rmse * 1e3, camera_hz, fused_rmse * 1e3, fused_hz, outage_rmse * 1e3, outage_hz,
+      radio_rmse * 1e3, radio_hz);
+  EXPECT_LE(fused_rmse, camera_rmse * kFusedOverCameraMax);
+  // At the combined rate: the camera's frames plus the 10 Hz firings.
+  EXPECT_GT(fused_hz, camera_hz + 5.0);
+  EXPECT_LT(outage_rmse, kCameraOutageRmseM);
+  EXPECT_GT(outage_hz, 5.0) << "the ultrasound alone keeps the fused track going";
+  EXPECT_LT(radio_rmse, kRadioOutageRmseM);
+
+  for (ChildProcess* p : {&camera, &fusion, &trilat, &sim}) p->Signal(SIGINT);
+  EXPECT_EQ(fusion.Wait(5), 0);
+}
+
+}  // namespace
+}  // namespace roomfix
