@@ -13,6 +13,7 @@
 #include <chrono>
 #include <csignal>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 
 #include "msgio/udpm_bus.h"
@@ -195,6 +196,28 @@ void OnSignal(int) {
   }
 }
 }  // namespace
+
+InputWatch::InputWatch(std::string what, double max_gap_s)
+    : what_(std::move(what)), max_gap_us_(static_cast<int64_t>(max_gap_s * 1e6)) {}
+
+void InputWatch::Seen(int64_t utime, StatusReporter* status) {
+  last_utime_ = std::max(last_utime_, utime);
+  if (in_gap_) {
+    in_gap_ = false;
+    status->SetState(process_status_t::STATE_RUNNING);
+  }
+}
+
+bool InputWatch::Check(int64_t now_utime, StatusReporter* status) {
+  if (last_utime_ < 0 || in_gap_ || now_utime - last_utime_ <= max_gap_us_) return false;
+  in_gap_ = true;
+  status->SetState(process_status_t::STATE_DEGRADED);
+  status->Count("input_gaps");
+  char seconds[32];
+  std::snprintf(seconds, sizeof(seconds), "%.1f", (now_utime - last_utime_) * 1e-6);
+  status->SetError("no " + what_ + " for " + seconds + " s", now_utime);
+  return true;
+}
 
 void InstallShutdownHandlers() {
   if (g_wake_pipe[0] < 0 && ::pipe(g_wake_pipe) == 0) {

@@ -95,6 +95,25 @@ class StatusReporter {
   int64_t last_error_utime_ = 0;
 };
 
+// Watches a process's input for silence: once input has been seen, a gap
+// longer than max_gap_s turns the process DEGRADED with "no <what> for N s"
+// in STATUS and counts `input_gaps`; the next input makes it RUNNING again.
+// So a process whose upstream died says so, not only by its own silence.
+class InputWatch {
+ public:
+  InputWatch(std::string what, double max_gap_s);
+  void Seen(int64_t utime, StatusReporter* status);
+  // Returns true when this call declared a new gap.
+  bool Check(int64_t now_utime, StatusReporter* status);
+  bool in_gap() const { return in_gap_; }
+
+ private:
+  std::string what_;
+  int64_t max_gap_us_;
+  int64_t last_utime_ = -1;
+  bool in_gap_ = false;
+};
+
 // SIGINT and SIGTERM set a flag and wake the run loop through a pipe.
 void InstallShutdownHandlers();
 bool ShutdownRequested();

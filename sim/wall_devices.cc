@@ -260,7 +260,21 @@ void VirtualWallDevices::Fire(Firer* firer, int64_t fire_utime) {
 void VirtualWallDevices::AdvanceChunks(int64_t now_utime, std::vector<Chunk>* chunks) {
   const double period_us = 1e6 / options_.rate_hz;
   const RadioFaults& faults = options_.faults;
+  // A beacon that was not running (a start time in the past, a process
+  // stopped and continued) does not replay every firing it missed in one
+  // burst: it resumes at the current slot, its firing counter advanced as if
+  // it had fired all along.
+  constexpr int64_t kMaxCatchUpUs = 500'000;
   for (Firer& f : firers_) {
+    const int64_t due_utime = options_.start_utime + f.offset_us +
+                              static_cast<int64_t>(std::llround(f.next_slot * period_us));
+    if (now_utime - due_utime > kMaxCatchUpUs) {
+      const int64_t skip =
+          static_cast<int64_t>(std::floor((now_utime - kMaxCatchUpUs - due_utime) / period_us)) + 1;
+      f.next_slot += skip;
+      f.next_seq += skip;
+      f.radio_seq = static_cast<uint16_t>(f.radio_seq + static_cast<uint16_t>(skip & 0xFFFF));
+    }
     while (true) {
       const int64_t fire_utime = options_.start_utime + f.offset_us +
                                  static_cast<int64_t>(std::llround(f.next_slot * period_us));

@@ -37,6 +37,7 @@ TrilatNode::TrilatNode(const Site& site, Bus* bus, const TrilatNodeOptions& opti
 
 void TrilatNode::OnRangeSet(const range_set_t& set, const MessageInfo& info) {
   status_.AddInputs();
+  ranges_watch_.Seen(info.recv_utime, &status_);
   trilat::SolverOptions solver = options_.solver;
   int32_t robot_id = set.beacon_id;
   if (const Beacon* beacon = site_.FindBeacon(set.beacon_id)) {
@@ -89,7 +90,14 @@ void TrilatNode::OnRangeSet(const range_set_t& set, const MessageInfo& info) {
   }
 }
 
-void TrilatNode::Tick(int64_t now_utime) { status_.MaybePublish(bus_, now_utime); }
+void TrilatNode::Tick(int64_t now_utime) {
+  // A new gap is reported at once, not at the next heartbeat.
+  if (ranges_watch_.Check(now_utime, &status_)) {
+    status_.Publish(bus_, now_utime);
+    return;
+  }
+  status_.MaybePublish(bus_, now_utime);
+}
 
 void TrilatNode::Stop(int64_t now_utime) {
   status_.SetState(process_status_t::STATE_STOPPING);

@@ -62,6 +62,8 @@ class TrilatNode {
   Bus* bus_;
   TrilatNodeOptions options_;
   StatusReporter status_;
+  // RANGES come at 10 Hz per beacon: a second without any is a dead bridge.
+  InputWatch ranges_watch_{"range sets on RANGES", 1.0};
   double max_range_m_ = 0.0;
   std::unordered_map<int, BeaconTrack> tracks_;
   std::vector<trilat::RangeMeasurement> ranges_;

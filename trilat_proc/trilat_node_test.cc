@@ -6,6 +6,7 @@
 #include <map>
 
 #include "roomfix/pose2d_t.hpp"
+#include "roomfix/process_status_t.hpp"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -168,6 +169,24 @@ TEST_F(TrilatNodeTest, CountsAMessageThatIsNotARangeSet) {
   for (const auto& c : node.status().Make(0, &stats).rejected) rejected[c.name] = c.count;
   EXPECT_EQ(rejected["undecodable_message"], 1);
   EXPECT_TRUE(poses_.empty());
+}
+
+TEST_F(TrilatNodeTest, SaysSoWhenTheRangeSetsStop) {
+  // The bridge died: after a second without RANGES the solver is DEGRADED,
+  // with the gap in words, and running again at the next set.
+  TrilatNode node(site_, &bus_, TrilatNodeOptions(), 0);
+  Deliver(Firing(10, 1, 1'000'000, 1.0, 1.0, 1.3), 1'010'000);
+  node.Tick(1'500'000);
+  EXPECT_EQ(node.status().Make(1'500'000, nullptr).state, process_status_t::STATE_RUNNING);
+  node.Tick(2'600'000);
+  const process_status_t gap = node.status().Make(2'600'000, nullptr);
+  EXPECT_EQ(gap.state, process_status_t::STATE_DEGRADED);
+  EXPECT_EQ(gap.last_error, "no range sets on RANGES for 1.6 s");
+  EXPECT_EQ(node.status().counter("input_gaps"), 1);
+  node.Tick(3'000'000);  // the same gap is counted once
+  EXPECT_EQ(node.status().counter("input_gaps"), 1);
+  Deliver(Firing(10, 30, 4'000'000, 1.0, 1.0, 1.3), 4'010'000);
+  EXPECT_EQ(node.status().Make(4'010'000, nullptr).state, process_status_t::STATE_RUNNING);
 }
 
 }  // namespace

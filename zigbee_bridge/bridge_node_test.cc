@@ -234,3 +234,30 @@ TEST(BridgeNode, DeclaresAFrameTruncatedWhenTheLineGoesQuiet) {
 
 }  // namespace
 }  // namespace roomfix
+
+namespace roomfix {
+namespace {
+
+TEST(VirtualWallDevices, ResumeAtTheCurrentFiringAfterTimeTheyWereNotRunning) {
+  // Started with t = 0 a minute ago (or stopped and continued): the beacon
+  // does not replay 600 missed firings in one burst; it fires what the last
+  // half second holds, numbered as if it had fired all along.
+  constexpr double kRateHz = 10.0;
+  constexpr int64_t kMinuteUs = 60'000'000;
+  WallDevicesOptions options;
+  options.rate_hz = kRateHz;
+  options.start_utime = kStartUtime - kMinuteUs;
+  const Site site = LoadDemoSite();
+  VirtualWallDevices devices(site, options);
+  std::vector<VirtualWallDevices::Chunk> chunks;
+  devices.AdvanceChunks(kStartUtime, &chunks);
+  ASSERT_FALSE(devices.ledger().empty());
+  EXPECT_LE(devices.ledger().size(), 6u);
+  const FiringRecord& first = devices.ledger().begin()->second;
+  EXPECT_GE(first.seq, 594);
+  EXPECT_EQ(first.radio_seq, static_cast<uint16_t>(first.seq));
+  EXPECT_GE(first.fire_utime, kStartUtime - 500'000);
+}
+
+}  // namespace
+}  // namespace roomfix
