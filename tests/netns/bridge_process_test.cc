@@ -22,18 +22,9 @@ namespace {
 using testing::BinDir;
 using testing::ChildProcess;
 using testing::SourceDir;
+using testing::WaitForPath;
 
 std::string DemoSite() { return SourceDir() + "/config/sites/demo_room.yaml"; }
-
-bool WaitForPath(const std::string& path, double timeout_s) {
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-  struct stat st {};
-  while (::stat(path.c_str(), &st) != 0) {
-    if (std::chrono::steady_clock::now() > deadline) return false;
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
-  return true;
-}
 
 std::vector<std::string> Simulator(const std::string& link) {
   return {BinDir() + "/roomfix_sim",

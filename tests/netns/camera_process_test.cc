@@ -12,6 +12,7 @@
 #include <sstream>
 #include <thread>
 
+#include "core/analysis/track_error.h"
 #include "msgio/bus.h"
 #include "msgio/process.h"
 #include "roomfix/marker_pixels_t.hpp"
@@ -153,24 +154,14 @@ TEST_F(CameraProcess, TheLiveSyntheticCameraAgreesWithTheSimulatorsGroundTruth) 
       bus_.get(), [&] { return poses_.size() >= 60; }, 30));
   const double span_s = (poses_.back().utime - poses_.front().utime) * 1e-6;
   const double rate_hz = (poses_.size() - 1) / span_s;
-  // Interpolate the ground truth (published at its own rate) to each frame.
-  double sum2 = 0.0;
-  int n = 0;
-  for (const pose2d_t& p : poses_) {
-    for (size_t i = 1; i < truth_.size(); ++i) {
-      if (truth_[i - 1].utime <= p.utime && p.utime <= truth_[i].utime) {
-        const double a = static_cast<double>(p.utime - truth_[i - 1].utime) /
-                         std::max<int64_t>(1, truth_[i].utime - truth_[i - 1].utime);
-        const double x = truth_[i - 1].x_m + a * (truth_[i].x_m - truth_[i - 1].x_m);
-        const double y = truth_[i - 1].y_m + a * (truth_[i].y_m - truth_[i - 1].y_m);
-        sum2 += std::pow(p.x_m - x, 2) + std::pow(p.y_m - y, 2);
-        ++n;
-        break;
-      }
-    }
-  }
+  // The ground truth (published at its own rate) interpolated to each frame.
+  std::vector<analysis::TimedPosition> estimates, reference;
+  for (const pose2d_t& p : poses_) estimates.push_back({p.utime, p.x_m, p.y_m});
+  for (const pose2d_t& p : truth_) reference.push_back({p.utime, p.x_m, p.y_m});
+  const analysis::ErrorSummary e = analysis::CompareToReference(estimates, reference, 200'000);
+  const int n = e.compared;
   ASSERT_GT(n, 30);
-  const double rmse = std::sqrt(sum2 / n);
+  const double rmse = e.rmse_m;
   std::printf("live synthetic camera: %zu poses at %.1f Hz, %.2f mm RMS against ground truth\n",
               poses_.size(), rate_hz, rmse * 1e3);
   EXPECT_LT(rmse, kRmseTargetM);

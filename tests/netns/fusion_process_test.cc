@@ -12,6 +12,7 @@
 #include <cmath>
 #include <thread>
 
+#include "core/analysis/track_error.h"
 #include "msgio/bus.h"
 #include "msgio/process.h"
 #include "roomfix/pose2d_t.hpp"
@@ -31,6 +32,9 @@ constexpr double kRadioOutageRmseM = 0.002;
 // "No worse than the camera alone", with room for the two estimates'
 // sampling noise over the same stretch.
 constexpr double kFusedOverCameraMax = 1.2;
+
+// Ground truth comes at 30 Hz; a longer gap is a stall, not a sample.
+constexpr int64_t kMaxTruthGapUs = 200'000;
 
 std::string DemoSite() { return SourceDir() + "/config/sites/demo_room.yaml"; }
 
@@ -60,25 +64,16 @@ class FusionProcess : public ::testing::Test {
   // RMSE of a track's ok/degraded poses in a window against the ground
   // truth interpolated to each pose's time, and their rate.
   std::pair<double, double> Score(const std::vector<pose2d_t>& track, const Window& w) const {
-    double sum2 = 0.0;
-    int n = 0;
+    std::vector<analysis::TimedPosition> estimates, reference;
     for (const pose2d_t& p : track) {
       if (p.utime < w.begin_utime || p.utime > w.end_utime) continue;
-      if (p.status == pose2d_t::STATUS_LOST) continue;
-      for (size_t i = 1; i < truth_.size(); ++i) {
-        if (truth_[i - 1].utime <= p.utime && p.utime <= truth_[i].utime) {
-          const double a = static_cast<double>(p.utime - truth_[i - 1].utime) /
-                           std::max<int64_t>(1, truth_[i].utime - truth_[i - 1].utime);
-          const double x = truth_[i - 1].x_m + a * (truth_[i].x_m - truth_[i - 1].x_m);
-          const double y = truth_[i - 1].y_m + a * (truth_[i].y_m - truth_[i - 1].y_m);
-          sum2 += std::pow(p.x_m - x, 2) + std::pow(p.y_m - y, 2);
-          ++n;
-          break;
-        }
-      }
+      if (p.status != pose2d_t::STATUS_LOST) estimates.push_back({p.utime, p.x_m, p.y_m});
     }
+    for (const pose2d_t& p : truth_) reference.push_back({p.utime, p.x_m, p.y_m});
+    const analysis::ErrorSummary e =
+        analysis::CompareToReference(estimates, reference, kMaxTruthGapUs);
     const double span_s = (w.end_utime - w.begin_utime) * 1e-6;
-    return {n > 0 ? std::sqrt(sum2 / n) : NAN, n / span_s};
+    return {e.compared > 0 ? e.rmse_m : NAN, estimates.size() / span_s};
   }
 
   std::unique_ptr<LcmBus> bus_;

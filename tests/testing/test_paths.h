@@ -46,6 +46,9 @@ class ChildProcess {
 };
 
 std::string ReadFile(const std::string& path);
+// Waits up to timeout_s for a path to exist (a pseudo-terminal's link, a log
+// file); false on time-out.
+bool WaitForPath(const std::string& path, double timeout_s);
 bool WriteFile(const std::string& path, const std::string& text);
 
 }  // namespace roomfix::testing
