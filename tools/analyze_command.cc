@@ -147,10 +147,42 @@ class Figures {
                (t->source == "ground_truth" ? "lines lw 2" : "points pt 7 ps 0.4") + " title '" +
                t->source + "'");
     }
+    // A square window around the reference track (ground truth, else the
+    // camera, else everything), so a few wild fixes do not shrink the
+    // track to a speck; fixes outside it are counted in the title.
+    const PoseTrack* ref = nullptr;
+    for (const char* source : {"ground_truth", "camera"}) {
+      for (const PoseTrack* t : tracks) {
+        if (ref == nullptr && t->source == source && !t->samples.empty()) ref = t;
+      }
+    }
+    std::string range;
+    std::string outside_note;
+    if (ref != nullptr) {
+      double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
+      for (const PoseSample& p : ref->samples) {
+        x0 = std::min(x0, p.x_m);
+        x1 = std::max(x1, p.x_m);
+        y0 = std::min(y0, p.y_m);
+        y1 = std::max(y1, p.y_m);
+      }
+      const double half = std::max(x1 - x0, y1 - y0) / 2.0 + 0.25;
+      const double cx = (x0 + x1) / 2.0, cy = (y0 + y1) / 2.0;
+      range = "set xrange [" + Fixed(cx - half, 3) + ":" + Fixed(cx + half, 3) + "]\nset yrange [" +
+              Fixed(cy - half, 3) + ":" + Fixed(cy + half, 3) + "]\n";
+      int outside = 0;
+      for (const PoseTrack* t : tracks) {
+        for (const PoseSample& p : t->samples) {
+          outside += std::abs(p.x_m - cx) > half || std::abs(p.y_m - cy) > half;
+        }
+      }
+      if (outside > 0) outside_note = " (" + std::to_string(outside) + " fixes outside the view)";
+    }
     return Draw(name, "set title 'Robot " + std::to_string(robot_id) +
-                          ": trajectory of every source'\nset xlabel 'x (m)'\nset ylabel 'y (m)'\n"
-                          "set size ratio -1\nset key outside right\nplot " +
-                          plot + "\n");
+                          ": trajectory of every source" + outside_note +
+                          "'\nset xlabel 'x (m)'\nset ylabel 'y (m)'\n"
+                          "set size ratio -1\nset key outside right\n" +
+                          range + "plot " + plot + "\n");
   }
 
   std::string Intervals(const std::string& stem, const analysis::Timing& t) {
