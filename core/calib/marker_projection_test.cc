@@ -58,9 +58,9 @@ TEST(DiscCentroidOffset, MatchesASupersampledImageOfTheDiscInTheCorner) {
   constexpr double kTolerancePx = 0.01;
   constexpr double kMinimumCornerOffsetPx = 0.05;
   const CameraModel camera = DemoCamera();
-  for (const Eigen::Vector3d& centre : {Eigen::Vector3d(0.3, 0.3, kMarkerHeightM),
-                                       Eigen::Vector3d(3.6, 2.7, kMarkerHeightM),
-                                       Eigen::Vector3d(1.0, 2.0, kMarkerHeightM)}) {
+  for (const Eigen::Vector3d& centre :
+       {Eigen::Vector3d(0.3, 0.3, kMarkerHeightM), Eigen::Vector3d(3.6, 2.7, kMarkerHeightM),
+        Eigen::Vector3d(1.0, 2.0, kMarkerHeightM)}) {
     Eigen::Vector2d offset;
     ASSERT_TRUE(DiscCentroidOffset(camera, centre, kMarkerRadiusM, &offset));
     double u0 = 0, v0 = 0;

@@ -547,7 +547,8 @@ TEST(RoomfixCalibrate, RefusesAMarkerImageWithTwoMarkersNamingIt) {
                                dir.File("points.csv"), "--out", dir.File("cam.yaml")},
                               /*stderr_only=*/true);
   EXPECT_NE(r.exit_code, 0);
-  EXPECT_NE(r.out.find("busy.png: expected one orange marker, found 3"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("busy.png: expected one orange marker, found 3"), std::string::npos)
+      << r.out;
 }
 
 }  // namespace
