@@ -48,6 +48,7 @@ BridgeNode::BridgeNode(const Site& site, Bus* bus, const BridgeNodeOptions& opti
 void BridgeNode::OnBytes(const uint8_t* data, size_t size, int64_t now_utime) {
   now_utime_ = now_utime;
   last_bytes_utime_ = now_utime;
+  coordinator_watch_.Seen(now_utime, &status_);
   bytes_ += static_cast<int64_t>(size);
   decoder_.Feed(data, size, this);
   // Publish before returning to the read loop: a set that the last report
@@ -134,6 +135,10 @@ void BridgeNode::Tick(int64_t now_utime) {
   }
   assembler_.Advance(now_utime, &closed_);
   PublishClosed(now_utime);
+  if (link_up_ && coordinator_watch_.Check(now_utime, &status_)) {
+    SyncCounters();
+    status_.Publish(bus_, now_utime);
+  }
   SyncCounters();
   status_.MaybePublish(bus_, now_utime);
 }
@@ -143,6 +148,10 @@ void BridgeNode::OnLinkUp(const std::string& port, int64_t now_utime) {
   if (decoder_.InFrame()) decoder_.FlushPartial(this);
   status_.Count("link_opens");
   status_.SetState(process_status_t::STATE_RUNNING);
+  link_up_ = true;
+  // The silence is timed from the opening: a coordinator that never says
+  // anything is reported too.
+  coordinator_watch_.Seen(now_utime, &status_);
   spdlog::info("reading {}", port);
   SyncCounters();
   status_.Publish(bus_, now_utime);
@@ -156,6 +165,7 @@ void BridgeNode::OnOpenFailed(const std::string& error, int64_t now_utime) {
 
 void BridgeNode::OnLinkDown(const std::string& error, int64_t now_utime) {
   status_.Count("link_lost");
+  link_up_ = false;
   if (decoder_.InFrame()) decoder_.FlushPartial(this);
   PublishClosed(now_utime);
   status_.SetState(process_status_t::STATE_DEGRADED);

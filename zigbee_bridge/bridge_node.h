@@ -73,6 +73,11 @@ class BridgeNode : public radio::FrameSink {
   Bus* bus_;
   BridgeNodeOptions options_;
   StatusReporter status_;
+  // A coordinator that stays open but sends nothing (its radio down, the
+  // beacon off) is reported, not only one that disappears: two seconds is
+  // twenty firings at the nominal rate, and longer than a beacon restart.
+  InputWatch coordinator_watch_{"bytes from the coordinator", 2.0};
+  bool link_up_ = false;
   radio::FrameDecoder decoder_;
   radio::RangeAssembler assembler_;
   radio::ReceivePacket packet_;

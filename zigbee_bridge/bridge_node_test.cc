@@ -198,6 +198,29 @@ TEST(BridgeNode, ReportsItsLinkInStatus) {
   EXPECT_EQ(statuses.back().state, process_status_t::STATE_STOPPING);
 }
 
+TEST(BridgeNode, ReportsACoordinatorThatStaysOpenButSilent) {
+  // The port is open but nothing comes (the coordinator's radio is down, the
+  // beacon is off): after two seconds STATUS says so; bytes clear it.
+  const Site site = LoadDemoSite();
+  LoopbackBus bus;
+  std::vector<process_status_t> statuses;
+  bus.Subscribe<process_status_t>(
+      "STATUS", [&](const process_status_t& s, const MessageInfo&) { statuses.push_back(s); });
+  BridgeNode node(site, &bus, {}, kStartUtime);
+  node.OnLinkUp("/dev/ttyUSB0", kStartUtime);
+  node.Tick(kStartUtime + 1'900'000);
+  EXPECT_EQ(statuses.back().state, process_status_t::STATE_RUNNING);
+  node.Tick(kStartUtime + 2'100'000);
+  EXPECT_EQ(statuses.back().state, process_status_t::STATE_DEGRADED);
+  EXPECT_EQ(statuses.back().last_error, "no bytes from the coordinator for 2.1 s");
+  EXPECT_EQ(node.status().counter("input_gaps"), 1);
+  const uint8_t garbage[] = {0x00, 0x01};
+  node.OnBytes(garbage, sizeof(garbage), kStartUtime + 2'500'000);
+  node.Tick(kStartUtime + 3'600'000);
+  EXPECT_EQ(node.status().Make(kStartUtime + 3'600'000, nullptr).state,
+            process_status_t::STATE_RUNNING);
+}
+
 TEST(BridgeNode, DeclaresAFrameTruncatedWhenTheLineGoesQuiet) {
   // Mode 1: a frame cut short holds the decoder until the line is quiet;
   // the good frame inside its bytes is then found by the rescan.
