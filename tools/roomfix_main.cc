@@ -1,9 +1,14 @@
 // roomfix: the project's command-line tool.
 #include <CLI/CLI.hpp>
 
+#include "msgio/process.h"
 #include "tools/commands.h"
 
 int main(int argc, char** argv) {
+  // Library log lines (a node run inside a benchmark, say) go to standard
+  // error, and only warnings: standard output is the command's own, often
+  // JSON for another program.
+  roomfix::SetUpLogging("roomfix", "warn");
   CLI::App app{"roomfix: indoor robot localisation tools"};
   app.require_subcommand(1);
   int exit_code = 0;

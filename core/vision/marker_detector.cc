@@ -662,10 +662,27 @@ void MarkerDetector::ObserveTracked(const Blob& blob) {
     st.var[c] = (1.0 - w) * (st.var[c] + diff[c] * incr);
   }
   st.mean[0] = std::fmod(st.mean[0] + 180.0, 180.0);
-  // Rebuilding a bank costs ~1 ms: every blob at first, then every tenth.
-  if (st.count >= kMinObservations && (st.count <= 10 || st.count % 10 == 0)) {
-    BuildLutBank(k / kClassesPerBank);
+  // Rebuilding a bank costs a few milliseconds (every cell of the table is
+  // re-judged), so it is rebuilt only when the statistics have moved: the
+  // mean by more than half a sigma or a sigma by more than a quarter, on any
+  // channel. A marker under steady light then never pays for it; one whose
+  // colour drifts pays once per half sigma of drift.
+  if (st.count < kMinObservations) return;
+  bool moved = !st.built;
+  std::array<double, 3> sigma{};
+  for (int c = 0; c < 3; ++c) {
+    sigma[c] = std::clamp(std::sqrt(st.var[c]), kMinSigma[c], kMaxSigma[c]);
+    if (!st.built) continue;
+    const double shift = c == 0 ? std::abs(HueDiff(st.mean[0], st.built_mean[0]))
+                                : std::abs(st.mean[c] - st.built_mean[c]);
+    moved = moved || shift > 0.5 * st.built_sigma[c] ||
+            std::abs(sigma[c] - st.built_sigma[c]) > 0.25 * st.built_sigma[c];
   }
+  if (!moved) return;
+  st.built = true;
+  st.built_mean = st.mean;
+  st.built_sigma = sigma;
+  BuildLutBank(k / kClassesPerBank);
 }
 
 std::vector<Blob> DetectReference(const cv::Mat& bgr, const std::vector<ColourClass>& classes) {

@@ -96,6 +96,10 @@ class MarkerDetector {
     int count = 0;
     std::array<double, 3> mean{};
     std::array<double, 3> var{};
+    // The mean and (clamped) sigma the lookup table was last built with.
+    bool built = false;
+    std::array<double, 3> built_mean{};
+    std::array<double, 3> built_sigma{};
   };
   std::vector<ColourStats> stats_;
   // Class membership by colour: 64^3 cells of the BGR cube (6 bits per
