@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <ctime>
 
 namespace roomfix {
 
@@ -46,11 +47,21 @@ std::string RotatedLogPath(const std::string& path, int index) {
   return path.substr(0, dot) + number + path.substr(dot);
 }
 
+std::string ExpandLogPath(const std::string& pattern, int64_t utime) {
+  if (pattern.find('%') == std::string::npos) return pattern;
+  const std::time_t seconds = static_cast<std::time_t>(utime / 1'000'000);
+  std::tm tm{};
+  gmtime_r(&seconds, &tm);
+  std::vector<char> out(pattern.size() + 256);
+  const size_t n = std::strftime(out.data(), out.size(), pattern.c_str(), &tm);
+  return n > 0 ? std::string(out.data(), n) : pattern;
+}
+
 std::unique_ptr<LoggerNode> LoggerNode::Create(Bus* bus, const LoggerOptions& options,
                                                int64_t start_utime, std::string* error) {
   if (!options.IsValid(error)) return nullptr;
   std::unique_ptr<LoggerNode> node(new LoggerNode(bus, options, start_utime));
-  if (!node->OpenNext(error)) return nullptr;
+  if (!node->OpenNext(start_utime, error)) return nullptr;
   node->thread_ = std::thread(&LoggerNode::WriterLoop, node.get());
   bus->SubscribeRaw(options.channel_regex,
                     [n = node.get()](const MessageInfo& info, const void* data, int size) {
@@ -72,9 +83,9 @@ LoggerNode::~LoggerNode() {
   if (thread_.joinable()) thread_.join();
 }
 
-bool LoggerNode::OpenNext(std::string* error) {
-  const std::string path =
-      options_.rotating() ? RotatedLogPath(options_.path, file_index_) : options_.path;
+bool LoggerNode::OpenNext(int64_t utime, std::string* error) {
+  const std::string expanded = ExpandLogPath(options_.path, utime);
+  const std::string path = options_.rotating() ? RotatedLogPath(expanded, file_index_) : expanded;
   if (writer_ != nullptr && !writer_->Flush(error)) return false;
   auto writer = LogWriter::Create(path, options_.overwrite, error);
   if (writer == nullptr) return false;
@@ -139,7 +150,7 @@ void LoggerNode::WriterLoop() {
                           (options_.rotate_seconds > 0.0 &&
                            (e.utime - file_opened_utime_) * 1e-6 >= options_.rotate_seconds);
       if (rotate) {
-        if (!OpenNext(&error)) {
+        if (!OpenNext(e.utime, &error)) {
           std::lock_guard<std::mutex> lock(mutex_);
           failed_ = true;
         } else {

@@ -19,6 +19,9 @@ namespace roomfix {
 struct LoggerOptions {
   // Where to write. Without rotation exactly this file; with rotation
   // numbered files beside it: session.lcm -> session.0000.lcm, session.0001.lcm, ...
+  // strftime conversions (%Y %m %d %H %M %S ...) are expanded in UTC when
+  // each file is opened, so a restarted logger starts a new file instead of
+  // refusing to overwrite the last one: "roomfix-%Y%m%d-%H%M%S.lcm".
   std::string path;
   // Channels to record (LCM regular expression, whole-name match).
   std::string channel_regex = ".*";
@@ -68,7 +71,7 @@ class LoggerNode {
 
  private:
   LoggerNode(Bus* bus, const LoggerOptions& options, int64_t start_utime);
-  bool OpenNext(std::string* error);
+  bool OpenNext(int64_t utime, std::string* error);
   void OnMessage(const MessageInfo& info, const void* data, int size);
   void WriterLoop();
 
@@ -101,6 +104,9 @@ class LoggerNode {
 
 // The name of rotated file `index`: "dir/session.lcm" -> "dir/session.0003.lcm".
 std::string RotatedLogPath(const std::string& path, int index);
+// `pattern` with its strftime conversions expanded for `utime` (UTC); the
+// pattern itself when it has none.
+std::string ExpandLogPath(const std::string& pattern, int64_t utime);
 
 }  // namespace roomfix
 

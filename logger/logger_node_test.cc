@@ -94,6 +94,21 @@ TEST_F(LoggerNodeTest, RefusesToOverwriteAnExistingLogUnlessTold) {
   EXPECT_NE(LoggerNode::Create(bus_.get(), o, 0, &error), nullptr);
 }
 
+TEST_F(LoggerNodeTest, ADatedNameLetsARestartedLoggerStartAFreshFile) {
+  // 2026-11-22 23:59:58 UTC and two seconds later: two files, nothing
+  // refused, nothing overwritten.
+  constexpr int64_t kFirstUtime = 1'795'391'998'000'000;
+  LoggerOptions o;
+  o.path = dir_.File("roomfix-%Y%m%d-%H%M%S.lcm");
+  std::string error;
+  auto first = LoggerNode::Create(bus_.get(), o, kFirstUtime, &error);
+  ASSERT_NE(first, nullptr) << error;
+  auto second = LoggerNode::Create(bus_.get(), o, kFirstUtime + 2'000'000, &error);
+  ASSERT_NE(second, nullptr) << error;
+  EXPECT_EQ(first->files(), std::vector<std::string>{dir_.File("roomfix-20261122-235958.lcm")});
+  EXPECT_EQ(second->files(), std::vector<std::string>{dir_.File("roomfix-20261123-000000.lcm")});
+}
+
 TEST_F(LoggerNodeTest, RotatesBySizeIntoNumberedFilesWithoutLosingAnEvent) {
   LoggerOptions o;
   o.path = dir_.File("session.lcm");
@@ -160,6 +175,12 @@ TEST(LoggerOptions, RejectsABadChannelExpressionAndNoPath) {
   o.channel_regex = "(";
   EXPECT_FALSE(o.IsValid(&error));
   EXPECT_EQ(error, "channel expression '(' is not a valid regular expression");
+}
+
+TEST(ExpandLogPath, ExpandsStrftimeInUtcAndLeavesPlainNamesAlone) {
+  EXPECT_EQ(ExpandLogPath("/logs/%Y-%m-%d/run-%H%M.lcm", 1'795'391'998'000'000),
+            "/logs/2026-11-22/run-2359.lcm");
+  EXPECT_EQ(ExpandLogPath("/logs/session.lcm", 0), "/logs/session.lcm");
 }
 
 TEST(RotatedLogPath, NumbersBeforeTheExtension) {

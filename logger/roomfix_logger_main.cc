@@ -48,8 +48,10 @@ int main(int argc, char** argv) {
     return 1;
   }
   if (process.check) {
+    const std::string now_name = roomfix::ExpandLogPath(options.path, roomfix::NowUtime());
     std::cout << "roomfix_logger: ok: channels '" << options.channel_regex << "' into "
-              << options.path << " on " << process.lcm_url << "\n";
+              << options.path << (now_name != options.path ? " (now: " + now_name + ")" : "")
+              << " on " << process.lcm_url << "\n";
     return 0;
   }
   auto node = roomfix::LoggerNode::Create(ctx->bus.get(), options, roomfix::NowUtime(), &error);
@@ -57,7 +59,7 @@ int main(int argc, char** argv) {
     std::cerr << "roomfix_logger: " << error << "\n";
     return 1;
   }
-  spdlog::info("recording '{}' into {}", options.channel_regex, options.path);
+  spdlog::info("recording '{}' into {}", options.channel_regex, node->files().front());
   const int rc = roomfix::RunLoop(ctx->bus.get(), [&](int64_t now) { node->Tick(now); }, {});
   node->Stop(roomfix::NowUtime());
   const auto& s = node->status();
