@@ -118,6 +118,20 @@ void RecordDrive(const std::string& path, const Site& site,
   }
 }
 
+// Runs `roomfix survey ARGS... --json DIR/out.json`, which must succeed;
+// prints its report and returns the JSON (discarded when it does not parse).
+json RunSurvey(const testing::TempDir& dir, std::vector<std::string> args) {
+  std::vector<std::string> argv = {BinDir() + "/roomfix", "survey"};
+  argv.insert(argv.end(), args.begin(), args.end());
+  argv.insert(argv.end(), {"--json", dir.File("out.json")});
+  ChildProcess p(argv, dir.File("stdout.txt"));
+  const int rc = p.Wait(120);
+  EXPECT_EQ(rc, 0) << ReadFile(dir.File("stdout.txt"));
+  std::printf("%s", ReadFile(dir.File("stdout.txt")).c_str());
+  if (rc != 0) return json::value_t::discarded;
+  return json::parse(ReadFile(dir.File("out.json")), nullptr, false);
+}
+
 TEST(RoomfixSurvey, RecoversDisplacedReceiversFromALogAndWritesAPastableFragment) {
   TempDir dir;
   const std::string site_path = SourceDir() + "/config/sites/demo_room.yaml";
@@ -125,13 +139,8 @@ TEST(RoomfixSurvey, RecoversDisplacedReceiversFromALogAndWritesAPastableFragment
   std::string error;
   ASSERT_TRUE(LoadSite(site_path, &site, &error)) << error;
   RecordDrive(dir.File("drive.lcm"), site);
-  ChildProcess p(
-      {BinDir() + "/roomfix", "survey", dir.File("drive.lcm"), "--site", site_path, "--reference",
-       "ground_truth", "--json", dir.File("out.json"), "--out", dir.File("fragment.yaml")},
-      dir.File("stdout.txt"));
-  ASSERT_EQ(p.Wait(120), 0) << ReadFile(dir.File("stdout.txt"));
-  std::printf("%s", ReadFile(dir.File("stdout.txt")).c_str());
-  const json out = json::parse(ReadFile(dir.File("out.json")), nullptr, false);
+  const json out = RunSurvey(dir, {dir.File("drive.lcm"), "--site", site_path, "--reference",
+                                   "ground_truth", "--out", dir.File("fragment.yaml")});
   ASSERT_FALSE(out.is_discarded());
   // One beacon height and 10 minutes: heights and offsets trade off (see
   // core/survey's tests); 1-sigma about 2-3 mm, so these are 5-sigma bounds.
@@ -181,13 +190,8 @@ TEST(RoomfixSurvey, WithoutAReferenceTwoPinnedReceiversFixTheFrame) {
                                      {3, {3.88, 2.85, 2.5}, 0.11},
                                      {4, {0.15, 2.82, 2.5}, -0.15}};
   RecordDrive(dir.File("drive.lcm"), site, truth);
-  ChildProcess p({BinDir() + "/roomfix", "survey", dir.File("drive.lcm"), "--site", site_path,
-                  "--no-reference", "--pin", "1,2", "--fix-heights", "--reference", "ground_truth",
-                  "--json", dir.File("out.json")},
-                 dir.File("stdout.txt"));
-  ASSERT_EQ(p.Wait(120), 0) << ReadFile(dir.File("stdout.txt"));
-  std::printf("%s", ReadFile(dir.File("stdout.txt")).c_str());
-  const json out = json::parse(ReadFile(dir.File("out.json")), nullptr, false);
+  const json out = RunSurvey(dir, {dir.File("drive.lcm"), "--site", site_path, "--no-reference",
+                                   "--pin", "1,2", "--fix-heights", "--reference", "ground_truth"});
   ASSERT_FALSE(out.is_discarded());
   // 600 firings, 1 cm noise: about 5 mm 1-sigma.
   constexpr double kSelfCalPosition_m = 0.025;
