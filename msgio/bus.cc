@@ -67,10 +67,18 @@ void Bus::CountPublished(bool ok, const std::string& channel) {
   }
 }
 
-void Bus::CountDecodeFailure(const std::string& channel, const char* type_name) {
+void Bus::CountRefusal(const std::string& channel, const std::string& reason,
+                       const std::string& detail) {
   std::lock_guard<std::mutex> lock(stats_mutex_);
   ++stats_.decode_failures;
-  stats_.last_error = "message on " + channel + " does not decode as " + type_name;
+  bool named = std::find(refused_channels_.begin(), refused_channels_.end(), channel) !=
+               refused_channels_.end();
+  if (!named && refused_channels_.size() < static_cast<size_t>(kMaxRefusedChannels)) {
+    refused_channels_.push_back(channel);
+    named = true;
+  }
+  ++stats_.refused[(named ? channel : std::string("<other>")) + "." + reason];
+  stats_.last_error = "message on " + channel + " refused (" + reason + "): " + detail;
 }
 
 void Bus::RecordError(const std::string& error) {

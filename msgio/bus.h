@@ -3,10 +3,13 @@
 
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <string>
 #include <vector>
+
+#include "msgio/wire_check.h"
 
 namespace lcm {
 class LCM;
@@ -31,9 +34,13 @@ struct BusStats {
   int64_t published = 0;
   int64_t publish_failures = 0;
   int64_t received = 0;
-  // Messages on a subscribed channel whose payload did not decode as the
-  // subscribed type (wrong type, truncated, corrupt).
+  // Messages on a subscribed channel refused before decoding (DecodeChecked:
+  // wrong type, truncated, a length or count negative or over its cap...):
+  // the total, and by `<CHANNEL>.<reason>` (wire_refusal::*). Anyone can
+  // invent channel names, so the map holds at most kMaxRefusedChannels
+  // channels; refusals on further ones count under `<other>.<reason>`.
   int64_t decode_failures = 0;
+  std::map<std::string, int64_t> refused;
   // Handlers that threw; the exception is caught at the bus so it never
   // unwinds into LCM's C code.
   int64_t handler_exceptions = 0;
@@ -60,8 +67,9 @@ class Bus {
   template <class Msg>
   bool Publish(const std::string& channel, const Msg& msg);
 
-  // Subscribes a typed handler. A message that does not decode is counted in
-  // decode_failures and dropped; the handler only ever sees whole messages.
+  // Subscribes a typed handler. A message that DecodeChecked refuses is
+  // counted in decode_failures and refused, and dropped; the handler only
+  // ever sees whole, checked messages.
   template <class Msg>
   SubscriptionId Subscribe(const std::string& channel_regex,
                            std::function<void(const Msg& msg, const MessageInfo& info)> handler);
@@ -79,13 +87,18 @@ class Bus {
   // Calls the handler, catching and counting anything it throws.
   void Deliver(const RawHandler& handler, const MessageInfo& info, const void* data, int size);
   void CountPublished(bool ok, const std::string& channel);
-  void CountDecodeFailure(const std::string& channel, const char* type_name);
+  void CountRefusal(const std::string& channel, const std::string& reason,
+                    const std::string& detail);
   void RecordError(const std::string& error);
 
  private:
   mutable std::mutex stats_mutex_;
   BusStats stats_;
+  std::vector<std::string> refused_channels_;  // at most kMaxRefusedChannels
 };
+
+// Distinct channels BusStats::refused names before folding into `<other>`.
+inline constexpr int kMaxRefusedChannels = 64;
 
 // A bus over lcm::LCM. Received messages are dispatched from Handle() on the
 // calling thread.
@@ -176,10 +189,10 @@ SubscriptionId Bus::Subscribe(const std::string& channel_regex,
   return SubscribeRaw(channel_regex, [this, handler = std::move(handler)](
                                          const MessageInfo& info, const void* data, int size) {
     Msg msg{};
-    // decode() checks the 8-byte fingerprint first, so a message of another
-    // type on the channel fails here instead of being misread.
-    if (msg.decode(data, 0, size) != size) {
-      CountDecodeFailure(info.channel, Msg::getTypeName());
+    std::string reason;
+    std::string detail;
+    if (!DecodeChecked(data, size, &msg, &reason, &detail)) {
+      CountRefusal(info.channel, reason, detail);
       return;
     }
     handler(msg, info);

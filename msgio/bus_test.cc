@@ -2,10 +2,13 @@
 
 #include <gtest/gtest.h>
 
+#include <climits>
+#include <map>
 #include <stdexcept>
 #include <vector>
 
 #include "msgio/test_messages.h"
+#include "msgio/wire_test_messages.h"
 #include "roomfix/process_status_t.hpp"
 
 namespace roomfix {
@@ -54,7 +57,11 @@ TEST(LcmBus, CountsAMessageOfTheWrongTypeInsteadOfDeliveringIt) {
   }
   EXPECT_EQ(delivered, 0);
   EXPECT_EQ(bus->stats().decode_failures, 2);
-  EXPECT_EQ(bus->stats().last_error, "message on POSE does not decode as pose2d_t");
+  EXPECT_EQ(bus->stats().refused,
+            (std::map<std::string, int64_t>{{"POSE.truncated", 1}, {"POSE.wrong_type", 1}}));
+  EXPECT_EQ(bus->stats().last_error,
+            "message on POSE refused (truncated): pose2d_t: 5 bytes, fewer than the 8-byte "
+            "fingerprint");
 }
 
 TEST(LcmBus, CountsATruncatedMessage) {
@@ -69,6 +76,40 @@ TEST(LcmBus, CountsATruncatedMessage) {
   }
   EXPECT_EQ(delivered, 0);
   EXPECT_EQ(bus->stats().decode_failures, 1);
+  EXPECT_EQ(bus->stats().refused, (std::map<std::string, int64_t>{{"POSE.truncated", 1}}));
+}
+
+// The audit's crash of every STATUS listener: a string length of INT32_MIN.
+TEST(LoopbackBus, RefusesAHostileLengthBeforeTheHandlerAndCountsItByChannel) {
+  LoopbackBus bus;
+  int delivered = 0;
+  bus.Subscribe<process_status_t>(
+      "STATUS", [&](const process_status_t&, const MessageInfo&) { ++delivered; });
+  std::vector<uint8_t> bytes = testing::Encode(testing::MakeTestStatus());
+  bus.Inject("STATUS", bytes.data(), static_cast<int>(bytes.size()), 1);
+  testing::PutInt32(&bytes, testing::kStatusProcessLengthOffset, INT32_MIN);
+  bus.Inject("STATUS", bytes.data(), static_cast<int>(bytes.size()), 2);
+  EXPECT_EQ(delivered, 1);
+  EXPECT_EQ(bus.stats().refused, (std::map<std::string, int64_t>{{"STATUS.negative_length", 1}}));
+}
+
+// Channel names are the sender's choice: the map of refusals stays bounded
+// however many it invents.
+TEST(LoopbackBus, FoldsRefusalsBeyondTheChannelLimitIntoOther) {
+  LoopbackBus bus;
+  bus.Subscribe<pose2d_t>(".*", [](const pose2d_t&, const MessageInfo&) {});
+  const uint8_t garbage[3] = {1, 2, 3};
+  constexpr int kInvented = 1000;
+  for (int i = 0; i < kInvented; ++i) {
+    bus.Inject("X" + std::to_string(i), garbage, sizeof(garbage), i);
+  }
+  bus.Inject("X0", garbage, sizeof(garbage), kInvented);  // a named one stays named
+  const BusStats stats = bus.stats();
+  EXPECT_EQ(stats.decode_failures, kInvented + 1);
+  EXPECT_EQ(stats.refused.size(), static_cast<size_t>(kMaxRefusedChannels) + 1);
+  EXPECT_EQ(stats.refused.at("X0.truncated"), 2);
+  EXPECT_EQ(stats.refused.at("<other>.truncated"), kInvented - kMaxRefusedChannels);
+  EXPECT_EQ(stats.refused.count("X64.truncated"), 0u);
 }
 
 TEST(LcmBus, AThrowingHandlerIsCountedAndDoesNotUnwindIntoLcm) {

@@ -4,6 +4,7 @@
 #include <cstring>
 #include <sstream>
 
+#include "msgio/wire_check.h"
 #include "roomfix/image_t.hpp"
 #include "roomfix/marker_pixels_t.hpp"
 #include "roomfix/pose2d_t.hpp"
@@ -168,10 +169,12 @@ std::string ToJson(const image_t& m) {
 }
 
 template <class Msg>
-bool Decode(const void* data, int size, std::string* json, std::string* error) {
+bool Decode(const void* data, int size, std::string* json, std::string* error,
+            std::string* reason) {
   Msg m{};
-  if (m.decode(data, 0, size) != size) {
-    if (error != nullptr) *error = std::string("payload does not decode as ") + Msg::getTypeName();
+  std::string detail;
+  if (!DecodeChecked(data, size, &m, reason, &detail)) {
+    if (error != nullptr) *error = "refused: " + detail;
     return false;
   }
   *json = ToJson(m);
@@ -200,14 +203,20 @@ int64_t RoomfixTypeFingerprint(const std::string& type_name) {
   return 0;
 }
 
-bool MessageToJson(const void* data, int size, std::string* json, std::string* error) {
+bool MessageToJson(const void* data, int size, std::string* json, std::string* error,
+                   std::string* reason) {
   const int64_t fp = FingerprintOf(data, size);
-  if (fp == pose2d_t::getHash()) return Decode<pose2d_t>(data, size, json, error);
-  if (fp == marker_pixels_t::getHash()) return Decode<marker_pixels_t>(data, size, json, error);
-  if (fp == range_set_t::getHash()) return Decode<range_set_t>(data, size, json, error);
-  if (fp == process_status_t::getHash()) return Decode<process_status_t>(data, size, json, error);
-  if (fp == image_t::getHash()) return Decode<image_t>(data, size, json, error);
+  if (fp == pose2d_t::getHash()) return Decode<pose2d_t>(data, size, json, error, reason);
+  if (fp == marker_pixels_t::getHash()) {
+    return Decode<marker_pixels_t>(data, size, json, error, reason);
+  }
+  if (fp == range_set_t::getHash()) return Decode<range_set_t>(data, size, json, error, reason);
+  if (fp == process_status_t::getHash()) {
+    return Decode<process_status_t>(data, size, json, error, reason);
+  }
+  if (fp == image_t::getHash()) return Decode<image_t>(data, size, json, error, reason);
   if (error != nullptr) *error = "not a roomfix message (unknown fingerprint)";
+  if (reason != nullptr) *reason = kUnknownTypeReason;
   return false;
 }
 

@@ -13,11 +13,17 @@ const char* RoomfixTypeName(const void* data, int size);
 // The fingerprint of every top-level roomfix message type, by name.
 int64_t RoomfixTypeFingerprint(const std::string& type_name);
 
+// The refusal reason MessageToJson gives a payload that is no roomfix type.
+inline constexpr char kUnknownTypeReason[] = "unknown_type";
+
 // Decodes any top-level roomfix message into one line of JSON with every
 // field ({"type": "roomfix.pose2d_t", "utime": ..., ...}); NaN and infinities
-// become null. False, with the reason, for an unknown type or a payload that
-// does not decode.
-bool MessageToJson(const void* data, int size, std::string* json, std::string* error);
+// become null. The payload goes through DecodeChecked (wire_check.h) first.
+// False for an unknown type or a refused payload, with a line for humans in
+// *error and the counting name in *reason (kUnknownTypeReason or one of
+// wire_refusal::*); either may be null.
+bool MessageToJson(const void* data, int size, std::string* json, std::string* error,
+                   std::string* reason = nullptr);
 
 }  // namespace roomfix
 

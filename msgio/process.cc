@@ -17,6 +17,7 @@
 #include <cstring>
 
 #include "msgio/udpm_bus.h"
+#include "msgio/wire_check.h"
 
 namespace roomfix {
 
@@ -143,10 +144,10 @@ process_status_t StatusReporter::Make(int64_t utime, const BusStats* bus_stats) 
   s.last_error = last_error_;
   s.last_error_utime = last_error_utime_;
   if (bus_stats != nullptr) {
-    // An undecodable message is input refused at the door; a throwing
-    // handler is a bug, surfaced rather than hidden.
-    if (bus_stats->decode_failures > 0)
-      rejected["undecodable_message"] += bus_stats->decode_failures;
+    // A message refused before decoding is input refused at the door, named
+    // `<CHANNEL>.<reason>`; a throwing handler is a bug, surfaced rather
+    // than hidden.
+    for (const auto& [key, count] : bus_stats->refused) rejected[key] += count;
     if (bus_stats->handler_exceptions > 0) {
       counters["handler_exceptions"] += bus_stats->handler_exceptions;
     }
@@ -157,8 +158,24 @@ process_status_t StatusReporter::Make(int64_t utime, const BusStats* bus_stats) 
       s.last_error = bus_stats->last_error;
     }
   }
-  for (const auto& [name, count] : rejected) s.rejected.push_back(MakeCounter(name, count));
-  for (const auto& [name, count] : counters) s.counters.push_back(MakeCounter(name, count));
+  // Within the caps every receiver checks (wire_check.h), or the heartbeat
+  // itself would be refused: strings are clipped, the counter lists cut.
+  const auto clip = [](std::string* text, int32_t cap_bytes) {
+    if (text->size() >= static_cast<size_t>(cap_bytes)) text->resize(cap_bytes - 1);
+  };
+  clip(&s.process, wire_cap::kNameBytes);
+  clip(&s.host, wire_cap::kNameBytes);
+  clip(&s.last_error, wire_cap::kLastErrorBytes);
+  for (const auto& [name, count] : rejected) {
+    if (s.rejected.size() >= static_cast<size_t>(wire_cap::kStatusCounters)) break;
+    s.rejected.push_back(MakeCounter(name, count));
+    clip(&s.rejected.back().name, wire_cap::kNameBytes);
+  }
+  for (const auto& [name, count] : counters) {
+    if (s.counters.size() >= static_cast<size_t>(wire_cap::kStatusCounters)) break;
+    s.counters.push_back(MakeCounter(name, count));
+    clip(&s.counters.back().name, wire_cap::kNameBytes);
+  }
   s.num_rejected = static_cast<int32_t>(s.rejected.size());
   s.num_counters = static_cast<int32_t>(s.counters.size());
   return s;

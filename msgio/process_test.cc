@@ -45,13 +45,35 @@ TEST(StatusReporter, FillsTheHeartbeatWithCountersByReason) {
 TEST(StatusReporter, FoldsInTheBusFailures) {
   StatusReporter status("x", 0);
   BusStats bus;
+  status.Reject("unknown_robot");
   bus.decode_failures = 4;
+  bus.refused = {{"POSE_CAMERA.wrong_type", 3}, {"STATUS.negative_length", 1}};
   bus.handler_exceptions = 1;
-  bus.last_error = "message on POSE does not decode as pose2d_t";
+  bus.last_error = "message on POSE_CAMERA refused (wrong_type): not a pose2d_t (fingerprint)";
   const process_status_t s = status.Make(1, &bus);
-  EXPECT_EQ(AsMap(s.rejected)["undecodable_message"], 4);
+  EXPECT_EQ(AsMap(s.rejected), (std::map<std::string, int64_t>{{"POSE_CAMERA.wrong_type", 3},
+                                                               {"STATUS.negative_length", 1},
+                                                               {"unknown_robot", 1}}));
   EXPECT_EQ(AsMap(s.counters)["handler_exceptions"], 1);
   EXPECT_EQ(s.last_error, bus.last_error);
+}
+
+// The heartbeat must pass every receiver's wire check (wire_check.h), however
+// long the texts and lists the process fed it.
+TEST(StatusReporter, KeepsTheHeartbeatWithinTheWireCaps) {
+  StatusReporter status(std::string(1000, 'p'), 0);
+  for (int i = 0; i < 2 * wire_cap::kStatusCounters; ++i) {
+    status.Reject(std::string(300, 'r') + std::to_string(i));
+  }
+  status.SetError(std::string(10000, 'e'), 1);
+  const process_status_t s = status.Make(2, nullptr);
+  EXPECT_EQ(s.process.size(), static_cast<size_t>(wire_cap::kNameBytes - 1));
+  EXPECT_EQ(s.last_error.size(), static_cast<size_t>(wire_cap::kLastErrorBytes - 1));
+  EXPECT_EQ(s.num_rejected, wire_cap::kStatusCounters);
+  std::vector<uint8_t> bytes(static_cast<size_t>(s.getEncodedSize()));
+  ASSERT_EQ(s.encode(bytes.data(), 0, static_cast<int>(bytes.size())),
+            static_cast<int>(bytes.size()));
+  EXPECT_EQ(CheckEncoded<process_status_t>(bytes.data(), static_cast<int>(bytes.size())), nullptr);
 }
 
 TEST(StatusReporter, PublishesOncePerSecondOfItsClock) {

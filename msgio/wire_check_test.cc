@@ -1,0 +1,227 @@
+#include "msgio/wire_check.h"
+
+#include <gtest/gtest.h>
+#include <sys/resource.h>
+
+#include <climits>
+#include <string>
+#include <vector>
+
+#include "msgio/wire_test_messages.h"
+
+namespace roomfix {
+namespace {
+
+using testing::Encode;
+using testing::PutInt32;
+
+template <class Msg>
+const char* Check(const std::vector<uint8_t>& bytes, std::string* detail = nullptr) {
+  return CheckEncoded<Msg>(bytes.data(), static_cast<int>(bytes.size()), detail);
+}
+
+// Reason as a string, "ok" when accepted, so failures print the reason.
+template <class Msg>
+std::string Verdict(const std::vector<uint8_t>& bytes) {
+  const char* reason = Check<Msg>(bytes);
+  return reason == nullptr ? "ok" : reason;
+}
+
+// Every real message passes, decodes, and re-encodes to its own bytes; every
+// shorter prefix is truncated and one more byte is trailing. Together these
+// pin each field table to the generated encoder byte for byte.
+template <class Msg>
+void ExpectTableMatchesEncoder(const Msg& msg) {
+  SCOPED_TRACE(Msg::getTypeName());
+  const std::vector<uint8_t> bytes = Encode(msg);
+  EXPECT_EQ(Verdict<Msg>(bytes), "ok");
+  Msg decoded{};
+  std::string reason = "unset";
+  ASSERT_TRUE(DecodeChecked(bytes.data(), static_cast<int>(bytes.size()), &decoded, &reason));
+  EXPECT_EQ(reason, "unset") << "an accepted message must leave the reason alone";
+  EXPECT_EQ(Encode(decoded), bytes);
+  for (size_t n = 0; n < bytes.size(); ++n) {
+    const std::vector<uint8_t> prefix(bytes.begin(), bytes.begin() + static_cast<long>(n));
+    ASSERT_EQ(Verdict<Msg>(prefix), "truncated") << "prefix of " << n << " bytes";
+  }
+  std::vector<uint8_t> longer = bytes;
+  longer.push_back(0);
+  EXPECT_EQ(Verdict<Msg>(longer), "trailing_bytes");
+}
+
+TEST(WireCheck, AcceptsARealMessageOfEveryTypeAndNoPrefixOfIt) {
+  ExpectTableMatchesEncoder(testing::MakeTestCounter("RANGES.count_over_cap", 3));
+  ExpectTableMatchesEncoder(testing::MakeTestImage());
+  ExpectTableMatchesEncoder(testing::MakeTestMarkerPixels());
+  ExpectTableMatchesEncoder(testing::MakeTestMarker("orange", 2));
+  ExpectTableMatchesEncoder(testing::MakeTestPose(1700000000000000, 3, 1.25, 2.5));
+  ExpectTableMatchesEncoder(testing::MakeTestStatus());
+  ExpectTableMatchesEncoder(testing::MakeTestRangeSet(4));
+  ExpectTableMatchesEncoder(testing::MakeTestRange(2, 1.75));
+}
+
+TEST(WireCheck, AcceptsEmptyArraysAndEmptyStrings) {
+  process_status_t status{};  // every string "", every list empty
+  EXPECT_EQ(Verdict<process_status_t>(Encode(status)), "ok");
+  EXPECT_EQ(Verdict<range_set_t>(Encode(testing::MakeTestRangeSet(0))), "ok");
+}
+
+// The audit's crash: LCM 1.3.1's decoder assigns length - 1 characters, so
+// INT32_MIN reads far past the buffer.
+TEST(WireCheck, RefusesAStringLengthOfInt32MinInStatusMarkersAndPreview) {
+  std::vector<uint8_t> status = Encode(testing::MakeTestStatus());
+  PutInt32(&status, testing::kStatusProcessLengthOffset, INT32_MIN);
+  EXPECT_EQ(Verdict<process_status_t>(status), "negative_length");
+
+  std::vector<uint8_t> pixels = Encode(testing::MakeTestMarkerPixels());
+  PutInt32(&pixels, testing::kMarkerPixelsFirstColourLengthOffset, INT32_MIN);
+  std::string detail;
+  EXPECT_STREQ(Check<marker_pixels_t>(pixels, &detail), "negative_length");
+  EXPECT_EQ(detail, "marker_t.colour_class length -2147483648 at byte 49 of " +
+                        std::to_string(pixels.size()));
+
+  std::vector<uint8_t> preview = Encode(testing::MakeTestImage());
+  PutInt32(&preview, testing::kImageFormatLengthOffset, INT32_MIN);
+  EXPECT_EQ(Verdict<image_t>(preview), "negative_length");
+}
+
+TEST(WireCheck, RefusesANegativeCount) {
+  std::vector<uint8_t> ranges = Encode(testing::MakeTestRangeSet(2));
+  PutInt32(&ranges, testing::kRangeSetNumRangesOffset, -1);
+  EXPECT_EQ(Verdict<range_set_t>(ranges), "negative_length");
+}
+
+// Stands in for range_set_t and records whether its decoder ran.
+struct RangeSetDecoderSpy : range_set_t {
+  static inline int decode_calls = 0;
+  int decode(const void* buf, int offset, int maxlen) {
+    ++decode_calls;
+    return range_set_t::decode(buf, offset, maxlen);
+  }
+};
+
+// The audit's bloat: a 52-byte RANGES message (no ranges at all) claiming
+// 2^24 of them made the generated decoder zero-fill 16777216 range_t (about
+// 925 MB) before finding the bytes missing.
+TEST(WireCheck, RefusesA2To24CountIn52BytesBeforeTheDecoderRuns) {
+  std::vector<uint8_t> bytes = Encode(testing::MakeTestRangeSet(0));
+  ASSERT_EQ(bytes.size(), 52u);
+  PutInt32(&bytes, testing::kRangeSetNumRangesOffset, 1 << 24);
+
+  rusage before{};
+  getrusage(RUSAGE_SELF, &before);
+  RangeSetDecoderSpy::decode_calls = 0;
+  RangeSetDecoderSpy msg;
+  std::string reason;
+  std::string detail;
+  EXPECT_FALSE(DecodeChecked(bytes.data(), 52, &msg, &reason, &detail));
+  EXPECT_EQ(reason, "count_over_cap");
+  EXPECT_EQ(detail, "range_set_t.num_ranges 16777216 over cap 256 at byte 52 of 52");
+  EXPECT_EQ(RangeSetDecoderSpy::decode_calls, 0);
+  EXPECT_TRUE(msg.ranges.empty());
+  rusage after{};
+  getrusage(RUSAGE_SELF, &after);
+  // Peak resident set, KiB: the unchecked decode would add ~925 MB; the
+  // check allocates only the detail string. 8 MB allows for the allocator.
+  constexpr long kMaxPeakGrowthKib = 8 << 10;
+  EXPECT_LT(after.ru_maxrss - before.ru_maxrss, kMaxPeakGrowthKib);
+}
+
+TEST(WireCheck, RefusesACountWithinItsCapThatTheBytesCannotHold) {
+  // 200 ranges need 200 * 52 bytes; the message has none. Refused before
+  // walking a single element.
+  std::vector<uint8_t> bytes = Encode(testing::MakeTestRangeSet(0));
+  PutInt32(&bytes, testing::kRangeSetNumRangesOffset, 200);
+  std::string detail;
+  EXPECT_STREQ(Check<range_set_t>(bytes, &detail), "truncated");
+  EXPECT_EQ(detail, "range_set_t.ranges 200 elements cannot fit in 0 bytes at byte 52 of 52");
+
+  std::vector<uint8_t> preview = Encode(testing::MakeTestImage());
+  PutInt32(&preview, testing::kImageFormatLengthOffset + 4 + 5, 14);  // 13 bytes follow
+  EXPECT_EQ(Verdict<image_t>(preview), "truncated");
+}
+
+TEST(WireCheck, AcceptsCountsAtTheirCapsAndRefusesOneMore) {
+  EXPECT_EQ(Verdict<range_set_t>(Encode(testing::MakeTestRangeSet(wire_cap::kRangesPerSet))), "ok");
+  EXPECT_EQ(Verdict<range_set_t>(Encode(testing::MakeTestRangeSet(wire_cap::kRangesPerSet + 1))),
+            "count_over_cap");
+
+  marker_pixels_t pixels = testing::MakeTestMarkerPixels();
+  pixels.markers.assign(wire_cap::kMarkersPerFrame + 1, testing::MakeTestMarker("orange", -1));
+  pixels.num_markers = wire_cap::kMarkersPerFrame + 1;
+  EXPECT_EQ(Verdict<marker_pixels_t>(Encode(pixels)), "count_over_cap");
+
+  image_t preview = testing::MakeTestImage();
+  preview.data.assign(static_cast<size_t>(wire_cap::kPreviewBytes), 0);
+  preview.num_bytes = wire_cap::kPreviewBytes;
+  EXPECT_EQ(Verdict<image_t>(Encode(preview)), "ok");
+  preview.data.push_back(0);
+  preview.num_bytes += 1;
+  EXPECT_EQ(Verdict<image_t>(Encode(preview)), "count_over_cap");
+
+  process_status_t status = testing::MakeTestStatus();
+  status.counters.assign(wire_cap::kStatusCounters + 1, testing::MakeTestCounter("x", 1));
+  status.num_counters = wire_cap::kStatusCounters + 1;
+  EXPECT_EQ(Verdict<process_status_t>(Encode(status)), "count_over_cap");
+}
+
+// String caps count LCM's length field, which includes the NUL.
+TEST(WireCheck, AcceptsStringsAtTheirCapsAndRefusesOneByteMore) {
+  process_status_t status = testing::MakeTestStatus();
+  status.process.assign(wire_cap::kNameBytes - 1, 'p');
+  status.last_error.assign(wire_cap::kLastErrorBytes - 1, 'e');
+  EXPECT_EQ(Verdict<process_status_t>(Encode(status)), "ok");
+  status.process.push_back('p');
+  EXPECT_EQ(Verdict<process_status_t>(Encode(status)), "string_over_cap");
+  status.process.pop_back();
+  status.last_error.push_back('e');
+  EXPECT_EQ(Verdict<process_status_t>(Encode(status)), "string_over_cap");
+
+  marker_pixels_t pixels = testing::MakeTestMarkerPixels();
+  pixels.markers[1].colour_class.assign(wire_cap::kColourClassBytes, 'c');
+  EXPECT_EQ(Verdict<marker_pixels_t>(Encode(pixels)), "string_over_cap");
+
+  image_t preview = testing::MakeTestImage();
+  preview.format.assign(wire_cap::kImageFormatBytes, 'f');
+  EXPECT_EQ(Verdict<image_t>(Encode(preview)), "string_over_cap");
+}
+
+TEST(WireCheck, RefusesStringsLcmWouldNeverWrite) {
+  const std::vector<uint8_t> good = Encode(testing::MakeTestStatus());
+  const size_t length_at = testing::kStatusProcessLengthOffset;
+  const size_t text_at = length_at + 4;  // "trilat_proc" and its NUL: 12 bytes
+
+  // Length 0: the decoder would assign SIZE_MAX characters.
+  std::vector<uint8_t> empty(good.begin(), good.begin() + static_cast<long>(length_at));
+  empty.resize(empty.size() + 4, 0);
+  empty.insert(empty.end(), good.begin() + static_cast<long>(text_at + 12), good.end());
+  EXPECT_EQ(Verdict<process_status_t>(empty), "bad_string");
+
+  std::vector<uint8_t> unterminated = good;
+  unterminated[text_at + 11] = 'x';
+  EXPECT_EQ(Verdict<process_status_t>(unterminated), "bad_string");
+
+  std::vector<uint8_t> nul_inside = good;
+  nul_inside[text_at + 3] = 0;
+  EXPECT_EQ(Verdict<process_status_t>(nul_inside), "bad_string");
+}
+
+TEST(WireCheck, RefusesAnotherTypesFingerprint) {
+  const std::vector<uint8_t> pose = Encode(testing::MakeTestPose(1, 1, 1, 1));
+  std::string detail;
+  EXPECT_STREQ(Check<range_set_t>(pose, &detail), "wrong_type");
+  EXPECT_EQ(detail, "not a range_set_t (fingerprint)");
+  EXPECT_EQ(Verdict<process_status_t>(pose), "wrong_type");
+  // A nested type's fingerprint differs from its container's.
+  EXPECT_EQ(Verdict<range_t>(Encode(testing::MakeTestRangeSet(1))), "wrong_type");
+}
+
+TEST(WireCheck, RefusesFewerThanTheFingerprintsEightBytes) {
+  const uint8_t bytes[7] = {};
+  EXPECT_STREQ(CheckEncoded<pose2d_t>(bytes, 7), "truncated");
+  EXPECT_STREQ(CheckEncoded<pose2d_t>(nullptr, 0), "truncated");
+  EXPECT_STREQ(CheckEncoded<pose2d_t>(bytes, -5), "truncated");
+}
+
+}  // namespace
+}  // namespace roomfix
