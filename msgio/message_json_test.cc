@@ -2,7 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <climits>
+
 #include "msgio/test_messages.h"
+#include "msgio/wire_test_messages.h"
 #include "roomfix/marker_pixels_t.hpp"
 #include "roomfix/process_status_t.hpp"
 #include "roomfix/range_set_t.hpp"
@@ -86,8 +89,25 @@ TEST(MessageJson, RefusesUnknownAndCorruptPayloads) {
   EXPECT_FALSE(MessageToJson(junk, 16, &json, &error));
   EXPECT_EQ(error, "not a roomfix message (unknown fingerprint)");
   auto bytes = Encode(testing::MakeTestPose(1, 1, 1, 1));
-  EXPECT_FALSE(MessageToJson(bytes.data(), 20, &json, &error));
-  EXPECT_EQ(error, "payload does not decode as pose2d_t");
+  std::string reason;
+  EXPECT_FALSE(MessageToJson(bytes.data(), 20, &json, &error, &reason));
+  EXPECT_EQ(error, "refused: pose2d_t.utime..latency_us needs 146 bytes at byte 8 of 20");
+  EXPECT_EQ(reason, "truncated");
+  EXPECT_FALSE(MessageToJson(junk, 16, &json, &error, &reason));
+  EXPECT_EQ(reason, "unknown_type");
+}
+
+// `roomfix listen` and the log tools went down on this (LCM 1.3.1's decoder
+// assigns length - 1 characters).
+TEST(MessageJson, RefusesAStatusWithAStringLengthOfInt32Min) {
+  std::vector<uint8_t> bytes = Encode(testing::MakeTestStatus());
+  testing::PutInt32(&bytes, testing::kStatusProcessLengthOffset, INT32_MIN);
+  std::string json, error, reason;
+  EXPECT_FALSE(MessageToJson(bytes.data(), static_cast<int>(bytes.size()), &json, &error, &reason));
+  EXPECT_EQ(reason, "negative_length");
+  EXPECT_EQ(error, "refused: process_status_t.process length -2147483648 at byte 20 of " +
+                       std::to_string(bytes.size()));
+  EXPECT_TRUE(json.empty());
 }
 
 }  // namespace

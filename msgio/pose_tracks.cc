@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "msgio/log.h"
+#include "msgio/wire_check.h"
 #include "roomfix/pose2d_t.hpp"
 
 namespace roomfix {
@@ -62,9 +63,10 @@ PoseLogs ReadPoseLogs(const std::vector<std::string>& paths,
       if (e.channel.rfind("POSE_", 0) != 0) continue;
       ++report.pose_events;
       pose2d_t p{};
-      if (p.decode(e.data.data(), 0, static_cast<int>(e.data.size())) !=
-          static_cast<int>(e.data.size())) {
+      std::string reason;
+      if (!DecodeChecked(e.data.data(), static_cast<int>(e.data.size()), &p, &reason)) {
         ++report.undecodable;
+        ++report.refused[reason];
         continue;
       }
       PoseTrack& track = out.tracks[{PoseSourceName(p.source), p.robot_id}];

@@ -44,8 +44,10 @@ struct LogReadReport {
   std::string path;
   int64_t events = 0;
   int64_t pose_events = 0;
-  // POSE_* events that did not decode as pose2d_t.
+  // POSE_* events refused before decoding as pose2d_t (DecodeChecked), in
+  // total and by reason (wire_refusal::*).
   int64_t undecodable = 0;
+  std::map<std::string, int64_t> refused;
   // The log stops being readable before its end (truncated or corrupt).
   bool damaged = false;
   int64_t bytes_read = 0;

@@ -251,4 +251,14 @@ const char* CheckEncoded(const Layout& layout, int64_t fingerprint, const void* 
 }
 
 }  // namespace wire
+
+std::string RefusalCounts(const std::map<std::string, int64_t>& count_by_reason) {
+  std::string text;
+  for (const auto& [reason, count] : count_by_reason) {
+    if (!text.empty()) text += ", ";
+    text += std::to_string(count) + " " + reason;
+  }
+  return text;
+}
+
 }  // namespace roomfix

@@ -16,6 +16,7 @@
 // small multiple of the message's size.
 
 #include <cstdint>
+#include <map>
 #include <string>
 
 namespace roomfix {
@@ -116,6 +117,10 @@ const char* CheckEncoded(const void* data, int size, std::string* detail = nullp
   return wire::CheckEncoded(wire::LayoutOf(static_cast<const Msg*>(nullptr)), Msg::getHash(), data,
                             size, detail);
 }
+
+// Refusal counts as tools print them on stderr: "3 count_over_cap, 1
+// truncated" (map order); empty for an empty map.
+std::string RefusalCounts(const std::map<std::string, int64_t>& count_by_reason);
 
 // The one way roomfix decodes bytes from outside: checks, then decodes into
 // *msg. False with the reason (wire_refusal::*) in *reason and a line for

@@ -25,6 +25,7 @@
 #include "core/analysis/track_error.h"
 #include "core/analysis/track_stats.h"
 #include "msgio/pose_tracks.h"
+#include "msgio/wire_check.h"
 #include "tools/commands.h"
 
 extern char** environ;
@@ -328,6 +329,7 @@ int RunAnalyze(const AnalyzeOptions& options) {
       j["events"] = r.events;
       j["pose_events"] = r.pose_events;
       j["undecodable"] = r.undecodable;
+      j["refused"] = r.refused;
       j["damaged"] = r.damaged;
       j["bytes_read"] = r.bytes_read;
       j["file_size"] = r.file_size;
@@ -545,6 +547,12 @@ int RunAnalyze(const AnalyzeOptions& options) {
       !WriteText(out_dir + "/summary.json", out.dump(2) + "\n")) {
     std::cerr << "roomfix analyze: cannot write into " << out_dir << "\n";
     return 1;
+  }
+  for (const LogReadReport& r : logs.logs) {
+    if (r.undecodable > 0) {
+      std::cerr << "roomfix analyze: warning: " << r.path << ": " << r.undecodable
+                << " POSE_* events refused (" << RefusalCounts(r.refused) << ")\n";
+    }
   }
   if (options.json) {
     std::cout << out.dump() << "\n";

@@ -11,6 +11,7 @@
 #include "core/analysis/circle_fit.h"
 #include "core/analysis/track_error.h"
 #include "msgio/pose_tracks.h"
+#include "msgio/wire_check.h"
 #include "tools/commands.h"
 
 namespace roomfix {
@@ -123,8 +124,9 @@ void AddCompareCommand(CLI::App* app, int* exit_code) {
       }
     }
     if (report.undecodable > 0) {
-      std::printf("%lld POSE_* events did not decode as pose2d_t\n",
-                  static_cast<long long>(report.undecodable));
+      std::fprintf(stderr, "roomfix compare: warning: %s: %lld POSE_* events refused (%s)\n",
+                   report.path.c_str(), static_cast<long long>(report.undecodable),
+                   RefusalCounts(report.refused).c_str());
     }
     if (report.damaged) {
       std::printf("the log is damaged after byte %lld\n",

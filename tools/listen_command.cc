@@ -2,11 +2,13 @@
 #include <cstdint>
 #include <cstdio>
 #include <iostream>
+#include <map>
 #include <string>
 
 #include "msgio/bus.h"
 #include "msgio/message_json.h"
 #include "msgio/process.h"
+#include "msgio/wire_check.h"
 #include "tools/commands.h"
 
 namespace roomfix {
@@ -40,16 +42,23 @@ void AddListenCommand(CLI::App* app, int* exit_code) {
     }
     InstallShutdownHandlers();
     int64_t received = 0;
+    // Refused messages by reason, for the warning line at exit; each is also
+    // printed in place as an "error" line.
+    std::map<std::string, int64_t> refused;
     bus->SubscribeRaw(o->channel, [&](const MessageInfo& info, const void* data, int size) {
       std::string json;
       std::string why;
-      if (MessageToJson(data, size, &json, &why)) {
+      std::string reason;
+      if (MessageToJson(data, size, &json, &why, &reason)) {
         std::printf("{\"channel\":\"%s\",\"recv_utime\":%lld,\"message\":%s}\n",
                     info.channel.c_str(), static_cast<long long>(info.recv_utime), json.c_str());
       } else {
-        std::printf("{\"channel\":\"%s\",\"recv_utime\":%lld,\"size\":%d,\"error\":\"%s\"}\n",
-                    info.channel.c_str(), static_cast<long long>(info.recv_utime), size,
-                    why.c_str());
+        ++refused[reason];
+        std::printf(
+            "{\"channel\":\"%s\",\"recv_utime\":%lld,\"size\":%d,\"refused\":\"%s\","
+            "\"error\":\"%s\"}\n",
+            info.channel.c_str(), static_cast<long long>(info.recv_utime), size, reason.c_str(),
+            why.c_str());
       }
       std::fflush(stdout);
       if (o->count > 0 && ++received >= o->count) RequestShutdown();
@@ -66,6 +75,12 @@ void AddListenCommand(CLI::App* app, int* exit_code) {
       loop.duration_s = o->timeout_s;
       *exit_code = RunLoop(
           bus.get(), [](int64_t) {}, loop);
+    }
+    if (!refused.empty()) {
+      int64_t total = 0;
+      for (const auto& [reason, count] : refused) total += count;
+      std::cerr << "roomfix listen: warning: " << total << " messages refused ("
+                << RefusalCounts(refused) << ")\n";
     }
     if (*exit_code == 0 && o->count > 0 && received < o->count) {
       std::cerr << "roomfix listen: timed out after " << received << " of " << o->count

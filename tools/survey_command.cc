@@ -20,6 +20,7 @@
 #include "core/world/site.h"
 #include "msgio/log.h"
 #include "msgio/pose_tracks.h"
+#include "msgio/wire_check.h"
 #include "roomfix/range_set_t.hpp"
 #include "tools/commands.h"
 
@@ -111,12 +112,15 @@ int Run(const SurveyArgs& a) {
   }
   std::vector<survey::Firing> firings;
   int undecodable = 0;
+  std::map<std::string, int64_t> refused;  // by reason
   LogEvent event;
   while (reader->Next(&event)) {
     if (event.channel != "RANGES") continue;
     range_set_t set;
-    if (set.decode(event.data.data(), 0, static_cast<int>(event.data.size())) < 0) {
+    std::string reason;
+    if (!DecodeChecked(event.data.data(), static_cast<int>(event.data.size()), &set, &reason)) {
       ++undecodable;
+      ++refused[reason];
       continue;
     }
     if (set.beacon_id != beacon->id) continue;
@@ -264,7 +268,10 @@ int Run(const SurveyArgs& a) {
   } else {
     std::printf("\nno reference track: the held-out error against a reference is not available\n");
   }
-  if (undecodable > 0) std::printf("%d RANGES events did not decode\n", undecodable);
+  if (undecodable > 0) {
+    std::fprintf(stderr, "roomfix survey: warning: %d RANGES events refused (%s)\n", undecodable,
+                 RefusalCounts(refused).c_str());
+  }
   if (damaged) std::printf("the log is damaged; its readable part was used\n");
 
   if (!a.out.empty()) {

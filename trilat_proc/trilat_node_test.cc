@@ -167,7 +167,7 @@ TEST_F(TrilatNodeTest, CountsAMessageThatIsNotARangeSet) {
   const BusStats stats = bus_.stats();
   std::map<std::string, int64_t> rejected;
   for (const auto& c : node.status().Make(0, &stats).rejected) rejected[c.name] = c.count;
-  EXPECT_EQ(rejected["undecodable_message"], 1);
+  EXPECT_EQ(rejected["RANGES.wrong_type"], 1);
   EXPECT_TRUE(poses_.empty());
 }
 
