@@ -1,0 +1,106 @@
+// The tools that decode a log's messages with no STATUS of their own
+// (`roomfix listen`, `analyze`): issue #15's hostile messages are refused and
+// reported on stderr with their count per reason, and every good message
+// around them is still read.
+#include <gtest/gtest.h>
+
+#include <climits>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "msgio/log.h"
+#include "msgio/wire_test_messages.h"
+#include "tests/testing/test_paths.h"
+
+namespace roomfix {
+namespace {
+
+using nlohmann::json;
+using testing::BinDir;
+using testing::ChildProcess;
+using testing::ReadFile;
+using testing::TempDir;
+
+// A log of good messages with issue #15's crash inputs between them: a STATUS
+// whose string length is INT32_MIN, a 52-byte RANGES claiming 2^24 ranges,
+// and a pose cut short.
+void WriteHostileLog(const std::string& path) {
+  std::string error;
+  auto log = LogWriter::Create(path, true, &error);
+  ASSERT_NE(log, nullptr) << error;
+  auto write = [&](int64_t utime, const std::string& channel, const std::vector<uint8_t>& bytes) {
+    ASSERT_TRUE(log->Write(utime, channel, bytes.data(), static_cast<int>(bytes.size()), &error))
+        << error;
+  };
+  std::vector<uint8_t> status = testing::Encode(testing::MakeTestStatus());
+  std::vector<uint8_t> hostile_status = status;
+  testing::PutInt32(&hostile_status, testing::kStatusProcessLengthOffset, INT32_MIN);
+  std::vector<uint8_t> hostile_ranges = testing::Encode(testing::MakeTestRangeSet(0));
+  testing::PutInt32(&hostile_ranges, testing::kRangeSetNumRangesOffset, 1 << 24);
+  std::vector<uint8_t> pose = testing::Encode(testing::MakeTestPose(1700000000000000, 1, 1.0, 2.0));
+  std::vector<uint8_t> cut_pose(pose.begin(), pose.end() - 10);
+
+  write(1700000000000000, "STATUS", status);
+  write(1700000000100000, "STATUS", hostile_status);
+  write(1700000000200000, "RANGES", hostile_ranges);
+  write(1700000000300000, "POSE_GROUND_TRUTH", cut_pose);
+  write(1700000000400000, "POSE_GROUND_TRUTH", pose);
+  ASSERT_TRUE(log->Flush(&error)) << error;
+}
+
+struct ToolRun {
+  int exit_code = -1;
+  std::string out;
+  std::string err;
+};
+
+ToolRun RunRoomfix(const TempDir& dir, const std::string& args) {
+  ToolRun run;
+  ChildProcess p(
+      {"sh", "-c", "exec '" + BinDir() + "/roomfix' " + args + " 2>'" + dir.File("err.txt") + "'"},
+      dir.File("out.txt"));
+  run.exit_code = p.Wait(120);
+  run.out = ReadFile(dir.File("out.txt"));
+  run.err = ReadFile(dir.File("err.txt"));
+  return run;
+}
+
+TEST(RoomfixListen, RefusesHostileMessagesInALogAndCountsThemByReason) {
+  TempDir dir;
+  WriteHostileLog(dir.File("hostile.lcm"));
+  const ToolRun run =
+      RunRoomfix(dir, "listen --lcm-url 'file://" + dir.File("hostile.lcm") + "?speed=0'");
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  std::vector<json> lines;
+  std::istringstream out(run.out);
+  for (std::string line; std::getline(out, line);) lines.push_back(json::parse(line));
+  ASSERT_EQ(lines.size(), 5u) << run.out;
+  EXPECT_EQ(lines[0]["message"]["process"], "trilat_proc");
+  EXPECT_EQ(lines[1]["refused"], "negative_length");
+  EXPECT_EQ(lines[2]["refused"], "count_over_cap");
+  EXPECT_EQ(lines[3]["refused"], "truncated");
+  EXPECT_EQ(lines[4]["message"]["x_m"], 1.0);
+  EXPECT_NE(run.err.find("roomfix listen: warning: 3 messages refused (1 count_over_cap, 1 "
+                         "negative_length, 1 truncated)\n"),
+            std::string::npos)
+      << run.err;
+}
+
+TEST(RoomfixAnalyze, ReportsARefusedPoseOnStderrAndReadsTheRest) {
+  TempDir dir;
+  WriteHostileLog(dir.File("hostile.lcm"));
+  const ToolRun run = RunRoomfix(dir, "analyze --json --no-figures --out '" + dir.File("report") +
+                                          "' '" + dir.File("hostile.lcm") + "'");
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const json summary = json::parse(run.out);
+  EXPECT_EQ(summary["logs"][0]["pose_events"], 2);
+  EXPECT_EQ(summary["logs"][0]["undecodable"], 1);
+  EXPECT_EQ(summary["logs"][0]["refused"], (json{{"truncated", 1}}));
+  EXPECT_NE(run.err.find(": 1 POSE_* events refused (1 truncated)\n"), std::string::npos)
+      << run.err;
+}
+
+}  // namespace
+}  // namespace roomfix
