@@ -151,32 +151,33 @@ class Walker {
           if (!ReadInt32(&length)) {
             return Fail(wire_refusal::kTruncated, layout, f, "length missing");
           }
-          const std::string length_text = "length " + std::to_string(length);
-          if (length < 0) return Fail(wire_refusal::kNegativeLength, layout, f, length_text);
+          const auto length_text = [length] { return "length " + std::to_string(length); };
+          if (length < 0) return Fail(wire_refusal::kNegativeLength, layout, f, length_text());
           if (length > f.limit) {
             return Fail(wire_refusal::kStringOverCap, layout, f,
-                        length_text + " over cap " + std::to_string(f.limit));
+                        length_text() + " over cap " + std::to_string(f.limit));
           }
           if (length > left()) {
-            return Fail(wire_refusal::kTruncated, layout, f, length_text + " runs past the end");
+            return Fail(wire_refusal::kTruncated, layout, f, length_text() + " runs past the end");
           }
           // LCM writes strlen + 1 bytes: the NUL is last and only last. A
           // length of 0 would make the decoder assign SIZE_MAX characters.
           const uint8_t* s = data_ + pos_;
           if (length == 0 || s[length - 1] != 0 || std::memchr(s, 0, length - 1) != nullptr) {
             return Fail(wire_refusal::kBadString, layout, f,
-                        length_text + ": not one NUL-terminated string");
+                        length_text() + ": not one NUL-terminated string");
           }
           pos_ += length;
           break;
         }
         case kCount: {
           if (!ReadInt32(&count)) return Fail(wire_refusal::kTruncated, layout, f, "missing");
-          const std::string count_text = std::to_string(count);
-          if (count < 0) return Fail(wire_refusal::kNegativeLength, layout, f, count_text);
+          if (count < 0) {
+            return Fail(wire_refusal::kNegativeLength, layout, f, std::to_string(count));
+          }
           if (count > f.limit) {
             return Fail(wire_refusal::kCountOverCap, layout, f,
-                        count_text + " over cap " + std::to_string(f.limit));
+                        std::to_string(count) + " over cap " + std::to_string(f.limit));
           }
           break;
         }
