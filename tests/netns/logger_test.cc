@@ -11,6 +11,8 @@
 #include "msgio/bus.h"
 #include "msgio/log.h"
 #include "msgio/process.h"
+#include "msgio/udpm_bus.h"
+#include "roomfix/process_status_t.hpp"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -112,6 +114,73 @@ TEST(RoomfixLogger, AKillNineLosesAtMostTheFlushInterval) {
   EXPECT_GT(must_have, 1000);
   EXPECT_EQ(missing, 0) << "of " << must_have << " messages sent before the last flush";
 }
+
+// A logger stopped (SIGSTOP) while a publisher sends loses what its kernel
+// receive buffer cannot hold, and says so: once it runs again, its STATUS
+// `dropped` equals what was sent minus what it wrote, exactly (tolerance 0:
+// nothing else is sent on this namespace's bus while it is stopped, and the
+// kernel counts each datagram it drops on the logger's socket), and the
+// cause is the counter dropped_kernel_overflow. With its own receiver the
+// kernel's count comes from the socket (SO_RXQ_OVFL, SO_MEMINFO); through
+// liblcm (--via-liblcm) from /proc/net/udp.
+class StoppedLogger : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(StoppedLogger, LosesWhatItsStatusReportsDropped) {
+  constexpr int kSent = 3000;
+  // A small buffer (the kernel grants twice this) holds a few hundred small
+  // datagrams, so the burst overflows it.
+  const std::string url = std::string(kDefaultLcmUrl) + "&recv_buf_size=65536";
+  TempDir dir;
+  const std::string path = dir.File("stopped.lcm");
+  std::string error;
+  auto bus = UdpmBus::Create(kDefaultLcmUrl, &error);
+  ASSERT_NE(bus, nullptr) << error;
+  std::vector<process_status_t> statuses;
+  bus->Subscribe<process_status_t>(kStatusChannel,
+                                   [&](const process_status_t& s, const MessageInfo&) {
+                                     if (s.process == "roomfix_logger") statuses.push_back(s);
+                                   });
+  std::vector<std::string> command = {BinDir() + "/roomfix_logger",
+                                      path,
+                                      "--channel",
+                                      "STOP",
+                                      "--lcm-url",
+                                      url,
+                                      "--log-level",
+                                      "warn"};
+  if (!GetParam().empty()) command.push_back(GetParam());
+  ChildProcess logger(command);
+  ASSERT_TRUE(HandleUntil(
+      bus.get(), [&] { return !statuses.empty(); }, 5.0));
+  logger.Signal(SIGSTOP);
+  SleepS(0.1);
+  uint8_t payload[32] = {0};
+  for (int k = 0; k < kSent; ++k) {
+    std::memcpy(payload, &k, sizeof(k));
+    ASSERT_TRUE(bus->PublishRaw("STOP", payload, sizeof(payload)));
+  }
+  logger.Signal(SIGCONT);
+  // Heartbeats come every second; the second one after SIGCONT was made
+  // after the logger had drained its socket.
+  const size_t seen = statuses.size();
+  ASSERT_TRUE(HandleUntil(
+      bus.get(), [&] { return statuses.size() >= seen + 2; }, 5.0));
+  const process_status_t status = statuses.back();
+  logger.Signal(SIGINT);
+  ASSERT_EQ(logger.Wait(10), 0);
+
+  const int64_t written = static_cast<int64_t>(ReadAll(path).size());
+  EXPECT_GT(kSent - written, kSent / 2) << "the burst was meant to overflow the buffer";
+  EXPECT_EQ(status.dropped, kSent - written);
+  int64_t kernel_overflow = -1;
+  for (const auto& c : status.counters) {
+    if (c.name == "dropped_kernel_overflow") kernel_overflow = c.count;
+  }
+  EXPECT_EQ(kernel_overflow, kSent - written);
+}
+
+INSTANTIATE_TEST_SUITE_P(RoomfixLogger, StoppedLogger,
+                         ::testing::Values(std::string(), std::string("--via-liblcm")));
 
 TEST(RoomfixLogger, RefusesToOverwriteAndSaysSoInOneLine) {
   TempDir dir;
