@@ -48,7 +48,7 @@ struct FragmentLimits {
 // process receives udpm:// through it (msgio/process.cc).
 //
 // Why not liblcm: (1) liblcm 1.3.1 checks a fragment's offset + size in 32-bit
-// arithmetic that wraps, so one 545-byte LC03 datagram with offset 0xFFFFFF00
+// arithmetic that wraps, so one 535-byte LC03 datagram with offset 0xFFFFFF00
 // on a subscribed channel makes it memcpy 4 GiB past its buffer: lcm-logger
 // and every liblcm subscriber die with SIGSEGV (reproduced in a network
 // namespace, docs/operations.md "Transport"). liblcm cannot be patched here.
