@@ -293,6 +293,11 @@ int RunLoop(Bus* bus, const std::function<void(int64_t)>& tick, const RunLoopOpt
   return 0;
 }
 
+std::unique_ptr<Bus> OpenBus(const std::string& url, std::string* error, bool direct_udpm) {
+  if (direct_udpm && url.rfind("udpm://", 0) == 0) return UdpmBus::Create(url, error);
+  return LcmBus::Create(url, error);
+}
+
 std::unique_ptr<ProcessContext> StartProcess(const std::string& name, const ProcessOptions& options,
                                              std::string* error) {
   auto ctx = std::make_unique<ProcessContext>();
@@ -307,11 +312,7 @@ std::unique_ptr<ProcessContext> StartProcess(const std::string& name, const Proc
   }
   InstallShutdownHandlers();
   if (options.check) return ctx;
-  if (options.direct_udpm && options.lcm_url.rfind("udpm://", 0) == 0) {
-    ctx->bus = UdpmBus::Create(options.lcm_url, error);
-  } else {
-    ctx->bus = LcmBus::Create(options.lcm_url, error);
-  }
+  ctx->bus = OpenBus(options.lcm_url, error, options.direct_udpm);
   if (ctx->bus == nullptr) return nullptr;
   return ctx;
 }

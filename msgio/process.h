@@ -143,6 +143,11 @@ struct RunLoopOptions {
 int RunLoop(Bus* bus, const std::function<void(int64_t now_utime)>& tick,
             const RunLoopOptions& options);
 
+// Opens the bus for an LCM URL as processes do: udpm:// through UdpmBus (or
+// liblcm when direct_udpm is false), memq:// and file:// through LcmBus.
+// Tools that receive without StartProcess (`roomfix listen`) use it too.
+std::unique_ptr<Bus> OpenBus(const std::string& url, std::string* error, bool direct_udpm = true);
+
 // What a process's main needs after its flags are parsed: logging set up,
 // signals handled, the site file loaded and the bus opened.
 struct ProcessContext {
