@@ -136,7 +136,11 @@ std::unique_ptr<UdpmBus> UdpmBus::Create(const std::string& url, std::string* er
   ::setsockopt(bus->recv_fd_, SOL_SOCKET, SO_REUSEADDR, &one, sizeof(one));
   // The kernel then reports its drop counter with every datagram.
   ::setsockopt(bus->recv_fd_, SOL_SOCKET, SO_RXQ_OVFL, &one, sizeof(one));
-  const int wanted = a.recv_buf_size > 0 ? a.recv_buf_size : kDefaultRecvBufBytes;
+  // Capped so that a URL cannot make a privileged process pin more kernel
+  // memory than a stall of a second or so at 100 000 small messages/s needs.
+  constexpr int kMaxRecvBufBytes = 64 << 20;
+  const int wanted =
+      std::min(a.recv_buf_size > 0 ? a.recv_buf_size : kDefaultRecvBufBytes, kMaxRecvBufBytes);
   // SO_RCVBUFFORCE passes net.core.rmem_max for a process with CAP_NET_ADMIN;
   // anyone else gets SO_RCVBUF, capped at rmem_max by the kernel.
   if (::setsockopt(bus->recv_fd_, SOL_SOCKET, SO_RCVBUFFORCE, &wanted, sizeof(wanted)) != 0) {
