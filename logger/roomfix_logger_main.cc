@@ -30,8 +30,9 @@ int main(int argc, char** argv) {
   app.add_option("--queue-mb", queue_mb, "Most MiB of received, unwritten messages to hold")
       ->capture_default_str();
   app.add_flag("--via-liblcm", via_liblcm,
-               "Receive udpm:// through liblcm instead of reading the multicast socket directly "
-               "(liblcm 1.3.1 loses messages above about 10 000 per second)");
+               "Receive udpm:// through liblcm (queue capacity raised) instead of roomfix's own "
+               "receiver, to measure it: liblcm 1.3.1 is crashed by one malformed fragment and "
+               "cannot count what its queues drop (docs/logger.md)");
   CLI11_PARSE(app, argc, argv);
   process.direct_udpm = !via_liblcm;
   options.rotate_bytes = static_cast<int64_t>(rotate_mb * (1 << 20));

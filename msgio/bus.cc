@@ -1,12 +1,19 @@
 #include "msgio/bus.h"
 
+#include <dirent.h>
 #include <regex.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <exception>
+#include <fstream>
 #include <lcm/lcm-cpp.hpp>
+#include <set>
 #include <utility>
+
+#include "msgio/udpm_bus.h"
 
 namespace roomfix {
 
@@ -86,6 +93,17 @@ void Bus::RecordError(const std::string& error) {
   stats_.last_error = error;
 }
 
+void Bus::AddLoss(int64_t BusStats::*counter, int64_t n, const std::string& error) {
+  std::lock_guard<std::mutex> lock(stats_mutex_);
+  stats_.*counter += n;
+  stats_.last_error = error;
+}
+
+void Bus::SetLoss(int64_t BusStats::*counter, int64_t value) {
+  std::lock_guard<std::mutex> lock(stats_mutex_);
+  stats_.*counter = value;
+}
+
 // ---------------------------------------------------------------------------
 
 // Subscriptions go through LCM's C API: the C++ wrapper's method-handler
@@ -104,7 +122,15 @@ struct LcmBus::Subscription {
   }
 };
 
-std::unique_ptr<LcmBus> LcmBus::Create(const std::string& url, std::string* error) {
+std::unique_ptr<LcmBus> LcmBus::Create(const std::string& url_in, std::string* error) {
+  std::string url = url_in;
+  UdpmAddress address;
+  std::string ignored;
+  const bool udpm = ParseUdpmUrl(url, &address, &ignored);
+  if (udpm && address.recv_buf_size <= 0) {
+    url += (url.find('?') == std::string::npos ? "?" : "&") + std::string("recv_buf_size=") +
+           std::to_string(kDefaultRecvBufBytes);
+  }
   auto lcm = std::make_unique<lcm::LCM>(url);
   if (!lcm->good()) {
     if (error != nullptr) {
@@ -113,7 +139,9 @@ std::unique_ptr<LcmBus> LcmBus::Create(const std::string& url, std::string* erro
     }
     return nullptr;
   }
-  return std::unique_ptr<LcmBus>(new LcmBus(std::move(lcm), url));
+  std::unique_ptr<LcmBus> bus(new LcmBus(std::move(lcm), url));
+  if (udpm) bus->udpm_port_ = address.port;
+  return bus;
 }
 
 LcmBus::LcmBus(std::unique_ptr<lcm::LCM> lcm, std::string url)
@@ -138,6 +166,9 @@ SubscriptionId LcmBus::SubscribeRaw(const std::string& channel_regex, RawHandler
   s->handler = std::move(handler);
   s->lcm_subscription = lcm_subscribe(lcm_->getUnderlyingLCM(), channel_regex.c_str(),
                                       &Subscription::OnMessage, s.get());
+  if (s->lcm_subscription != nullptr) {
+    lcm_subscription_set_queue_capacity(s->lcm_subscription, kLcmQueueCapacity);
+  }
   const SubscriptionId id = s->id;
   subscriptions_.push_back(std::move(s));
   return id;
@@ -158,6 +189,53 @@ int LcmBus::Handle(int timeout_ms) {
 }
 
 int LcmBus::Fileno() const { return lcm_->getFileno(); }
+
+namespace {
+// Inodes of this process's sockets, from the /proc/self/fd/N -> socket:[I]
+// links.
+std::set<uint64_t> OwnSocketInodes() {
+  std::set<uint64_t> inodes;
+  DIR* dir = ::opendir("/proc/self/fd");
+  if (dir == nullptr) return inodes;
+  while (const dirent* e = ::readdir(dir)) {
+    char link[64] = {0};
+    const std::string path = std::string("/proc/self/fd/") + e->d_name;
+    if (::readlink(path.c_str(), link, sizeof(link) - 1) <= 0) continue;
+    unsigned long long inode = 0;
+    if (std::sscanf(link, "socket:[%llu]", &inode) == 1) inodes.insert(inode);
+  }
+  ::closedir(dir);
+  return inodes;
+}
+}  // namespace
+
+// liblcm's receive socket is its own, so its drop count is read where the
+// kernel publishes it for every UDP socket of the network namespace: the
+// last column of /proc/net/udp, on the row of a socket this process owns that
+// is bound to the bus's port (liblcm's send socket has another port).
+void LcmBus::RefreshStats() {
+  if (udpm_port_ == 0) return;
+  const std::set<uint64_t> own = OwnSocketInodes();
+  std::ifstream table("/proc/net/udp");
+  std::string line;
+  std::getline(table, line);  // Column names.
+  int64_t drops_total = 0;
+  while (std::getline(table, line)) {
+    unsigned local_port = 0;
+    unsigned long long inode = 0, drops = 0;
+    // sl local_address:port rem_address:port st tx:rx tr:when retrnsmt uid
+    // timeout inode ref pointer drops
+    if (std::sscanf(line.c_str(),
+                    " %*d: %*x:%x %*x:%*x %*x %*x:%*x %*x:%*x %*x %*u %*d %llu %*d %*x %llu",
+                    &local_port, &inode, &drops) != 3) {
+      continue;
+    }
+    if (static_cast<int>(local_port) == udpm_port_ && own.count(inode) > 0) {
+      drops_total += static_cast<int64_t>(drops);
+    }
+  }
+  SetLoss(&BusStats::dropped_kernel_overflow, drops_total);
+}
 
 // ---------------------------------------------------------------------------
 

@@ -45,6 +45,24 @@ struct BusStats {
   // unwinds into LCM's C code.
   int64_t handler_exceptions = 0;
   std::string last_error;
+
+  // Transport losses (docs/operations.md, "Losses"): each is added into
+  // STATUS `dropped` and reported as a counter of the same name.
+  // Datagrams the kernel dropped because the socket's receive buffer was full
+  // (SO_RXQ_OVFL, or the drops column of /proc/net/udp for liblcm's socket).
+  int64_t dropped_kernel_overflow = 0;
+  // Messages refused because a subscription queue was full.
+  int64_t dropped_queue_overflow = 0;
+  // LC03 fragments discarded: their message was not complete in time
+  // (expired), did not fit the reassembly budget (over_budget), disagreed
+  // with the message they claim to belong to (malformed), or repeated one
+  // already held (duplicate).
+  int64_t fragments_expired = 0;
+  int64_t fragments_over_budget = 0;
+  int64_t fragments_malformed = 0;
+  int64_t fragments_duplicate = 0;
+  // Datagrams on the bus's port that are not LCM at all; refused, not lost.
+  int64_t datagrams_malformed = 0;
 };
 
 // The message transport a node talks to (after Drake's DrakeLcmInterface):
@@ -82,6 +100,9 @@ class Bus {
   virtual int Handle(int /*timeout_ms*/) { return 0; }
   // A descriptor that becomes readable when a message is waiting, or -1.
   virtual int Fileno() const { return -1; }
+  // Reads counters the transport keeps outside the bus (the kernel's drop
+  // count) into stats(); called before each STATUS.
+  virtual void RefreshStats() {}
 
  protected:
   // Calls the handler, catching and counting anything it throws.
@@ -90,6 +111,10 @@ class Bus {
   void CountRefusal(const std::string& channel, const std::string& reason,
                     const std::string& detail);
   void RecordError(const std::string& error);
+  // Adds n to a loss counter of BusStats (or sets it, for counters the
+  // transport keeps itself), with a reason for last_error.
+  void AddLoss(int64_t BusStats::*counter, int64_t n, const std::string& error);
+  void SetLoss(int64_t BusStats::*counter, int64_t value);
 
  private:
   mutable std::mutex stats_mutex_;
@@ -101,7 +126,21 @@ class Bus {
 inline constexpr int kMaxRefusedChannels = 64;
 
 // A bus over lcm::LCM. Received messages are dispatched from Handle() on the
-// calling thread.
+// calling thread. Processes use it for memq:// and file://; udpm:// goes
+// through UdpmBus (msgio/udpm_bus.h says why), except where liblcm is asked
+// for by name (roomfix_logger --via-liblcm, for `roomfix bench logger`).
+//
+// Tuned for load: every subscription may queue kLcmQueueCapacity messages
+// (liblcm's default is 30, which a 100 000/s burst overflows in 0.3 ms), and
+// a udpm:// URL without recv_buf_size gets kDefaultRecvBufBytes. What it
+// costs: liblcm keeps each queued datagram in its receive ring at its own size
+// plus about 100 bytes, so the queue of one subscription holds at most
+// kLcmQueueCapacity x (largest message + 100 B): 1.3 MiB of 32-byte messages,
+// 640 MiB in the worst case of 64 KiB ones. liblcm 1.3.1 neither counts nor
+// reports what a full queue drops (lcm_try_enqueue_message returns false and
+// the datagram is reused), so dropped_queue_overflow stays 0 here; the
+// kernel's drops on liblcm's socket are read from /proc/net/udp.
+inline constexpr int kLcmQueueCapacity = 10000;
 class LcmBus final : public Bus {
  public:
   // Returns nullptr with a one-line reason in *error when LCM cannot start
@@ -115,6 +154,7 @@ class LcmBus final : public Bus {
 
   int Handle(int timeout_ms) override;
   int Fileno() const override;
+  void RefreshStats() override;
   const std::string& url() const { return url_; }
 
  private:
@@ -122,6 +162,7 @@ class LcmBus final : public Bus {
   struct Subscription;
   std::unique_ptr<lcm::LCM> lcm_;
   std::string url_;
+  int udpm_port_ = 0;  // 0: not udpm://.
   std::vector<std::unique_ptr<Subscription>> subscriptions_;
   SubscriptionId next_id_ = 1;
 };

@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <utility>
 
 #include "msgio/udpm_bus.h"
 #include "msgio/wire_check.h"
@@ -154,6 +155,22 @@ process_status_t StatusReporter::Make(int64_t utime, const BusStats* bus_stats) 
     if (bus_stats->publish_failures > 0) {
       counters["publish_failures"] += bus_stats->publish_failures;
     }
+    // Transport losses: messages that never reached a handler.
+    const std::pair<const char*, int64_t> losses[] = {
+        {"dropped_kernel_overflow", bus_stats->dropped_kernel_overflow},
+        {"dropped_queue_overflow", bus_stats->dropped_queue_overflow},
+        {"fragments_expired", bus_stats->fragments_expired},
+        {"fragments_over_budget", bus_stats->fragments_over_budget},
+        {"fragments_malformed", bus_stats->fragments_malformed},
+        {"fragments_duplicate", bus_stats->fragments_duplicate}};
+    for (const auto& [name, count] : losses) {
+      if (count <= 0) continue;
+      s.dropped += count;
+      counters[name] += count;
+    }
+    if (bus_stats->datagrams_malformed > 0) {
+      counters["datagrams_malformed"] += bus_stats->datagrams_malformed;
+    }
     if (s.last_error.empty() && !bus_stats->last_error.empty()) {
       s.last_error = bus_stats->last_error;
     }
@@ -194,6 +211,7 @@ bool StatusReporter::Publish(Bus* bus, int64_t now_utime) {
     std::lock_guard<std::mutex> lock(mutex_);
     last_publish_utime_ = now_utime;
   }
+  bus->RefreshStats();
   const BusStats stats = bus->stats();
   return bus->Publish(kStatusChannel, Make(now_utime, &stats));
 }
@@ -292,6 +310,11 @@ int RunLoop(Bus* bus, const std::function<void(int64_t)>& tick, const RunLoopOpt
   return 0;
 }
 
+std::unique_ptr<Bus> OpenBus(const std::string& url, std::string* error, bool direct_udpm) {
+  if (direct_udpm && url.rfind("udpm://", 0) == 0) return UdpmBus::Create(url, error);
+  return LcmBus::Create(url, error);
+}
+
 std::unique_ptr<ProcessContext> StartProcess(const std::string& name, const ProcessOptions& options,
                                              std::string* error) {
   auto ctx = std::make_unique<ProcessContext>();
@@ -306,11 +329,7 @@ std::unique_ptr<ProcessContext> StartProcess(const std::string& name, const Proc
   }
   InstallShutdownHandlers();
   if (options.check) return ctx;
-  if (options.direct_udpm && options.lcm_url.rfind("udpm://", 0) == 0) {
-    ctx->bus = UdpmBus::Create(options.lcm_url, error);
-  } else {
-    ctx->bus = LcmBus::Create(options.lcm_url, error);
-  }
+  ctx->bus = OpenBus(options.lcm_url, error, options.direct_udpm);
   if (ctx->bus == nullptr) return nullptr;
   return ctx;
 }

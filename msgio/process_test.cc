@@ -76,6 +76,32 @@ TEST(StatusReporter, KeepsTheHeartbeatWithinTheWireCaps) {
   EXPECT_EQ(CheckEncoded<process_status_t>(bytes.data(), static_cast<int>(bytes.size())), nullptr);
 }
 
+// Contract of issue #15: transport losses add into `dropped` (with the
+// process's own drops) and appear as counters by cause; malformed datagrams
+// are counted but are not losses.
+TEST(StatusReporter, AddsTheTransportLossesIntoDroppedByCause) {
+  StatusReporter status("x", 0);
+  status.AddDropped(2);  // The process's own queue.
+  BusStats bus;
+  bus.dropped_kernel_overflow = 100;
+  bus.dropped_queue_overflow = 20;
+  bus.fragments_expired = 3;
+  bus.fragments_over_budget = 4;
+  bus.fragments_malformed = 5;
+  bus.fragments_duplicate = 6;
+  bus.datagrams_malformed = 7;
+  const process_status_t s = status.Make(1, &bus);
+  EXPECT_EQ(s.dropped, 2 + 100 + 20 + 3 + 4 + 5 + 6);
+  EXPECT_EQ(AsMap(s.counters), (std::map<std::string, int64_t>{{"dropped_kernel_overflow", 100},
+                                                               {"dropped_queue_overflow", 20},
+                                                               {"fragments_expired", 3},
+                                                               {"fragments_over_budget", 4},
+                                                               {"fragments_malformed", 5},
+                                                               {"fragments_duplicate", 6},
+                                                               {"datagrams_malformed", 7}}));
+  EXPECT_EQ(status.Make(1, nullptr).dropped, 2);
+}
+
 TEST(StatusReporter, PublishesOncePerSecondOfItsClock) {
   std::string error;
   auto bus = LcmBus::Create("memq://", &error);

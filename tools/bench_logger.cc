@@ -1,7 +1,11 @@
 // roomfix bench logger: how many small messages per second roomfix_logger
-// writes with none lost, and its peak memory. Runs roomfix_logger as a child
-// process on the default multicast URL, so run it inside a private network
-// namespace: scripts/netns_run build/bin/roomfix bench logger
+// writes with none lost, and its peak memory, for each receiver in the same
+// run: roomfix's own (UdpmBus, what every process uses), liblcm tuned as
+// LcmBus tunes it (queue capacity kLcmQueueCapacity, recv_buf_size) through
+// roomfix_logger --via-liblcm, and stock lcm-logger (liblcm's default queue
+// of 30). Runs the loggers as child processes on the default multicast URL,
+// so run it inside a private network namespace:
+//   scripts/netns_run build/bin/roomfix bench logger
 #include <signal.h>
 #include <spawn.h>
 #include <sys/wait.h>
@@ -29,7 +33,7 @@ namespace roomfix {
 namespace {
 
 struct BenchLoggerOptions {
-  std::vector<int> rates = {25000, 50000, 100000, 150000, 200000, 300000};
+  std::vector<int> rates = {50000, 100000, 150000, 200000};
   double seconds_per_rate = 2.0;
   int payload_bytes = 32;
   // Kernel receive buffer the loggers ask for (LCM's recv_buf_size); the
@@ -110,11 +114,13 @@ bool RunLadder(const BenchLoggerOptions& o, Bus* bus, std::vector<std::string> c
   for (int rate : o.rates) {
     const std::string channel = "BENCH_" + std::to_string(rate);
     const int64_t w = written[channel];
-    result->steps.push_back({{"target_per_s", rate},
-                             {"published_per_s", achieved[channel]},
-                             {"published", sent[channel]},
-                             {"written", w},
-                             {"lost", sent[channel] - w}});
+    result->steps.push_back(
+        {{"target_per_s", rate},
+         {"published_per_s", achieved[channel]},
+         {"published", sent[channel]},
+         {"written", w},
+         {"lost", sent[channel] - w},
+         {"delivered_ratio", sent[channel] > 0 ? double(w) / sent[channel] : 0.0}});
     if (w == sent[channel]) {
       result->max_rate_without_loss =
           std::max(result->max_rate_without_loss, static_cast<int>(achieved[channel]));
@@ -124,12 +130,13 @@ bool RunLadder(const BenchLoggerOptions& o, Bus* bus, std::vector<std::string> c
 }
 
 void PrintLadder(const char* name, const LadderResult& r, int payload_bytes) {
-  std::printf("\n%s\n%12s %14s %12s %12s %8s\n", name, "target/s", "published/s", "published",
-              "written", "lost");
+  std::printf("\n%s\n%12s %14s %12s %12s %8s %10s\n", name, "target/s", "published/s", "published",
+              "written", "lost", "delivered");
   for (const auto& s : r.steps) {
-    std::printf("%12d %14.0f %12lld %12lld %8lld\n", s["target_per_s"].get<int>(),
+    std::printf("%12d %14.0f %12lld %12lld %8lld %9.2f%%\n", s["target_per_s"].get<int>(),
                 s["published_per_s"].get<double>(), s["published"].get<long long>(),
-                s["written"].get<long long>(), s["lost"].get<long long>());
+                s["written"].get<long long>(), s["lost"].get<long long>(),
+                100.0 * s["delivered_ratio"].get<double>());
   }
   std::printf(
       "highest rate written with no loss: %d messages/s of %d bytes; peak memory %.1f MiB\n",
@@ -154,33 +161,56 @@ int Run(const BenchLoggerOptions& o) {
   }
   std::string url = kDefaultLcmUrl;
   if (o.recv_buf_bytes > 0) url += "&recv_buf_size=" + std::to_string(o.recv_buf_bytes);
-  LadderResult ours, baseline;
+  LadderResult ours, tuned, stock;
+  const std::vector<std::string> logger = {SelfDir() + "/roomfix_logger",
+                                           log_path,
+                                           "--channel",
+                                           "BENCH_.*",
+                                           "--lcm-url",
+                                           url,
+                                           "--log-level",
+                                           "warn"};
+  std::vector<std::string> via_liblcm = logger;
+  via_liblcm.push_back("--via-liblcm");
   const bool ok =
-      RunLadder(o, bus.get(),
-                {SelfDir() + "/roomfix_logger", log_path, "--channel", "BENCH_.*", "--lcm-url", url,
-                 "--log-level", "warn"},
-                log_path, &ours, &error) &&
+      RunLadder(o, bus.get(), logger, log_path, &ours, &error) &&
+      RunLadder(o, bus.get(), via_liblcm, log_path, &tuned, &error) &&
       RunLadder(o, bus.get(), {"lcm-logger", "-c", "BENCH_.*", "--lcm-url=" + url, log_path},
-                log_path, &baseline, &error);
+                log_path, &stock, &error);
   ::rmdir(dir);
   if (!ok) {
     std::cerr << "roomfix bench logger: " << error << "\n";
     return 1;
   }
+  const std::pair<const char*, LadderResult*> ladders[] = {
+      {"udpm_bus", &ours}, {"liblcm_tuned", &tuned}, {"lcm_logger", &stock}};
   nlohmann::json out;
-  for (auto [name, r] :
-       {std::make_pair("roomfix_logger", &ours), std::make_pair("lcm_logger", &baseline)}) {
+  for (const auto& [name, r] : ladders) {
     out[name] = {{"steps", r->steps},
                  {"max_rate_without_loss_per_s", r->max_rate_without_loss},
                  {"peak_rss_kb", r->peak_rss_kb}};
   }
   out["payload_bytes"] = o.payload_bytes;
   out["lcm_url"] = url;
+  out["liblcm_queue_capacity"] = kLcmQueueCapacity;
   if (o.json) {
     std::cout << out.dump() << "\n";
-  } else {
-    PrintLadder("roomfix_logger", ours, o.payload_bytes);
-    PrintLadder("lcm-logger (baseline, same run)", baseline, o.payload_bytes);
+    return 0;
+  }
+  std::printf("on %s, %d-byte payloads\n", url.c_str(), o.payload_bytes);
+  PrintLadder("roomfix_logger, own receiver (UdpmBus)", ours, o.payload_bytes);
+  PrintLadder(("roomfix_logger --via-liblcm (liblcm 1.3.1, queue capacity " +
+               std::to_string(kLcmQueueCapacity) + ")")
+                  .c_str(),
+              tuned, o.payload_bytes);
+  PrintLadder("lcm-logger (liblcm 1.3.1, default queue of 30)", stock, o.payload_bytes);
+  std::printf("\ndelivered, same run:\n%12s %12s %14s %12s\n", "target/s", "UdpmBus",
+              "liblcm tuned", "lcm-logger");
+  for (size_t k = 0; k < ours.steps.size(); ++k) {
+    std::printf("%12d %11.2f%% %13.2f%% %11.2f%%\n", ours.steps[k]["target_per_s"].get<int>(),
+                100.0 * ours.steps[k]["delivered_ratio"].get<double>(),
+                100.0 * tuned.steps[k]["delivered_ratio"].get<double>(),
+                100.0 * stock.steps[k]["delivered_ratio"].get<double>());
   }
   return 0;
 }
@@ -189,7 +219,9 @@ int Run(const BenchLoggerOptions& o) {
 
 void AddBenchLoggerCommand(CLI::App* bench, int* exit_code) {
   auto* cmd = bench->add_subcommand(
-      "logger", "roomfix_logger's loss-free write rate and peak memory (inside scripts/netns_run)");
+      "logger",
+      "roomfix_logger's loss-free write rate and peak memory with its own receiver, with tuned "
+      "liblcm and lcm-logger, in one run (inside scripts/netns_run)");
   auto o = std::make_shared<BenchLoggerOptions>();
   cmd->add_option("--rates", o->rates, "Publish rates to try, messages per second")
       ->capture_default_str();

@@ -34,7 +34,7 @@ void AddListenCommand(CLI::App* app, int* exit_code) {
                   "Give up after this many seconds; exit 3 if fewer than --count arrived");
   cmd->callback([o, exit_code] {
     std::string error;
-    auto bus = LcmBus::Create(o->lcm_url, &error);
+    auto bus = OpenBus(o->lcm_url, &error);
     if (bus == nullptr) {
       std::cerr << "roomfix listen: " << error << "\n";
       *exit_code = 1;
