@@ -165,7 +165,8 @@ void LoggerNode::WriterLoop() {
       }
       if (!failed_ && writer_->Write(e.utime, e.channel, e.data.data(),
                                      static_cast<int>(e.data.size()), &error)) {
-        file_bytes_ += kLogEventHeaderBytes + static_cast<int64_t>(e.channel.size() + e.data.size());
+        file_bytes_ +=
+            kLogEventHeaderBytes + static_cast<int64_t>(e.channel.size() + e.data.size());
         status_.AddOutputs();
         continue;
       }

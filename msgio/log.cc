@@ -331,8 +331,8 @@ bool ParseLogUrl(const std::string& url, std::string* path, double* speed, std::
     return false;
   }
   const size_t question = url.find('?');
-  *path = url.substr(scheme.size(), question == std::string::npos ? std::string::npos
-                                                                   : question - scheme.size());
+  *path = url.substr(scheme.size(),
+                     question == std::string::npos ? std::string::npos : question - scheme.size());
   *speed = 1.0;  // LCM's file provider plays in real time unless told.
   if (path->empty()) {
     *error = url + ": no file name";
