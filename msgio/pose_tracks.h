@@ -46,8 +46,12 @@ struct LogReadReport {
   int64_t pose_events = 0;
   // POSE_* events that did not decode as pose2d_t.
   int64_t undecodable = 0;
-  // The log stops being readable before its end (truncated or corrupt).
+  // Bytes were skipped (corrupt regions, a truncated end); the good events
+  // around them were read. `damage` is LogReader::DamageSummary().
   bool damaged = false;
+  int64_t bytes_skipped = 0;
+  std::string damage;
+  // Offset just past the last good event.
   int64_t bytes_read = 0;
   int64_t file_size = 0;
   // Set when the file could not be opened at all.

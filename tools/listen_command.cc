@@ -1,10 +1,13 @@
 #include <CLI/CLI.hpp>
+#include <chrono>
 #include <cstdint>
 #include <cstdio>
 #include <iostream>
 #include <string>
+#include <thread>
 
 #include "msgio/bus.h"
+#include "msgio/log.h"
 #include "msgio/message_json.h"
 #include "msgio/process.h"
 #include "tools/commands.h"
@@ -19,6 +22,77 @@ struct ListenOptions {
   double timeout_s = 0.0;
 };
 
+// One message as one JSON line.
+void PrintMessage(const std::string& channel, int64_t recv_utime, const void* data, int size) {
+  std::string json;
+  std::string why;
+  if (MessageToJson(data, size, &json, &why)) {
+    std::printf("{\"channel\":\"%s\",\"recv_utime\":%lld,\"message\":%s}\n", channel.c_str(),
+                static_cast<long long>(recv_utime), json.c_str());
+  } else {
+    std::printf("{\"channel\":\"%s\",\"recv_utime\":%lld,\"size\":%d,\"error\":\"%s\"}\n",
+                channel.c_str(), static_cast<long long>(recv_utime), size, why.c_str());
+  }
+  std::fflush(stdout);
+}
+
+// A file:// URL is read with LogReader, not LCM's file provider: liblcm
+// 1.3.1's log reader dies (SIGSEGV) on an event claiming 0x7FFFFFFF bytes
+// and stops for good at an empty channel name. recv_utime is the event's
+// time in the log (LCM's provider would stamp the wall clock). Returns the
+// exit code.
+int ListenToLog(const ListenOptions& o) {
+  std::string path;
+  double speed = 1.0;
+  std::string error;
+  if (!ParseLogUrl(o.lcm_url, &path, &speed, &error)) {
+    std::cerr << "roomfix listen: " << error << "\n";
+    return 1;
+  }
+  auto reader = LogReader::Open(path, &error);
+  if (reader == nullptr) {
+    std::cerr << "roomfix listen: " << error << "\n";
+    return 1;
+  }
+  const ChannelPattern pattern(o.channel);
+  if (!pattern.valid()) {
+    std::cerr << "roomfix listen: channel expression '" << o.channel << "' is not valid\n";
+    return 1;
+  }
+  InstallShutdownHandlers();
+  const int64_t give_up =
+      o.timeout_s > 0 ? NowUtime() + static_cast<int64_t>(o.timeout_s * 1e6) : INT64_MAX;
+  const int64_t start_wall = NowUtime();
+  int64_t first_utime = -1;
+  int64_t received = 0;
+  LogEvent event;
+  while (!ShutdownRequested() && NowUtime() < give_up && reader->Next(&event)) {
+    if (first_utime < 0) first_utime = event.utime;
+    if (speed > 0) {
+      // As LCM's provider: events keep their recorded spacing, scaled.
+      const auto due = start_wall + static_cast<int64_t>((event.utime - first_utime) / speed);
+      while (!ShutdownRequested() && NowUtime() < std::min(due, give_up)) {
+        std::this_thread::sleep_for(std::chrono::microseconds(
+            std::min<int64_t>(std::min(due, give_up) - NowUtime(), 100'000)));
+      }
+      if (NowUtime() >= give_up) break;
+    }
+    if (!pattern.Matches(event.channel)) continue;
+    PrintMessage(event.channel, event.utime, event.data.data(),
+                 static_cast<int>(event.data.size()));
+    if (o.count > 0 && ++received >= o.count) break;
+  }
+  if (reader->damaged()) {
+    std::cerr << "roomfix listen: warning: " << path << ": " << reader->DamageSummary() << "\n";
+  }
+  if (o.count > 0 && received < o.count) {
+    std::cerr << "roomfix listen: timed out after " << received << " of " << o.count
+              << " messages\n";
+    return 3;
+  }
+  return 0;
+}
+
 }  // namespace
 
 void AddListenCommand(CLI::App* app, int* exit_code) {
@@ -31,6 +105,10 @@ void AddListenCommand(CLI::App* app, int* exit_code) {
   cmd->add_option("--timeout", o->timeout_s,
                   "Give up after this many seconds; exit 3 if fewer than --count arrived");
   cmd->callback([o, exit_code] {
+    if (o->lcm_url.rfind("file://", 0) == 0) {
+      *exit_code = ListenToLog(*o);
+      return;
+    }
     std::string error;
     auto bus = LcmBus::Create(o->lcm_url, &error);
     if (bus == nullptr) {
@@ -41,32 +119,13 @@ void AddListenCommand(CLI::App* app, int* exit_code) {
     InstallShutdownHandlers();
     int64_t received = 0;
     bus->SubscribeRaw(o->channel, [&](const MessageInfo& info, const void* data, int size) {
-      std::string json;
-      std::string why;
-      if (MessageToJson(data, size, &json, &why)) {
-        std::printf("{\"channel\":\"%s\",\"recv_utime\":%lld,\"message\":%s}\n",
-                    info.channel.c_str(), static_cast<long long>(info.recv_utime), json.c_str());
-      } else {
-        std::printf("{\"channel\":\"%s\",\"recv_utime\":%lld,\"size\":%d,\"error\":\"%s\"}\n",
-                    info.channel.c_str(), static_cast<long long>(info.recv_utime), size,
-                    why.c_str());
-      }
-      std::fflush(stdout);
+      PrintMessage(info.channel, info.recv_utime, data, size);
       if (o->count > 0 && ++received >= o->count) RequestShutdown();
     });
-    if (o->lcm_url.rfind("file://", 0) == 0) {
-      // A log: LCM's receive fails at its end, which here is the normal end.
-      const int64_t give_up =
-          o->timeout_s > 0 ? NowUtime() + static_cast<int64_t>(o->timeout_s * 1e6) : INT64_MAX;
-      while (!ShutdownRequested() && NowUtime() < give_up && bus->Handle(100) >= 0) {
-      }
-      *exit_code = 0;
-    } else {
-      RunLoopOptions loop;
-      loop.duration_s = o->timeout_s;
-      *exit_code = RunLoop(
-          bus.get(), [](int64_t) {}, loop);
-    }
+    RunLoopOptions loop;
+    loop.duration_s = o->timeout_s;
+    *exit_code = RunLoop(
+        bus.get(), [](int64_t) {}, loop);
     if (*exit_code == 0 && o->count > 0 && received < o->count) {
       std::cerr << "roomfix listen: timed out after " << received << " of " << o->count
                 << " messages\n";

@@ -136,6 +136,9 @@ int Run(const SurveyArgs& a) {
     firings.push_back(f);
   }
   const bool damaged = reader->damaged();
+  if (damaged) {
+    std::cerr << "roomfix survey: warning: " << a.log << ": " << reader->DamageSummary() << "\n";
+  }
   reader.reset();
   if (firings.empty()) {
     std::cerr << "roomfix survey: no RANGES from beacon " << beacon->id << " in " << a.log << "\n";
@@ -265,7 +268,7 @@ int Run(const SurveyArgs& a) {
     std::printf("\nno reference track: the held-out error against a reference is not available\n");
   }
   if (undecodable > 0) std::printf("%d RANGES events did not decode\n", undecodable);
-  if (damaged) std::printf("the log is damaged; its readable part was used\n");
+  if (damaged) std::printf("the log is damaged; every good event around the damage was used\n");
 
   if (!a.out.empty()) {
     std::ofstream f(a.out);
