@@ -1,7 +1,9 @@
 #include "msgio/log.h"
 
 #include <fcntl.h>
+#include <poll.h>
 #include <sys/stat.h>
+#include <sys/timerfd.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -14,6 +16,7 @@
 #include <sstream>
 
 #include "msgio/bus.h"
+#include "msgio/process.h"
 
 namespace roomfix {
 
@@ -359,6 +362,111 @@ bool ParseLogUrl(const std::string& url, std::string* path, double* speed, std::
     }
   }
   return true;
+}
+
+namespace {
+
+int64_t MonotonicUs() {
+  timespec ts{};
+  ::clock_gettime(CLOCK_MONOTONIC, &ts);
+  return int64_t{ts.tv_sec} * 1'000'000 + ts.tv_nsec / 1000;
+}
+
+}  // namespace
+
+struct LogFileBus::Subscription {
+  Subscription(SubscriptionId id_in, const std::string& regex, RawHandler handler_in)
+      : id(id_in), pattern(regex), handler(std::move(handler_in)) {}
+  SubscriptionId id;
+  ChannelPattern pattern;
+  RawHandler handler;
+  bool active = true;
+};
+
+std::unique_ptr<LogFileBus> LogFileBus::Create(const std::string& url, std::string* error) {
+  std::string path;
+  double speed = 1.0;
+  if (!ParseLogUrl(url, &path, &speed, error)) return nullptr;
+  auto reader = LogReader::Open(path, error);
+  if (reader == nullptr) return nullptr;
+  const int fd = ::timerfd_create(CLOCK_MONOTONIC, TFD_NONBLOCK | TFD_CLOEXEC);
+  if (fd < 0) {
+    *error = std::string("timerfd_create: ") + std::strerror(errno);
+    return nullptr;
+  }
+  std::unique_ptr<LogFileBus> bus(new LogFileBus(std::move(reader), speed, fd));
+  bus->Advance();
+  return bus;
+}
+
+LogFileBus::LogFileBus(std::unique_ptr<LogReader> reader, double speed, int timer_fd)
+    : reader_(std::move(reader)), speed_(speed), timer_fd_(timer_fd) {}
+
+LogFileBus::~LogFileBus() { ::close(timer_fd_); }
+
+bool LogFileBus::PublishRaw(const std::string& channel, const void*, int) {
+  // A log opened for reading takes nothing; what a node publishes is dropped.
+  CountPublished(true, channel);
+  return true;
+}
+
+SubscriptionId LogFileBus::SubscribeRaw(const std::string& channel_regex, RawHandler handler) {
+  auto s = std::make_shared<Subscription>(next_id_++, channel_regex, std::move(handler));
+  subscriptions_.push_back(s);
+  return s->id;
+}
+
+void LogFileBus::Unsubscribe(SubscriptionId id) {
+  for (auto it = subscriptions_.begin(); it != subscriptions_.end(); ++it) {
+    if ((*it)->id == id) {
+      (*it)->active = false;
+      subscriptions_.erase(it);
+      return;
+    }
+  }
+}
+
+void LogFileBus::Advance() {
+  have_next_ = reader_->Next(&next_);
+  itimerspec due{};
+  if (have_next_) {
+    if (start_mono_us_ < 0) {
+      start_mono_us_ = MonotonicUs();
+      first_utime_ = next_.utime;
+    }
+    int64_t at_us = start_mono_us_;
+    if (speed_ > 0) at_us += static_cast<int64_t>((next_.utime - first_utime_) / speed_);
+    // An absolute time already past fires at once; 0 would disarm.
+    at_us = std::max<int64_t>(at_us, 1);
+    due.it_value.tv_sec = at_us / 1'000'000;
+    due.it_value.tv_nsec = (at_us % 1'000'000) * 1000;
+  } else {
+    // The end: stay readable so the caller's next Handle() reports it.
+    due.it_value.tv_nsec = 1;
+  }
+  ::timerfd_settime(timer_fd_, have_next_ ? TFD_TIMER_ABSTIME : 0, &due, nullptr);
+}
+
+int LogFileBus::Handle(int timeout_ms) {
+  if (!have_next_) {
+    RecordError(reader_->damaged()
+                    ? "end of log " + reader_->path() + "; " + reader_->DamageSummary()
+                    : "end of log " + reader_->path());
+    return -1;
+  }
+  pollfd pfd{timer_fd_, POLLIN, 0};
+  if (::poll(&pfd, 1, std::max(timeout_ms, 0)) <= 0) return 0;
+  uint64_t expirations = 0;
+  if (::read(timer_fd_, &expirations, sizeof(expirations)) < 0 && errno != EAGAIN) return 0;
+  const auto snapshot = subscriptions_;
+  const MessageInfo info{next_.channel, NowUtime()};
+  for (const auto& s : snapshot) {
+    if (s->active && s->pattern.Matches(next_.channel)) {
+      Deliver(s->handler, info, next_.data.data(), static_cast<int>(next_.data.size()));
+    }
+  }
+  Advance();
+  return 1;
 }
 
 ReplaySummary ReplayLog(const std::string& path, LoopbackBus* bus, const ReplayOptions& options) {

@@ -7,13 +7,13 @@
 #include <string>
 #include <vector>
 
+#include "msgio/bus.h"
+
 namespace lcm {
 class LogFile;
 }
 
 namespace roomfix {
-
-class LoopbackBus;
 
 // One event of an LCM log: what lcm-logger records and lcm-logplayer plays.
 struct LogEvent {
@@ -164,6 +164,43 @@ bool ReadLogEvents(const std::string& path, std::vector<LogEvent>* events, std::
 // possible). False with the reason for another scheme or an option LCM's
 // provider would not accept for reading.
 bool ParseLogUrl(const std::string& url, std::string* path, double* speed, std::string* error);
+
+// A bus that plays a log given as a file:// URL, in place of LCM's file
+// provider (which runs liblcm's log reader: SIGSEGV on an event claiming
+// 0x7FFFFFFF bytes, and the rest of the file lost after an empty channel).
+// Like LCM's provider it keeps the recorded spacing scaled by ?speed= (0: as
+// fast as possible), stamps messages with the wall clock, drops what is
+// published, and Handle() returns -1 at the end of the log, with the
+// damage skipped, if any, in stats().last_error. Fileno() is a timer that
+// becomes readable when the next event is due, so RunLoop works unchanged.
+class LogFileBus final : public Bus {
+ public:
+  static std::unique_ptr<LogFileBus> Create(const std::string& url, std::string* error);
+  ~LogFileBus() override;
+
+  bool PublishRaw(const std::string& channel, const void* data, int size) override;
+  SubscriptionId SubscribeRaw(const std::string& channel_regex, RawHandler handler) override;
+  void Unsubscribe(SubscriptionId id) override;
+  int Handle(int timeout_ms) override;
+  int Fileno() const override { return timer_fd_; }
+  const LogReader& reader() const { return *reader_; }
+
+ private:
+  LogFileBus(std::unique_ptr<LogReader> reader, double speed, int timer_fd);
+  // Reads the next event and arms the timer for when it is due.
+  void Advance();
+  struct Subscription;
+  std::unique_ptr<LogReader> reader_;
+  double speed_;
+  int timer_fd_;
+  std::vector<std::shared_ptr<Subscription>> subscriptions_;
+  SubscriptionId next_id_ = 1;
+  LogEvent next_;
+  bool have_next_ = false;
+  // Monotonic time of the first event and its log time, for the pacing.
+  int64_t start_mono_us_ = -1;
+  int64_t first_utime_ = 0;
+};
 
 struct ReplayOptions {
   // Only events on matching channels are delivered (LCM regex rules).

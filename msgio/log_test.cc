@@ -4,6 +4,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -292,6 +293,49 @@ TEST(LogWriter, RefusesEventsLcmCannotReadBackAndKeepsTheFileGood) {
   std::vector<std::string> channels;
   while (const lcm::LogEvent* e = file.readNextEvent()) channels.push_back(e->channel);
   EXPECT_EQ(channels, (std::vector<std::string>{"A", "B"}));
+}
+
+// Processes given --lcm-url file://... read through LogFileBus: LCM's file
+// provider SIGSEGVs on this log.
+TEST(LogFileBus, PlaysEveryGoodEventOfADamagedLogThenReportsTheEnd) {
+  TempDir dir;
+  const std::string path = dir.File("damaged.lcm");
+  std::ofstream(path, std::ios::binary)
+      << kGood1 << RawEvent(1, 5, "BAD", "xxxxxxxx", 3, 0x7FFFFFFF) << kGood2 << kGood3;
+  std::string error;
+  auto bus = LogFileBus::Create("file://" + path + "?speed=0", &error);
+  ASSERT_NE(bus, nullptr) << error;
+  std::vector<std::string> channels;
+  bus->SubscribeRaw("T.*", [&](const MessageInfo& info, const void*, int) {
+    channels.push_back(info.channel);
+    EXPECT_GT(info.recv_utime, 1'500'000'000'000'000);  // Wall clock, as LCM's provider.
+  });
+  int handled = 0;
+  int rc = 0;
+  while ((rc = bus->Handle(1000)) > 0) handled += rc;
+  EXPECT_EQ(rc, -1);
+  EXPECT_EQ(handled, 3);
+  EXPECT_EQ(channels, (std::vector<std::string>{"TWO", "THREE"}));
+  EXPECT_NE(bus->stats().last_error.find("data_length_over_cap"), std::string::npos)
+      << bus->stats().last_error;
+}
+
+// Like LCM's provider at speed 1, events keep their recorded spacing.
+TEST(LogFileBus, KeepsTheRecordedSpacingAtSpeedOne) {
+  TempDir dir;
+  const std::string path = dir.File("a.lcm");
+  WriteLog(path, 3, 1000000);  // 0.1 s apart.
+  std::string error;
+  auto bus = LogFileBus::Create("file://" + path, &error);
+  ASSERT_NE(bus, nullptr) << error;
+  const auto start = std::chrono::steady_clock::now();
+  int handled = 0;
+  while (handled < 3 && std::chrono::steady_clock::now() - start < std::chrono::seconds(5)) {
+    handled += std::max(bus->Handle(50), 0);
+  }
+  EXPECT_EQ(handled, 3);
+  // Never early; how late depends on the machine, so no upper bound.
+  EXPECT_GE(std::chrono::steady_clock::now() - start, std::chrono::milliseconds(200));
 }
 
 TEST(ParseLogUrl, TakesThePathAndSpeedAsLcmsFileProviderDoes) {

@@ -16,6 +16,7 @@
 #include <cstdio>
 #include <cstring>
 
+#include "msgio/log.h"
 #include "msgio/udpm_bus.h"
 
 namespace roomfix {
@@ -291,6 +292,9 @@ std::unique_ptr<ProcessContext> StartProcess(const std::string& name, const Proc
   if (options.check) return ctx;
   if (options.direct_udpm && options.lcm_url.rfind("udpm://", 0) == 0) {
     ctx->bus = UdpmBus::Create(options.lcm_url, error);
+  } else if (options.lcm_url.rfind("file://", 0) == 0) {
+    // Not LCM's file provider: its log reader crashes on a damaged log.
+    ctx->bus = LogFileBus::Create(options.lcm_url, error);
   } else {
     ctx->bus = LcmBus::Create(options.lcm_url, error);
   }
