@@ -216,6 +216,18 @@ TEST_P(DamagedLogTest, SurveyReadsAroundTheDamageAndSaysSo) {
   ExpectOneDamageLine(r, "roomfix survey", GetParam());
 }
 
+// Any process can be pointed at a log with --lcm-url file://...; it reads
+// through LogFileBus (LCM's file provider SIGSEGVs on the 0x7FFFFFFF event)
+// and, as with LCM's provider, stops with exit 1 at the end of the log.
+TEST_P(DamagedLogTest, AProcessReadingItAsItsLcmUrlReachesTheEnd) {
+  const ToolRun r = RunTool(
+      dir_, {BinDir() + "/trilat_proc", "--config", SourceDir() + "/config/sites/demo_room.yaml",
+             "--lcm-url", "file://" + path_ + "?speed=0"});
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("end of log " + path_), std::string::npos) << r.err;
+  ExpectOneDamageLine(r, "trilat_proc", GetParam());
+}
+
 INSTANTIATE_TEST_SUITE_P(Damage, DamagedLogTest, ::testing::ValuesIn(DamagedLogs()),
                          [](const auto& param_info) { return param_info.param.name; });
 
