@@ -23,6 +23,7 @@ namespace roomfix {
 namespace {
 
 constexpr uint32_t kLogSync = 0xEDA1DA01u;
+constexpr uint8_t kSyncBytes[4] = {0xED, 0xA1, 0xDA, 0x01};
 // Read-ahead of LogReader: one pread per this many bytes of small events.
 constexpr int64_t kWindowBytes = 1 << 20;
 
@@ -51,7 +52,9 @@ bool PreadAll(int fd, int64_t offset, uint8_t* out, int64_t n) {
 }  // namespace
 
 std::unique_ptr<LogReader> LogReader::Open(const std::string& path, std::string* error) {
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  // O_NONBLOCK: a FIFO given as a log must not block the open; it is then
+  // refused as not a regular file.
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
   if (fd < 0) {
     if (error != nullptr) *error = path + ": " + std::strerror(errno);
     return nullptr;
@@ -101,14 +104,13 @@ bool LogReader::ReadAt(int64_t offset, void* out, int64_t n) {
 
 int64_t LogReader::FindSync(int64_t from) {
   constexpr int64_t kChunk = 64 << 10;
-  const uint8_t sync[4] = {0xED, 0xA1, 0xDA, 0x01};
   std::vector<uint8_t> chunk;
   for (int64_t off = std::max<int64_t>(from, 0); off + 4 <= file_size_; off += kChunk) {
     // Chunks overlap by 3 bytes so a sync word across a boundary is found.
     const int64_t n = std::min(kChunk + 3, file_size_ - off);
     chunk.resize(static_cast<size_t>(n));
     if (!ReadAt(off, chunk.data(), n)) return -1;
-    const void* hit = ::memmem(chunk.data(), chunk.size(), sync, sizeof(sync));
+    const void* hit = ::memmem(chunk.data(), chunk.size(), kSyncBytes, sizeof(kSyncBytes));
     if (hit != nullptr) return off + (static_cast<const uint8_t*>(hit) - chunk.data());
   }
   return -1;
@@ -140,6 +142,15 @@ bool LogReader::Next(LogEvent* event) {
     const int64_t start = pos_;
     uint8_t header[kLogEventHeaderBytes];
     if (!ReadAt(start, header, 4) || BigEndian32(header) != kLogSync) {
+      const int64_t tail = file_size_ - start;
+      if (tail < 4 && ReadAt(start, header, tail) &&
+          std::memcmp(header, kSyncBytes, static_cast<size_t>(tail)) == 0) {
+        // The first bytes of a sync word: a writer stopped as it began an event.
+        truncated_ = true;
+        pos_ = file_size_;
+        Skip(start, pos_, "truncated");
+        break;
+      }
       const int64_t next = FindSync(start + 1);
       pos_ = next < 0 ? file_size_ : next;
       Skip(start, pos_, "not_an_event");

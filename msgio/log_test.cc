@@ -225,6 +225,21 @@ TEST(LogReaderDamage, AnEventWhosePayloadSwallowsTheNextEventIsSkipped) {
   EXPECT_EQ(r.damage[1].bytes, 6);
 }
 
+// Seen after a kill -9 of roomfix_logger: stdio had written the first byte
+// of the next event's sync word.
+TEST(LogReaderDamage, AFirstByteOfASyncWordAtTheEndIsATruncatedEvent) {
+  const ReadResult cut = ReadBytes(kGood1 + kGood2.substr(0, 1));
+  EXPECT_EQ(cut.channels, (std::vector<std::string>{"ONE"}));
+  EXPECT_TRUE(cut.truncated);
+  ASSERT_EQ(cut.damage.size(), 1u);
+  EXPECT_EQ(cut.damage[0].reason, "truncated");
+  // Other stray bytes at the end are not an event.
+  const ReadResult junk = ReadBytes(kGood1 + "\x01\x02");
+  EXPECT_FALSE(junk.truncated);
+  ASSERT_EQ(junk.damage.size(), 1u);
+  EXPECT_EQ(junk.damage[0].reason, "not_an_event");
+}
+
 TEST(LogReaderDamage, ATruncatedHeaderAtTheEndIsReportedAsTruncated) {
   const ReadResult r = ReadBytes(kGood1 + kGood2.substr(0, 10));
   EXPECT_EQ(r.channels, (std::vector<std::string>{"ONE"}));
@@ -351,6 +366,16 @@ TEST(ParseLogUrl, TakesThePathAndSpeedAsLcmsFileProviderDoes) {
   EXPECT_EQ(error, "file:///a.lcm?speed=fast: speed must be a number >= 0");
   EXPECT_FALSE(ParseLogUrl("file:///a.lcm?mode=w", &path, &speed, &error));
   EXPECT_FALSE(ParseLogUrl("udpm://239.255.76.67:7667", &path, &speed, &error));
+}
+
+TEST(LogReader, RefusesAFolderAFifoAndADevice) {
+  TempDir dir;
+  ASSERT_EQ(::mkfifo(dir.File("fifo").c_str(), 0600), 0);
+  for (const std::string& path : {dir.path(), dir.File("fifo"), std::string("/dev/zero")}) {
+    std::string error;
+    EXPECT_EQ(LogReader::Open(path, &error), nullptr) << path;
+    EXPECT_EQ(error, path + ": not a regular file");
+  }
 }
 
 TEST(LogReader, SaysWhenTheFileIsMissing) {
