@@ -8,10 +8,6 @@
 
 namespace roomfix {
 
-// Bytes an event takes in an LCM log besides its channel and payload: sync
-// word, event number, timestamp, channel length, data length.
-constexpr int64_t kEventHeaderBytes = 4 + 8 + 8 + 4 + 4;
-
 bool LoggerOptions::IsValid(std::string* error) const {
   if (path.empty()) {
     *error = "a log file path is required";
@@ -105,6 +101,15 @@ std::vector<std::string> LoggerNode::files() const {
 
 void LoggerNode::OnMessage(const MessageInfo& info, const void* data, int size) {
   status_.AddInputs();
+  // An event LCM's log tools cannot read (an empty channel name stops LCM's
+  // reader for the rest of the file) is refused here, so one hostile
+  // datagram cannot spoil a recording; counted, and recording goes on.
+  std::string why;
+  if (!LogWriter::Loggable(info.channel, size, &why)) {
+    status_.Reject(size < 0 || size > kMaxLogEventDataBytes ? "unloggable_size"
+                                                            : "unloggable_channel");
+    return;
+  }
   {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!failed_ && queued_bytes_ + size <= options_.max_queue_bytes) {
@@ -160,7 +165,8 @@ void LoggerNode::WriterLoop() {
       }
       if (!failed_ && writer_->Write(e.utime, e.channel, e.data.data(),
                                      static_cast<int>(e.data.size()), &error)) {
-        file_bytes_ += kEventHeaderBytes + static_cast<int64_t>(e.channel.size() + e.data.size());
+        file_bytes_ +=
+            kLogEventHeaderBytes + static_cast<int64_t>(e.channel.size() + e.data.size());
         status_.AddOutputs();
         continue;
       }

@@ -46,6 +46,10 @@ struct LoggerOptions {
 // lcm::LogFile reads: channel, receive timestamp and payload unchanged,
 // event numbers from 0 in each file.
 //
+// Events LCM's log tools could not read back (LogWriter::Loggable: an empty
+// or over-long channel name, an oversized payload) are refused, counted in
+// STATUS rejected[] as unloggable_channel or unloggable_size, and skipped.
+//
 // Receiving and writing are split: the bus handler only copies the event
 // into a bounded queue (no disk access on the receive thread, so a slow disk
 // cannot stall LCM's socket), and a writer thread drains it. When the queue

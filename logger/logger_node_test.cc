@@ -3,12 +3,16 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <lcm/lcm-cpp.hpp>
+#include <sstream>
 
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
 namespace {
 
+using testing::ChildProcess;
+using testing::ReadFile;
 using testing::TempDir;
 
 std::vector<LogEvent> ReadAll(const std::string& path) {
@@ -186,6 +190,54 @@ TEST(ExpandLogPath, ExpandsStrftimeInUtcAndLeavesPlainNamesAlone) {
 TEST(RotatedLogPath, NumbersBeforeTheExtension) {
   EXPECT_EQ(RotatedLogPath("/logs/session.lcm", 3), "/logs/session.0003.lcm");
   EXPECT_EQ(RotatedLogPath("/logs.d/session", 12), "/logs.d/session.0012");
+}
+
+// One datagram with an empty channel name used to be recorded, and LCM's
+// log reader stops at it: everything after it in the file was lost to
+// lcm-logplayer. The logger now refuses what LCM's tools cannot read back,
+// counts it, and keeps recording.
+TEST(LoggerNodeRefusals, SkipsEventsLcmCannotReadBackAndTheFileStaysWhole) {
+  TempDir dir;
+  LoopbackBus bus;
+  LoggerOptions o;
+  o.path = dir.File("a.lcm");
+  std::string error;
+  auto node = LoggerNode::Create(&bus, o, 0, &error);
+  ASSERT_NE(node, nullptr) << error;
+  const auto payload = Payload(1, 12);
+  const int size = static_cast<int>(payload.size());
+  const int64_t t0 = 1'700'000'000'000'000;
+  bus.Inject("BEFORE", payload.data(), size, t0);
+  bus.Inject("", payload.data(), size, t0 + 1000);
+  bus.Inject(std::string(64, 'L'), payload.data(), size, t0 + 2000);  // LCM allows 63.
+  bus.Inject(std::string("NUL\0NAME", 8), payload.data(), size, t0 + 3000);
+  bus.Inject(std::string(63, 'M'), payload.data(), size, t0 + 4000);  // The longest allowed.
+  bus.Inject("AFTER", payload.data(), size, t0 + 5000);
+  node->Stop(t0 + 6000);
+  EXPECT_EQ(node->status().rejected("unloggable_channel"), 3);
+  EXPECT_EQ(node->status().outputs(), 3);
+  EXPECT_EQ(node->status().dropped(), 0);
+
+  // liblcm's own reader (what lcm-logplayer uses) reads every event.
+  lcm::LogFile file(o.path, "r");
+  ASSERT_TRUE(file.good());
+  std::vector<std::string> channels;
+  while (const lcm::LogEvent* e = file.readNextEvent()) channels.push_back(e->channel);
+  EXPECT_EQ(channels, (std::vector<std::string>{"BEFORE", std::string(63, 'M'), "AFTER"}));
+
+  // And the real lcm-logplayer plays all three (into memq://: no network).
+  ChildProcess player({"lcm-logplayer", "-v", "-s", "1000", "--lcm-url=memq://", o.path},
+                      dir.File("played.txt"));
+  ASSERT_EQ(player.Wait(30), 0);
+  std::istringstream played(ReadFile(dir.File("played.txt")));
+  std::vector<std::string> played_channels;
+  std::string line;
+  while (std::getline(played, line)) {
+    std::istringstream words(line);
+    std::string time, word, channel;
+    if (words >> time >> word >> channel && word == "Channel") played_channels.push_back(channel);
+  }
+  EXPECT_EQ(played_channels, channels);
 }
 
 }  // namespace

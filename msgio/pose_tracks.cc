@@ -87,6 +87,8 @@ PoseLogs ReadPoseLogs(const std::vector<std::string>& paths,
       track.samples.push_back(s);
     }
     report.damaged = reader->damaged();
+    report.bytes_skipped = reader->bytes_skipped();
+    report.damage = reader->DamageSummary();
     report.bytes_read = reader->bytes_read();
     report.file_size = reader->file_size();
     done_bytes += report.file_size;

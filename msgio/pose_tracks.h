@@ -48,8 +48,12 @@ struct LogReadReport {
   // total and by reason (wire_refusal::*).
   int64_t undecodable = 0;
   std::map<std::string, int64_t> refused;
-  // The log stops being readable before its end (truncated or corrupt).
+  // Bytes were skipped (corrupt regions, a truncated end); the good events
+  // around them were read. `damage` is LogReader::DamageSummary().
   bool damaged = false;
+  int64_t bytes_skipped = 0;
+  std::string damage;
+  // Offset just past the last good event.
   int64_t bytes_read = 0;
   int64_t file_size = 0;
   // Set when the file could not be opened at all.

@@ -331,10 +331,15 @@ int RunAnalyze(const AnalyzeOptions& options) {
       j["undecodable"] = r.undecodable;
       j["refused"] = r.refused;
       j["damaged"] = r.damaged;
+      j["bytes_skipped"] = r.bytes_skipped;
+      if (r.damaged) j["damage"] = r.damage;
       j["bytes_read"] = r.bytes_read;
       j["file_size"] = r.file_size;
     }
     out["logs"].push_back(j);
+  }
+  for (const LogReadReport& r : logs.logs) {
+    if (r.damaged) std::cerr << "roomfix analyze: warning: " << r.path << ": " << r.damage << "\n";
   }
   if (unreadable == static_cast<int>(logs.logs.size())) {
     for (const LogReadReport& r : logs.logs) std::cerr << "roomfix analyze: " << r.error << "\n";
@@ -353,7 +358,7 @@ int RunAnalyze(const AnalyzeOptions& options) {
     if (!r.error.empty()) {
       md << "unreadable: " << r.error;
     } else if (r.damaged) {
-      md << "damaged: readable up to byte " << r.bytes_read << " of " << r.file_size;
+      md << "damaged: " << r.damage;
     } else {
       md << "complete";
     }
@@ -560,10 +565,7 @@ int RunAnalyze(const AnalyzeOptions& options) {
     std::cout << "report: " << out_dir << "/report.md\nsummary: " << out_dir << "/summary.json\n";
     for (const LogReadReport& r : logs.logs) {
       if (!r.error.empty()) std::cout << "unreadable: " << r.error << "\n";
-      if (r.damaged) {
-        std::cout << r.path << ": damaged, read up to byte " << r.bytes_read << " of "
-                  << r.file_size << "\n";
-      }
+      if (r.damaged) std::cout << r.path << ": damaged, " << r.damage << "\n";
     }
   }
   return 0;

@@ -129,8 +129,8 @@ void AddCompareCommand(CLI::App* app, int* exit_code) {
                    RefusalCounts(report.refused).c_str());
     }
     if (report.damaged) {
-      std::printf("the log is damaged after byte %lld\n",
-                  static_cast<long long>(report.bytes_read));
+      std::fflush(stdout);
+      std::cerr << "roomfix compare: warning: " << report.path << ": " << report.damage << "\n";
     }
     if (!json_path->empty()) {
       std::ofstream f(*json_path);

@@ -1,11 +1,15 @@
 #include <CLI/CLI.hpp>
+#include <chrono>
 #include <cstdint>
 #include <cstdio>
 #include <iostream>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <string>
+#include <thread>
 
 #include "msgio/bus.h"
+#include "msgio/log.h"
 #include "msgio/message_json.h"
 #include "msgio/process.h"
 #include "msgio/wire_check.h"
@@ -21,6 +25,99 @@ struct ListenOptions {
   double timeout_s = 0.0;
 };
 
+// A channel name is whatever a publisher chose (quotes, control bytes,
+// invalid UTF-8): nlohmann escapes it and replaces what is not UTF-8, so
+// every line stays valid JSON.
+std::string JsonString(const std::string& text) {
+  return nlohmann::json(text).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+}
+
+// One message as one JSON line; a message refused before decoding is a line
+// with its reason, counted in *refused for the warning at exit.
+void PrintMessage(const std::string& channel, int64_t recv_utime, const void* data, int size,
+                  std::map<std::string, int64_t>* refused) {
+  std::string json;
+  std::string why;
+  std::string reason;
+  if (MessageToJson(data, size, &json, &why, &reason)) {
+    std::printf("{\"channel\":%s,\"recv_utime\":%lld,\"message\":%s}\n",
+                JsonString(channel).c_str(), static_cast<long long>(recv_utime), json.c_str());
+  } else {
+    ++(*refused)[reason];
+    std::printf("{\"channel\":%s,\"recv_utime\":%lld,\"size\":%d,\"refused\":%s,\"error\":%s}\n",
+                JsonString(channel).c_str(), static_cast<long long>(recv_utime), size,
+                JsonString(reason).c_str(), JsonString(why).c_str());
+  }
+  std::fflush(stdout);
+}
+
+void WarnRefused(const std::map<std::string, int64_t>& refused) {
+  if (refused.empty()) return;
+  int64_t total = 0;
+  for (const auto& [reason, count] : refused) total += count;
+  std::cerr << "roomfix listen: warning: " << total << " messages refused ("
+            << RefusalCounts(refused) << ")\n";
+}
+
+// A file:// URL is read with LogReader, not LCM's file provider: liblcm
+// 1.3.1's log reader dies (SIGSEGV) on an event claiming 0x7FFFFFFF bytes
+// and stops for good at an empty channel name. recv_utime is the event's
+// time in the log (LCM's provider would stamp the wall clock). Returns the
+// exit code.
+int ListenToLog(const ListenOptions& o) {
+  std::string path;
+  double speed = 1.0;
+  std::string error;
+  if (!ParseLogUrl(o.lcm_url, &path, &speed, &error)) {
+    std::cerr << "roomfix listen: " << error << "\n";
+    return 1;
+  }
+  auto reader = LogReader::Open(path, &error);
+  if (reader == nullptr) {
+    std::cerr << "roomfix listen: " << error << "\n";
+    return 1;
+  }
+  const ChannelPattern pattern(o.channel);
+  if (!pattern.valid()) {
+    std::cerr << "roomfix listen: channel expression '" << o.channel << "' is not valid\n";
+    return 1;
+  }
+  InstallShutdownHandlers();
+  const int64_t give_up =
+      o.timeout_s > 0 ? NowUtime() + static_cast<int64_t>(o.timeout_s * 1e6) : INT64_MAX;
+  const int64_t start_wall = NowUtime();
+  int64_t first_utime = -1;
+  int64_t received = 0;
+  std::map<std::string, int64_t> refused;
+  LogEvent event;
+  while (!ShutdownRequested() && NowUtime() < give_up && reader->Next(&event)) {
+    if (first_utime < 0) first_utime = event.utime;
+    if (speed > 0) {
+      // As LCM's provider: events keep their recorded spacing, scaled.
+      const auto due = start_wall + static_cast<int64_t>((event.utime - first_utime) / speed);
+      while (!ShutdownRequested() && NowUtime() < std::min(due, give_up)) {
+        std::this_thread::sleep_for(std::chrono::microseconds(
+            std::min<int64_t>(std::min(due, give_up) - NowUtime(), 100'000)));
+      }
+      if (NowUtime() >= give_up) break;
+    }
+    if (!pattern.Matches(event.channel)) continue;
+    PrintMessage(event.channel, event.utime, event.data.data(), static_cast<int>(event.data.size()),
+                 &refused);
+    if (o.count > 0 && ++received >= o.count) break;
+  }
+  WarnRefused(refused);
+  if (reader->damaged()) {
+    std::cerr << "roomfix listen: warning: " << path << ": " << reader->DamageSummary() << "\n";
+  }
+  if (o.count > 0 && received < o.count) {
+    std::cerr << "roomfix listen: timed out after " << received << " of " << o.count
+              << " messages\n";
+    return 3;
+  }
+  return 0;
+}
+
 }  // namespace
 
 void AddListenCommand(CLI::App* app, int* exit_code) {
@@ -33,6 +130,10 @@ void AddListenCommand(CLI::App* app, int* exit_code) {
   cmd->add_option("--timeout", o->timeout_s,
                   "Give up after this many seconds; exit 3 if fewer than --count arrived");
   cmd->callback([o, exit_code] {
+    if (o->lcm_url.rfind("file://", 0) == 0) {
+      *exit_code = ListenToLog(*o);
+      return;
+    }
     std::string error;
     auto bus = OpenBus(o->lcm_url, &error);
     if (bus == nullptr) {
@@ -42,46 +143,16 @@ void AddListenCommand(CLI::App* app, int* exit_code) {
     }
     InstallShutdownHandlers();
     int64_t received = 0;
-    // Refused messages by reason, for the warning line at exit; each is also
-    // printed in place as an "error" line.
     std::map<std::string, int64_t> refused;
     bus->SubscribeRaw(o->channel, [&](const MessageInfo& info, const void* data, int size) {
-      std::string json;
-      std::string why;
-      std::string reason;
-      if (MessageToJson(data, size, &json, &why, &reason)) {
-        std::printf("{\"channel\":\"%s\",\"recv_utime\":%lld,\"message\":%s}\n",
-                    info.channel.c_str(), static_cast<long long>(info.recv_utime), json.c_str());
-      } else {
-        ++refused[reason];
-        std::printf(
-            "{\"channel\":\"%s\",\"recv_utime\":%lld,\"size\":%d,\"refused\":\"%s\","
-            "\"error\":\"%s\"}\n",
-            info.channel.c_str(), static_cast<long long>(info.recv_utime), size, reason.c_str(),
-            why.c_str());
-      }
-      std::fflush(stdout);
+      PrintMessage(info.channel, info.recv_utime, data, size, &refused);
       if (o->count > 0 && ++received >= o->count) RequestShutdown();
     });
-    if (o->lcm_url.rfind("file://", 0) == 0) {
-      // A log: LCM's receive fails at its end, which here is the normal end.
-      const int64_t give_up =
-          o->timeout_s > 0 ? NowUtime() + static_cast<int64_t>(o->timeout_s * 1e6) : INT64_MAX;
-      while (!ShutdownRequested() && NowUtime() < give_up && bus->Handle(100) >= 0) {
-      }
-      *exit_code = 0;
-    } else {
-      RunLoopOptions loop;
-      loop.duration_s = o->timeout_s;
-      *exit_code = RunLoop(
-          bus.get(), [](int64_t) {}, loop);
-    }
-    if (!refused.empty()) {
-      int64_t total = 0;
-      for (const auto& [reason, count] : refused) total += count;
-      std::cerr << "roomfix listen: warning: " << total << " messages refused ("
-                << RefusalCounts(refused) << ")\n";
-    }
+    RunLoopOptions loop;
+    loop.duration_s = o->timeout_s;
+    *exit_code = RunLoop(
+        bus.get(), [](int64_t) {}, loop);
+    WarnRefused(refused);
     if (*exit_code == 0 && o->count > 0 && received < o->count) {
       std::cerr << "roomfix listen: timed out after " << received << " of " << o->count
                 << " messages\n";

@@ -59,9 +59,11 @@ void AddLogInfoCommand(CLI::App* app, int* exit_code) {
     }
     *exit_code = 0;
     if (reader->damaged()) {
-      std::printf("damaged: unreadable after byte %lld of %lld\n",
-                  static_cast<long long>(reader->bytes_read()),
-                  static_cast<long long>(reader->file_size()));
+      // Every good event around the damage is in the table above.
+      std::printf("damaged: %s\n", reader->DamageSummary().c_str());
+      std::fflush(stdout);
+      std::cerr << "roomfix log-info: warning: " << *path << ": " << reader->DamageSummary()
+                << "\n";
       *exit_code = 2;
     }
   });

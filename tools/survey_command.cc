@@ -140,6 +140,9 @@ int Run(const SurveyArgs& a) {
     firings.push_back(f);
   }
   const bool damaged = reader->damaged();
+  if (damaged) {
+    std::cerr << "roomfix survey: warning: " << a.log << ": " << reader->DamageSummary() << "\n";
+  }
   reader.reset();
   if (firings.empty()) {
     std::cerr << "roomfix survey: no RANGES from beacon " << beacon->id << " in " << a.log << "\n";
@@ -272,7 +275,7 @@ int Run(const SurveyArgs& a) {
     std::fprintf(stderr, "roomfix survey: warning: %d RANGES events refused (%s)\n", undecodable,
                  RefusalCounts(refused).c_str());
   }
-  if (damaged) std::printf("the log is damaged; its readable part was used\n");
+  if (damaged) std::printf("the log is damaged; every good event around the damage was used\n");
 
   if (!a.out.empty()) {
     std::ofstream f(a.out);

@@ -296,7 +296,9 @@ int main(int argc, char** argv) {
       std::cerr << "roomfix_viewer: " << summary.error << "\n";
       return 1;
     }
-    if (summary.damaged) spdlog::warn("{}: damaged; replayed what was readable", flags.log);
+    if (summary.damaged) {
+      spdlog::warn("{}: {}; replayed every good event", flags.log, summary.damage);
+    }
     roomfix::viewer::Render(node.StateAt(summary.last_utime), render, &frame);
     if (!flags.png.empty() && !cv::imwrite(flags.png, frame)) {
       std::cerr << "roomfix_viewer: cannot write " << flags.png << "\n";

@@ -101,7 +101,18 @@ TEST(RoomfixLogger, AKillNineLosesAtMostTheFlushInterval) {
   logger.Signal(SIGKILL);
   logger.Wait(10);
 
-  const auto events = ReadAll(path);
+  // A kill -9 may land while stdio writes out a buffer that ends inside an
+  // event: a truncated last event is what it may leave, nothing else.
+  auto reader = LogReader::Open(path, &error);
+  ASSERT_NE(reader, nullptr) << error;
+  std::vector<LogEvent> events;
+  LogEvent event;
+  while (reader->Next(&event)) events.push_back(event);
+  if (reader->damaged()) {
+    ASSERT_TRUE(reader->truncated()) << reader->DamageSummary();
+    EXPECT_EQ(reader->damage_regions(), 1) << reader->DamageSummary();
+    EXPECT_EQ(reader->bytes_read() + reader->bytes_skipped(), reader->file_size());
+  }
   std::vector<bool> seen(static_cast<size_t>(seq), false);
   for (const auto& e : events) {
     int64_t s = 0;
