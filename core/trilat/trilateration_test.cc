@@ -3,7 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <map>
 #include <random>
@@ -263,7 +265,15 @@ TEST(Solve, RobustConsensusWorkIsBoundedHoweverManyRangesArrive) {
   for (int n : {400, 800}) {
     SolverOptions o = FixedHeight(Method::kRobust);
     o.max_ranges = 1000;
-    const Fix fix = Solve(InconsistentRanges(n), o);
+    const std::vector<RangeMeasurement> ranges = InconsistentRanges(n);
+    const auto start = std::chrono::steady_clock::now();
+    const Fix fix = Solve(ranges, o);
+    const double elapsed_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    // Printed for the record (issue #15: 4.7 s and 32 s before the cap); the
+    // assertions are on the machine-independent evaluation count.
+    std::printf("robust solve of %d inconsistent ranges: %lld range evaluations, %.1f ms\n", n,
+                static_cast<long long>(fix.range_evaluations), elapsed_ms);
     // Each subset solve evaluates every range at most max_iterations + 5
     // times (linear start twice, each Levenberg-Marquardt step once, the
     // residual check and the cost); the first fit and the final covariance
