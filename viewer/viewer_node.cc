@@ -184,6 +184,12 @@ ViewerNode::ViewerNode(const Site& site, Bus* bus, const ViewerNodeOptions& opti
   bus_->Subscribe<process_status_t>(
       "STATUS", [this](const process_status_t& s, const MessageInfo& info) {
         ++messages_;
+        // The output rate divides by the difference of two heartbeats'
+        // utimes, which must be sane to be subtracted at all.
+        if (!UtimeNear(s.utime, info.recv_utime)) {
+          status_.Reject("utime_out_of_range");
+          return;
+        }
         // One row per process name and host: a restarted process (new pid)
         // takes over its row instead of leaving a stale one behind.
         const std::string key = s.process + "@" + s.host;

@@ -248,7 +248,12 @@ TEST(ViewerNode, RefusesFarOffTimesInfinitiesAndUnknownBeacons) {
   bus.Publish("POSE_CAMERA", p);
   p.utime = kT0 + int64_t{3600} * 1'000'000 + 1;
   bus.Publish("POSE_CAMERA", p);
-  EXPECT_EQ(node.status().rejected("utime_out_of_range"), 2);
+  process_status_t st{};
+  st.utime = std::numeric_limits<int64_t>::min();
+  st.process = "clockless";
+  bus.Publish("STATUS", st);
+  EXPECT_EQ(node.status().rejected("utime_out_of_range"), 3);
+  EXPECT_TRUE(node.StateAt(kT0).processes.empty());
   p.utime = kT0;
   p.x_m = std::numeric_limits<double>::infinity();
   bus.Publish("POSE_CAMERA", p);
