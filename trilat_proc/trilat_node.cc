@@ -138,7 +138,8 @@ void TrilatNode::OnRangeSet(const range_set_t& set, const MessageInfo& info) {
   }
   BeaconTrack* track = found == tracks_.end() ? nullptr : &found->second;
   const bool warm = track != nullptr && track->has_fix && set.utime >= track->last_fix_utime &&
-                    (set.utime - track->last_fix_utime) * 1e-6 <= options_.warm_start_max_age_s;
+                    SaturatingDifferenceUs(set.utime, track->last_fix_utime) * 1e-6 <=
+                        options_.warm_start_max_age_s;
   trilat::Solve(ranges_, solver, warm ? &track->last_position_m : nullptr, &fix_);
   if (warm) status_.Count("warm_starts");
   if (track != nullptr) track->last_recv_utime = info.recv_utime;
