@@ -10,6 +10,7 @@
 #include <utility>
 
 #include "core/calib/marker_projection.h"
+#include "msgio/time_limits.h"
 
 namespace roomfix {
 namespace {
@@ -152,6 +153,7 @@ CameraNode::CameraNode(const Site& site, const Camera& camera,
       bus_(bus),
       options_(options),
       status_("camera_proc", start_utime) {
+  for (const Robot& robot : site.robots) site_robots_.insert(robot.id);
   if (!options_.steady_clock) options_.steady_clock = SteadyMicros;
   // The lens that sizes windows and blobs: the calibrated one when there is
   // a full model, else the nominal lens at the mount position.
@@ -185,15 +187,28 @@ CameraNode::CameraNode(const Site& site, const Camera& camera,
   // Hints need the floor-to-pixel direction, so a calibration.
   if (calibration_) {
     for (const std::string& channel : options_.hint_channels) {
-      bus_->Subscribe<pose2d_t>(channel,
-                                [this](const pose2d_t& p, const MessageInfo&) { OnHint(p); });
+      bus_->Subscribe<pose2d_t>(
+          channel, [this](const pose2d_t& p, const MessageInfo& info) { OnHint(p, info); });
     }
   }
 }
 
-void CameraNode::OnHint(const pose2d_t& pose) {
-  if (pose.status == pose2d_t::STATUS_LOST || !std::isfinite(pose.x_m) ||
-      !std::isfinite(pose.y_m)) {
+void CameraNode::OnHint(const pose2d_t& pose, const MessageInfo& info) {
+  // A hint moves a robot's search window: one with an absurd time, for a
+  // robot the site does not have, or with an infinity in it is refused and
+  // counted, never followed.
+  if (!UtimeNear(pose.utime, info.recv_utime)) {
+    status_.Reject("utime_out_of_range");
+    return;
+  }
+  if (site_robots_.count(pose.robot_id) == 0) {
+    status_.Reject("unknown_robot");
+    return;
+  }
+  if (pose.status == pose2d_t::STATUS_LOST) return;
+  if (!std::isfinite(pose.x_m) || !std::isfinite(pose.y_m) || std::isinf(pose.covariance[0][0]) ||
+      std::isinf(pose.covariance[1][1])) {
+    status_.Reject("non_finite");
     return;
   }
   for (size_t i = 0; i < setup_.robots.size(); ++i) {

@@ -5,6 +5,7 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -116,12 +117,14 @@ class CameraNode {
   bool SearchFullFrame(camera::FrameImage* image, std::vector<vision::Blob>* blobs,
                        std::string* error);
   void PublishPoses(const camera::Frame& frame, int64_t now_utime);
-  void OnHint(const pose2d_t& pose);
+  void OnHint(const pose2d_t& pose, const MessageInfo& info);
   void MaybePublishPreview(const camera::Frame& frame);
   bool MapMarker(const vision::Blob& blob, double radius_m, double height_m, double* x_m,
                  double* y_m) const;
 
   const Camera& camera_;
+  // The site's robot ids: a hint for any other is refused (unknown_robot).
+  std::set<int> site_robots_;
   std::optional<calib::Calibration> calibration_;
   Bus* bus_;
   CameraNodeOptions options_;

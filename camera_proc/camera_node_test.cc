@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <map>
 #include <memory>
 #include <opencv2/imgcodecs.hpp>
@@ -114,6 +115,7 @@ class CameraNodeTest : public ::testing::Test {
         hint.y_m = run.truth.back().front().y_m + noise(rng);
         hint.covariance[0][0] = hint.covariance[1][1] = hint_sigma_m_ * hint_sigma_m_;
         hint.status = pose2d_t::STATUS_OK;
+        bus_->set_now_utime(frame.capture_utime + 5'000);  // The radio's delay.
         bus_->Publish("POSE_ULTRASOUND", hint);
       }
       run.node->OnFrame(&frame, frame.capture_utime + 1000);
@@ -318,6 +320,48 @@ TEST_F(CameraNodeTest, AReferenceNineRegionTableStillWorks) {
   CameraNode wrong_height(site_, camera_, table, bus_.get(), CameraNodeOptions{}, kStartUtime);
   EXPECT_FALSE(wrong_height.ok(&error));
   EXPECT_NE(error.find("9-region"), std::string::npos) << error;
+}
+
+TEST_F(CameraNodeTest, RefusesHintsForUnknownRobotsFarOffTimesAndInfinities) {
+  MakeStatic(1.0, 1.0, 0.0);
+  calib::Calibration calibration;
+  calibration.model = calib::Calibration::Model::kFull;
+  calibration.camera = lens_;
+  bus_ = std::make_unique<LoopbackBus>();
+  CameraNode node(site_, camera_, calibration, bus_.get(), CameraNodeOptions{}, kStartUtime);
+  std::string error;
+  ASSERT_TRUE(node.ok(&error)) << error;
+  bus_->set_now_utime(kStartUtime);
+  pose2d_t hint{};
+  hint.utime = kStartUtime;
+  hint.source = pose2d_t::SOURCE_ULTRASOUND;
+  hint.robot_id = site_.robots.front().id;
+  hint.x_m = 1.0;
+  hint.y_m = 1.0;
+  hint.covariance[0][0] = hint.covariance[1][1] = 0.01;
+  hint.status = pose2d_t::STATUS_OK;
+  pose2d_t bad = hint;
+  for (int id = 0; id < 20000; ++id) {
+    bad.robot_id = 1000 + id;
+    bus_->Publish("POSE_ULTRASOUND", bad);
+  }
+  bad = hint;
+  bad.utime = std::numeric_limits<int64_t>::min();
+  bus_->Publish("POSE_ULTRASOUND", bad);
+  bad.utime = kStartUtime + int64_t{3600} * 1'000'000 + 1;
+  bus_->Publish("POSE_ULTRASOUND", bad);
+  bad = hint;
+  bad.x_m = std::numeric_limits<double>::infinity();
+  bus_->Publish("POSE_ULTRASOUND", bad);
+  bad = hint;
+  bad.covariance[1][1] = std::numeric_limits<double>::infinity();
+  bus_->Publish("POSE_ULTRASOUND", bad);
+  EXPECT_EQ(node.status().rejected("unknown_robot"), 20000);
+  EXPECT_EQ(node.status().rejected("utime_out_of_range"), 2);
+  EXPECT_EQ(node.status().rejected("non_finite"), 2);
+  EXPECT_EQ(node.status().counter("hints"), 0);
+  bus_->Publish("POSE_ULTRASOUND", hint);
+  EXPECT_EQ(node.status().counter("hints"), 1);
 }
 
 TEST_F(CameraNodeTest, WithoutCalibrationPublishesPixelsOnly) {

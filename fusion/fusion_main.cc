@@ -15,7 +15,7 @@ int main(int argc, char** argv) {
   CLI::App app{
       "fusion_proc: fuses POSE_CAMERA and POSE_ULTRASOUND into POSE_FUSED (an extended Kalman "
       "filter per robot)"};
-  roomfix::AddProcessFlags(&app, &process, /*config_required=*/false);
+  roomfix::AddProcessFlags(&app, &process, /*config_required=*/true);
   app.add_option("--camera-channel", options.camera_channel, "Camera poses")->capture_default_str();
   app.add_option("--ultrasound-channel", options.ultrasound_channel, "Ultrasonic poses")
       ->capture_default_str();
@@ -23,6 +23,9 @@ int main(int argc, char** argv) {
   app.add_option("--rate", options.rate_hz,
                  "Also publish each robot's prediction to now at this rate, Hz (0: only at "
                  "measurements)")
+      ->capture_default_str();
+  app.add_option("--forget-after", options.forget_after_s,
+                 "Drop a robot's track after this long without a measurement, s")
       ->capture_default_str();
   app.add_option("--lost-after", filter.lost_after_s,
                  "A robot is lost when no measurement was accepted for this long, s")
@@ -72,7 +75,7 @@ int main(int argc, char** argv) {
               << ", on " << process.lcm_url << "\n";
     return 0;
   }
-  roomfix::FusionNode node(ctx->bus.get(), options, roomfix::NowUtime());
+  roomfix::FusionNode node(ctx->site, ctx->bus.get(), options, roomfix::NowUtime());
   spdlog::info("fusing {} and {} into {}", options.camera_channel, options.ultrasound_channel,
                options.fused_channel);
   const int rc = roomfix::RunLoop(ctx->bus.get(), [&](int64_t now) { node.Tick(now); }, {});

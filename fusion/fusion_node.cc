@@ -1,8 +1,11 @@
 #include "fusion/fusion_node.h"
 
 #include <cmath>
+#include <iterator>
 #include <limits>
 #include <string>
+
+#include "msgio/time_limits.h"
 
 namespace roomfix {
 namespace {
@@ -29,6 +32,10 @@ bool FusionNodeOptions::IsValid(std::string* error) const {
     *error = "rate_hz must be finite and not negative";
     return false;
   }
+  if (!std::isfinite(forget_after_s) || !(forget_after_s >= filter.lost_after_s)) {
+    *error = "forget_after_s must be finite and at least lost_after_s";
+    return false;
+  }
   if (camera_channel.empty() || ultrasound_channel.empty() || fused_channel.empty()) {
     *error = "channel names must not be empty";
     return false;
@@ -36,8 +43,10 @@ bool FusionNodeOptions::IsValid(std::string* error) const {
   return true;
 }
 
-FusionNode::FusionNode(Bus* bus, const FusionNodeOptions& options, int64_t start_utime)
+FusionNode::FusionNode(const Site& site, Bus* bus, const FusionNodeOptions& options,
+                       int64_t start_utime)
     : bus_(bus), options_(options), status_("fusion_proc", start_utime) {
+  for (const Robot& robot : site.robots) site_robots_.insert(robot.id);
   bus_->Subscribe<pose2d_t>(options_.camera_channel,
                             [this](const pose2d_t& pose, const MessageInfo& info) {
                               OnPose(pose, info, fusion::Source::kCamera);
@@ -58,10 +67,36 @@ void FusionNode::OnPose(const pose2d_t& pose, const MessageInfo& info, fusion::S
   const std::string name = fusion::SourceName(source);
   status_.AddInputs();
   status_.Count("inputs_" + name);
-  if (pose.status == pose2d_t::STATUS_LOST || !std::isfinite(pose.x_m) ||
-      !std::isfinite(pose.y_m)) {
+  auto refuse = [&](const char* reason, const std::string& why) {
+    status_.Reject(reason);
+    status_.SetError(name + " pose of robot " + std::to_string(pose.robot_id) + ": " + why,
+                     info.recv_utime);
+  };
+  if (!UtimeNear(pose.utime, info.recv_utime)) {
+    refuse("utime_out_of_range", "measurement time " + std::to_string(pose.utime) +
+                                     " us is more than an hour from its receive time");
+    return;
+  }
+  if (site_robots_.count(pose.robot_id) == 0) {
+    refuse("unknown_robot", "the site file does not list this robot");
+    return;
+  }
+  if (pose.status == pose2d_t::STATUS_LOST) {
     // The sensor saw nothing: not a measurement, and not an error.
     status_.Count("lost_input_" + name);
+    return;
+  }
+  // NaN stands for "unknown" where the message allows it (heading, its
+  // variance and covariances, z); an infinity never, and a position with its
+  // covariance must be there in a pose that is not LOST.
+  bool infinite = std::isinf(pose.z_m) || std::isinf(pose.heading_rad);
+  for (const auto& row : pose.covariance) {
+    for (double v : row) infinite = infinite || std::isinf(v);
+  }
+  if (infinite || !std::isfinite(pose.x_m) || !std::isfinite(pose.y_m) ||
+      !std::isfinite(pose.covariance[0][0]) || !std::isfinite(pose.covariance[0][1]) ||
+      !std::isfinite(pose.covariance[1][0]) || !std::isfinite(pose.covariance[1][1])) {
+    refuse("non_finite", "a position, covariance or heading that is not a finite number");
     return;
   }
   fusion::Measurement m;
@@ -79,6 +114,7 @@ void FusionNode::OnPose(const pose2d_t& pose, const MessageInfo& info, fusion::S
     it = tracks_.emplace(pose.robot_id, Track(options_.filter)).first;
   }
   Track& track = it->second;
+  track.last_recv_utime = info.recv_utime;
   const bool was_initialised = track.filter.initialised();
   fusion::Estimate estimate;
   const fusion::Outcome outcome = track.filter.Add(m, info.recv_utime, &estimate);
@@ -125,8 +161,16 @@ void FusionNode::Publish(int32_t robot_id, const fusion::Estimate& e, double z_m
   p.z_m = z_m;
   p.status = e.valid ? StatusOf(e.status) : pose2d_t::STATUS_LOST;
   p.num_measurements = e.num_measurements;
-  p.latency_us = now_utime - e.utime;
+  p.latency_us = SaturatingDifferenceUs(now_utime, e.utime);
   p.residual_m = std::isfinite(e.innovation_m) ? e.innovation_m : kNaN;
+  // The filter only ever takes finite input, but its state is arithmetic on
+  // it: an estimate that overflowed is not a position.
+  if (p.status != pose2d_t::STATUS_LOST &&
+      !(std::isfinite(e.state[fusion::kX]) && std::isfinite(e.state[fusion::kY]) &&
+        e.covariance.topLeftCorner<2, 2>().allFinite())) {
+    status_.Count("non_finite_estimate");
+    p.status = pose2d_t::STATUS_LOST;
+  }
   if (p.status == pose2d_t::STATUS_LOST) {
     p.x_m = p.y_m = p.heading_rad = kNaN;
     for (auto& row : p.covariance) {
@@ -160,6 +204,13 @@ void FusionNode::Tick(int64_t now_utime) {
                            ? now_utime + period
                            : next_rate_utime_ + period;
   }
+  const auto forget_us = static_cast<int64_t>(options_.forget_after_s * 1e6);
+  for (auto it = tracks_.begin(); it != tracks_.end();) {
+    it = SaturatingDifferenceUs(now_utime, it->second.last_recv_utime) > forget_us
+             ? tracks_.erase(it)
+             : std::next(it);
+  }
+  status_.SetCounter("tracks", static_cast<int64_t>(tracks_.size()));
   for (auto& [robot_id, track] : tracks_) {
     if (!track.filter.initialised()) continue;
     fusion::Estimate e = track.filter.Predict(now_utime);

@@ -3,9 +3,11 @@
 
 #include <cstdint>
 #include <map>
+#include <set>
 #include <string>
 
 #include "core/fusion/pose_filter.h"
+#include "core/world/site.h"
 #include "msgio/bus.h"
 #include "msgio/process.h"
 #include "roomfix/pose2d_t.hpp"
@@ -23,6 +25,9 @@ struct FusionNodeOptions {
   // predicted to "now" at this rate, Hz (0: only per measurement). A lost
   // robot then gets a lost pose at every tick.
   double rate_hz = 0.0;
+  // A robot's track (its filter and history) is dropped after this long
+  // without a measurement (receive clock); a later one starts it afresh.
+  double forget_after_s = 10.0;
 
   bool IsValid(std::string* error) const;
 };
@@ -41,15 +46,26 @@ struct FusionNodeOptions {
 // deterministic. STATUS counters: inputs_<source>, rejected gated_<source>,
 // too_late, from_future, invalid_<source>, lost_input_<source>; counters
 // initialised, reinitialised, lost.
+//
+// Limits: only the robots the site lists get a track (others are refused as
+// unknown_robot, so no message can make the node keep state for an invented
+// id); a pose whose utime is more than kMaxUtimeSkewUs from its receive time
+// is refused (utime_out_of_range); a pose with an infinite value, or a NaN
+// position or position covariance while not LOST, is refused (non_finite); a
+// track is forgotten after forget_after_s without measurements. Nothing
+// non-finite is published as a position: such an estimate goes out LOST
+// (counter non_finite_estimate).
 class FusionNode {
  public:
-  FusionNode(Bus* bus, const FusionNodeOptions& options, int64_t start_utime);
+  FusionNode(const Site& site, Bus* bus, const FusionNodeOptions& options, int64_t start_utime);
 
   void Tick(int64_t now_utime);
   void Stop(int64_t now_utime);
   const StatusReporter& status() const { return status_; }
   // The filter of a robot, or nullptr before its first measurement.
   const fusion::PoseFilter* filter(int robot_id) const;
+  // Robots with a track now.
+  size_t tracks() const { return tracks_.size(); }
 
  private:
   struct Track {
@@ -57,6 +73,7 @@ class FusionNode {
     fusion::PoseFilter filter;
     bool lost_reported = false;
     double z_m = 0.0;
+    int64_t last_recv_utime = 0;
   };
 
   void OnPose(const pose2d_t& pose, const MessageInfo& info, fusion::Source source);
@@ -65,6 +82,7 @@ class FusionNode {
   Bus* bus_;
   FusionNodeOptions options_;
   StatusReporter status_;
+  std::set<int32_t> site_robots_;
   std::map<int32_t, Track> tracks_;
   int64_t next_rate_utime_ = 0;
 };

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "core/fusion/synthetic_streams.h"
+#include "core/world/site.h"
 #include "core/world/trajectory.h"
 #include "roomfix/pose2d_t.hpp"
 
@@ -55,10 +56,25 @@ pose2d_t PoseOf(const StreamItem& item) {
   return p;
 }
 
+// Robots 1 and 2, as the synthetic streams name them.
+constexpr char kTwoRobotSite[] =
+    "name: two_robots\n"
+    "room: {size_m: [4, 3], height_m: 3.3}\n"
+    "receivers:\n"
+    "  - {id: 1, address: '0x0000000000000001', position_m: [0, 0, 2.5]}\n"
+    "  - {id: 2, address: '0x0000000000000002', position_m: [4, 0, 2.5]}\n"
+    "  - {id: 3, address: '0x0000000000000003', position_m: [4, 3, 2.5]}\n"
+    "beacons:\n"
+    "  - {id: 10, address: '0x00000000000000A0', height_m: 0.25}\n"
+    "robots:\n"
+    "  - {id: 1, beacon_id: 10}\n"
+    "  - {id: 2}\n";
+
 class FusionNodeTest : public ::testing::Test {
  protected:
   void SetUp() override {
     std::string error;
+    ASSERT_TRUE(ParseSite(kTwoRobotSite, "two_robots.yaml", "", &site_, &error)) << error;
     circle_ = MakeCircleTrajectory(CircleTrajectoryOptions(), &error);
     ASSERT_NE(circle_, nullptr) << error;
     bus_.Subscribe<pose2d_t>(kFusedPoseChannel, [this](const pose2d_t& p, const MessageInfo& info) {
@@ -87,6 +103,7 @@ class FusionNodeTest : public ::testing::Test {
     return std::hypot(p.x_m - truth.x_m, p.y_m - truth.y_m);
   }
 
+  Site site_;
   std::unique_ptr<Trajectory> circle_;
   LoopbackBus bus_;
   std::vector<pose2d_t> fused_;
@@ -94,7 +111,7 @@ class FusionNodeTest : public ::testing::Test {
 };
 
 TEST_F(FusionNodeTest, FusesTheReferenceCircleNoWorseThanTheCameraAtTheCombinedRate) {
-  FusionNode node(&bus_, FusionNodeOptions(), fusion::synthetic::kStartUtime);
+  FusionNode node(site_, &bus_, FusionNodeOptions(), fusion::synthetic::kStartUtime);
   const std::vector<StreamItem> stream = MakeStream(*circle_, StreamOptions());
   DeliverAll(&node, stream);
 
@@ -134,7 +151,7 @@ TEST_F(FusionNodeTest, FusesTheReferenceCircleNoWorseThanTheCameraAtTheCombinedR
 }
 
 TEST_F(FusionNodeTest, CountsGatedOutliersAndTooLateMeasurements) {
-  FusionNode node(&bus_, FusionNodeOptions(), fusion::synthetic::kStartUtime);
+  FusionNode node(site_, &bus_, FusionNodeOptions(), fusion::synthetic::kStartUtime);
   StreamOptions options;
   options.duration_s = 20.0;
   options.outlier_fraction = 0.1;
@@ -162,7 +179,7 @@ TEST_F(FusionNodeTest, CountsGatedOutliersAndTooLateMeasurements) {
 TEST_F(FusionNodeTest, PublishesLostAtEveryTickAfterASilenceThenReinitialises) {
   FusionNodeOptions options;
   options.rate_hz = 10.0;
-  FusionNode node(&bus_, options, fusion::synthetic::kStartUtime);
+  FusionNode node(site_, &bus_, options, fusion::synthetic::kStartUtime);
   StreamOptions stream_options;
   stream_options.duration_s = 5.0;
   DeliverAll(&node, MakeStream(*circle_, stream_options));
@@ -201,7 +218,7 @@ TEST_F(FusionNodeTest, PublishesLostAtEveryTickAfterASilenceThenReinitialises) {
 }
 
 TEST_F(FusionNodeTest, PublishesOneLostPoseWithoutAFixedRate) {
-  FusionNode node(&bus_, FusionNodeOptions(), fusion::synthetic::kStartUtime);
+  FusionNode node(site_, &bus_, FusionNodeOptions(), fusion::synthetic::kStartUtime);
   StreamOptions stream_options;
   stream_options.duration_s = 2.0;
   DeliverAll(&node, MakeStream(*circle_, stream_options));
@@ -215,7 +232,7 @@ TEST_F(FusionNodeTest, KeepsTwoRobotsIndependent) {
   StreamOptions one;
   one.duration_s = 10.0;
   const std::vector<StreamItem> alone = MakeStream(*circle_, one);
-  FusionNode single(&bus_, FusionNodeOptions(), fusion::synthetic::kStartUtime);
+  FusionNode single(site_, &bus_, FusionNodeOptions(), fusion::synthetic::kStartUtime);
   DeliverAll(&single, alone);
   const std::vector<pose2d_t> robot1_alone = fused_;
   fused_.clear();
@@ -236,7 +253,7 @@ TEST_F(FusionNodeTest, KeepsTwoRobotsIndependent) {
   std::vector<pose2d_t> fused_both;
   other_bus.Subscribe<pose2d_t>(
       kFusedPoseChannel, [&](const pose2d_t& p, const MessageInfo&) { fused_both.push_back(p); });
-  FusionNode node(&other_bus, FusionNodeOptions(), fusion::synthetic::kStartUtime);
+  FusionNode node(site_, &other_bus, FusionNodeOptions(), fusion::synthetic::kStartUtime);
   for (const StreamItem& item : both) {
     const pose2d_t p = PoseOf(item);
     std::vector<uint8_t> bytes(p.getEncodedSize());
@@ -260,7 +277,7 @@ TEST_F(FusionNodeTest, KeepsTwoRobotsIndependent) {
 }
 
 TEST_F(FusionNodeTest, ReportsAnUnknownHeadingAsNaNAndUltrasoundOnlyAsDegraded) {
-  FusionNode node(&bus_, FusionNodeOptions(), fusion::synthetic::kStartUtime);
+  FusionNode node(site_, &bus_, FusionNodeOptions(), fusion::synthetic::kStartUtime);
   StreamOptions options;
   options.duration_s = 3.0;
   options.camera_outage_start_s = 0.0;
@@ -278,7 +295,7 @@ TEST_F(FusionNodeTest, ReportsAnUnknownHeadingAsNaNAndUltrasoundOnlyAsDegraded) 
 }
 
 TEST_F(FusionNodeTest, IgnoresLostInputsAndCountsThem) {
-  FusionNode node(&bus_, FusionNodeOptions(), fusion::synthetic::kStartUtime);
+  FusionNode node(site_, &bus_, FusionNodeOptions(), fusion::synthetic::kStartUtime);
   pose2d_t p = PoseOf(MakeStream(*circle_, StreamOptions()).front());
   p.status = pose2d_t::STATUS_LOST;
   p.x_m = p.y_m = kNaN;
@@ -286,6 +303,86 @@ TEST_F(FusionNodeTest, IgnoresLostInputsAndCountsThem) {
   EXPECT_EQ(node.status().counter("lost_input_camera"), 1);
   EXPECT_TRUE(fused_.empty());
   EXPECT_EQ(node.filter(p.robot_id), nullptr);
+}
+
+// ---------------------------------------------------------------------------
+// Limits: what a hostile or broken publisher of poses can and cannot do.
+
+TEST_F(FusionNodeTest, KeepsTracksOnlyForTheSiteRobotsUnder20000InventedIds) {
+  FusionNode node(site_, &bus_, FusionNodeOptions(), fusion::synthetic::kStartUtime);
+  pose2d_t p = PoseOf(MakeStream(*circle_, StreamOptions()).front());
+  const int64_t recv = p.utime + 1000;
+  for (int id = 0; id < 20000; ++id) {
+    p.robot_id = 1000 + id;
+    Deliver(p, recv);
+  }
+  node.Tick(recv);
+  EXPECT_EQ(node.tracks(), 0u);
+  EXPECT_TRUE(fused_.empty());
+  EXPECT_EQ(node.status().rejected("unknown_robot"), 20000);
+  EXPECT_EQ(node.status().Make(recv, nullptr).last_error,
+            "camera pose of robot 20999: the site file does not list this robot");
+  // A site robot is fused as ever, and only site robots are ever published.
+  p.robot_id = 2;
+  Deliver(p, recv);
+  ASSERT_EQ(fused_.size(), 1u);
+  EXPECT_EQ(fused_[0].robot_id, 2);
+  EXPECT_EQ(node.tracks(), 1u);
+}
+
+TEST_F(FusionNodeTest, ForgetsATrackTenSecondsAfterItsLastMeasurement) {
+  FusionNode node(site_, &bus_, FusionNodeOptions(), fusion::synthetic::kStartUtime);
+  const pose2d_t p = PoseOf(MakeStream(*circle_, StreamOptions()).front());
+  const int64_t recv = p.utime + 1000;
+  Deliver(p, recv);
+  ASSERT_NE(node.filter(1), nullptr);
+  node.Tick(recv + 10'000'000);  // Exactly 10 s: lost, still kept.
+  EXPECT_NE(node.filter(1), nullptr);
+  node.Tick(recv + 10'000'001);
+  EXPECT_EQ(node.filter(1), nullptr);
+  EXPECT_EQ(node.tracks(), 0u);
+}
+
+TEST_F(FusionNodeTest, RefusesAPoseWhoseTimeIsFarFromItsReceiveTime) {
+  FusionNode node(site_, &bus_, FusionNodeOptions(), fusion::synthetic::kStartUtime);
+  pose2d_t p = PoseOf(MakeStream(*circle_, StreamOptions()).front());
+  const int64_t recv = p.utime + 1000;
+  constexpr int64_t kHour_us = int64_t{3600} * 1'000'000;
+  for (int64_t utime : {std::numeric_limits<int64_t>::min(), int64_t{0}, recv - kHour_us - 1,
+                        recv + kHour_us + 1, std::numeric_limits<int64_t>::max()}) {
+    p.utime = utime;
+    Deliver(p, recv);
+  }
+  EXPECT_EQ(node.status().rejected("utime_out_of_range"), 5);
+  EXPECT_TRUE(fused_.empty());
+  EXPECT_EQ(node.filter(1), nullptr);
+}
+
+TEST_F(FusionNodeTest, RefusesNonFiniteValuesAndNeverPublishesThem) {
+  FusionNode node(site_, &bus_, FusionNodeOptions(), fusion::synthetic::kStartUtime);
+  const pose2d_t good = PoseOf(MakeStream(*circle_, StreamOptions()).front());
+  const int64_t recv = good.utime + 1000;
+  const double kInf = std::numeric_limits<double>::infinity();
+  std::vector<pose2d_t> bad(6, good);
+  bad[0].x_m = kNaN;
+  bad[1].y_m = kInf;
+  bad[2].covariance[0][0] = kNaN;
+  bad[3].covariance[1][0] = kInf;
+  bad[4].heading_rad = -kInf;
+  bad[5].z_m = kInf;
+  for (const pose2d_t& p : bad) Deliver(p, recv);
+  EXPECT_EQ(node.status().rejected("non_finite"), 6);
+  EXPECT_TRUE(fused_.empty());
+  EXPECT_EQ(node.filter(1), nullptr);
+  // NaN where the message means "unknown" is not refused: an ultrasonic pose
+  // without a heading.
+  pose2d_t no_heading = good;
+  no_heading.heading_rad = kNaN;
+  for (int k = 0; k < 3; ++k) no_heading.covariance[2][k] = no_heading.covariance[k][2] = kNaN;
+  Deliver(no_heading, recv);
+  ASSERT_EQ(fused_.size(), 1u);
+  EXPECT_TRUE(std::isfinite(fused_[0].x_m) && std::isfinite(fused_[0].y_m));
+  EXPECT_TRUE(std::isfinite(fused_[0].covariance[0][0]));
 }
 
 TEST(FusionNodeOptions, RefusesANegativeRate) {

@@ -3,6 +3,8 @@
 #include <cmath>
 #include <limits>
 
+#include "msgio/time_limits.h"
+
 namespace roomfix {
 
 void RangesFromMessage(const range_set_t& set, std::vector<trilat::RangeMeasurement>* out) {
@@ -45,7 +47,7 @@ pose2d_t PoseFromFix(const trilat::Fix& fix, const range_set_t& set, int32_t rob
       p.status = pose2d_t::STATUS_LOST;
       break;
   }
-  p.latency_us = publish_utime - set.utime;
+  p.latency_us = SaturatingDifferenceUs(publish_utime, set.utime);
   return p;
 }
 

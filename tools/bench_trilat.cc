@@ -15,6 +15,7 @@
 #include "core/world/site.h"
 #include "core/world/ultrasound_model.h"
 #include "msgio/bus.h"
+#include "msgio/process.h"
 #include "roomfix/pose2d_t.hpp"
 #include "roomfix/range_set_t.hpp"
 #include "trilat_proc/trilat_node.h"
@@ -146,11 +147,14 @@ json NodeThroughput(int n, uint64_t seed) {
   noise.sigma_m = 0.02;
   std::vector<std::vector<uint8_t>> encoded;
   const int distinct = 1000;
+  // Firing times on the host clock, as the bridge stamps them: trilat_proc
+  // refuses a set more than an hour from its receive time.
+  const int64_t first_utime = NowUtime() - int64_t{distinct} * 100000;
   for (int k = 0; k < distinct; ++k) {
     const double t = k * 0.1;
     const std::array<double, 3> p = {2.0 + std::cos(t), 1.5 + std::sin(t), 1.3};
     range_set_t set{};
-    set.utime = 1000000 + k * 100000;
+    set.utime = first_utime + k * 100000;
     set.beacon_id = 1;
     set.firing_seq = k;
     set.num_expected = 4;

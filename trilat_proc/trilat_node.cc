@@ -1,7 +1,11 @@
 #include "trilat_proc/trilat_node.h"
 
+#include <algorithm>
 #include <cmath>
+#include <iterator>
+#include <limits>
 
+#include "msgio/time_limits.h"
 #include "msgio/trilat_conversions.h"
 #include "roomfix/pose2d_t.hpp"
 
@@ -10,10 +14,23 @@ namespace roomfix {
 // Longer than any path in the room: its diagonal plus a margin for a
 // receiver mounted on the outside of a wall and for calibration offsets.
 constexpr double kRangeMargin_m = 0.5;
+// A beacon rides on a robot, whose body keeps it at least its radius (over
+// 0.1 m) from any wall, and a fix's noise is a few centimetres: a fix more
+// than this beyond the walls (or below the floor, above the ceiling in 3D)
+// is wrong, and is published LOST rather than steer anything there.
+constexpr double kOutsideRoomMargin_m = 0.2;
+// Beacons the site does not list are accepted only with
+// unknown_beacon_height_m (a test bench); their warm-start state is then
+// capped at this many ids, so a flood of invented ids cannot grow it.
+constexpr size_t kMaxBeaconTracks = 256;
 
 bool TrilatNodeOptions::IsValid(std::string* error) const {
   if (!(warm_start_max_age_s >= 0.0)) {
     *error = "warm_start_max_age_s must not be negative";
+    return false;
+  }
+  if (!(forget_after_s >= warm_start_max_age_s) || !std::isfinite(forget_after_s)) {
+    *error = "forget_after_s must be finite and at least warm_start_max_age_s";
     return false;
   }
   trilat::SolverOptions probe = solver;
@@ -29,15 +46,44 @@ TrilatNode::TrilatNode(const Site& site, Bus* bus, const TrilatNodeOptions& opti
                            room.height_m * room.height_m) +
                  kRangeMargin_m;
   options_.solver.max_range_m = std::min(options_.solver.max_range_m, max_range_m_);
+  // A set never holds more ranges than the site has receivers (refused
+  // before the solver), so the solver's own cap must not be lower.
+  options_.solver.max_ranges =
+      std::max(options_.solver.max_ranges, static_cast<int>(site.receivers.size()));
   bus_->Subscribe<range_set_t>(
       kRangesChannel,
       [this](const range_set_t& set, const MessageInfo& info) { OnRangeSet(set, info); });
   status_.SetState(process_status_t::STATE_RUNNING);
 }
 
+bool TrilatNode::OutsideRoom(const Eigen::Vector3d& p) const {
+  const Room& room = site_.room;
+  const double m = kOutsideRoomMargin_m;
+  const bool xy_out = !(p.x() >= room.min_x_m - m && p.x() <= room.min_x_m + room.size_x_m + m &&
+                        p.y() >= room.min_y_m - m && p.y() <= room.min_y_m + room.size_y_m + m);
+  const bool z_out = options_.solver.dimension == trilat::Dimension::k3D &&
+                     !(p.z() >= -m && p.z() <= room.height_m + m);
+  return xy_out || z_out;
+}
+
 void TrilatNode::OnRangeSet(const range_set_t& set, const MessageInfo& info) {
   status_.AddInputs();
   ranges_watch_.Seen(info.recv_utime, &status_);
+  auto refuse = [&](const char* reason, const std::string& why) {
+    status_.Reject(reason);
+    status_.SetError("range set from beacon " + std::to_string(set.beacon_id) + ": " + why,
+                     info.recv_utime);
+  };
+  if (!UtimeNear(set.utime, info.recv_utime)) {
+    refuse("utime_out_of_range", "firing time " + std::to_string(set.utime) +
+                                     " us is more than an hour from its receive time " +
+                                     std::to_string(info.recv_utime) + " us");
+    return;
+  }
+  if (!std::isfinite(set.speed_of_sound_mps) || !std::isfinite(set.temperature_c)) {
+    refuse("non_finite", "speed of sound or temperature is not a finite number");
+    return;
+  }
   trilat::SolverOptions solver = options_.solver;
   int32_t robot_id = set.beacon_id;
   if (const Beacon* beacon = site_.FindBeacon(set.beacon_id)) {
@@ -54,18 +100,58 @@ void TrilatNode::OnRangeSet(const range_set_t& set, const MessageInfo& info) {
                      info.recv_utime);
     return;
   }
+  // One range per receiver at most: more than the site has receivers is a
+  // corrupt or hostile set, refused before any work is spent on it.
+  if (set.ranges.size() > site_.receivers.size()) {
+    refuse("too_many_ranges", std::to_string(set.ranges.size()) + " ranges, but the site has " +
+                                  std::to_string(site_.receivers.size()) + " receivers");
+    return;
+  }
 
   RangesFromMessage(set, &ranges_);
-  BeaconTrack& track = tracks_[set.beacon_id];
-  const bool warm = track.has_fix && set.utime >= track.last_fix_utime &&
-                    (set.utime - track.last_fix_utime) * 1e-6 <= options_.warm_start_max_age_s;
-  trilat::Solve(ranges_, solver, warm ? &track.last_position_m : nullptr, &fix_);
+  // Ranges the node drops itself; the solver sees only the rest and drops
+  // (and counts) its own: negative, too long, duplicate receiver.
+  bool dropped_range = false;
+  size_t kept = 0;
+  for (size_t i = 0; i < ranges_.size(); ++i) {
+    const range_t& r = set.ranges[i];
+    const trilat::RangeMeasurement& m = ranges_[i];
+    if (!m.receiver_m.allFinite() || !std::isfinite(m.range_m) ||
+        !std::isfinite(r.time_of_flight_us)) {
+      status_.Reject("non_finite");
+      dropped_range = true;
+    } else if (site_.FindReceiver(m.receiver_id) == nullptr) {
+      status_.Reject("unknown_receiver");
+      status_.SetError("range set from beacon " + std::to_string(set.beacon_id) + ": receiver " +
+                           std::to_string(m.receiver_id) + ", which the site file does not list",
+                       info.recv_utime);
+      dropped_range = true;
+    } else {
+      ranges_[kept++] = m;
+    }
+  }
+  ranges_.resize(kept);
+
+  auto found = tracks_.find(set.beacon_id);
+  if (found == tracks_.end() && tracks_.size() < kMaxBeaconTracks) {
+    found = tracks_.emplace(set.beacon_id, BeaconTrack()).first;
+  }
+  BeaconTrack* track = found == tracks_.end() ? nullptr : &found->second;
+  const bool warm = track != nullptr && track->has_fix && set.utime >= track->last_fix_utime &&
+                    SaturatingDifferenceUs(set.utime, track->last_fix_utime) * 1e-6 <=
+                        options_.warm_start_max_age_s;
+  trilat::Solve(ranges_, solver, warm ? &track->last_position_m : nullptr, &fix_);
   if (warm) status_.Count("warm_starts");
+  if (track != nullptr) track->last_recv_utime = info.recv_utime;
+  if (dropped_range && fix_.status == trilat::FixStatus::kOk) {
+    fix_.status = trilat::FixStatus::kDegraded;
+  }
+  if (dropped_range) fix_.flags |= trilat::kBadRangesDropped;
 
   for (const trilat::RejectedRange& r : fix_.rejected) {
     status_.Reject(trilat::RangeRejectionName(r.reason));
   }
-  for (uint32_t bit = 1; bit <= trilat::kMirrorResolved; bit <<= 1) {
+  for (uint32_t bit = 1; bit <= trilat::kLastFixFlag; bit <<= 1) {
     if ((fix_.flags & bit) == 0) continue;
     const char* name = trilat::FixFlagName(static_cast<trilat::FixFlag>(bit));
     if (fix_.status == trilat::FixStatus::kFailed) {
@@ -74,12 +160,37 @@ void TrilatNode::OnRangeSet(const range_set_t& set, const MessageInfo& info) {
       status_.Count(name);
     }
   }
+  // What is published must be a finite position inside the room: anything
+  // else goes out LOST, with the reason counted and in words.
+  const char* lost_reason = nullptr;
   if (fix_.has_position()) {
-    track.has_fix = true;
-    track.last_fix_utime = set.utime;
-    track.last_position_m = fix_.position_m;
+    if (!fix_.position_m.allFinite() || !fix_.covariance_m2.topLeftCorner<2, 2>().allFinite()) {
+      lost_reason = "non_finite_fix";
+    } else if (OutsideRoom(fix_.position_m)) {
+      lost_reason = "outside_room";
+    }
+    if (lost_reason != nullptr) {
+      status_.Reject(lost_reason);
+      status_.SetError(
+          "beacon " + std::to_string(set.beacon_id) + " firing " + std::to_string(set.firing_seq) +
+              ": fix at (" + std::to_string(fix_.position_m.x()) + ", " +
+              std::to_string(fix_.position_m.y()) + ") published lost (" + lost_reason + ")",
+          info.recv_utime);
+      fix_.status = trilat::FixStatus::kFailed;
+      fix_.position_m.setConstant(std::numeric_limits<double>::quiet_NaN());
+      fix_.covariance_m2.setConstant(std::numeric_limits<double>::quiet_NaN());
+      fix_.residual_rms_m = std::numeric_limits<double>::quiet_NaN();
+      fix_.used.clear();
+    }
+  }
+  if (fix_.has_position()) {
+    if (track != nullptr) {
+      track->has_fix = true;
+      track->last_fix_utime = set.utime;
+      track->last_position_m = fix_.position_m;
+    }
     status_.AddOutputs();
-  } else {
+  } else if (lost_reason == nullptr) {
     status_.SetError("beacon " + std::to_string(set.beacon_id) + " firing " +
                          std::to_string(set.firing_seq) + ": no position (" +
                          trilat::DescribeFlags(fix_.flags) + ")",
@@ -91,6 +202,13 @@ void TrilatNode::OnRangeSet(const range_set_t& set, const MessageInfo& info) {
 }
 
 void TrilatNode::Tick(int64_t now_utime) {
+  const auto forget_us = static_cast<int64_t>(options_.forget_after_s * 1e6);
+  for (auto it = tracks_.begin(); it != tracks_.end();) {
+    it = SaturatingDifferenceUs(now_utime, it->second.last_recv_utime) > forget_us
+             ? tracks_.erase(it)
+             : std::next(it);
+  }
+  status_.SetCounter("beacon_tracks", static_cast<int64_t>(tracks_.size()));
   // A new gap is reported at once, not at the next heartbeat.
   if (ranges_watch_.Check(now_utime, &status_)) {
     status_.Publish(bus_, now_utime);

@@ -28,6 +28,9 @@ struct TrilatNodeOptions {
   // Height for beacons the site file does not list; NaN refuses them
   // (counted as unknown_beacon).
   double unknown_beacon_height_m = std::numeric_limits<double>::quiet_NaN();
+  // A beacon's warm-start state is forgotten after this long without a range
+  // set from it (receive clock), so ids that stop cost nothing.
+  double forget_after_s = 10.0;
 
   bool IsValid(std::string* error) const;
 };
@@ -41,6 +44,16 @@ struct TrilatNodeOptions {
 // not be solved; why is counted in STATUS: per range ("negative_range",
 // "outlier", ...) and per set ("too_few_ranges", "collinear_receivers",
 // "unknown_beacon", ...).
+//
+// Limits (docs/trilateration.md, "Limits"): a set whose utime is more than
+// kMaxUtimeSkewUs from its receive time, or with a non-finite speed of sound
+// or temperature, is refused whole (utime_out_of_range, non_finite), as is a
+// set with more ranges than the site has receivers (too_many_ranges), so the
+// solver's work per message is bounded by the site. A range from a receiver
+// the site does not list (unknown_receiver) or with a non-finite field
+// (non_finite) is dropped and the pose is at best DEGRADED. A fix outside
+// the room (kOutsideRoomMargin_m) or without a finite covariance is
+// published LOST with the reason (outside_room, non_finite_fix).
 class TrilatNode {
  public:
   TrilatNode(const Site& site, Bus* bus, const TrilatNodeOptions& options, int64_t start_utime);
@@ -48,15 +61,20 @@ class TrilatNode {
   void Tick(int64_t now_utime);
   void Stop(int64_t now_utime);
   const StatusReporter& status() const { return status_; }
+  // Beacons with warm-start state (expire after forget_after_s).
+  size_t beacon_tracks() const { return tracks_.size(); }
 
  private:
   struct BeaconTrack {
+    int64_t last_recv_utime = 0;
     int64_t last_fix_utime = 0;
     Eigen::Vector3d last_position_m;
     bool has_fix = false;
   };
 
   void OnRangeSet(const range_set_t& set, const MessageInfo& info);
+  // True when the fix is outside the room by more than the margin.
+  bool OutsideRoom(const Eigen::Vector3d& position_m) const;
 
   const Site& site_;
   Bus* bus_;

@@ -32,6 +32,9 @@ int main(int argc, char** argv) {
   app.add_option("--warm-start-max-age", options.warm_start_max_age_s,
                  "Seed a solve with the beacon's previous fix when it is at most this old, s")
       ->capture_default_str();
+  app.add_option("--forget-after", options.forget_after_s,
+                 "Forget a beacon's warm-start state after this long without its ranges, s")
+      ->capture_default_str();
   app.add_option("--unknown-beacon-height", options.unknown_beacon_height_m,
                  "Height for beacons missing from the site file, m (default: refuse them)");
   CLI11_PARSE(app, argc, argv);

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "core/analysis/track_error.h"
+#include "msgio/time_limits.h"
 #include "roomfix/image_t.hpp"
 #include "roomfix/marker_pixels_t.hpp"
 #include "roomfix/pose2d_t.hpp"
@@ -17,6 +18,12 @@ namespace {
 // stops shows it within that time.
 constexpr int64_t kRateWindowUs = 5'000'000;
 constexpr size_t kLatencySamples = 30;
+// Per track: receive times in the rate window and trail points. A steady
+// source is 30 Hz at most (5 s: 150 samples, a 10 s trail: 300 points); the
+// caps only bite on a flood, and keep the rate right (it is taken over the
+// newest samples) and a frame's drawing bounded.
+constexpr size_t kMaxRateSamples = 1000;
+constexpr size_t kMaxTrailPoints = 2000;
 
 bool ToSource(int8_t source, viewer::Source* out) {
   switch (source) {
@@ -52,6 +59,18 @@ bool ViewerNodeOptions::IsValid(std::string* error) const {
     *error = "rejected-range tolerance must be positive";
     return false;
   }
+  if (!(forget_after_s >= stale_after_s && forget_after_s <= 3600.0)) {
+    *error = "forget time must be at least the stale time and at most 3600 s";
+    return false;
+  }
+  if (!(forget_process_after_s >= stale_after_s && forget_process_after_s <= 86400.0)) {
+    *error = "process forget time must be at least the stale time and at most 86400 s";
+    return false;
+  }
+  if (max_processes < 1) {
+    *error = "max_processes must be at least 1";
+    return false;
+  }
   return true;
 }
 
@@ -72,12 +91,31 @@ ViewerNode::ViewerNode(const Site& site, Bus* bus, const ViewerNodeOptions& opti
       status_.Reject("unknown_source");
       return;
     }
+    if (!UtimeNear(p.utime, info.recv_utime)) {
+      status_.Reject("utime_out_of_range");
+      return;
+    }
+    if (state_.site.FindRobot(p.robot_id) == nullptr) {
+      status_.Reject("unknown_robot");
+      return;
+    }
+    // NaN means "unknown" or "lost" in a pose; an infinity is never valid,
+    // and would reach the drawing code as a coordinate.
+    bool infinite = std::isinf(p.x_m) || std::isinf(p.y_m) || std::isinf(p.heading_rad);
+    for (const auto& row : p.covariance) {
+      for (double v : row) infinite = infinite || std::isinf(v);
+    }
+    if (infinite) {
+      status_.Reject("non_finite");
+      return;
+    }
     viewer::TrackView* t = FindTrack(source, p.robot_id);
     t->recv_utime = info.recv_utime;
     t->lost = p.status == pose2d_t::STATUS_LOST || !std::isfinite(p.x_m) || !std::isfinite(p.y_m);
     TrackHistory& h = history_[{static_cast<int>(source), p.robot_id}];
     if (h.recv_utimes.empty() && h.first_recv_utime == 0) h.first_recv_utime = info.recv_utime;
     h.recv_utimes.push_back(info.recv_utime);
+    if (h.recv_utimes.size() > kMaxRateSamples) h.recv_utimes.pop_front();
     if (p.latency_us > 0 || source != viewer::Source::kGroundTruth) {
       h.latencies_ms.push_back(p.latency_us * 1e-3);
       if (h.latencies_ms.size() > kLatencySamples) h.latencies_ms.pop_front();
@@ -92,17 +130,41 @@ ViewerNode::ViewerNode(const Site& site, Bus* bus, const ViewerNodeOptions& opti
     t->cov_yy_m2 = p.covariance[1][1];
     t->degraded = p.status == pose2d_t::STATUS_DEGRADED;
     t->trail.push_back({p.utime, p.x_m, p.y_m});
+    if (t->trail.size() > kMaxTrailPoints) t->trail.pop_front();
   });
   bus_->Subscribe<range_set_t>("RANGES", [this](const range_set_t& s, const MessageInfo& info) {
     status_.AddInputs();
     ++messages_;
+    if (!UtimeNear(s.utime, info.recv_utime)) {
+      status_.Reject("utime_out_of_range");
+      return;
+    }
+    const Beacon* beacon = state_.site.FindBeacon(s.beacon_id);
+    if (beacon == nullptr) {
+      status_.Reject("unknown_beacon");
+      return;
+    }
+    if (s.ranges.size() > state_.site.receivers.size()) {
+      status_.Reject("too_many_ranges");
+      return;
+    }
+    for (const range_t& r : s.ranges) {
+      if (!std::isfinite(r.range_m) || !std::isfinite(r.receiver_position_m[0]) ||
+          !std::isfinite(r.receiver_position_m[1]) || !std::isfinite(r.receiver_position_m[2])) {
+        status_.Reject("non_finite");
+        return;
+      }
+    }
     viewer::RangeSetView view;
     view.beacon_id = s.beacon_id;
-    const Beacon* beacon = state_.site.FindBeacon(s.beacon_id);
-    view.beacon_height_m = beacon != nullptr ? beacon->height_m : 0.0;
+    view.beacon_height_m = beacon->height_m;
     view.utime = s.utime;
     view.recv_utime = info.recv_utime;
     for (const range_t& r : s.ranges) {
+      if (state_.site.FindReceiver(r.receiver_id) == nullptr) {
+        status_.Reject("unknown_receiver");
+        continue;
+      }
       viewer::RangeView rv;
       rv.receiver_id = r.receiver_id;
       rv.receiver_m = {r.receiver_position_m[0], r.receiver_position_m[1],
@@ -122,6 +184,12 @@ ViewerNode::ViewerNode(const Site& site, Bus* bus, const ViewerNodeOptions& opti
   bus_->Subscribe<process_status_t>(
       "STATUS", [this](const process_status_t& s, const MessageInfo& info) {
         ++messages_;
+        // The output rate divides by the difference of two heartbeats'
+        // utimes, which must be sane to be subtracted at all.
+        if (!UtimeNear(s.utime, info.recv_utime)) {
+          status_.Reject("utime_out_of_range");
+          return;
+        }
         // One row per process name and host: a restarted process (new pid)
         // takes over its row instead of leaving a stale one behind.
         const std::string key = s.process + "@" + s.host;
@@ -129,6 +197,11 @@ ViewerNode::ViewerNode(const Site& site, Bus* bus, const ViewerNodeOptions& opti
             state_.processes.begin(), state_.processes.end(),
             [&](const viewer::ProcessView& p) { return p.name + "@" + p.host == key; });
         if (it == state_.processes.end()) {
+          Expire(info.recv_utime);
+          if (static_cast<int>(state_.processes.size()) >= options_.max_processes) {
+            status_.Reject("too_many_processes");
+            return;
+          }
           state_.processes.emplace_back();
           it = state_.processes.end() - 1;
         }
@@ -223,7 +296,37 @@ void ViewerNode::MarkRejectedRanges() {
   }
 }
 
+void ViewerNode::Expire(int64_t now_utime) {
+  const auto forget_us = static_cast<int64_t>(options_.forget_after_s * 1e6);
+  const auto forget_process_us = static_cast<int64_t>(options_.forget_process_after_s * 1e6);
+  auto silent = [&](int64_t recv_utime, int64_t after_us) {
+    return SaturatingDifferenceUs(now_utime, recv_utime) > after_us;
+  };
+  auto& tracks = state_.tracks;
+  tracks.erase(std::remove_if(tracks.begin(), tracks.end(),
+                              [&](const viewer::TrackView& t) {
+                                if (!silent(t.recv_utime, forget_us)) return false;
+                                history_.erase({static_cast<int>(t.source), t.robot_id});
+                                return true;
+                              }),
+               tracks.end());
+  auto& sets = state_.range_sets;
+  sets.erase(std::remove_if(
+                 sets.begin(), sets.end(),
+                 [&](const viewer::RangeSetView& v) { return silent(v.recv_utime, forget_us); }),
+             sets.end());
+  auto& processes = state_.processes;
+  processes.erase(std::remove_if(processes.begin(), processes.end(),
+                                 [&](const viewer::ProcessView& p) {
+                                   if (!silent(p.recv_utime, forget_process_us)) return false;
+                                   status_history_.erase(p.name + "@" + p.host);
+                                   return true;
+                                 }),
+                  processes.end());
+}
+
 const viewer::ViewState& ViewerNode::StateAt(int64_t now_utime) {
+  Expire(now_utime);
   state_.now_utime = now_utime;
   state_.trail_s = options_.trail_s;
   state_.stale_after_s = options_.stale_after_s;
@@ -254,6 +357,7 @@ const viewer::ViewState& ViewerNode::StateAt(int64_t now_utime) {
 }
 
 void ViewerNode::Tick(int64_t now_utime) {
+  Expire(now_utime);
   status_.SetCounter("tracks", static_cast<int64_t>(state_.tracks.size()));
   status_.SetCounter("processes", static_cast<int64_t>(state_.processes.size()));
   status_.MaybePublish(bus_, now_utime);

@@ -24,6 +24,15 @@ struct ViewerNodeOptions {
   // A range is drawn as rejected when it disagrees with the ultrasonic fix
   // of its firing by more than this (the fix's own residuals are a few cm).
   double rejected_range_tolerance_m = 0.15;
+  // A track or range set is dropped after this long without a message, a
+  // process row after forget_process_after_s (longer, so that a process that
+  // died stays on screen, stale, for a while). So the picture and the work
+  // per frame hold only what is alive.
+  double forget_after_s = 10.0;
+  double forget_process_after_s = 300.0;
+  // At most this many process rows; STATUS from further names is refused
+  // (too_many_processes) until a row expires.
+  int max_processes = 64;
 
   bool IsValid(std::string* error) const;
 };
@@ -34,6 +43,17 @@ struct ViewerNodeOptions {
 // StateAt(now) gives the state to render as of `now` (trails pruned, rates,
 // stale marks, rejected ranges), so live and replayed logs are drawn by the
 // same code. Publishes its own STATUS heartbeat from Tick.
+//
+// Limits: rows are kept only for what the site names: a pose of a robot it
+// does not list is refused (unknown_robot), a range set of an unknown beacon
+// (unknown_beacon), ranges from unknown receivers are dropped
+// (unknown_receiver) and a set with more ranges than the site has receivers
+// is refused (too_many_ranges). A message whose utime is more than
+// kMaxUtimeSkewUs from its receive time (utime_out_of_range) or that holds
+// an infinity, or a NaN where a number is required (non_finite), is
+// refused. Rows expire (forget_after_s) and each track's trail and rate
+// window hold a bounded number of points, so a flood leaves nothing behind
+// once it stops.
 class ViewerNode {
  public:
   ViewerNode(const Site& site, Bus* bus, const ViewerNodeOptions& options, int64_t start_utime);
@@ -58,6 +78,8 @@ class ViewerNode {
   };
   viewer::TrackView* FindTrack(viewer::Source source, int robot_id);
   void MarkRejectedRanges();
+  // Drops rows not heard from for their forget time as of now_utime.
+  void Expire(int64_t now_utime);
 
   Bus* bus_;
   ViewerNodeOptions options_;

@@ -1,8 +1,12 @@
 #include "viewer/viewer_node.h"
 
 #include <gtest/gtest.h>
+#include <time.h>
 
 #include <cmath>
+#include <cstdio>
+#include <limits>
+#include <string>
 
 #include "msgio/log.h"
 #include "msgio/test_messages.h"
@@ -58,6 +62,7 @@ TEST(ViewerNode, MarksARangeThatDisagreesWithItsFiringsFixAsRejected) {
   const Site site = DemoSite();
   LoopbackBus bus;
   ViewerNode node(site, &bus, {}, kT0);
+  bus.set_now_utime(kT0 + 10'000);
   range_set_t set{};
   set.utime = kT0;
   set.beacon_id = 1;
@@ -86,6 +91,7 @@ TEST(ViewerNode, ShowsEachProcessFromItsHeartbeatWithItsOutputRate) {
   LoopbackBus bus;
   ViewerNode node(site, &bus, {}, kT0);
   for (int k = 0; k < 2; ++k) {
+    bus.set_now_utime(kT0 + k * 1'000'000);
     process_status_t s{};
     s.utime = kT0 + k * 1'000'000;
     s.process = "zigbee_bridge";
@@ -127,6 +133,161 @@ TEST(ViewerNode, ABurstOfMessagesIsNotAnInfiniteRateAndARestartKeepsOneRow) {
   EXPECT_LE(v.tracks[0].rate_hz, 10.0) << "10 messages at once, over at least a second";
   ASSERT_EQ(v.processes.size(), 1u) << "the restarted process takes over its row";
   EXPECT_EQ(v.processes[0].pid, 200);
+}
+
+// ---------------------------------------------------------------------------
+// Limits: what a flood or a broken publisher leaves behind.
+
+double ThreadCpuSeconds() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) + ts.tv_nsec * 1e-9;
+}
+
+// CPU time of drawing frame_count frames of the node's state, one per
+// 1/30 s of view time from now_utime: what the live viewer spends.
+double RenderCpuSeconds(ViewerNode* node, int64_t now_utime, int frame_count) {
+  viewer::RenderOptions render;
+  cv::Mat image;
+  const double start = ThreadCpuSeconds();
+  for (int k = 0; k < frame_count; ++k) {
+    viewer::Render(node->StateAt(now_utime + k * 33'333), render, &image);
+  }
+  return ThreadCpuSeconds() - start;
+}
+
+TEST(ViewerNode, KeepsRowsOnlyForSiteRobotsUnderAFloodOfInventedIds) {
+  const Site site = DemoSite();  // Robot 1 only.
+  LoopbackBus bus;
+  ViewerNode node(site, &bus, {}, kT0);
+  bus.set_now_utime(kT0);
+  for (int id = 0; id < 20000; ++id) {
+    pose2d_t p = Pose(pose2d_t::SOURCE_FUSED, kT0, 1.0, 1.0);
+    p.robot_id = 1000 + id;
+    bus.Publish("POSE_FUSED", p);
+  }
+  bus.Publish("POSE_FUSED", Pose(pose2d_t::SOURCE_FUSED, kT0, 2.0, 1.0));
+  const viewer::ViewState& s = node.StateAt(kT0);
+  ASSERT_EQ(s.tracks.size(), 1u);
+  EXPECT_EQ(s.tracks[0].robot_id, 1);
+  EXPECT_EQ(node.status().rejected("unknown_robot"), 20000);
+}
+
+TEST(ViewerNode, ForgetsEveryRowTenSecondsAfterTheTrafficStops) {
+  const Site site = DemoSite();
+  LoopbackBus bus;
+  ViewerNode node(site, &bus, {}, kT0);
+  // A flood on the one robot the site has, from every source, at 20 kHz for
+  // one second, plus STATUS from 1000 invented processes.
+  for (int k = 0; k < 20000; ++k) {
+    const int64_t t = kT0 + k * 50;
+    bus.set_now_utime(t);
+    for (int8_t source : {pose2d_t::SOURCE_CAMERA, pose2d_t::SOURCE_ULTRASOUND,
+                          pose2d_t::SOURCE_FUSED, pose2d_t::SOURCE_GROUND_TRUTH}) {
+      bus.Publish("POSE_X", Pose(source, t, 1.0 + k * 1e-5, 1.5));
+    }
+  }
+  const int64_t end = kT0 + 19'999 * 50;  // The last message's receive time.
+  for (int k = 0; k < 1000; ++k) {
+    process_status_t st{};
+    st.utime = end;
+    st.process = "flood_" + std::to_string(k);
+    st.host = "attacker";
+    bus.Publish("STATUS", st);
+  }
+  const viewer::ViewState& during = node.StateAt(end);
+  ASSERT_EQ(during.tracks.size(), 4u);
+  for (const viewer::TrackView& t : during.tracks) EXPECT_LE(t.trail.size(), 2000u);
+  EXPECT_EQ(during.processes.size(), 64u);
+  EXPECT_EQ(node.status().rejected("too_many_processes"), 1000 - 64);
+  // 10 s after the last message every track is gone; the process rows stay
+  // (stale) for their own, longer time, then go too.
+  EXPECT_EQ(node.StateAt(end + 10'000'000).tracks.size(), 4u);
+  EXPECT_TRUE(node.StateAt(end + 10'000'001).tracks.empty());
+  EXPECT_EQ(node.StateAt(end + 10'000'001).processes.size(), 64u);
+  EXPECT_TRUE(node.StateAt(end + 300'000'001).processes.empty());
+}
+
+// After a flood, drawing costs what an idle viewer's drawing costs: the
+// work per frame does not grow with what came and went. Measured in CPU
+// time of this thread over 2 s of frames (60 at 30 Hz); the tolerance is
+// 50 % plus 50 ms because the 2 shared cores' caches and frequency make
+// two identical runs differ by some tens of percent, while the flood in the
+// issue (6 888 rows kept) made each frame cost several times more.
+TEST(ViewerNode, DrawsAsCheaplyAfterAFloodAsWhenIdle) {
+  const Site site = DemoSite();
+  constexpr int kFrames = 60;
+  LoopbackBus idle_bus;
+  ViewerNode idle(site, &idle_bus, {}, kT0);
+  const int64_t later = kT0 + 20'000'000;
+  RenderCpuSeconds(&idle, later, 5);  // Warm up caches and allocations.
+  const double idle_s = RenderCpuSeconds(&idle, later, kFrames);
+
+  LoopbackBus bus;
+  ViewerNode node(site, &bus, {}, kT0);
+  for (int k = 0; k < 20000; ++k) {
+    bus.set_now_utime(kT0 + k * 50);
+    pose2d_t p = Pose(pose2d_t::SOURCE_FUSED, kT0 + k * 50, 1.0, 1.0);
+    p.robot_id = k % 2 == 0 ? 1 : 1000 + k;
+    bus.Publish("POSE_FUSED", p);
+  }
+  RenderCpuSeconds(&node, later, 5);
+  const double after_s = RenderCpuSeconds(&node, later, kFrames);
+  EXPECT_TRUE(node.StateAt(later).tracks.empty());
+  std::printf("render CPU over %d frames: idle %.3f s, after the flood %.3f s\n", kFrames, idle_s,
+              after_s);
+  EXPECT_LE(after_s, 1.5 * idle_s + 0.05) << "idle " << idle_s << " s, after " << after_s << " s";
+}
+
+TEST(ViewerNode, RefusesFarOffTimesInfinitiesAndUnknownBeacons) {
+  const Site site = DemoSite();
+  LoopbackBus bus;
+  ViewerNode node(site, &bus, {}, kT0);
+  bus.set_now_utime(kT0);
+  pose2d_t p = Pose(pose2d_t::SOURCE_CAMERA, std::numeric_limits<int64_t>::min(), 1.0, 1.0);
+  bus.Publish("POSE_CAMERA", p);
+  p.utime = kT0 + int64_t{3600} * 1'000'000 + 1;
+  bus.Publish("POSE_CAMERA", p);
+  process_status_t st{};
+  st.utime = std::numeric_limits<int64_t>::min();
+  st.process = "clockless";
+  bus.Publish("STATUS", st);
+  EXPECT_EQ(node.status().rejected("utime_out_of_range"), 3);
+  EXPECT_TRUE(node.StateAt(kT0).processes.empty());
+  p.utime = kT0;
+  p.x_m = std::numeric_limits<double>::infinity();
+  bus.Publish("POSE_CAMERA", p);
+  p.x_m = 1.0;
+  p.covariance[1][1] = -std::numeric_limits<double>::infinity();
+  bus.Publish("POSE_CAMERA", p);
+  EXPECT_EQ(node.status().rejected("non_finite"), 2);
+  EXPECT_TRUE(node.StateAt(kT0).tracks.empty());
+
+  range_set_t set{};
+  set.utime = kT0;
+  set.beacon_id = 99;
+  bus.Publish("RANGES", set);
+  EXPECT_EQ(node.status().rejected("unknown_beacon"), 1);
+  set.beacon_id = 1;
+  for (int k = 0; k < 800; ++k) set.ranges.push_back(range_t{});
+  set.num_ranges = 800;
+  bus.Publish("RANGES", set);
+  EXPECT_EQ(node.status().rejected("too_many_ranges"), 1);
+  set.ranges.resize(2);
+  set.num_ranges = 2;
+  set.ranges[0].receiver_id = site.receivers[0].id;
+  set.ranges[0].range_m = 2.0;
+  set.ranges[1].receiver_id = 999;
+  set.ranges[1].range_m = 2.0;
+  bus.Publish("RANGES", set);
+  EXPECT_EQ(node.status().rejected("unknown_receiver"), 1);
+  set.ranges[0].range_m = std::numeric_limits<double>::quiet_NaN();
+  bus.Publish("RANGES", set);
+  EXPECT_EQ(node.status().rejected("non_finite"), 3);
+  const viewer::ViewState& s = node.StateAt(kT0);
+  ASSERT_EQ(s.range_sets.size(), 1u);
+  ASSERT_EQ(s.range_sets[0].ranges.size(), 1u);
+  EXPECT_DOUBLE_EQ(s.range_sets[0].ranges[0].range_m, 2.0);
 }
 
 TEST(ViewerNode, RendersARecordedSessionReplayedThroughTheSameNode) {

@@ -48,11 +48,14 @@ struct Ranges {
   std::vector<double> w;
   // Indices (into the vectors above) of the ranges in the current fit.
   std::vector<int> active;
+  // Range residuals evaluated so far (Fix::range_evaluations).
+  mutable int64_t evaluations = 0;
 };
 
 template <int D>
 double Cost(const Ranges<D>& r, const std::vector<int>& active,
             const Eigen::Matrix<double, D, 1>& p) {
+  r.evaluations += static_cast<int64_t>(active.size());
   double cost = 0.0;
   for (int i : active) {
     const double e = std::sqrt((p - r.a[i]).squaredNorm() + r.off2[i]) - r.d[i];
@@ -66,6 +69,7 @@ template <int D>
 double NormalEquations(const Ranges<D>& r, const std::vector<int>& active,
                        const Eigen::Matrix<double, D, 1>& p, Eigen::Matrix<double, D, D>* jtj,
                        Eigen::Matrix<double, D, 1>* jte) {
+  r.evaluations += static_cast<int64_t>(active.size());
   jtj->setZero();
   jte->setZero();
   double cost = 0.0;
@@ -185,6 +189,7 @@ bool LinearStart(const Ranges<D>& r, const std::vector<int>& active,
                  Eigen::Matrix<double, D, 1>* p) {
   using Vec = Eigen::Matrix<double, D, 1>;
   using Mat = Eigen::Matrix<double, D, D>;
+  r.evaluations += 2 * static_cast<int64_t>(active.size());
   Vec mean_a = Vec::Zero();
   double mean_c = 0.0;
   for (int i : active) {
@@ -279,6 +284,7 @@ struct Workspace {
   std::vector<int> subset;
   std::vector<int> best_subset;
   std::vector<int> excluded;
+  std::vector<int> sorted_ids;
 };
 
 Workspace& ThreadWorkspace() {
@@ -294,6 +300,7 @@ void Clear(Ranges<D>* r) {
   r->ids.clear();
   r->w.clear();
   r->active.clear();
+  r->evaluations = 0;
 }
 
 // Sorts the input into valid ranges and rejected ones.
@@ -301,15 +308,19 @@ template <int D>
 void Collect(const std::vector<RangeMeasurement>& input, const SolverOptions& o, Ranges<D>* r,
              Fix* fix) {
   Clear(r);
+  // Sorted ids find duplicates in n log n: the input's size is bounded by
+  // the caller's max_ranges only.
+  std::vector<int>& ids = ThreadWorkspace().sorted_ids;
+  ids.clear();
+  for (const RangeMeasurement& m : input) ids.push_back(m.receiver_id);
+  std::sort(ids.begin(), ids.end());
   for (size_t i = 0; i < input.size(); ++i) {
     const RangeMeasurement& m = input[i];
     auto reject = [&](RangeRejection why) { fix->rejected.push_back({m.receiver_id, why}); };
     // A receiver id heard twice in one firing is a corrupted set: neither
     // range can be trusted, so every copy goes.
-    bool duplicate = false;
-    for (size_t j = 0; j < input.size(); ++j) {
-      duplicate = duplicate || (j != i && input[j].receiver_id == m.receiver_id);
-    }
+    const auto same = std::equal_range(ids.begin(), ids.end(), m.receiver_id);
+    const bool duplicate = same.second - same.first > 1;
     if (duplicate) {
       reject(RangeRejection::kDuplicateReceiver);
     } else if (!m.receiver_m.allFinite()) {
@@ -398,6 +409,7 @@ bool Start(const Ranges<D>& r, const std::vector<int>& active, const SolverOptio
 template <int D>
 void Residuals(const Ranges<D>& r, const std::vector<int>& active,
                const Eigen::Matrix<double, D, 1>& p, double* max_abs) {
+  r.evaluations += static_cast<int64_t>(active.size());
   *max_abs = 0.0;
   for (int i : active) {
     *max_abs =
@@ -456,15 +468,23 @@ void SolveIn(const std::vector<RangeMeasurement>& input, const SolverOptions& o,
       // Consensus: the smallest set of excluded ranges after which every
       // remaining residual is within the threshold; among equals, the lowest
       // cost. Exhaustive over subsets, which for the handful of receivers in
-      // a room is a few dozen small solves at most.
+      // a room is a few dozen small solves at most; max_consensus_solves caps
+      // it for anything larger (C(n, 2) subsets of n ranges would let one
+      // message of 800 ranges take half a minute).
       bool found = false;
+      bool exhausted = false;
       double best_cost = kInf;
       Vec best_p = p;
       int best_converged = 0;
-      for (int k = 1; k <= max_out && !found; ++k) {
+      for (int k = 1; k <= max_out && !found && !exhausted; ++k) {
         std::vector<int> pick(k);
         for (int j = 0; j < k; ++j) pick[j] = j;
         while (true) {
+          if (fix->consensus_solves >= o.max_consensus_solves) {
+            exhausted = true;
+            break;
+          }
+          ++fix->consensus_solves;
           w.subset.clear();
           for (int i = 0, j = 0; i < n; ++i) {
             if (j < k && pick[j] == i) {
@@ -500,6 +520,7 @@ void SolveIn(const std::vector<RangeMeasurement>& input, const SolverOptions& o,
         // Re-admit any excluded range that agrees with the consensus point,
         // and refit on the final set.
         w.subset.clear();
+        r->evaluations += static_cast<int64_t>(r->active.size());
         for (int i : r->active) {
           const double e =
               std::abs(std::sqrt((best_p - r->a[i]).squaredNorm() + r->off2[i]) - r->d[i]);
@@ -516,6 +537,7 @@ void SolveIn(const std::vector<RangeMeasurement>& input, const SolverOptions& o,
         fix->flags |= kOutliersRejected;
       } else {
         fix->flags |= kInconsistentRanges;
+        if (exhausted) fix->flags |= kConsensusBudgetExhausted;
       }
     }
   }
@@ -528,6 +550,7 @@ void SolveIn(const std::vector<RangeMeasurement>& input, const SolverOptions& o,
     // they still pull the estimate, with weight under a few percent.
     const double c = 2.3849 * o.range_sigma_m;
     for (int round = 0; round < 30; ++round) {
+      r->evaluations += static_cast<int64_t>(r->active.size());
       for (int i : r->active) {
         const double e = std::sqrt((p - r->a[i]).squaredNorm() + r->off2[i]) - r->d[i];
         r->w[i] = 1.0 / (1.0 + (e / c) * (e / c));
@@ -538,6 +561,7 @@ void SolveIn(const std::vector<RangeMeasurement>& input, const SolverOptions& o,
     }
     const double threshold = o.OutlierThreshold();
     w.subset.clear();
+    r->evaluations += static_cast<int64_t>(r->active.size());
     for (int i : r->active) {
       const double e = std::sqrt((p - r->a[i]).squaredNorm() + r->off2[i]) - r->d[i];
       if (std::abs(e) <= threshold) {
@@ -595,8 +619,8 @@ void SolveIn(const std::vector<RangeMeasurement>& input, const SolverOptions& o,
   }
   fix->residual_rms_m = std::sqrt(cost / static_cast<double>(r->active.size()));
   for (int i : r->active) fix->used.push_back(r->ids[i]);
-  const uint32_t degrading =
-      kBadRangesDropped | kOutliersRejected | kInconsistentRanges | kPoorGeometry | kNotConverged;
+  const uint32_t degrading = kBadRangesDropped | kOutliersRejected | kInconsistentRanges |
+                             kPoorGeometry | kNotConverged | kConsensusBudgetExhausted;
   fix->status = (fix->flags & degrading) != 0 ? FixStatus::kDegraded : FixStatus::kOk;
 }
 
@@ -664,13 +688,17 @@ const char* FixFlagName(FixFlag flag) {
       return "not_converged";
     case kMirrorResolved:
       return "mirror_resolved";
+    case kTooManyRanges:
+      return "too_many_ranges";
+    case kConsensusBudgetExhausted:
+      return "consensus_budget_exhausted";
   }
   return "?";
 }
 
 std::string DescribeFlags(uint32_t flags) {
   std::string out;
-  for (uint32_t bit = 1; bit != 0 && bit <= kMirrorResolved; bit <<= 1) {
+  for (uint32_t bit = 1; bit != 0 && bit <= kLastFixFlag; bit <<= 1) {
     if ((flags & bit) == 0) continue;
     if (!out.empty()) out += ",";
     out += FixFlagName(static_cast<FixFlag>(bit));
@@ -696,6 +724,8 @@ bool SolverOptions::IsValid(std::string* error) const {
   if (max_outliers < 0) return fail("max_outliers must not be negative");
   if (!(max_position_sigma_m > 0.0)) return fail("max_position_sigma_m must be positive");
   if (max_iterations < 1) return fail("max_iterations must be at least 1");
+  if (max_ranges < 1) return fail("max_ranges must be at least 1");
+  if (max_consensus_solves < 0) return fail("max_consensus_solves must not be negative");
   return true;
 }
 
@@ -714,11 +744,19 @@ void Solve(const std::vector<RangeMeasurement>& ranges, const SolverOptions& opt
   fix->used.clear();
   fix->rejected.clear();
   fix->iterations = 0;
+  fix->range_evaluations = 0;
+  fix->consensus_solves = 0;
+  if (static_cast<int64_t>(ranges.size()) > options.max_ranges) {
+    fix->flags |= kTooManyRanges;
+    return;
+  }
   Workspace& w = ThreadWorkspace();
   if (options.dimension == Dimension::k3D) {
     SolveIn<3>(ranges, options, initial_guess, &w.r3, fix);
+    fix->range_evaluations = w.r3.evaluations;
   } else {
     SolveIn<2>(ranges, options, initial_guess, &w.r2, fix);
+    fix->range_evaluations = w.r2.evaluations;
   }
 }
 

@@ -65,6 +65,16 @@ struct SolverOptions {
   // kRobust: at most this many ranges are rejected as outliers, and always
   // few enough that the rest still over-determine the position.
   int max_outliers = 2;
+  // Work limits, so that one message costs a bounded time whatever it holds.
+  // A set with more ranges than max_ranges fails at once (kTooManyRanges): a
+  // room has a handful of receivers, and each range costs every solve. The
+  // kRobust consensus search tries at most max_consensus_solves receiver
+  // subsets (the exhaustive search over 2 outliers among 19 ranges is 190);
+  // when it runs out it keeps the best consistent subset found so far, or
+  // flags kConsensusBudgetExhausted. So a solve evaluates at most about
+  // (max_consensus_solves + 3) * n * (max_iterations + 6) range residuals.
+  int max_ranges = 64;
+  int max_consensus_solves = 200;
   // A fix whose position standard deviation (the covariance's largest
   // eigenvalue, square-rooted) exceeds this is flagged: poor geometry.
   double max_position_sigma_m = 0.5;
@@ -115,7 +125,13 @@ enum FixFlag : uint32_t {
   kPoorGeometry = 1u << 6,        // degraded: covariance above the limit
   kNotConverged = 1u << 7,        // degraded: iteration limit reached
   kMirrorResolved = 1u << 8,      // note: coplanar receivers, room side chosen
+  kTooManyRanges = 1u << 9,       // failed: more ranges than max_ranges
+  // degraded: the consensus search stopped at max_consensus_solves with no
+  // consistent subset among those tried.
+  kConsensusBudgetExhausted = 1u << 10,
 };
+// The highest bit in use, for loops over the flags.
+inline constexpr uint32_t kLastFixFlag = kConsensusBudgetExhausted;
 const char* FixFlagName(FixFlag flag);
 // "too_few_ranges,collinear_receivers" for the flags set.
 std::string DescribeFlags(uint32_t flags);
@@ -133,6 +149,11 @@ struct Fix {
   std::vector<int> used;
   std::vector<RejectedRange> rejected;
   int iterations = 0;
+  // Range residuals evaluated (one |p - a_i| - d_i each): the solve's work,
+  // independent of the machine, which is what its limits are tested in.
+  int64_t range_evaluations = 0;
+  // Subsets the kRobust consensus search solved.
+  int consensus_solves = 0;
 
   bool has_position() const { return status != FixStatus::kFailed; }
 };

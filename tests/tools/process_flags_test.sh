@@ -8,7 +8,7 @@ site=$source/config/sites/demo_room.yaml
 failures=0
 fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
 
-for bin in roomfix_sim trilat_proc zigbee_bridge roomfix_viewer camera_proc; do
+for bin in roomfix_sim trilat_proc fusion_proc zigbee_bridge roomfix_viewer camera_proc; do
   extra=()
   # --check validates the port's name, not the device: none is needed here.
   [[ $bin == zigbee_bridge ]] && extra=(--port /dev/ttyUSB0)
