@@ -11,6 +11,7 @@
 
 #include "core/calib/marker_projection.h"
 #include "msgio/time_limits.h"
+#include "msgio/wire_check.h"
 
 namespace roomfix {
 namespace {
@@ -377,6 +378,16 @@ void CameraNode::OnFrame(camera::Frame* frame, int64_t now_utime) {
     m.circularity = b.circularity;
     m.area_px = b.area_px;
     msg.markers.push_back(m);
+  }
+  // Every receiver refuses a MARKER_PIXELS over the wire cap, so a frame
+  // full of colour noise would otherwise lose the robots' own markers too:
+  // those go first, and what does not fit is counted, not sent.
+  if (msg.markers.size() > static_cast<size_t>(wire_cap::kMarkersPerFrame)) {
+    std::stable_partition(msg.markers.begin(), msg.markers.end(),
+                          [](const marker_t& m) { return m.robot_id >= 0; });
+    status_.Count("markers_not_published",
+                  static_cast<int64_t>(msg.markers.size()) - wire_cap::kMarkersPerFrame);
+    msg.markers.resize(static_cast<size_t>(wire_cap::kMarkersPerFrame));
   }
   msg.num_markers = static_cast<int32_t>(msg.markers.size());
   for (const vision::RobotObservation& o : observations_) {

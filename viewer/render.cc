@@ -885,6 +885,11 @@ void DrawProcesses(PanelWriter* w, const ViewState& state) {
     if (!w->Next()) break;
     std::string detail = Format("%s/s out", Number(p.output_rate_hz, 1).c_str());
     detail += Format(", %lld dropped", static_cast<long long>(p.dropped));
+    for (size_t i = 0; i < p.losses.size(); ++i) {
+      detail += Format("%s%s %lld", i == 0 ? " (" : ", ", Printable(p.losses[i].first, 40).c_str(),
+                       static_cast<long long>(p.losses[i].second));
+      if (i + 1 == p.losses.size()) detail += ")";
+    }
     // The most frequent rejection reasons first.
     std::vector<std::pair<std::string, int64_t>> rejected = p.rejected;
     std::sort(rejected.begin(), rejected.end(),

@@ -89,6 +89,10 @@ struct ProcessView {
   // Outputs per second between the last two heartbeats.
   double output_rate_hz = 0.0;
   std::vector<std::pair<std::string, int64_t>> rejected;
+  // What makes up `dropped`, by cause (the STATUS counters named
+  // dropped_* and fragments_*: docs/security.md), so a full receive buffer
+  // (a slow process) can be told from forged fragments (a hostile sender).
+  std::vector<std::pair<std::string, int64_t>> losses;
   std::string last_error;
   int64_t recv_utime = 0;
 };

@@ -220,6 +220,12 @@ ViewerNode::ViewerNode(const Site& site, Bus* bus, const ViewerNodeOptions& opti
         it->dropped = s.dropped;
         it->rejected.clear();
         for (const counter_t& c : s.rejected) it->rejected.push_back({c.name, c.count});
+        it->losses.clear();
+        for (const counter_t& c : s.counters) {
+          if (c.name.rfind("dropped_", 0) == 0 || c.name.rfind("fragments_", 0) == 0) {
+            it->losses.push_back({c.name, c.count});
+          }
+        }
         std::sort(it->rejected.begin(), it->rejected.end(),
                   [](const auto& a, const auto& b) { return a.second > b.second; });
         it->last_error = s.last_error;

@@ -112,6 +112,31 @@ TEST(ViewerNode, ShowsEachProcessFromItsHeartbeatWithItsOutputRate) {
   EXPECT_EQ(v.processes[0].last_error, "/dev/ttyUSB0: device gone");
 }
 
+// Issue #15: the viewer tells a slow process (its kernel buffer overflowed)
+// from a hostile sender (forged fragments) by the causes behind `dropped`;
+// other counters are not losses and stay out of that list.
+TEST(ViewerNode, ShowsWhatMakesUpAProcesssDroppedCount) {
+  const Site site = DemoSite();
+  LoopbackBus bus;
+  ViewerNode node(site, &bus, {}, kT0);
+  bus.set_now_utime(kT0);
+  process_status_t s{};
+  s.utime = kT0;
+  s.process = "roomfix_logger";
+  s.host = "base";
+  s.dropped = 12;
+  s.counters = {counter_t{"dropped_kernel_overflow", 10}, counter_t{"files_opened", 1},
+                counter_t{"fragments_over_budget", 2}};
+  s.num_counters = 3;
+  bus.Publish("STATUS", s);
+  const viewer::ViewState& v = node.StateAt(kT0);
+  ASSERT_EQ(v.processes.size(), 1u);
+  EXPECT_EQ(v.processes[0].dropped, 12);
+  const std::vector<std::pair<std::string, int64_t>> expected = {{"dropped_kernel_overflow", 10},
+                                                                 {"fragments_over_budget", 2}};
+  EXPECT_EQ(v.processes[0].losses, expected);
+}
+
 TEST(ViewerNode, ABurstOfMessagesIsNotAnInfiniteRateAndARestartKeepsOneRow) {
   const Site site = DemoSite();
   LoopbackBus bus;
