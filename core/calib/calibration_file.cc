@@ -12,6 +12,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "core/world/file_io.h"
 #include "core/world/yaml_reader.h"
 
 namespace roomfix::calib {
@@ -222,14 +223,9 @@ bool ParseCalibration(const std::string& yaml_text, const std::string& name,
 }
 
 bool LoadCalibration(const std::string& path, Calibration* calibration, std::string* error) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    if (error != nullptr) *error = path + ": cannot open: " + std::strerror(errno);
-    return false;
-  }
-  std::ostringstream text;
-  text << in.rdbuf();
-  return ParseCalibration(text.str(), path, calibration, error);
+  std::string text;
+  if (!ReadConfigFile(path, &text, error)) return false;
+  return ParseCalibration(text, path, calibration, error);
 }
 
 std::string FormatCalibration(const Calibration& c, const std::string& header_comment) {
@@ -283,14 +279,7 @@ std::string FormatCalibration(const Calibration& c, const std::string& header_co
 
 bool SaveCalibration(const std::string& path, const Calibration& calibration,
                      const std::string& header_comment, std::string* error) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out << FormatCalibration(calibration, header_comment);
-  out.close();
-  if (!out) {
-    if (error != nullptr) *error = path + ": cannot write: " + std::strerror(errno);
-    return false;
-  }
-  return true;
+  return WriteOutputFile(path, FormatCalibration(calibration, header_comment), error);
 }
 
 }  // namespace roomfix::calib
