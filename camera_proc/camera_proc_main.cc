@@ -131,6 +131,10 @@ int main(int argc, char** argv) {
                 << camera->height_px << "\n";
       return 1;
     }
+    if (const std::string fit = roomfix::calib::CheckFitResidual(c); !fit.empty()) {
+      std::cerr << "camera_proc: " << calibration_path << ": " << fit << "\n";
+      return 1;
+    }
     calibration = c;
   }
   // The synthetic camera must share roomfix_sim's t = 0 to show the robot
