@@ -10,6 +10,7 @@
 
 #include "camera_proc/camera_node.h"
 #include "camera_proc/frame_source.h"
+#include "camera_proc/image_file.h"
 #include "camera_proc/sim_frame_source.h"
 #include "msgio/process.h"
 #include "roomfix/process_status_t.hpp"
@@ -26,6 +27,8 @@ const roomfix::Camera* FindCamera(const roomfix::Site& site, int id) {
 
 // The STATUS counter for a frame the source could not hand over.
 std::string BadFrameReason(const std::string& error) {
+  // Over the camera's size, refused from its header before decoding.
+  if (error.find(roomfix::camera::kTooLargeText) != std::string::npos) return "wrong_frame_size";
   if (error.find("empty") != std::string::npos) return "empty_frame";
   if (error.find("truncated") != std::string::npos ||
       error.find("remature end") != std::string::npos) {
