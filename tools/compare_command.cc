@@ -10,6 +10,7 @@
 
 #include "core/analysis/circle_fit.h"
 #include "core/analysis/track_error.h"
+#include "core/world/file_io.h"
 #include "msgio/pose_tracks.h"
 #include "tools/commands.h"
 
@@ -131,10 +132,9 @@ void AddCompareCommand(CLI::App* app, int* exit_code) {
                   static_cast<long long>(report.bytes_read));
     }
     if (!json_path->empty()) {
-      std::ofstream f(*json_path);
-      f << out.dump(2) << "\n";
-      if (!f) {
-        std::cerr << "roomfix compare: cannot write " << *json_path << "\n";
+      std::string error;
+      if (!WriteOutputFile(*json_path, out.dump(2) + "\n", &error)) {
+        std::cerr << "roomfix compare: " << error << "\n";
         *exit_code = 1;
         return;
       }

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "core/survey/receiver_survey.h"
+#include "core/world/file_io.h"
 #include "core/world/site.h"
 #include "msgio/log.h"
 #include "msgio/pose_tracks.h"
@@ -268,7 +269,8 @@ int Run(const SurveyArgs& a) {
   if (damaged) std::printf("the log is damaged; its readable part was used\n");
 
   if (!a.out.empty()) {
-    std::ofstream f(a.out);
+    // Written whole at the end with every step checked (file_io.h).
+    std::ostringstream f;
     f << "# roomfix survey of " << a.log << " ("
       << (a.no_reference ? "no reference, pinned " + a.pin : "reference " + a.reference) << ", "
       << result.firings_used << " firings, residual rms " << result.residual_rms_m
@@ -297,8 +299,8 @@ int Run(const SurveyArgs& a) {
         f << line;
       }
     }
-    if (!f) {
-      std::cerr << "roomfix survey: cannot write " << a.out << "\n";
+    if (!WriteOutputFile(a.out, f.str(), &error)) {
+      std::cerr << "roomfix survey: " << error << "\n";
       return 1;
     }
   }
@@ -316,10 +318,8 @@ int Run(const SurveyArgs& a) {
     if (can_evaluate) {
       out["held_out"] = {{"before", ErrorJson(before)}, {"after", ErrorJson(after)}};
     }
-    std::ofstream f(a.json_path);
-    f << out.dump(2) << "\n";
-    if (!f) {
-      std::cerr << "roomfix survey: cannot write " << a.json_path << "\n";
+    if (!WriteOutputFile(a.json_path, out.dump(2) + "\n", &error)) {
+      std::cerr << "roomfix survey: " << error << "\n";
       return 1;
     }
   }
