@@ -86,6 +86,22 @@ bool ReadConfigFile(const std::string& path, std::string* text, std::string* err
   return true;
 }
 
+LineRead ReadBoundedLine(std::istream& in, std::string* line, size_t max_bytes) {
+  line->clear();
+  std::streambuf* buffer = in.rdbuf();
+  if (buffer == nullptr || !in.good()) return LineRead::kEnd;
+  for (;;) {
+    const int c = buffer->sbumpc();
+    if (c == std::char_traits<char>::eof()) {
+      in.setstate(std::ios::eofbit);
+      return line->empty() ? LineRead::kEnd : LineRead::kLine;
+    }
+    if (c == '\n') return LineRead::kLine;
+    if (line->size() >= max_bytes) return LineRead::kTooLong;
+    line->push_back(static_cast<char>(c));
+  }
+}
+
 bool WriteOutputFile(const std::string& path, const std::string& bytes, std::string* error) {
   const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC | O_NOCTTY, 0666);
   if (fd < 0) {

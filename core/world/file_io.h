@@ -2,6 +2,7 @@
 #define ROOMFIX_CORE_WORLD_FILE_IO_H_
 
 #include <cstddef>
+#include <istream>
 #include <string>
 
 namespace roomfix {
@@ -28,6 +29,19 @@ bool ReadConfigFile(const std::string& path, std::string* text, std::string* err
 // (REASON from errno, e.g. "No space left on device" for /dev/full). A
 // partial file may remain on failure.
 bool WriteOutputFile(const std::string& path, const std::string& bytes, std::string* error);
+
+// The longest line a streaming text input (roomfix map, solve: CSV or JSON
+// lines, possibly standard input) may have: 64 KiB. Their real lines are
+// under 200 bytes; /dev/zero or a binary file is one endless "line".
+inline constexpr size_t kMaxInputLineBytes = size_t{64} << 10;
+
+enum class LineRead { kLine, kEnd, kTooLong };
+
+// std::getline with a bound: kTooLong as soon as a line exceeds `max_bytes`
+// (without reading the rest of it, which may never end), kEnd at the end of
+// the stream.
+LineRead ReadBoundedLine(std::istream& in, std::string* line,
+                         size_t max_bytes = kMaxInputLineBytes);
 
 // "4 MiB", "512 KiB" or "100 bytes", for messages.
 std::string ByteSizeText(size_t bytes);

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <chrono>
 #include <fstream>
+#include <sstream>
 #include <string>
 
 #include "core/calib/calibration_file.h"
@@ -166,6 +167,30 @@ TEST(LoadCalibration, RefusesADuplicatedKeyNamingFileAndLine) {
   std::string error;
   EXPECT_FALSE(calib::LoadCalibration(path, &c, &error));
   EXPECT_EQ(error, path + ":6: duplicated key 'fx_px' (first at line 5)");
+}
+
+TEST(ReadBoundedLine, ReadsLinesAndStopsAtAnOverlongOne) {
+  std::istringstream in("a,b\n\nlast");
+  std::string line;
+  EXPECT_EQ(ReadBoundedLine(in, &line), LineRead::kLine);
+  EXPECT_EQ(line, "a,b");
+  EXPECT_EQ(ReadBoundedLine(in, &line), LineRead::kLine);
+  EXPECT_EQ(line, "");
+  EXPECT_EQ(ReadBoundedLine(in, &line), LineRead::kLine);
+  EXPECT_EQ(line, "last");
+  EXPECT_EQ(ReadBoundedLine(in, &line), LineRead::kEnd);
+  std::istringstream at_cap(std::string(10, 'x') + "\n" + std::string(11, 'y') + "\n");
+  EXPECT_EQ(ReadBoundedLine(at_cap, &line, 10), LineRead::kLine);
+  EXPECT_EQ(line.size(), 10u);
+  EXPECT_EQ(ReadBoundedLine(at_cap, &line, 10), LineRead::kTooLong);
+}
+
+TEST(ReadBoundedLine, StopsOnDevZeroAfterTheCap) {
+  std::ifstream zero("/dev/zero", std::ios::binary);
+  ASSERT_TRUE(zero.is_open());
+  std::string line;
+  EXPECT_EQ(ReadBoundedLine(zero, &line), LineRead::kTooLong);
+  EXPECT_EQ(line.size(), kMaxInputLineBytes);
 }
 
 TEST(WriteOutputFile, ReportsAFullDeviceAsAFailedWrite) {

@@ -47,6 +47,20 @@ for path in /dev/zero "$source/config"; do
     echo "ok: $err"
   fi
 done
+# Streaming text inputs (map, solve) refuse an endless line instead of
+# growing it until memory runs out.
+for cmd in "map --calibration $source/config/calibration/demo_room_camera.yaml" "solve"; do
+  name=${cmd%% *}
+  # shellcheck disable=SC2086
+  err=$(timeout 10 "$roomfix" $cmd /dev/zero 2>&1 >/dev/null)
+  rc=$?
+  if ((rc != 1)) || [[ "$err" != "roomfix $name: /dev/zero:1: line longer than 64 KiB: not a text input" ]]; then
+    echo "FAIL: $name /dev/zero: exit $rc, stderr '$err'"; failures=$((failures + 1))
+  else
+    echo "ok: $err"
+  fi
+done
+
 # camera_proc refuses the same calibration check-config refuses: a stored
 # fit residual over tolerance.
 bad_fit=$source/tests/data/broken_calibration_sites/calibrations/fit_32px.yaml
