@@ -17,7 +17,6 @@
 
 #include "core/world/file_io.h"
 
-
 namespace roomfix::sim {
 namespace {
 
