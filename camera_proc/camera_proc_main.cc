@@ -10,6 +10,7 @@
 
 #include "camera_proc/camera_node.h"
 #include "camera_proc/frame_source.h"
+#include "camera_proc/image_file.h"
 #include "camera_proc/sim_frame_source.h"
 #include "msgio/process.h"
 #include "roomfix/process_status_t.hpp"
@@ -26,6 +27,8 @@ const roomfix::Camera* FindCamera(const roomfix::Site& site, int id) {
 
 // The STATUS counter for a frame the source could not hand over.
 std::string BadFrameReason(const std::string& error) {
+  // Over the camera's size, refused from its header before decoding.
+  if (error.find(roomfix::camera::kTooLargeText) != std::string::npos) return "wrong_frame_size";
   if (error.find("empty") != std::string::npos) return "empty_frame";
   if (error.find("truncated") != std::string::npos ||
       error.find("remature end") != std::string::npos) {
@@ -129,6 +132,10 @@ int main(int argc, char** argv) {
       std::cerr << "camera_proc: " << calibration_path << " is for " << c.width_px() << "x"
                 << c.height_px() << " px, the camera delivers " << camera->width_px << "x"
                 << camera->height_px << "\n";
+      return 1;
+    }
+    if (const std::string fit = roomfix::calib::CheckFitResidual(c); !fit.empty()) {
+      std::cerr << "camera_proc: " << calibration_path << ": " << fit << "\n";
       return 1;
     }
     calibration = c;

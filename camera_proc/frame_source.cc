@@ -20,6 +20,7 @@
 #include <thread>
 #include <utility>
 
+#include "camera_proc/image_file.h"
 #include "camera_proc/jpeg_image.h"
 #include "camera_proc/v4l2_properties.h"
 
@@ -53,15 +54,6 @@ std::string Lower(std::string text) {
   std::transform(text.begin(), text.end(), text.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   return text;
-}
-
-bool HasJpegExtension(const std::string& path) {
-  const std::string lower = Lower(path);
-  auto ends_with = [&lower](const std::string& suffix) {
-    return lower.size() >= suffix.size() &&
-           lower.compare(lower.size() - suffix.size(), suffix.size(), suffix) == 0;
-  };
-  return ends_with(".jpg") || ends_with(".jpeg");
 }
 
 std::string FourccText(int fourcc) {
@@ -442,17 +434,25 @@ class ImageFilesSource : public FrameSource {
     frame->image.reset();
     std::string reason;
     std::vector<uint8_t> bytes;
-    if (!ReadBytes(path, &bytes)) {
-      reason = "cannot read the file";
+    // Bounded read, then the size from the header before any decoding: a
+    // frame over the camera's size is refused undecoded (kTooLargeText), so
+    // a forged header claiming 100000 x 100000 px costs nothing.
+    ImageHeader header;
+    if (!ReadImageBytes(path, &bytes, &reason)) {
     } else if (bytes.empty()) {
       reason = "empty file";
-    } else if (HasJpegExtension(path)) {
+    } else if (!ReadImageHeader(bytes.data(), bytes.size(), &header, &reason)) {
+    } else if (header.width_px > settings_.width_px || header.height_px > settings_.height_px) {
+      reason = header.format + " of " + std::to_string(header.width_px) + " x " +
+               std::to_string(header.height_px) + " px is " + kTooLargeText + " of the camera's " +
+               std::to_string(settings_.width_px) + " x " + std::to_string(settings_.height_px) +
+               " px (not decoded)";
+    } else if (header.format == "JPEG") {
       frame->image = WrapJpeg(std::move(bytes), &reason);
     } else {
-      cv::Mat bgr = cv::imdecode(bytes, cv::IMREAD_COLOR);
-      if (bgr.empty() || bgr.cols == 0 || bgr.rows == 0) {
-        reason = "not a readable image";
-      } else {
+      cv::Mat bgr;
+      if (DecodeImageChecked(bytes, settings_.width_px, settings_.height_px, cv::IMREAD_COLOR, &bgr,
+                             &reason)) {
         frame->image = MakeDecodedImage(std::move(bgr));
       }
     }
@@ -469,20 +469,6 @@ class ImageFilesSource : public FrameSource {
   bool live() const override { return false; }
 
  private:
-  static bool ReadBytes(const std::string& path, std::vector<uint8_t>* bytes) {
-    std::FILE* file = std::fopen(path.c_str(), "rb");
-    if (file == nullptr) return false;
-    bytes->clear();
-    uint8_t chunk[65536];
-    size_t n = 0;
-    while ((n = std::fread(chunk, 1, sizeof(chunk), file)) > 0) {
-      bytes->insert(bytes->end(), chunk, chunk + n);
-    }
-    const bool ok = std::ferror(file) == 0;
-    std::fclose(file);
-    return ok;
-  }
-
   std::string pattern_;
   CaptureSettings settings_;
   FilePacer pacer_;

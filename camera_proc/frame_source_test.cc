@@ -434,7 +434,7 @@ TEST(ImageFilesSource, ReportsBadFilesAndGoesOn) {
       {ReadStatus::kFrame, ""},
       {ReadStatus::kBadFrame, "b.jpg: truncated"},
       {ReadStatus::kBadFrame, "c.jpg: empty file"},
-      {ReadStatus::kBadFrame, "d.png: not a readable image"},
+      {ReadStatus::kBadFrame, "d.png: not an image format read here"},
       {ReadStatus::kFrame, ""},
       {ReadStatus::kEndOfStream, ""}};
   for (size_t i = 0; i < expected.size(); ++i) {

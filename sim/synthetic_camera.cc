@@ -1,7 +1,9 @@
 #include "sim/synthetic_camera.h"
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
@@ -12,6 +14,8 @@
 #include <opencv2/videoio.hpp>
 #include <sstream>
 #include <utility>
+
+#include "core/world/file_io.h"
 
 namespace roomfix::sim {
 namespace {
@@ -568,13 +572,20 @@ bool WriteSequence(const SyntheticCamera& camera, const SequenceOptions& options
       std::ostringstream name;
       name << "frame_" << std::setw(6) << std::setfill('0') << f << ".jpg";
       const std::string file = (path / name.str()).string();
-      bool ok = false;
+      // Encoded here, written with every step checked: imwrite does not
+      // report every failed write (a full disk).
+      std::vector<uint8_t> bytes;
+      bool encoded = false;
       try {
-        ok = cv::imwrite(file, image, jpeg);
+        encoded = cv::imencode(".jpg", image, bytes, jpeg);
       } catch (const cv::Exception&) {
-        ok = false;
+        encoded = false;
       }
-      if (!ok) return fail("cannot write " + file);
+      if (!encoded) return fail("cannot encode frame " + std::to_string(f));
+      std::string write_error;
+      if (!WriteOutputFile(file, std::string(bytes.begin(), bytes.end()), &write_error)) {
+        return fail(write_error);
+      }
     } else {
       video.write(image);
     }
@@ -592,8 +603,9 @@ bool WriteSequence(const SyntheticCamera& camera, const SequenceOptions& options
           << heading << '\n';
     }
   }
-  csv.flush();
-  if (!csv) return fail("cannot write " + truth_path);
+  // close() flushes: a full disk shows here if not before.
+  csv.close();
+  if (!csv) return fail("cannot write " + truth_path + ": " + std::strerror(errno));
   return true;
 }
 

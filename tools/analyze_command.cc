@@ -24,6 +24,7 @@
 #include "core/analysis/circle_fit.h"
 #include "core/analysis/track_error.h"
 #include "core/analysis/track_stats.h"
+#include "core/world/file_io.h"
 #include "msgio/pose_tracks.h"
 #include "msgio/wire_check.h"
 #include "tools/commands.h"
@@ -117,10 +118,10 @@ bool RunGnuplot(const std::string& script_path, std::string* error) {
   return true;
 }
 
-bool WriteText(const std::string& path, const std::string& text) {
-  std::ofstream f(path);
-  f << text;
-  return static_cast<bool>(f);
+// Every step checked (file_io.h): a full disk is a failed run, not a
+// report cut short.
+bool WriteText(const std::string& path, const std::string& text, std::string* error) {
+  return WriteOutputFile(path, text, error);
 }
 
 std::string Fixed(double v, int digits) {
@@ -244,6 +245,8 @@ class Figures {
   }
 
   const std::vector<std::string>& notes() const { return notes_; }
+  // The first figure data or script that could not be written, or "".
+  const std::string& write_error() const { return write_error_; }
 
  private:
   template <class Fill>
@@ -251,8 +254,9 @@ class Figures {
     if (!enabled_) return "";
     ::mkdir((dir_ + "/data").c_str(), 0755);
     const std::string path = dir_ + "/data/" + stem + ".dat";
-    std::ofstream o(path);
+    std::ostringstream o;
     fill(o);
+    Write(path, o.str());
     return path;
   }
 
@@ -260,8 +264,10 @@ class Figures {
     if (!enabled_) return "";
     const std::string png = stem + ".png";
     const std::string script = dir_ + "/data/" + stem + ".gp";
-    WriteText(script, "set terminal pngcairo size 900,600 noenhanced\nset output " +
-                          Gp(dir_ + "/" + png) + "\nset grid\n" + body);
+    if (!Write(script, "set terminal pngcairo size 900,600 noenhanced\nset output " +
+                           Gp(dir_ + "/" + png) + "\nset grid\n" + body)) {
+      return "";
+    }
     std::string error;
     if (!RunGnuplot(script, &error)) {
       notes_.push_back(png + ": " + error);
@@ -270,9 +276,18 @@ class Figures {
     return png;
   }
 
+  // Keeps the first failed write for write_error(); false on failure.
+  bool Write(const std::string& path, const std::string& text) {
+    std::string error;
+    if (WriteText(path, text, &error)) return true;
+    if (write_error_.empty()) write_error_ = error;
+    return false;
+  }
+
   std::string dir_;
   bool enabled_;
   std::vector<std::string> notes_;
+  std::string write_error_;
 };
 
 std::string DefaultOutDir(const std::string& log) {
@@ -548,9 +563,10 @@ int RunAnalyze(const AnalyzeOptions& options) {
     }
   }
   out["report"] = out_dir + "/report.md";
-  if (!WriteText(out_dir + "/report.md", md.str()) ||
-      !WriteText(out_dir + "/summary.json", out.dump(2) + "\n")) {
-    std::cerr << "roomfix analyze: cannot write into " << out_dir << "\n";
+  std::string write_error = figures.write_error();
+  if (!write_error.empty() || !WriteText(out_dir + "/report.md", md.str(), &write_error) ||
+      !WriteText(out_dir + "/summary.json", out.dump(2) + "\n", &write_error)) {
+    std::cerr << "roomfix analyze: " << write_error << "\n";
     return 1;
   }
   for (const LogReadReport& r : logs.logs) {

@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "camera_proc/image_file.h"
 #include "core/analysis/track_error.h"
 #include "tools/commands.h"
 #include "viewer/render.h"
@@ -240,8 +241,9 @@ int RunViewerBench(const BenchViewerOptions& options) {
     viewer::Render(state, render_options, &image);
     frame_ms.push_back(ms_since(t0));
   }
-  if (!options.png.empty() && !cv::imwrite(options.png, image)) {
-    std::cerr << "roomfix bench viewer: cannot write " << options.png << "\n";
+  std::string png_error;
+  if (!options.png.empty() && !camera::WriteImageChecked(options.png, image, &png_error)) {
+    std::cerr << "roomfix bench viewer: " << png_error << "\n";
     return 1;
   }
   const double median = analysis::Percentile(frame_ms, 0.5);

@@ -10,7 +10,6 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <iostream>
 #include <limits>
 #include <memory>
@@ -24,10 +23,12 @@
 #include <string>
 #include <vector>
 
+#include "camera_proc/image_file.h"
 #include "core/calib/calibration_file.h"
 #include "core/calib/camera_fit.h"
 #include "core/calib/region_model.h"
 #include "core/vision/marker_detector.h"
+#include "core/world/file_io.h"
 #include "core/world/site.h"
 #include "tools/commands.h"
 
@@ -63,7 +64,15 @@ struct Flags {
   double outlier_px = 3.0;
   double pixel_sigma_px = 0.5;
   int max_iterations = 200;
+  double max_rms_px = calib::kMaxFitRmsPx;
 };
+
+// The full model may leave out at most this fraction of the points as
+// outliers, and never more than kMaxOutliers: a set with more is not one
+// camera's view, and each outlier costs a refit (2 000 random points took
+// 46 s when every point could be an outlier).
+constexpr double kMaxOutlierFraction = 0.2;
+constexpr int kMaxOutliers = 50;
 
 // Thrown inside the command for a one-line refusal.
 struct Refusal : std::runtime_error {
@@ -88,11 +97,18 @@ bool ParseNumber(const std::string& text, double* value) {
   return !text.empty() && end == text.c_str() + text.size() && std::isfinite(*value);
 }
 
+// A CSV the command reads: a regular file under the configuration-file cap
+// (file_io.h), so /dev/zero or a FIFO is refused at once.
+std::string ReadCsv(const std::string& path) {
+  std::string text, error;
+  if (!ReadConfigFile(path, &text, &error)) throw Refusal(error);
+  return text;
+}
+
 // The CSV: a header naming u, v, x_m, y_m, height_m (any order), then one
 // point per line. `lines` receives each point's line number for messages.
 std::vector<Correspondence> ReadPoints(const std::string& path, std::vector<int>* lines) {
-  std::ifstream in(path);
-  if (!in) throw Refusal(path + ": cannot open");
+  std::istringstream in(ReadCsv(path));
   const char* names[5] = {"u", "v", "x_m", "y_m", "height_m"};
   int column[5] = {-1, -1, -1, -1, -1};
   std::string line;
@@ -201,16 +217,24 @@ bool ParseBoardAxes(const std::string& text, BoardAxes* out) {
   return true;
 }
 
+// An image from outside: a regular file, its size checked from its header
+// before decoding (camera/image_file.h), OpenCV's exceptions caught.
+cv::Mat ReadImage(const std::string& path, int flags) {
+  cv::Mat image;
+  std::string error;
+  if (!camera::ReadImageChecked(path, camera::kMaxToolImageSidePx, camera::kMaxToolImageSidePx,
+                                flags, &image, &error)) {
+    throw Refusal(error);
+  }
+  return image;
+}
+
 // Finds the board's inner corners in the image, row by row as OpenCV
 // orders them. The sector-based detector first: it copes with the strong
 // distortion of a fisheye lens and is sub-pixel by itself; the classic
 // detector with cornerSubPix is the fallback for images it misses.
 std::vector<DetectedCorner> DetectChessboard(const std::string& path, const BoardSize& board) {
-  // Checked first: imread on a missing file also logs an OpenCV warning,
-  // which would make the refusal two lines.
-  if (!std::ifstream(path)) throw Refusal(path + ": cannot read the image");
-  const cv::Mat gray = cv::imread(path, cv::IMREAD_GRAYSCALE);
-  if (gray.empty()) throw Refusal(path + ": cannot read the image");
+  const cv::Mat gray = ReadImage(path, cv::IMREAD_GRAYSCALE);
   const cv::Size pattern(board.cols, board.rows);
   std::vector<cv::Point2f> corners;
   bool found = cv::findChessboardCornersSB(
@@ -280,19 +304,16 @@ void AddChessboards(const Flags& f, std::vector<Correspondence>* points, std::ve
       throw Refusal("--board-height: expected metres >= 0");
     }
   }
-  std::ofstream csv;
-  if (!f.corners_csv.empty()) {
-    csv.open(f.corners_csv);
-    if (!csv) throw Refusal(f.corners_csv + ": cannot write");
-    csv << "image,i,j,u_px,v_px\n";
-    csv.precision(10);
-  }
+  // Written whole at the end, every step checked (WriteOutputFile).
+  std::ostringstream csv;
+  csv << "image,i,j,u_px,v_px\n";
+  csv.precision(10);
   for (size_t b = 0; b < f.chessboards.size(); ++b) {
     const std::vector<DetectedCorner> corners = DetectChessboard(f.chessboards[b], board);
     std::cout << f.chessboards[b] << ": " << board.Text() << " chessboard, " << corners.size()
               << " corners\n";
     for (const DetectedCorner& c : corners) {
-      if (csv.is_open()) {
+      if (!f.corners_csv.empty()) {
         csv << f.chessboards[b] << "," << c.i << "," << c.j << "," << c.u_px << "," << c.v_px
             << "\n";
       }
@@ -309,9 +330,9 @@ void AddChessboards(const Flags& f, std::vector<Correspondence>* points, std::ve
       lines->push_back(0);
     }
   }
-  if (csv.is_open()) {
-    csv.close();
-    if (!csv) throw Refusal(f.corners_csv + ": cannot write");
+  if (!f.corners_csv.empty()) {
+    std::string error;
+    if (!WriteOutputFile(f.corners_csv, csv.str(), &error)) throw Refusal(error);
     std::cout << "wrote " << f.corners_csv << "\n";
   }
 }
@@ -351,8 +372,7 @@ void AddMarkerImages(const Flags& f, std::vector<Correspondence>* points, std::v
   options.lighting = vision::LightingMode::kNormalised;
   const vision::MarkerDetector detector({cls}, options);
 
-  std::ifstream in(f.marker_images);
-  if (!in) throw Refusal(f.marker_images + ": cannot read");
+  std::istringstream in(ReadCsv(f.marker_images));
   const std::string dir = std::filesystem::path(f.marker_images).parent_path().string();
   std::string line;
   int line_no = 0;
@@ -377,10 +397,11 @@ void AddMarkerImages(const Flags& f, std::vector<Correspondence>* points, std::v
     }
     std::string path = cells[0];
     if (!path.empty() && path[0] != '/' && !dir.empty()) path = dir + "/" + path;
-    const cv::Mat image = cv::imread(path, cv::IMREAD_COLOR);
-    if (image.empty()) {
-      throw Refusal(f.marker_images + ":" + std::to_string(line_no) + ": cannot read image " +
-                    path);
+    cv::Mat image;
+    std::string image_error;
+    if (!camera::ReadImageChecked(path, camera::kMaxToolImageSidePx, camera::kMaxToolImageSidePx,
+                                  cv::IMREAD_COLOR, &image, &image_error)) {
+      throw Refusal(f.marker_images + ":" + std::to_string(line_no) + ": " + image_error);
     }
     const std::vector<vision::Blob> blobs = detector.Detect(image, vision::ImageWindow{});
     if (blobs.size() != 1) {
@@ -417,8 +438,7 @@ void Render(const Flags& f, const Calibration& c, const std::vector<Corresponden
             double grid_m) {
   cv::Mat image;
   if (!f.image.empty()) {
-    image = cv::imread(f.image, cv::IMREAD_COLOR);
-    if (image.empty()) throw Refusal(f.image + ": cannot read the image");
+    image = ReadImage(f.image, cv::IMREAD_COLOR);
     if (image.cols != c.width_px() || image.rows != c.height_px()) {
       throw Refusal(f.image + ": the image is " + std::to_string(image.cols) + " x " +
                     std::to_string(image.rows) + " px, the camera " + std::to_string(c.width_px()) +
@@ -492,7 +512,8 @@ void Render(const Flags& f, const Calibration& c, const std::vector<Corresponden
                   " m, residual arrows x20, outliers circled",
               cv::Point(10, 24), cv::FONT_HERSHEY_SIMPLEX, 0.6, cv::Scalar(255, 255, 255), 1,
               cv::LINE_AA);
-  if (!cv::imwrite(f.png, image)) throw Refusal(f.png + ": cannot write the PNG");
+  std::string error;
+  if (!camera::WriteImageChecked(f.png, image, &error)) throw Refusal(error);
 }
 
 std::string Fixed(double v, int digits) {
@@ -505,6 +526,9 @@ std::string Fixed(double v, int digits) {
 void Run(const Flags& f) {
   if (f.model != "full" && f.model != "regions") {
     throw Refusal("--model: expected full or regions, got '" + f.model + "'");
+  }
+  if (!(f.max_rms_px > 0.0) || !std::isfinite(f.max_rms_px)) {
+    throw Refusal("--max-rms-px: expected a positive number of pixels");
   }
   if (f.points.empty() && f.chessboards.empty() && f.marker_images.empty()) {
     throw Refusal("no points: give --points CSV, --chessboard IMAGE and/or --marker-images CSV");
@@ -561,8 +585,7 @@ void Run(const Flags& f) {
     }
   }
   if (width_px <= 0 && !f.image.empty()) {
-    const cv::Mat image = cv::imread(f.image, cv::IMREAD_UNCHANGED);
-    if (image.empty()) throw Refusal(f.image + ": cannot read the image");
+    const cv::Mat image = ReadImage(f.image, cv::IMREAD_UNCHANGED);
     width_px = image.cols;
     height_px = image.rows;
   }
@@ -597,6 +620,8 @@ void Run(const Flags& f) {
     options.pixel_sigma_px = f.pixel_sigma_px;
     options.outlier_px = f.outlier_px;
     options.max_iterations = f.max_iterations;
+    options.max_outliers = std::min(
+        kMaxOutliers, static_cast<int>(kMaxOutlierFraction * static_cast<double>(points.size())));
     full = calib::FitCamera(points, calib::NominalCamera(*mount, fov_deg, width_px, height_px),
                             options);
     if (!full.usable) full_why = full.message;
@@ -688,6 +713,19 @@ void Run(const Flags& f) {
     }
   }
 
+  // The fit must reproduce its points: a calibration that misses them by
+  // more than the tolerance would misplace every marker by as much.
+  const double rms_px =
+      want_full ? std::sqrt(fs.rms_px / n_full) : std::sqrt(rs.rms_px / points.size());
+  if (!(rms_px <= f.max_rms_px)) {
+    throw Refusal(std::string(want_full ? "full model" : "9-region model") + ": RMS " +
+                  (std::isfinite(rms_px) ? Fixed(rms_px, 2) + " px"
+                                         : std::string("not finite (points it cannot reproject)")) +
+                  " over the points is over the " + Fixed(f.max_rms_px, 2) +
+                  " px tolerance (--max-rms-px); not written");
+  }
+  full_cal.fit_rms_px = want_full ? rms_px : -1.0;
+  region_cal.fit_rms_px = want_full ? -1.0 : rms_px;
   const Calibration& chosen = want_full ? full_cal : region_cal;
   std::ostringstream header;
   std::vector<std::string> sources;
@@ -764,6 +802,10 @@ void AddCalibrateCommand(CLI::App* app, int* exit_code) {
   cmd->add_option("--pixel-sigma", f->pixel_sigma_px, "Expected pixel noise (weights the prior)")
       ->capture_default_str();
   cmd->add_option("--max-iterations", f->max_iterations, "Fit iterations before giving up")
+      ->capture_default_str();
+  cmd->add_option("--max-rms-px", f->max_rms_px,
+                  "Refuse (exit 1, nothing written) a fit whose RMS residual over its points "
+                  "exceeds this many pixels; camera_proc refuses files over 2 px")
       ->capture_default_str();
   cmd->callback([f, exit_code] {
     if (f->png.empty()) {

@@ -10,6 +10,7 @@
 
 #include "core/analysis/circle_fit.h"
 #include "core/analysis/track_error.h"
+#include "core/world/file_io.h"
 #include "msgio/pose_tracks.h"
 #include "msgio/wire_check.h"
 #include "tools/commands.h"
@@ -133,10 +134,9 @@ void AddCompareCommand(CLI::App* app, int* exit_code) {
       std::cerr << "roomfix compare: warning: " << report.path << ": " << report.damage << "\n";
     }
     if (!json_path->empty()) {
-      std::ofstream f(*json_path);
-      f << out.dump(2) << "\n";
-      if (!f) {
-        std::cerr << "roomfix compare: cannot write " << *json_path << "\n";
+      std::string error;
+      if (!WriteOutputFile(*json_path, out.dump(2) + "\n", &error)) {
+        std::cerr << "roomfix compare: " << error << "\n";
         *exit_code = 1;
         return;
       }

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "core/calib/calibration_file.h"
+#include "core/world/file_io.h"
 #include "tools/commands.h"
 
 namespace roomfix {
@@ -77,8 +78,17 @@ void AddMapCommand(CLI::App* app, int* exit_code) {
     int number = 0;
     int failures = 0;
     bool first = true;
-    while (std::getline(*in, line)) {
+    for (;;) {
+      const LineRead read = ReadBoundedLine(*in, &line);
+      if (read == LineRead::kEnd) break;
       ++number;
+      if (read == LineRead::kTooLong) {
+        // Not a text input (/dev/zero, a binary file): stop, do not grow.
+        std::cerr << "roomfix map: " << *input << ":" << number << ": line longer than "
+                  << ByteSizeText(kMaxInputLineBytes) << ": not a text input\n";
+        *exit_code = 1;
+        return;
+      }
       if (line.find_first_not_of(" \t\r") == std::string::npos || line[0] == '#') continue;
       double v[3];
       if (!ParseLine(line, v)) {

@@ -13,7 +13,9 @@
 #include <string>
 #include <vector>
 
+#include "camera_proc/image_file.h"
 #include "core/calib/calibration_file.h"
+#include "core/world/file_io.h"
 #include "core/world/site.h"
 #include "sim/synthetic_camera.h"
 #include "tools/commands.h"
@@ -50,11 +52,12 @@ int WriteTripodImages(const RenderCameraFlags& f, const Site& site, const Camera
   }
   std::error_code ec;
   std::filesystem::create_directories(f.tripod_dir, ec);
-  std::ofstream csv(f.tripod_dir + "/points.csv");
-  if (ec || !csv) {
-    std::cerr << kName << f.tripod_dir << ": cannot write\n";
+  if (ec) {
+    std::cerr << kName << f.tripod_dir << ": cannot make the folder: " << ec.message() << "\n";
     return 1;
   }
+  // Written whole after the images, every step checked (file_io.h).
+  std::ostringstream csv;
   csv << "image,x_m,y_m,height_m\n";
   const double step = f.tripod_step_m > 0.0 ? f.tripod_step_m : site.room.grid_m;
   const CameraRobot& robot = camera.robots.front();
@@ -66,13 +69,19 @@ int WriteTripodImages(const RenderCameraFlags& f, const Site& site, const Camera
       synthetic.Render(0.0, n, {sim::RobotState{robot.robot_id, x, y, 0.0}}, &image);
       char name[64];
       std::snprintf(name, sizeof(name), "tripod_%03d.png", n);
-      if (!cv::imwrite(f.tripod_dir + "/" + name, image)) {
-        std::cerr << kName << f.tripod_dir << "/" << name << ": cannot write\n";
+      std::string error;
+      if (!camera::WriteImageChecked(f.tripod_dir + "/" + name, image, &error)) {
+        std::cerr << kName << error << "\n";
         return 1;
       }
       csv << name << "," << x << "," << y << "," << robot.marker_height_m << "\n";
       ++n;
     }
+  }
+  std::string error;
+  if (!WriteOutputFile(f.tripod_dir + "/points.csv", csv.str(), &error)) {
+    std::cerr << kName << error << "\n";
+    return 1;
   }
   std::cout << "wrote " << n << " tripod images (" << robot.position_marker << " marker at "
             << robot.marker_height_m << " m, every " << step << " m) and points.csv to "
@@ -143,14 +152,8 @@ int RunRenderCamera(const RenderCameraFlags& f) {
     cv::Mat image;
     std::vector<sim::MarkerTruth> truth;
     synthetic.Render(f.time_s, 0, synthetic.SimulatedRobots(f.time_s), &image, &truth);
-    bool ok = false;
-    try {
-      ok = cv::imwrite(f.png, image);
-    } catch (const cv::Exception&) {
-      ok = false;
-    }
-    if (!ok) {
-      std::cerr << kName << f.png << ": cannot write\n";
+    if (!camera::WriteImageChecked(f.png, image, &error)) {
+      std::cerr << kName << error << "\n";
       return 1;
     }
     std::cout << "wrote " << f.png << ": camera " << camera->id << ", scenario " << scenario.name

@@ -1,5 +1,9 @@
 // roomfix: the project's command-line tool.
 #include <CLI/CLI.hpp>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <iostream>
 
 #include "msgio/process.h"
 #include "tools/commands.h"
@@ -26,5 +30,16 @@ int main(int argc, char** argv) {
   roomfix::AddRenderCameraCommand(&app, &exit_code);
   roomfix::AddSurveyCommand(&app, &exit_code);
   CLI11_PARSE(app, argc, argv);
+  // Standard output is an output like any file (bench --json, frames,
+  // map): a command whose output was lost (`> /dev/full`, a full disk)
+  // has failed, whatever it computed.
+  errno = 0;
+  std::cout.flush();
+  if (std::fflush(stdout) != 0 || std::ferror(stdout) != 0 || !std::cout) {
+    std::cerr << "roomfix: standard output: cannot write: "
+              << (errno != 0 ? std::strerror(errno) : "an earlier write failed (a full disk?)")
+              << "\n";
+    return 1;
+  }
   return exit_code;
 }

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "core/trilat/trilateration.h"
+#include "core/world/file_io.h"
 #include "tools/commands.h"
 
 namespace roomfix {
@@ -134,8 +135,17 @@ void AddSolveCommand(CLI::App* app, int* exit_code) {
     std::string line;
     int number = 0;
     int failures = 0;
-    while (std::getline(*in, line)) {
+    for (;;) {
+      const LineRead read = ReadBoundedLine(*in, &line);
+      if (read == LineRead::kEnd) break;
       ++number;
+      if (read == LineRead::kTooLong) {
+        // Not a text input (/dev/zero, a binary file): stop, do not grow.
+        std::cerr << "roomfix solve: " << *input << ":" << number << ": line longer than "
+                  << ByteSizeText(kMaxInputLineBytes) << ": not a text input\n";
+        *exit_code = 1;
+        return;
+      }
       if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
       json answer;
       try {

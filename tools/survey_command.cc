@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "core/survey/receiver_survey.h"
+#include "core/world/file_io.h"
 #include "core/world/site.h"
 #include "msgio/log.h"
 #include "msgio/pose_tracks.h"
@@ -278,7 +279,8 @@ int Run(const SurveyArgs& a) {
   if (damaged) std::printf("the log is damaged; every good event around the damage was used\n");
 
   if (!a.out.empty()) {
-    std::ofstream f(a.out);
+    // Written whole at the end with every step checked (file_io.h).
+    std::ostringstream f;
     f << "# roomfix survey of " << a.log << " ("
       << (a.no_reference ? "no reference, pinned " + a.pin : "reference " + a.reference) << ", "
       << result.firings_used << " firings, residual rms " << result.residual_rms_m
@@ -307,8 +309,8 @@ int Run(const SurveyArgs& a) {
         f << line;
       }
     }
-    if (!f) {
-      std::cerr << "roomfix survey: cannot write " << a.out << "\n";
+    if (!WriteOutputFile(a.out, f.str(), &error)) {
+      std::cerr << "roomfix survey: " << error << "\n";
       return 1;
     }
   }
@@ -326,10 +328,8 @@ int Run(const SurveyArgs& a) {
     if (can_evaluate) {
       out["held_out"] = {{"before", ErrorJson(before)}, {"after", ErrorJson(after)}};
     }
-    std::ofstream f(a.json_path);
-    f << out.dump(2) << "\n";
-    if (!f) {
-      std::cerr << "roomfix survey: cannot write " << a.json_path << "\n";
+    if (!WriteOutputFile(a.json_path, out.dump(2) + "\n", &error)) {
+      std::cerr << "roomfix survey: " << error << "\n";
       return 1;
     }
   }

@@ -13,6 +13,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/videoio.hpp>
 
+#include "camera_proc/image_file.h"
 #include "msgio/log.h"
 #include "msgio/process.h"
 #include "viewer/render.h"
@@ -68,13 +69,16 @@ class FrameSink {
     }
     char name[32];
     std::snprintf(name, sizeof(name), "/frame_%06lld.png", static_cast<long long>(frames_));
-    return cv::imwrite(folder_ + name, frame);
+    return roomfix::camera::WriteImageChecked(folder_ + name, frame, &error_);
   }
   int64_t frames() const { return frames_; }
+  // Why the last image of a sequence could not be written.
+  const std::string& error() const { return error_; }
 
  private:
   cv::VideoWriter writer_;
   std::string folder_;
+  std::string error_;
   int64_t frames_ = 0;
 };
 
@@ -232,10 +236,11 @@ int main(int argc, char** argv) {
         break;
       case 's': {
         const std::string path = Timestamped(flags.screenshot_dir);
-        if (cv::imwrite(path, frame)) {
+        std::string why;
+        if (roomfix::camera::WriteImageChecked(path, frame, &why)) {
           spdlog::info("screenshot: {}", path);
         } else {
-          spdlog::warn("cannot write {}", path);
+          spdlog::warn("screenshot not saved: {}", why);
         }
         break;
       }
@@ -258,7 +263,8 @@ int main(int argc, char** argv) {
   auto write_video = [&] {
     if (flags.video.empty() || video_failed) return;
     if (!video.Write(frame)) {
-      spdlog::error("cannot write frame {} of {}; stopping", video.frames(), flags.video);
+      spdlog::error("cannot write frame {} of {}: {}; stopping", video.frames(), flags.video,
+                    video.error());
       video_failed = true;
       roomfix::RequestShutdown();
     }
@@ -300,8 +306,9 @@ int main(int argc, char** argv) {
       spdlog::warn("{}: {}; replayed every good event", flags.log, summary.damage);
     }
     roomfix::viewer::Render(node.StateAt(summary.last_utime), render, &frame);
-    if (!flags.png.empty() && !cv::imwrite(flags.png, frame)) {
-      std::cerr << "roomfix_viewer: cannot write " << flags.png << "\n";
+    std::string png_error;
+    if (!flags.png.empty() && !roomfix::camera::WriteImageChecked(flags.png, frame, &png_error)) {
+      std::cerr << "roomfix_viewer: " << png_error << "\n";
       return 1;
     }
     // The last picture stays up until the user quits.
@@ -332,8 +339,9 @@ int main(int argc, char** argv) {
       },
       loop);
   roomfix::viewer::Render(node.StateAt(roomfix::NowUtime()), render, &frame);
-  if (!flags.png.empty() && !cv::imwrite(flags.png, frame)) {
-    std::cerr << "roomfix_viewer: cannot write " << flags.png << "\n";
+  std::string png_error;
+  if (!flags.png.empty() && !roomfix::camera::WriteImageChecked(flags.png, frame, &png_error)) {
+    std::cerr << "roomfix_viewer: " << png_error << "\n";
     return 1;
   }
   node.Stop(roomfix::NowUtime());

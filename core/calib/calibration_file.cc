@@ -12,6 +12,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "core/world/file_io.h"
 #include "core/world/yaml_reader.h"
 
 namespace roomfix::calib {
@@ -20,7 +21,7 @@ namespace {
 using Reader = YamlReader;
 
 void ParseFull(const Reader& r, const YAML::Node& root, Calibration* c) {
-  r.OnlyKeys(root, "", {"model", "intrinsics", "pose"});
+  r.OnlyKeys(root, "", {"model", "intrinsics", "pose", "fit_rms_px"});
   const YAML::Node in = r.Required(root, "", "intrinsics");
   r.ExpectMap(in, "intrinsics");
   r.OnlyKeys(in, "intrinsics", {"width_px", "height_px", "fx_px", "fy_px", "cx_px", "cy_px", "k"});
@@ -91,7 +92,7 @@ RegionAxis ParseAxis(const Reader& r, const YAML::Node& node, const std::string&
 
 void ParseRegions(const Reader& r, const YAML::Node& root, Calibration* c) {
   r.OnlyKeys(root, "",
-             {"model", "length_unit", "width_px", "height_px", "calibration_height_m",
+             {"model", "fit_rms_px", "length_unit", "width_px", "height_px", "calibration_height_m",
               "u_boundaries_px", "v_boundaries_px", "regions"});
   double metres_per_unit = 1.0;
   if (root["length_unit"]) {
@@ -214,6 +215,10 @@ bool ParseCalibration(const std::string& yaml_text, const std::string& name,
         } else {
           r.Fail(model, "model", "expected full or regions, got '" + kind + "'");
         }
+        if (const YAML::Node fit = root["fit_rms_px"]) {
+          parsed.fit_rms_px = r.Double(fit, "fit_rms_px");
+          if (parsed.fit_rms_px < 0.0) r.Fail(fit, "fit_rms_px", "must not be negative");
+        }
       },
       error);
   if (!ok) return false;
@@ -222,14 +227,23 @@ bool ParseCalibration(const std::string& yaml_text, const std::string& name,
 }
 
 bool LoadCalibration(const std::string& path, Calibration* calibration, std::string* error) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    if (error != nullptr) *error = path + ": cannot open: " + std::strerror(errno);
-    return false;
-  }
-  std::ostringstream text;
-  text << in.rdbuf();
-  return ParseCalibration(text.str(), path, calibration, error);
+  std::string text;
+  if (!ReadConfigFile(path, &text, error)) return false;
+  return ParseCalibration(text, path, calibration, error);
+}
+
+// A residual or tolerance in pixels, to 4 significant digits (messages and
+// fit_rms_px: its precision is not that of the model).
+std::string Px(double v) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%.4g", v);
+  return text;
+}
+
+std::string CheckFitResidual(const Calibration& calibration, double max_rms_px) {
+  if (calibration.fit_rms_px < 0.0 || calibration.fit_rms_px <= max_rms_px) return "";
+  return "fit_rms_px: the fit's RMS residual " + Px(calibration.fit_rms_px) + " px is over the " +
+         Px(max_rms_px) + " px tolerance (recalibrate: check the points and the mount)";
 }
 
 std::string FormatCalibration(const Calibration& c, const std::string& header_comment) {
@@ -237,6 +251,7 @@ std::string FormatCalibration(const Calibration& c, const std::string& header_co
   std::istringstream header(header_comment);
   std::string line;
   while (std::getline(header, line)) s << (line.empty() ? "#" : "# " + line) << "\n";
+  if (c.fit_rms_px >= 0.0) s << "fit_rms_px: " << Px(c.fit_rms_px) << "\n";
   if (c.model == Calibration::Model::kFull) {
     const FisheyeIntrinsics& i = c.camera.intrinsics;
     const Eigen::Matrix3d& R = c.camera.pose.R_room_from_camera;
@@ -283,14 +298,7 @@ std::string FormatCalibration(const Calibration& c, const std::string& header_co
 
 bool SaveCalibration(const std::string& path, const Calibration& calibration,
                      const std::string& header_comment, std::string* error) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out << FormatCalibration(calibration, header_comment);
-  out.close();
-  if (!out) {
-    if (error != nullptr) *error = path + ": cannot write: " + std::strerror(errno);
-    return false;
-  }
-  return true;
+  return WriteOutputFile(path, FormatCalibration(calibration, header_comment), error);
 }
 
 }  // namespace roomfix::calib

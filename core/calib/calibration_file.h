@@ -37,11 +37,25 @@ namespace roomfix::calib {
 //                        y: {os1: 180, C_calib: -399.2, os2: 2.4}}
 //
 // The rotation matrix must be orthonormal with determinant +1 (to 1e-6).
+//
+// Either model may record how well it fitted the points it came from
+// (roomfix calibrate writes it):
+//
+//   fit_rms_px: 0.047   # RMS reprojection residual of the fit, pixels
+//
+// A calibration whose fit_rms_px is over kMaxFitRmsPx is refused by
+// camera_proc and check-config (CheckFitResidual): it would place markers
+// wrongly by that much everywhere.
+inline constexpr double kMaxFitRmsPx = 2.0;
+
 struct Calibration {
   enum class Model { kFull, kRegions };
   Model model = Model::kFull;
   CameraModel camera;   // kFull
   RegionModel regions;  // kRegions
+  // The fit's RMS residual in pixels when the file states it (fit_rms_px),
+  // otherwise negative.
+  double fit_rms_px = -1.0;
 
   int width_px() const;
   int height_px() const;
@@ -60,6 +74,11 @@ struct Calibration {
 // rotation that is not a rotation, regions missing, repeated or out of
 // range, a zero C_calib, boundaries out of order.
 bool LoadCalibration(const std::string& path, Calibration* calibration, std::string* error);
+// "" when the calibration states no fit residual or one at most
+// `max_rms_px`; otherwise "fit_rms_px: the fit's RMS residual X px is over
+// the Y px tolerance (recalibrate: ...)".
+std::string CheckFitResidual(const Calibration& calibration, double max_rms_px = kMaxFitRmsPx);
+
 // As LoadCalibration, from text; `name` stands for the file in messages.
 bool ParseCalibration(const std::string& yaml_text, const std::string& name,
                       Calibration* calibration, std::string* error);

@@ -280,6 +280,22 @@ CameraFitSummary FitCamera(const std::vector<Correspondence>& points, const Came
         static_cast<int>(problem.used.size()) <= kMinPoints) {
       break;
     }
+    if (options.max_outliers >= 0) {
+      int left_out = 0, above = 0;
+      for (int i = 0; i < n; ++i) {
+        left_out += outlier[i] ? 1 : 0;
+        above += !outlier[i] && residual[i] > options.outlier_px ? 1 : 0;
+      }
+      if (left_out + above > options.max_outliers) {
+        std::ostringstream os;
+        os << left_out + above << " of " << n << " points are more than " << options.outlier_px
+           << " px off the fit, over the " << options.max_outliers
+           << " that may be left out as outliers: the points do not fit one camera";
+        Reject(os.str(), initial, &s);
+        s.iterations = iterations;
+        return s;
+      }
+    }
     outlier[worst] = true;
     problem.used.erase(
         std::find(problem.used.begin(), problem.used.end(), static_cast<size_t>(worst)));

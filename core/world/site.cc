@@ -14,6 +14,7 @@
 #include <tuple>
 #include <utility>
 
+#include "core/world/file_io.h"
 #include "core/world/yaml_reader.h"
 
 namespace roomfix {
@@ -611,17 +612,7 @@ bool ParseSite(const std::string& yaml_text, const std::string& name, const std:
 
 bool LoadSite(const std::string& path, Site* site, std::string* error) {
   std::string text;
-  {
-    FILE* f = std::fopen(path.c_str(), "rb");
-    if (f == nullptr) {
-      if (error != nullptr) *error = path + ": cannot open: " + std::strerror(errno);
-      return false;
-    }
-    char buffer[65536];
-    size_t n;
-    while ((n = std::fread(buffer, 1, sizeof(buffer), f)) > 0) text.append(buffer, n);
-    std::fclose(f);
-  }
+  if (!ReadConfigFile(path, &text, error)) return false;
   if (!ParseSite(text, path, DirName(path), site, error)) return false;
   site->path = path;
   return true;

@@ -1,9 +1,85 @@
 #include "core/world/yaml_reader.h"
 
+#include <yaml-cpp/eventhandler.h>
+
 #include <cmath>
+#include <map>
 #include <sstream>
+#include <vector>
 
 namespace roomfix {
+namespace {
+
+// Finds a key repeated within one mapping. yaml-cpp's YAML::Load keeps every
+// pair but a lookup returns the first, so a repeated key would silently
+// lose its later value. Run on the parser's events rather than a walk of the
+// loaded tree: aliases are events here, not re-expanded subtrees, so the
+// check is linear in the text however the document nests its anchors.
+class DuplicateKeyFinder : public YAML::EventHandler {
+ public:
+  explicit DuplicateKeyFinder(std::string file) : file_(std::move(file)) {}
+
+  const std::string& error() const { return error_; }
+
+  void OnDocumentStart(const YAML::Mark&) override {}
+  void OnDocumentEnd() override {}
+  void OnNull(const YAML::Mark&, YAML::anchor_t) override { Value(nullptr, YAML::Mark()); }
+  void OnAlias(const YAML::Mark&, YAML::anchor_t) override { Value(nullptr, YAML::Mark()); }
+  void OnScalar(const YAML::Mark& mark, const std::string&, YAML::anchor_t,
+                const std::string& value) override {
+    Value(&value, mark);
+  }
+  void OnSequenceStart(const YAML::Mark&, const std::string&, YAML::anchor_t,
+                       YAML::EmitterStyle::value) override {
+    Value(nullptr, YAML::Mark());
+    stack_.push_back(Level{false, true, {}});
+  }
+  void OnSequenceEnd() override { stack_.pop_back(); }
+  void OnMapStart(const YAML::Mark&, const std::string&, YAML::anchor_t,
+                  YAML::EmitterStyle::value) override {
+    Value(nullptr, YAML::Mark());
+    stack_.push_back(Level{true, true, {}});
+  }
+  void OnMapEnd() override { stack_.pop_back(); }
+
+ private:
+  struct Level {
+    bool map = false;
+    bool expect_key = true;  // maps: the next node is a key
+    std::map<std::string, int> key_lines;
+  };
+
+  // One node starts in the current container: a key or a value in a map.
+  // Only scalar keys are compared (the project's files have no others).
+  void Value(const std::string* scalar, const YAML::Mark& mark) {
+    if (stack_.empty() || !stack_.back().map) return;
+    Level& level = stack_.back();
+    const bool is_key = level.expect_key;
+    level.expect_key = !level.expect_key;
+    if (!is_key || scalar == nullptr || !error_.empty()) return;
+    const int line = mark.is_null() ? 0 : mark.line + 1;
+    const auto [it, inserted] = level.key_lines.emplace(*scalar, line);
+    if (!inserted) {
+      error_ = file_ + ":" + std::to_string(line) + ": duplicated key '" + *scalar +
+               "' (first at line " + std::to_string(it->second) + ")";
+    }
+  }
+
+  std::string file_;
+  std::vector<Level> stack_;
+  std::string error_;
+};
+
+}  // namespace
+
+std::string FindDuplicateKey(const std::string& yaml_text, const std::string& name) {
+  DuplicateKeyFinder finder(name);
+  std::istringstream in(yaml_text);
+  YAML::Parser parser(in);
+  // The first document only: the one YAML::Load reads.
+  parser.HandleNextDocument(finder);
+  return finder.error();
+}
 
 void YamlReader::Fail(const YAML::Node& near, const std::string& key,
                       const std::string& what) const {
@@ -111,6 +187,8 @@ bool ParseYamlDocument(const std::string& yaml_text, const std::string& name,
       s << name << ":" << e.mark.line + 1 << ": YAML syntax: " << e.msg;
       throw YamlError(s.str());
     }
+    const std::string duplicate = FindDuplicateKey(yaml_text, name);
+    if (!duplicate.empty()) throw YamlError(duplicate);
     if (!root.IsMap()) r.Fail(root, "(document)", "expected a mapping of keys at the top level");
     parse(r, root);
   } catch (const YamlError& e) {

@@ -72,11 +72,16 @@ class YamlReader {
   std::string file_;
 };
 
+// The first key repeated within one mapping of the (first) document, as
+// "FILE:LINE: duplicated key 'x' (first at line N)" with FILE = `name`, or ""
+// when no key repeats. The text must be valid YAML (YAML::Load accepted it).
+std::string FindDuplicateKey(const std::string& yaml_text, const std::string& name);
+
 // Parses one YAML document whose top level must be a mapping and hands it
 // to `parse` with a reader for `name` (the file, for messages). Returns false
 // with the one-line error of the first problem: a YAML syntax error, a
-// non-mapping document, whatever `parse` reports through the reader, or a
-// value of a shape that a typed read did not anticipate. Nothing escapes.
+// non-mapping document, a duplicated key (FindDuplicateKey), whatever `parse` reports through the
+// reader, or a value of a shape that a typed read did not anticipate. Nothing escapes.
 bool ParseYamlDocument(const std::string& yaml_text, const std::string& name,
                        const std::function<void(const YamlReader&, const YAML::Node&)>& parse,
                        std::string* error);

@@ -4,6 +4,7 @@
 // the live synthetic camera against roomfix_sim's ground truth.
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <sys/resource.h>
 
 #include <chrono>
 #include <cmath>
@@ -18,6 +19,7 @@
 #include "roomfix/marker_pixels_t.hpp"
 #include "roomfix/pose2d_t.hpp"
 #include "roomfix/process_status_t.hpp"
+#include "tests/testing/test_images.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -29,6 +31,10 @@ using testing::SourceDir;
 
 constexpr int64_t kStartUtime = 1'700'000'000'000'000;
 constexpr double kRmseTargetM = 0.005;
+// Peak memory of any child in the oversize-image test: a 1920 x 1080 camera
+// pipeline needs well under this; one decode of the 20000 x 20000 PNG would
+// need 1200 MB.
+constexpr double kMaxChildPeakRssMb = 600.0;
 
 std::string DemoSite() { return SourceDir() + "/config/sites/demo_room.yaml"; }
 
@@ -124,6 +130,45 @@ TEST_F(CameraProcess, AFolderOfFramesBecomesPosesAndBadFilesAreCounted) {
   const double rmse = std::sqrt(sum2 / poses_.size());
   std::printf("folder of 60 frames under changing light: %.2f mm RMS\n", rmse * 1e3);
   EXPECT_LT(rmse, kRmseTargetM);
+}
+
+// Issue #15: a 57-byte PNG whose header claims 100000 x 100000 px killed
+// camera_proc (SIGABRT from OpenCV), and a 20000 x 20000 PNG of a few
+// hundred KB would decode to 1.2 GB. Both are refused from their headers and
+// counted as wrong_frame_size; the good frames around them still become poses.
+TEST_F(CameraProcess, ForgedAndHugeImagesAreCountedAsWrongSizeAndNeverDecoded) {
+  const std::string frames = dir_.File("frames");
+  ChildProcess render({BinDir() + "/roomfix", "render-camera", "--site", DemoSite(), "--scenario",
+                       "lighting", "--duration", "0.5", "--out", frames},
+                      dir_.File("render.out"));
+  ASSERT_EQ(render.Wait(60), 0) << testing::ReadFile(dir_.File("render.out"));
+  std::rename((frames + "/truth.csv").c_str(), dir_.File("truth.csv").c_str());
+  const std::vector<uint8_t> forged = testing::ForgedPngHeader(100000, 100000);
+  ASSERT_EQ(forged.size(), 57u);
+  std::ofstream(frames + "/frame_000003_forged.png", std::ios::binary)
+      .write(reinterpret_cast<const char*>(forged.data()), 57);
+  ASSERT_TRUE(testing::WriteOneColourPng(frames + "/frame_000007_huge.png", 20000, 20000));
+  ChildProcess camera({BinDir() + "/camera_proc", "--config", DemoSite(), "--device", frames,
+                       "--start-utime", std::to_string(kStartUtime), "--log-level", "error"});
+  ASSERT_TRUE(HandleUntil(
+      bus_.get(),
+      [&] {
+        return !status_.empty() && Counter(status_.back().rejected, "wrong_frame_size") == 2 &&
+               pixels_.size() == 15;
+      },
+      30))
+      << pixels_.size() << " frames, "
+      << (status_.empty() ? -1 : Counter(status_.back().rejected, "wrong_frame_size"))
+      << " wrong_frame_size";
+  EXPECT_EQ(camera.Wait(10), 0) << "camera_proc ends at the end of the folder, not by a signal";
+  EXPECT_EQ(Counter(status_.back().rejected, "unreadable_frame"), 0);
+  EXPECT_EQ(poses_.size(), 15u);
+  // The largest child so far (render-camera or camera_proc): far below the
+  // 1.2 GB one decode of the huge PNG would take.
+  rusage usage{};
+  getrusage(RUSAGE_CHILDREN, &usage);
+  std::printf("largest child peak RSS: %.0f MB\n", usage.ru_maxrss / 1024.0);
+  EXPECT_LT(usage.ru_maxrss / 1024.0, kMaxChildPeakRssMb);
 }
 
 TEST_F(CameraProcess, AMissingWebcamIsRetriedAndReported) {
