@@ -3,7 +3,12 @@
 #include <cstring>
 #include <string>
 
+#include "core/world/site.h"
+
 namespace roomfix {
+
+// The site refuses marker class names that every receiver would refuse.
+static_assert(kMaxMarkerClassNameBytes + 1 == static_cast<size_t>(wire_cap::kColourClassBytes));
 namespace wire {
 namespace {
 

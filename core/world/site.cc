@@ -249,6 +249,11 @@ MarkerClass ParseMarkerClass(const Reader& r, const YAML::Node& node, const std:
   r.OnlyKeys(node, key, {"name", "hsv_min", "hsv_max", "diameter_m"});
   MarkerClass mc;
   mc.name = r.String(r.Required(node, key, "name"), key + ".name");
+  if (mc.name.empty() || mc.name.size() > kMaxMarkerClassNameBytes) {
+    r.Fail(node["name"], key + ".name",
+           "a marker class name must have 1 to " + std::to_string(kMaxMarkerClassNameBytes) +
+               " characters");
+  }
   const YAML::Node lo = r.Required(node, key, "hsv_min");
   const YAML::Node hi = r.Required(node, key, "hsv_max");
   mc.hsv_min = r.Ints<3>(lo, key + ".hsv_min");

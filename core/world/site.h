@@ -56,6 +56,11 @@ struct Beacon {
 
 // A colour class in OpenCV's HSV: H in [0, 179], S and V in [0, 255]. A hue
 // range with hue_min > hue_max wraps through 0 (reds).
+// A class's name travels in every MARKER_PIXELS marker (marker_t.colour_class),
+// whose receivers refuse names of 64 bytes or more with the NUL
+// (msgio/wire_check.h): a longer name would get every frame refused.
+inline constexpr size_t kMaxMarkerClassNameBytes = 63;
+
 struct MarkerClass {
   std::string name;
   std::array<int, 3> hsv_min{};

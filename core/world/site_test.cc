@@ -263,6 +263,27 @@ TEST(Site, RejectsOverlappingColourClassesNamingBothAndTheSharedBox) {
             "(hue 15..22, saturation 150..200, value 120..255): a pixel could not be classified");
 }
 
+// The name is sent with every marker; receivers refuse one of 64 bytes or
+// more, so the site must not allow it.
+TEST(Site, RejectsAMarkerClassNameTooLongToSend) {
+  const std::string long_name(kMaxMarkerClassNameBytes + 1, 'o');
+  const std::string text = SiteWithClasses(
+      "{name: " + long_name + ", hsv_min: [5, 120, 120], hsv_max: [22, 255, 255], diameter_m: 0.1}",
+      "{name: green, hsv_min: [40, 80, 60], hsv_max: [85, 255, 255], diameter_m: 0.05}");
+  Site site;
+  std::string error;
+  ASSERT_FALSE(ParseSite(text, "inline.yaml", "", &site, &error));
+  EXPECT_NE(error.find("cameras[0].marker_classes[0].name: a marker class name must have 1 to 63 "
+                       "characters"),
+            std::string::npos)
+      << error;
+  const std::string fits = SiteWithClasses(
+      "{name: " + long_name.substr(1) +
+          ", hsv_min: [5, 120, 120], hsv_max: [22, 255, 255], diameter_m: 0.1}",
+      "{name: green, hsv_min: [40, 80, 60], hsv_max: [85, 255, 255], diameter_m: 0.05}");
+  EXPECT_TRUE(ParseSite(fits, "inline.yaml", "", &site, &error)) << error;
+}
+
 TEST(Site, RejectsOverlapThroughHueZero) {
   const std::string text = SiteWithClasses(
       "{name: red, hsv_min: [170, 120, 120], hsv_max: [8, 255, 255], diameter_m: 0.1}",
