@@ -471,6 +471,69 @@ class HostileTraffic : public ::testing::Test {
   int64_t next_probe_id_ = kFirstRangeSeq;
 };
 
+uint32_t BigEndian32(const Bytes& b, size_t offset) {
+  uint32_t v = 0;
+  for (size_t i = 0; i < 4; ++i) v = (v << 8) | b.at(offset + i);
+  return v;
+}
+
+// The generator itself: each class is the input the issue describes, so a
+// process that passes the suite passed that input and not a near miss.
+TEST(HostileGenerator, EachClassIsTheInputTheIssueDescribes) {
+  const Bytes ranges = hostile::RangesClaimingCount(hostile::kHugeRangeCount);
+  EXPECT_EQ(ranges.size(), 52u);
+  EXPECT_EQ(BigEndian32(ranges, 48), 1u << 24);
+  EXPECT_EQ(BigEndian32(ranges, 0), static_cast<uint32_t>(range_set_t::getHash() >> 32));
+
+  for (const Bytes& b :
+       {hostile::StatusWithNegativeStringLength(), hostile::MarkerPixelsWithNegativeStringLength(),
+        hostile::CameraPreviewWithNegativeStringLength()}) {
+    size_t int32_min_at = 0;
+    for (size_t i = 8; i + 4 <= b.size(); ++i) {
+      if (BigEndian32(b, i) == 0x80000000u) int32_min_at = i;
+    }
+    EXPECT_NE(int32_min_at, 0u) << "no INT32_MIN length in a " << b.size() << "-byte payload";
+  }
+
+  const auto pair = hostile::ConflictingTotalFragments(7, "RANGES");
+  ASSERT_EQ(pair.size(), 2u);
+  for (const Bytes& d : pair) {
+    EXPECT_EQ(BigEndian32(d, 0), 0x4c433033u) << "LC03";
+    EXPECT_EQ(BigEndian32(d, 4), 7u) << "one message";
+  }
+  const uint32_t first_total = BigEndian32(pair[0], 8);
+  const uint32_t second_offset = BigEndian32(pair[1], 12);
+  EXPECT_NE(first_total, BigEndian32(pair[1], 8));
+  EXPECT_GT(second_offset, first_total) << "the second's data lies past the first's buffer";
+  EXPECT_LE(second_offset + (pair[1].size() - 20), BigEndian32(pair[1], 8))
+      << "and within its own total, so only a check against the first fragment finds it";
+
+  const Bytes huge = hostile::HugeFirstFragment(9, "RANGES");
+  EXPECT_EQ(BigEndian32(huge, 8), 64u << 20);
+  EXPECT_EQ(huge[16] << 8 | huge[17], 0) << "fragment 0";
+  const size_t data = huge.size() - 20 - std::strlen("RANGES") - 1;
+  EXPECT_GE(static_cast<size_t>(huge[18] << 8 | huge[19]) * data, size_t{64} << 20)
+      << "a fragment count that could complete it";
+
+  const Bytes empty = hostile::EmptyChannelDatagram(3);
+  EXPECT_EQ(BigEndian32(empty, 0), 0x4c433032u) << "LC02";
+  EXPECT_EQ(empty.at(8), 0) << "the channel is empty";
+
+  // The good range set is consistent: every range is the distance from the
+  // robot's beacon to its receiver.
+  const range_set_t good = hostile::GoodRanges(1, NowUtime());
+  ASSERT_EQ(good.num_ranges, 4);
+  for (const range_t& r : good.ranges) {
+    const double d =
+        std::hypot(r.receiver_position_m[0] - hostile::kGoodX_m,
+                   r.receiver_position_m[1] - hostile::kGoodY_m, r.receiver_position_m[2] - 1.3);
+    EXPECT_NEAR(r.range_m, d, 1e-12);
+  }
+  const range_set_t bad = hostile::InconsistentRanges(400, 1, NowUtime(), 1);
+  EXPECT_EQ(bad.num_ranges, 400);
+  EXPECT_EQ(Encode(bad).size(), 52u + 400 * 52) << "52 bytes of header, 52 per range";
+}
+
 // Starts a process and waits for its first heartbeat.
 bool WaitReady(Listener* listener, const std::string& name, ChildProcess* p, double* rss_mib) {
   process_status_t s;
@@ -601,7 +664,8 @@ TEST_F(HostileTraffic, HeadlessViewerSurvivesEveryClassAndForgetsUnknownRobots) 
   }
   process_status_t after;
   ASSERT_TRUE(listener.StatusAfter("roomfix_viewer", Clock::now(), 3.0, &after));
-  EXPECT_EQ(after.inputs - before.inputs, kGood) << Describe(after);
+  // At least: the viewer also takes in STATUS heartbeats, its own included.
+  EXPECT_GE(after.inputs - before.inputs, kGood) << Describe(after);
 
   EXPECT_LE(listener.LongestHeartbeatGapS("roomfix_viewer"), kHeartbeatGapMaxS);
   ExpectMemoryBounded(viewer.pid(), rss);
@@ -708,12 +772,14 @@ TEST_F(HostileTraffic, ListenPrintsGoodTrafficAndWarnsOfRefusals) {
   SleepS(0.2);
   listen.Signal(SIGINT);
   EXPECT_EQ(listen.Wait(10), 0);
+  // One warning line with the count per reason (the contract for tools
+  // without STATUS): the three INT32_MIN strings, and the 2^24 count in 52
+  // bytes refused for its cap or for the bytes it lacks.
   const std::string warnings = testing::ReadFile(err);
-  for (const char* channel : {"STATUS", "MARKER_PIXELS", "CAMERA_PREVIEW", "RANGES"}) {
-    EXPECT_NE(warnings.find(channel), std::string::npos)
-        << "no warning naming " << channel << " on stderr:\n"
-        << warnings;
-  }
+  EXPECT_NE(warnings.find("negative_length"), std::string::npos) << warnings;
+  EXPECT_TRUE(warnings.find("count_over_cap") != std::string::npos ||
+              warnings.find("truncated") != std::string::npos)
+      << warnings;
 }
 
 // A process frozen (SIGSTOP) behind a small receive buffer while range sets
