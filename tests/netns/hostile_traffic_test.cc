@@ -80,6 +80,9 @@ constexpr double kNewRobotRateHz = 20'000;
 // Room of the demo site, metres, for "no pose outside the room".
 constexpr double kRoomX_m = 4.0;
 constexpr double kRoomY_m = 3.0;
+// A fix this close outside the walls is measurement noise, not the issue's
+// pose "outside the room from 800 ranges" (which was metres out).
+constexpr double kRoomMargin_m = 0.2;
 
 std::string DemoSite() { return SourceDir() + "/config/sites/demo_room.yaml"; }
 
@@ -573,7 +576,8 @@ TEST_F(HostileTraffic, TrilatProcSurvivesEveryClassAndCountsEachRefusal) {
     if (p.p.robot_id != 1 || p.p.measurement_seq < kFirstRangeSeq) continue;
     if (p.p.status == pose2d_t::STATUS_LOST) continue;
     EXPECT_TRUE(std::isfinite(p.p.x_m) && std::isfinite(p.p.y_m)) << p.p.measurement_seq;
-    EXPECT_TRUE(p.p.x_m >= 0 && p.p.x_m <= kRoomX_m && p.p.y_m >= 0 && p.p.y_m <= kRoomY_m)
+    EXPECT_TRUE(p.p.x_m >= -kRoomMargin_m && p.p.x_m <= kRoomX_m + kRoomMargin_m &&
+                p.p.y_m >= -kRoomMargin_m && p.p.y_m <= kRoomY_m + kRoomMargin_m)
         << "pose (" << p.p.x_m << ", " << p.p.y_m << ") outside the room from firing "
         << p.p.measurement_seq << " of " << p.p.num_measurements << " ranges";
   }
