@@ -6,7 +6,7 @@
 // ids, times, values). Each function makes one class of input a hostile or
 // broken publisher on the lab network can send; tests/netns/
 // hostile_traffic_test.cc sends them to the real processes, and
-// `roomfix_hostile` (tests/tools/hostile_publisher.cc) sends them by hand.
+// `roomfix_hostile` (tests/testing/hostile_publisher.cc) sends them by hand.
 //
 // LCM's UDP multicast format (lcm_udpm.c, big-endian):
 //   short message, whole in one datagram: "LC02", u32 sequence number,
