@@ -456,6 +456,13 @@ class HostileTraffic : public ::testing::Test {
   void ExpectMemoryBounded(int pid, double baseline_rss_mib) {
     const double peak = ProcMiB(pid, "VmHWM");
     if (peak < 0) return;  // gone: its death is already a failure
+#ifdef __SANITIZE_ADDRESS__
+    // AddressSanitizer keeps freed memory in a quarantine (256 MiB by
+    // default) and adds shadow memory, so resident memory is not the
+    // program's; the release build judges it.
+    std::printf("memory growth not judged under AddressSanitizer\n");
+    return;
+#endif
     std::printf("pid %d: VmRSS %.1f MiB at start, VmHWM %.1f MiB after the attack\n", pid,
                 baseline_rss_mib, peak);
     EXPECT_LT(peak - baseline_rss_mib, kMemoryGrowthMaxMiB);
