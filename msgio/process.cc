@@ -272,6 +272,18 @@ bool ShutdownRequested() { return g_shutdown.load(); }
 
 void RequestShutdown() { OnSignal(0); }
 
+int DrainBus(Bus* bus, int64_t budget_us) {
+  const int64_t until = NowUtime() + budget_us;
+  int total = 0;
+  do {
+    const int handled = bus->Handle(0);
+    if (handled < 0) return -1;
+    if (handled == 0) break;
+    total += handled;
+  } while (NowUtime() < until);
+  return total;
+}
+
 int RunLoop(Bus* bus, const std::function<void(int64_t)>& tick, const RunLoopOptions& options) {
   const int64_t start = NowUtime();
   const int64_t end =
@@ -292,19 +304,10 @@ int RunLoop(Bus* bus, const std::function<void(int64_t)>& tick, const RunLoopOpt
       spdlog::error("poll failed: {}", std::strerror(errno));
       return 1;
     }
-    if (n > 0 && (fds[0].revents & POLLIN)) {
-      // Drain what is waiting without blocking, then tick. Under a sustained
-      // flood the socket never runs dry, so draining stops after one tick
-      // period to keep heartbeats and deadlines running.
-      const int64_t drain_until = NowUtime() + options.tick_period_ms * 1000;
-      while (NowUtime() < drain_until) {
-        const int handled = bus->Handle(0);
-        if (handled < 0) {
-          spdlog::error("receiving failed: {}", bus->stats().last_error);
-          return 1;
-        }
-        if (handled == 0) break;
-      }
+    if (n > 0 && (fds[0].revents & POLLIN) &&
+        DrainBus(bus, int64_t{options.tick_period_ms} * 1000) < 0) {
+      spdlog::error("receiving failed: {}", bus->stats().last_error);
+      return 1;
     }
     tick(NowUtime());
   }

@@ -125,6 +125,13 @@ bool ShutdownRequested();
 // Asks the run loop to stop as a signal would (for tests and --duration).
 void RequestShutdown();
 
+// Dispatches what is waiting on the bus without blocking, until it runs dry
+// or budget_us has passed (a sustained flood never runs dry, so the budget
+// keeps the caller's own work going). A transport reads one batch per
+// Handle(0), so a single call would leave a backlog that a busy loop clears
+// only slowly. Returns the number handled, or -1 when the transport failed.
+int DrainBus(Bus* bus, int64_t budget_us);
+
 struct RunLoopOptions {
   // The tick is called at least this often, and after every batch of
   // messages.

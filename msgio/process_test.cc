@@ -167,3 +167,31 @@ TEST(RunLoop, KeepsTickingWhileTheTransportIsFlooded) {
 
 }  // namespace
 }  // namespace roomfix
+
+namespace roomfix {
+namespace {
+
+// A loop that calls Handle(0) once per frame reads one batch per call; after
+// a flood DrainBus must clear the whole backlog in one call when the budget
+// allows, and stop at the budget when it does not.
+TEST(DrainBus, ClearsTheBacklogWithinItsBudget) {
+  std::string error;
+  auto bus = LcmBus::Create("memq://", &error);
+  ASSERT_NE(bus, nullptr) << error;
+  int delivered = 0;
+  bus->SubscribeRaw(".*", [&](const MessageInfo&, const void*, int) { ++delivered; });
+  constexpr int kBacklog = 500;
+  const uint8_t byte = 0;
+  for (int i = 0; i < kBacklog; ++i) ASSERT_TRUE(bus->PublishRaw("X", &byte, 1));
+  EXPECT_EQ(DrainBus(bus.get(), 10'000'000), kBacklog);
+  EXPECT_EQ(delivered, kBacklog);
+  EXPECT_EQ(DrainBus(bus.get(), 10'000'000), 0) << "nothing left";
+  for (int i = 0; i < kBacklog; ++i) ASSERT_TRUE(bus->PublishRaw("X", &byte, 1));
+  // A spent budget still reads what one Handle(0) returns, never blocks.
+  const int handled = DrainBus(bus.get(), 0);
+  EXPECT_GE(handled, 1);
+  EXPECT_LT(handled, kBacklog);
+}
+
+}  // namespace
+}  // namespace roomfix
