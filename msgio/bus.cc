@@ -93,6 +93,38 @@ void Bus::RecordError(const std::string& error) {
   stats_.last_error = error;
 }
 
+struct Bus::LocalSubscription {
+  LocalSubscription(SubscriptionId id_in, const std::string& regex, RawHandler handler_in)
+      : id(id_in), pattern(regex), handler(std::move(handler_in)) {}
+  SubscriptionId id;
+  ChannelPattern pattern;
+  RawHandler handler;
+  bool active = true;
+};
+
+SubscriptionId Bus::AddSubscription(const std::string& channel_regex, RawHandler handler) {
+  local_subscriptions_.push_back(
+      std::make_shared<LocalSubscription>(next_local_id_++, channel_regex, std::move(handler)));
+  return local_subscriptions_.back()->id;
+}
+
+void Bus::RemoveSubscription(SubscriptionId id) {
+  for (auto it = local_subscriptions_.begin(); it != local_subscriptions_.end(); ++it) {
+    if ((*it)->id == id) {
+      (*it)->active = false;
+      local_subscriptions_.erase(it);
+      return;
+    }
+  }
+}
+
+void Bus::DeliverToSubscribers(const MessageInfo& info, const void* data, int size) {
+  const auto snapshot = local_subscriptions_;
+  for (const auto& s : snapshot) {
+    if (s->active && s->pattern.Matches(info.channel)) Deliver(s->handler, info, data, size);
+  }
+}
+
 void Bus::AddLoss(int64_t BusStats::*counter, int64_t n, const std::string& error) {
   std::lock_guard<std::mutex> lock(stats_mutex_);
   stats_.*counter += n;
@@ -239,15 +271,6 @@ void LcmBus::RefreshStats() {
 
 // ---------------------------------------------------------------------------
 
-struct LoopbackBus::Subscription {
-  Subscription(SubscriptionId id_in, const std::string& regex, RawHandler handler_in)
-      : id(id_in), pattern(regex), handler(std::move(handler_in)) {}
-  SubscriptionId id;
-  ChannelPattern pattern;
-  RawHandler handler;
-  bool active = true;
-};
-
 bool LoopbackBus::PublishRaw(const std::string& channel, const void* data, int size) {
   CountPublished(true, channel);
   Inject(channel, data, size, now_utime_);
@@ -257,30 +280,14 @@ bool LoopbackBus::PublishRaw(const std::string& channel, const void* data, int s
 void LoopbackBus::Inject(const std::string& channel, const void* data, int size,
                          int64_t recv_utime) {
   now_utime_ = recv_utime;
-  // A handler may publish (a node's output reaching a recorder) or
-  // unsubscribe; iterate over a snapshot so either is safe.
-  const auto snapshot = subscriptions_;
-  const MessageInfo info{channel, recv_utime};
-  for (const auto& s : snapshot) {
-    if (s->active && s->pattern.Matches(channel)) Deliver(s->handler, info, data, size);
-  }
+  DeliverToSubscribers(MessageInfo{channel, recv_utime}, data, size);
 }
 
 SubscriptionId LoopbackBus::SubscribeRaw(const std::string& channel_regex, RawHandler handler) {
-  auto s = std::make_shared<Subscription>(next_id_++, channel_regex, std::move(handler));
-  subscriptions_.push_back(s);
-  return s->id;
+  return AddSubscription(channel_regex, std::move(handler));
 }
 
-void LoopbackBus::Unsubscribe(SubscriptionId id) {
-  for (auto it = subscriptions_.begin(); it != subscriptions_.end(); ++it) {
-    if ((*it)->id == id) {
-      (*it)->active = false;
-      subscriptions_.erase(it);
-      return;
-    }
-  }
-}
+void LoopbackBus::Unsubscribe(SubscriptionId id) { RemoveSubscription(id); }
 
 bool HandleUntil(Bus* bus, const std::function<bool()>& done, double timeout_s) {
   const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);

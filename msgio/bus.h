@@ -116,7 +116,18 @@ class Bus {
   void AddLoss(int64_t BusStats::*counter, int64_t n, const std::string& error);
   void SetLoss(int64_t BusStats::*counter, int64_t value);
 
+  // The subscriptions of a bus that matches channels itself (LoopbackBus,
+  // LogFileBus, UdpmBus; LcmBus leaves that to liblcm). Delivery iterates
+  // over a snapshot, so a handler may publish, subscribe or unsubscribe
+  // (an unsubscribed handler is not called again, even within the snapshot).
+  SubscriptionId AddSubscription(const std::string& channel_regex, RawHandler handler);
+  void RemoveSubscription(SubscriptionId id);
+  void DeliverToSubscribers(const MessageInfo& info, const void* data, int size);
+
  private:
+  struct LocalSubscription;
+  std::vector<std::shared_ptr<LocalSubscription>> local_subscriptions_;
+  SubscriptionId next_local_id_ = 1;
   mutable std::mutex stats_mutex_;
   BusStats stats_;
   std::vector<std::string> refused_channels_;  // at most kMaxRefusedChannels
@@ -183,9 +194,6 @@ class LoopbackBus final : public Bus {
   int64_t now_utime() const { return now_utime_; }
 
  private:
-  struct Subscription;
-  std::vector<std::shared_ptr<Subscription>> subscriptions_;
-  SubscriptionId next_id_ = 1;
   int64_t now_utime_ = 0;
 };
 

@@ -385,15 +385,6 @@ int64_t MonotonicUs() {
 
 }  // namespace
 
-struct LogFileBus::Subscription {
-  Subscription(SubscriptionId id_in, const std::string& regex, RawHandler handler_in)
-      : id(id_in), pattern(regex), handler(std::move(handler_in)) {}
-  SubscriptionId id;
-  ChannelPattern pattern;
-  RawHandler handler;
-  bool active = true;
-};
-
 std::unique_ptr<LogFileBus> LogFileBus::Create(const std::string& url, std::string* error) {
   std::string path;
   double speed = 1.0;
@@ -422,20 +413,10 @@ bool LogFileBus::PublishRaw(const std::string& channel, const void*, int) {
 }
 
 SubscriptionId LogFileBus::SubscribeRaw(const std::string& channel_regex, RawHandler handler) {
-  auto s = std::make_shared<Subscription>(next_id_++, channel_regex, std::move(handler));
-  subscriptions_.push_back(s);
-  return s->id;
+  return AddSubscription(channel_regex, std::move(handler));
 }
 
-void LogFileBus::Unsubscribe(SubscriptionId id) {
-  for (auto it = subscriptions_.begin(); it != subscriptions_.end(); ++it) {
-    if ((*it)->id == id) {
-      (*it)->active = false;
-      subscriptions_.erase(it);
-      return;
-    }
-  }
-}
+void LogFileBus::Unsubscribe(SubscriptionId id) { RemoveSubscription(id); }
 
 void LogFileBus::Advance() {
   have_next_ = reader_->Next(&next_);
@@ -469,13 +450,8 @@ int LogFileBus::Handle(int timeout_ms) {
   if (::poll(&pfd, 1, std::max(timeout_ms, 0)) <= 0) return 0;
   uint64_t expirations = 0;
   if (::read(timer_fd_, &expirations, sizeof(expirations)) < 0 && errno != EAGAIN) return 0;
-  const auto snapshot = subscriptions_;
-  const MessageInfo info{next_.channel, NowUtime()};
-  for (const auto& s : snapshot) {
-    if (s->active && s->pattern.Matches(next_.channel)) {
-      Deliver(s->handler, info, next_.data.data(), static_cast<int>(next_.data.size()));
-    }
-  }
+  DeliverToSubscribers(MessageInfo{next_.channel, NowUtime()}, next_.data.data(),
+                       static_cast<int>(next_.data.size()));
   Advance();
   return 1;
 }

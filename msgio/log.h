@@ -189,12 +189,9 @@ class LogFileBus final : public Bus {
   LogFileBus(std::unique_ptr<LogReader> reader, double speed, int timer_fd);
   // Reads the next event and arms the timer for when it is due.
   void Advance();
-  struct Subscription;
   std::unique_ptr<LogReader> reader_;
   double speed_;
   int timer_fd_;
-  std::vector<std::shared_ptr<Subscription>> subscriptions_;
-  SubscriptionId next_id_ = 1;
   LogEvent next_;
   bool have_next_ = false;
   // Monotonic time of the first event and its log time, for the pacing.

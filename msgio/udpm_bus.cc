@@ -92,14 +92,6 @@ bool ParseUdpmUrl(const std::string& url, UdpmAddress* a, std::string* error) {
   return true;
 }
 
-struct UdpmBus::Subscription {
-  Subscription(SubscriptionId id_in, const std::string& regex, RawHandler h)
-      : id(id_in), pattern(regex), handler(std::move(h)) {}
-  SubscriptionId id;
-  ChannelPattern pattern;
-  RawHandler handler;
-};
-
 struct UdpmBus::Partial {
   sockaddr_in from{};
   uint32_t seqno = 0;
@@ -253,25 +245,13 @@ bool UdpmBus::SendFragments(const std::string& channel, const uint8_t* data, int
 }
 
 SubscriptionId UdpmBus::SubscribeRaw(const std::string& channel_regex, RawHandler handler) {
-  subscriptions_.push_back(
-      std::make_unique<Subscription>(next_id_++, channel_regex, std::move(handler)));
-  return subscriptions_.back()->id;
+  return AddSubscription(channel_regex, std::move(handler));
 }
 
-void UdpmBus::Unsubscribe(SubscriptionId id) {
-  for (auto it = subscriptions_.begin(); it != subscriptions_.end(); ++it) {
-    if ((*it)->id == id) {
-      subscriptions_.erase(it);
-      return;
-    }
-  }
-}
+void UdpmBus::Unsubscribe(SubscriptionId id) { RemoveSubscription(id); }
 
 void UdpmBus::Dispatch(const std::string& channel, const uint8_t* data, int size, int64_t utime) {
-  const MessageInfo info{channel, utime};
-  for (const auto& s : subscriptions_) {
-    if (s->pattern.Matches(channel)) Deliver(s->handler, info, data, size);
-  }
+  DeliverToSubscribers(MessageInfo{channel, utime}, data, size);
 }
 
 void UdpmBus::OnDatagram(const uint8_t* p, int n, const sockaddr_in& from, int64_t utime) {

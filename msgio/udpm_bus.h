@@ -107,7 +107,6 @@ class UdpmBus final : public Bus {
   void NoteKernelDrops(uint32_t drops);
   bool SendFragments(const std::string& channel, const uint8_t* data, int size);
 
-  struct Subscription;
   struct Partial;
   FragmentLimits limits_;
   int recv_fd_ = -1;
@@ -115,10 +114,8 @@ class UdpmBus final : public Bus {
   int recv_buf_bytes_ = 0;
   sockaddr_in group_{};
   uint32_t send_seqno_ = 0;
-  std::vector<std::unique_ptr<Subscription>> subscriptions_;
   std::vector<std::unique_ptr<Partial>> partials_;
   int64_t partial_bytes_ = 0;
-  SubscriptionId next_id_ = 1;
   std::vector<std::vector<uint8_t>> buffers_;
   std::vector<std::vector<uint8_t>> controls_;
   // The kernel's drop counter for the socket as last reported, to add only
