@@ -12,6 +12,7 @@
 
 #include "msgio/bus.h"
 #include "msgio/test_messages.h"
+#include "tests/testing/raw_log_event.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -106,20 +107,9 @@ TEST(LogReader, ReportsATruncatedLogAfterReadingWhatIsWhole) {
                        " (" + std::to_string(size - 7 - cut_at) + " bytes, truncated)");
 }
 
-// One raw event in LCM's log format, with lengths as given (the damage the
-// reader must survive is in the lengths).
 std::string RawEvent(int64_t eventnum, int64_t utime, const std::string& channel,
                      const std::string& data, int32_t channel_bytes, int32_t data_bytes) {
-  std::string out;
-  auto put = [&out](uint64_t v, int bytes) {
-    for (int i = bytes - 1; i >= 0; --i) out.push_back(static_cast<char>(v >> (8 * i)));
-  };
-  put(0xEDA1DA01u, 4);
-  put(static_cast<uint64_t>(eventnum), 8);
-  put(static_cast<uint64_t>(utime), 8);
-  put(static_cast<uint32_t>(channel_bytes), 4);
-  put(static_cast<uint32_t>(data_bytes), 4);
-  return out + channel + data;
+  return testing::RawLogEvent(eventnum, utime, channel, data, channel_bytes, data_bytes);
 }
 
 std::string RawEvent(int64_t eventnum, const std::string& channel, const std::string& data) {

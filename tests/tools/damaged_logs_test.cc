@@ -10,6 +10,7 @@
 #include "msgio/test_messages.h"
 #include "roomfix/pose2d_t.hpp"
 #include "roomfix/range_set_t.hpp"
+#include "tests/testing/raw_log_event.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -29,16 +30,7 @@ constexpr int kPosesPerHalf = 10;
 
 std::string RawEvent(int64_t eventnum, int64_t utime, const std::string& channel,
                      const std::string& data, int32_t channel_bytes, int32_t data_bytes) {
-  std::string out;
-  auto put = [&out](uint64_t v, int bytes) {
-    for (int i = bytes - 1; i >= 0; --i) out.push_back(static_cast<char>(v >> (8 * i)));
-  };
-  put(0xEDA1DA01u, 4);
-  put(static_cast<uint64_t>(eventnum), 8);
-  put(static_cast<uint64_t>(utime), 8);
-  put(static_cast<uint32_t>(channel_bytes), 4);
-  put(static_cast<uint32_t>(data_bytes), 4);
-  return out + channel + data;
+  return testing::RawLogEvent(eventnum, utime, channel, data, channel_bytes, data_bytes);
 }
 
 std::string PoseEvent(int k, int8_t source, const std::string& channel) {
