@@ -8,6 +8,7 @@
 #include <cstring>
 #include <opencv2/imgcodecs.hpp>
 
+#include "camera_proc/jpeg_image.h"
 #include "core/world/file_io.h"
 
 namespace roomfix::camera {
@@ -16,7 +17,6 @@ namespace {
 uint32_t Be32(const uint8_t* p) {
   return (uint32_t{p[0]} << 24) | (uint32_t{p[1]} << 16) | (uint32_t{p[2]} << 8) | p[3];
 }
-uint16_t Be16(const uint8_t* p) { return static_cast<uint16_t>((p[0] << 8) | p[1]); }
 uint32_t Le32(const uint8_t* p) {
   return uint32_t{p[0]} | (uint32_t{p[1]} << 8) | (uint32_t{p[2]} << 16) | (uint32_t{p[3]} << 24);
 }
@@ -45,32 +45,10 @@ bool ReadPng(const uint8_t* d, size_t n, ImageHeader* h, std::string* error) {
 // The first start-of-frame marker (SOF0-SOF15 except DHT C4, JPG C8, DAC
 // CC) holds the height and width; segments before it are skipped by their
 // lengths.
+// libjpeg's own header parser, not a walk by hand: see ReadJpegSize.
 bool ReadJpeg(const uint8_t* d, size_t n, ImageHeader* h, std::string* error) {
-  size_t i = 2;
-  while (i + 4 <= n) {
-    if (d[i] != 0xFF) return Fail(error, "corrupt JPEG header (no marker where one belongs)");
-    const uint8_t marker = d[i + 1];
-    if (marker == 0xFF) {  // fill byte
-      ++i;
-      continue;
-    }
-    if (marker == 0x01 || (marker >= 0xD0 && marker <= 0xD7)) {  // no length
-      i += 2;
-      continue;
-    }
-    if (marker == 0xD9 || marker == 0xDA) break;  // end of image, start of scan
-    const size_t length = Be16(d + i + 2);
-    if (length < 2) return Fail(error, "corrupt JPEG header (segment length under 2)");
-    if (marker >= 0xC0 && marker <= 0xCF && marker != 0xC4 && marker != 0xC8 && marker != 0xCC) {
-      if (i + 9 > n || length < 7) return Fail(error, "truncated JPEG header (SOF segment)");
-      h->format = "JPEG";
-      h->height_px = Be16(d + i + 5);
-      h->width_px = Be16(d + i + 7);
-      return true;
-    }
-    i += 2 + length;
-  }
-  return Fail(error, "truncated JPEG header (no start-of-frame marker)");
+  h->format = "JPEG";
+  return ReadJpegSize(d, n, &h->width_px, &h->height_px, error);
 }
 
 bool ReadBmp(const uint8_t* d, size_t n, ImageHeader* h, std::string* error) {

@@ -66,7 +66,7 @@ TEST(ReadImageHeader, RefusesFormatsItCannotCheckAndTruncatedHeaders) {
   EXPECT_EQ(error, "truncated PNG header (no IHDR chunk)");
   const std::vector<uint8_t> jpeg = Encode(".jpg", 10, 10);
   EXPECT_FALSE(ReadImageHeader(jpeg.data(), 40, &h, &error));
-  EXPECT_NE(error.find("truncated JPEG header"), std::string::npos) << error;
+  EXPECT_EQ(error, "not a readable JPEG: Premature end of JPEG file");
   const std::vector<uint8_t> zero_width = roomfix::testing::ForgedPngHeader(0, 10);
   EXPECT_FALSE(ReadImageHeader(zero_width.data(), zero_width.size(), &h, &error));
   EXPECT_EQ(error, "PNG header states 0 x 10 px");
@@ -84,6 +84,55 @@ TEST(DecodeImageChecked, RefusesTheForged57BytePngUndecoded) {
   EXPECT_EQ(error,
             "PNG of 100000 x 100000 px is larger than the limit of 1920 x 1080 px (not decoded)");
   EXPECT_TRUE(image.empty());
+}
+
+// The attack found after the first fix: a real small JPEG whose frame header
+// is patched to 20000 x 20000, behind SOI and a two-byte marker with no
+// length (TEM, FF 01) or stray bytes (FF 00). A walk of the segments by hand
+// reads the next marker's bytes as a length, lands at byte 65508, and finds a
+// dummy 16 x 16 frame header placed there; libjpeg reads the real one and
+// OpenCV decodes 1.2 GB from a 65 KB file. The size must come from libjpeg.
+std::vector<uint8_t> JpegHidingItsSize(uint8_t marker_without_length) {
+  std::vector<uint8_t> real = Encode(".jpg", 64, 48);
+  for (size_t i = 2; i + 9 <= real.size(); ++i) {
+    if (real[i] == 0xFF && real[i + 1] == 0xC0) {  // baseline SOF0: patch the size
+      real[i + 5] = 20000 >> 8;
+      real[i + 6] = 20000 & 0xFF;
+      real[i + 7] = 20000 >> 8;
+      real[i + 8] = 20000 & 0xFF;
+      break;
+    }
+  }
+  std::vector<uint8_t> out(real.size() + 2);
+  out[0] = 0xFF;
+  out[1] = 0xD8;
+  out[2] = 0xFF;
+  out[3] = marker_without_length;
+  std::copy(real.begin() + 2, real.end(), out.begin() + 4);  // APP0 (FF E0) next
+  constexpr size_t kDummyAt = 2 + 2 + 0xFFE0;                // where a naive walk lands
+  EXPECT_LT(out.size(), kDummyAt);
+  out.resize(kDummyAt, 0);
+  const uint8_t dummy_sof[] = {0xFF, 0xC0, 0x00, 0x11, 0x08, 0x00, 0x10, 0x00, 0x10};
+  out.insert(out.end(), std::begin(dummy_sof), std::end(dummy_sof));
+  out.resize(out.size() + 16, 0);
+  return out;
+}
+
+TEST(ReadImageHeader, TakesAJpegsSizeFromLibjpegNotFromADummyHeader) {
+  const std::vector<uint8_t> tem = JpegHidingItsSize(0x01);
+  ImageHeader header;
+  std::string error;
+  // libjpeg's header reader sees the real 20000 x 20000 and refuses it
+  // outright (over 2^27 pixels), before any caller's own limit.
+  EXPECT_FALSE(ReadImageHeader(tem.data(), tem.size(), &header, &error));
+  EXPECT_EQ(error, "not a readable JPEG: JPEG image size out of range (20000 x 20000 px)");
+  cv::Mat image;
+  EXPECT_FALSE(DecodeImageChecked(tem, 8192, 8192, cv::IMREAD_COLOR, &image, &error));
+  EXPECT_TRUE(image.empty());
+  // Stray bytes are a libjpeg warning, and its warnings are errors here.
+  const std::vector<uint8_t> stray = JpegHidingItsSize(0x00);
+  EXPECT_FALSE(ReadImageHeader(stray.data(), stray.size(), &header, &error));
+  EXPECT_EQ(error.rfind("not a readable JPEG", 0), 0u) << error;
 }
 
 TEST(DecodeImageChecked, DecodesAnImageAtTheLimitAndCatchesOpenCvErrors) {

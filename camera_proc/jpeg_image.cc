@@ -117,7 +117,10 @@ void RunHeader(void* arg) {
   }
   if (c->image_width == 0 || c->image_height == 0 ||
       int64_t{c->image_width} * c->image_height > kMaxPixels) {
-    Fail(job->d->err(), "JPEG image size out of range");
+    char message[96];
+    std::snprintf(message, sizeof(message), "JPEG image size out of range (%u x %u px)",
+                  static_cast<unsigned>(c->image_width), static_cast<unsigned>(c->image_height));
+    Fail(job->d->err(), message);
   }
   job->width = static_cast<int>(c->image_width);
   job->height = static_cast<int>(c->image_height);
@@ -343,6 +346,23 @@ std::unique_ptr<FrameImage> MakeJpegImageWithOptions(std::vector<uint8_t> bytes,
     return nullptr;
   }
   return std::make_unique<JpegImage>(std::move(bytes), job.width, job.height, options);
+}
+
+bool ReadJpegSize(const uint8_t* data, size_t size, int* width_px, int* height_px,
+                  std::string* error) {
+  if (size == 0) {
+    if (error != nullptr) *error = "empty JPEG data (0 bytes)";
+    return false;
+  }
+  Decompressor d;
+  HeaderJob job{&d, data, size, 0, 0};
+  if (!RunGuarded(d.err(), RunHeader, &job)) {
+    if (error != nullptr) *error = std::string("not a readable JPEG: ") + d.message();
+    return false;
+  }
+  *width_px = job.width;
+  *height_px = job.height;
+  return true;
 }
 
 std::unique_ptr<FrameImage> MakeJpegImage(std::vector<uint8_t> bytes, std::string* error) {

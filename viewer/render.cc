@@ -14,6 +14,8 @@
 #include <utility>
 #include <vector>
 
+#include "camera_proc/image_file.h"
+
 namespace roomfix::viewer {
 namespace {
 
@@ -910,45 +912,6 @@ void DrawProcesses(PanelWriter* w, const ViewState& state) {
   w->More(left);
 }
 
-// Declared size of a PNG or JPEG; false for anything else or a broken header.
-bool PreviewSize(const std::vector<uint8_t>& data, int* width, int* height) {
-  const size_t n = data.size();
-  if (n >= 24 && std::memcmp(data.data(), "\x89PNG\r\n\x1a\n", 8) == 0 &&
-      std::memcmp(data.data() + 12, "IHDR", 4) == 0) {
-    auto be32 = [&](size_t at) {
-      return (uint32_t{data[at]} << 24) | (uint32_t{data[at + 1]} << 16) |
-             (uint32_t{data[at + 2]} << 8) | uint32_t{data[at + 3]};
-    };
-    *width = static_cast<int>(std::min<uint32_t>(be32(16), 1u << 30));
-    *height = static_cast<int>(std::min<uint32_t>(be32(20), 1u << 30));
-    return true;
-  }
-  if (n >= 4 && data[0] == 0xFF && data[1] == 0xD8) {
-    // Walk the marker segments to the first start-of-frame.
-    size_t at = 2;
-    while (at + 4 <= n) {
-      if (data[at] != 0xFF) return false;
-      const uint8_t marker = data[at + 1];
-      if (marker == 0xFF) {
-        ++at;  // fill byte
-        continue;
-      }
-      const size_t length = (size_t{data[at + 2]} << 8) | data[at + 3];
-      const bool sof =
-          marker >= 0xC0 && marker <= 0xCF && marker != 0xC4 && marker != 0xC8 && marker != 0xCC;
-      if (sof) {
-        if (at + 9 > n) return false;
-        *height = (data[at + 5] << 8) | data[at + 6];
-        *width = (data[at + 7] << 8) | data[at + 8];
-        return true;
-      }
-      if (length < 2) return false;
-      at += 2 + length;
-    }
-  }
-  return false;
-}
-
 struct PreviewCache {
   std::vector<uint8_t> encoded;
   cv::Mat decoded;  // empty when undecodable
@@ -964,15 +927,14 @@ const cv::Mat& ScaledPreview(const PreviewView& preview, cv::Size box, PreviewCa
     cache->encoded = preview.encoded;
     cache->decoded.release();
     cache->scaled.release();
-    int w = 0;
-    int h = 0;
-    if (preview.encoded.size() <= kMaxPreviewBytes && PreviewSize(preview.encoded, &w, &h) &&
-        w > 0 && h > 0 && w <= kMaxPreviewSidePx && h <= kMaxPreviewSidePx) {
-      try {
-        cache->decoded = cv::imdecode(preview.encoded, cv::IMREAD_COLOR);
-      } catch (const cv::Exception&) {
-        cache->decoded.release();
-      }
+    // The same checked decoder as camera_proc's frames: the size comes from
+    // the header (libjpeg's own parser for JPEG) before a pixel is decoded,
+    // so a small preview declaring 20000 x 20000 is refused, not decoded.
+    std::string error;
+    if (preview.encoded.size() > kMaxPreviewBytes ||
+        !camera::DecodeImageChecked(preview.encoded, kMaxPreviewSidePx, kMaxPreviewSidePx,
+                                    cv::IMREAD_COLOR, &cache->decoded, &error)) {
+      cache->decoded.release();
     }
   }
   *scale = 0.0;
