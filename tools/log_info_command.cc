@@ -19,6 +19,9 @@ struct ChannelSummary {
   std::map<std::string, int64_t> types;
 };
 
+constexpr size_t kMaxListedChannels = 1024;
+constexpr char kUnlistedChannels[] = "(other channels)";
+
 }  // namespace
 
 void AddLogInfoCommand(CLI::App* app, int* exit_code) {
@@ -34,10 +37,20 @@ void AddLogInfoCommand(CLI::App* app, int* exit_code) {
       *exit_code = 1;
       return;
     }
+    // A log holds whatever was on the bus, and anyone can invent channel
+    // names: past kMaxListedChannels distinct names the rest share one row,
+    // so the table (and memory) stays bounded however many there are.
     std::map<std::string, ChannelSummary> channels;
+    int64_t unlisted_channel_events = 0;
     LogEvent event;
     while (reader->Next(&event)) {
-      ChannelSummary& c = channels[event.channel];
+      auto it = channels.find(event.channel);
+      if (it == channels.end()) {
+        const bool listed = channels.size() < kMaxListedChannels;
+        if (!listed) ++unlisted_channel_events;
+        it = channels.emplace(listed ? event.channel : kUnlistedChannels, ChannelSummary{}).first;
+      }
+      ChannelSummary& c = it->second;
       if (c.events == 0) c.first_utime = event.utime;
       c.last_utime = event.utime;
       ++c.events;
@@ -56,6 +69,10 @@ void AddLogInfoCommand(CLI::App* app, int* exit_code) {
         std::printf("%-24s %8lld %10lld %9.2f  %s\n", name.c_str(), static_cast<long long>(count),
                     static_cast<long long>(c.bytes), rate, type.c_str());
       }
+    }
+    if (unlisted_channel_events > 0) {
+      std::cerr << "roomfix log-info: warning: more than " << kMaxListedChannels
+                << " channels; events on the rest are summed under " << kUnlistedChannels << "\n";
     }
     *exit_code = 0;
     if (reader->damaged()) {

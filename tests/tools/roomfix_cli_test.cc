@@ -7,6 +7,7 @@
 
 #include "core/radio/wall_payload.h"
 #include "core/radio/xbee_frame.h"
+#include "msgio/log.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -139,6 +140,36 @@ TEST(RoomfixBenchTrilat, PrintsEveryMethodForEveryScenarioAsJson) {
 
 // The circle fits on the recorded simulator log give back the reference
 // drive the simulator followed (exact data: only conditioning limits it).
+// Anyone on the bus can invent channel names, and a log keeps them all:
+// log-info lists the first 1024 and sums the rest in one row, so its memory
+// does not grow with their number (2 million names took 605 MB before).
+TEST(RoomfixLogInfo, SumsChannelsPastTheListedLimitInOneRow) {
+  TempDir dir;
+  const std::string path = dir.File("many_channels.lcm");
+  {
+    std::string error;
+    auto writer = LogWriter::Create(path, false, &error);
+    ASSERT_NE(writer, nullptr) << error;
+    const uint8_t byte = 0;
+    for (int i = 0; i < 1100; ++i) {
+      ASSERT_TRUE(writer->Write(1000 + i, "C" + std::to_string(10000 + i), &byte, 1, &error))
+          << error;
+    }
+  }
+  int rc = 0;
+  const std::string out = RunRoomfix({"log-info", path}, &rc);
+  EXPECT_EQ(rc, 0);
+  EXPECT_NE(out.find("C10000 "), std::string::npos) << "the first channel is listed";
+  EXPECT_NE(out.find("C11023 "), std::string::npos) << "the 1024th is listed";
+  EXPECT_EQ(out.find("C11024 "), std::string::npos) << "the 1025th is not";
+  const size_t other = out.find("(other channels)");
+  ASSERT_NE(other, std::string::npos) << out;
+  std::istringstream row(out.substr(other + std::string("(other channels)").size()));
+  int64_t events = 0;
+  row >> events;
+  EXPECT_EQ(events, 1100 - 1024) << out.substr(other, 80);
+}
+
 TEST(RoomfixCompare, FitsTheReferenceCircleToTheRecordedGroundTruth) {
   TempDir dir;
   int rc = 0;
