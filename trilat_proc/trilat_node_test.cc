@@ -60,7 +60,10 @@ class TrilatNodeTest : public ::testing::Test {
           std::sqrt(std::pow(r.position_m[0] - x, 2) + std::pow(r.position_m[1] - y, 2) +
                     std::pow(r.position_m[2] - z, 2));
       range.time_of_flight_us = range.range_m / 343.0 * 1e6;
-      range.arrival_utime = utime + static_cast<int64_t>(range.time_of_flight_us) + 2000;
+      // Saturating: the far-off-time tests fire at INT64_MAX.
+      const int64_t delay_us = static_cast<int64_t>(range.time_of_flight_us) + 2000;
+      range.arrival_utime =
+          utime > std::numeric_limits<int64_t>::max() - delay_us ? utime : utime + delay_us;
       set.ranges.push_back(range);
     }
     set.num_ranges = static_cast<int32_t>(set.ranges.size());

@@ -195,7 +195,8 @@ range_set_t GoodRanges(int64_t firing_seq, int64_t utime) {
     r.range_m =
         std::hypot(corners[i][0] - kGoodX_m, corners[i][1] - kGoodY_m, corners[i][2] - kBeaconZ_m);
     r.time_of_flight_us = r.range_m / kSpeedOfSound_mps * 1e6;
-    r.arrival_utime = utime + 20'000;
+    // Saturating: the absurd-time class sends utimes at the int64 limits.
+    r.arrival_utime = utime > std::numeric_limits<int64_t>::max() - 20'000 ? utime : utime + 20'000;
     s.ranges.push_back(r);
   }
   s.num_ranges = static_cast<int32_t>(s.ranges.size());
@@ -302,7 +303,8 @@ range_set_t InconsistentRanges(int n, int64_t firing_seq, int64_t utime, uint32_
     r.receiver_position_m[2] = z(rng);
     r.range_m = range(rng);
     r.time_of_flight_us = r.range_m / s.speed_of_sound_mps * 1e6;
-    r.arrival_utime = utime + 20'000;
+    // Saturating: the absurd-time class sends utimes at the int64 limits.
+    r.arrival_utime = utime > std::numeric_limits<int64_t>::max() - 20'000 ? utime : utime + 20'000;
     s.ranges.push_back(r);
   }
   s.num_ranges = n;
