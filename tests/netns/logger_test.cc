@@ -18,6 +18,7 @@
 #include "msgio/process.h"
 #include "msgio/udpm_bus.h"
 #include "roomfix/process_status_t.hpp"
+#include "tests/testing/hostile_traffic.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -202,16 +203,8 @@ INSTANTIATE_TEST_SUITE_P(RoomfixLogger, StoppedLogger,
 // the channel before its data.
 void SendFragment(int fd, uint32_t seqno, uint32_t total, uint32_t offset, uint16_t number,
                   uint16_t count, const std::string& channel, size_t data_bytes) {
-  std::vector<uint8_t> d = {'L', 'C', '0', '3'};
-  for (uint32_t v : {seqno, total, offset}) {
-    for (int shift = 24; shift >= 0; shift -= 8) d.push_back(uint8_t(v >> shift));
-  }
-  for (uint16_t v : {number, count}) {
-    d.push_back(uint8_t(v >> 8));
-    d.push_back(uint8_t(v));
-  }
-  if (number == 0) d.insert(d.end(), channel.c_str(), channel.c_str() + channel.size() + 1);
-  d.insert(d.end(), data_bytes, 0x5A);
+  const std::vector<uint8_t> d = hostile::FragmentDatagram(
+      seqno, total, offset, number, count, channel, hostile::Bytes(data_bytes, 0x5A));
   sockaddr_in to{};
   to.sin_family = AF_INET;
   to.sin_port = htons(7667);

@@ -16,6 +16,7 @@
 #include <cstring>
 
 #include "msgio/process.h"
+#include "tests/testing/hostile_traffic.h"
 
 namespace roomfix {
 namespace {
@@ -146,16 +147,8 @@ class RawSender {
   // An LC03 fragment; fragment 0 gets the channel before its data.
   void Fragment(uint32_t seqno, uint32_t total, uint32_t offset, uint16_t number, uint16_t count,
                 const std::string& channel, size_t data_bytes) {
-    std::vector<uint8_t> d = {'L', 'C', '0', '3'};
-    for (uint32_t v : {seqno, total, offset}) {
-      for (int shift = 24; shift >= 0; shift -= 8) d.push_back(uint8_t(v >> shift));
-    }
-    for (uint16_t v : {number, count}) {
-      d.push_back(uint8_t(v >> 8));
-      d.push_back(uint8_t(v));
-    }
-    if (number == 0) d.insert(d.end(), channel.c_str(), channel.c_str() + channel.size() + 1);
-    d.insert(d.end(), data_bytes, 0x5A);
+    const std::vector<uint8_t> d = hostile::FragmentDatagram(
+        seqno, total, offset, number, count, channel, hostile::Bytes(data_bytes, 0x5A));
     Send(d);
   }
 
