@@ -14,6 +14,7 @@
 #include <csignal>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <utility>
 
@@ -39,14 +40,31 @@ void AddProcessFlags(CLI::App* app, ProcessOptions* options, bool config_require
   app->add_option("--log-level", options->log_level, "trace, debug, info, warn or error")
       ->capture_default_str()
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error"}));
+  app->add_option("--log-color", options->log_color,
+                  "Colour log lines: auto (only on a terminal, and not when NO_COLOR is set), "
+                  "always or never")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"auto", "always", "never"}));
   app->add_flag("--check", options->check,
                 "Validate the flags and the site file, print what would run, and exit");
 }
 
-bool SetUpLogging(const std::string& process_name, const std::string& level) {
+bool LogColorWanted(const std::string& mode, bool stderr_is_tty, const char* no_color) {
+  if (mode == "always") return true;
+  if (mode == "never") return false;
+  return stderr_is_tty && (no_color == nullptr || no_color[0] == '\0');
+}
+
+bool SetUpLogging(const std::string& process_name, const std::string& level,
+                  const std::string& color) {
   const auto parsed = spdlog::level::from_str(level);
   if (parsed == spdlog::level::off && level != "off") return false;
-  auto logger = spdlog::stderr_color_mt(process_name);
+  if (color != "auto" && color != "always" && color != "never") return false;
+  // Decided here rather than by spdlog's own automatic mode, which looks at
+  // TERM but not at NO_COLOR.
+  const bool colour = LogColorWanted(color, ::isatty(STDERR_FILENO) == 1, std::getenv("NO_COLOR"));
+  auto logger = spdlog::stderr_color_mt(
+      process_name, colour ? spdlog::color_mode::always : spdlog::color_mode::never);
   logger->set_level(parsed);
   logger->set_pattern("%Y-%m-%d %H:%M:%S.%e %n %^%l%$: %v");
   spdlog::set_default_logger(logger);
@@ -326,8 +344,9 @@ std::unique_ptr<ProcessContext> StartProcess(const std::string& name, const Proc
   auto ctx = std::make_unique<ProcessContext>();
   ctx->name = name;
   ctx->options = options;
-  if (!SetUpLogging(name, options.log_level)) {
-    *error = "unknown log level '" + options.log_level + "'";
+  if (!SetUpLogging(name, options.log_level, options.log_color)) {
+    *error =
+        "unknown log level '" + options.log_level + "' or colour mode '" + options.log_color + "'";
     return nullptr;
   }
   if (!options.config_path.empty() && !LoadSite(options.config_path, &ctx->site, error)) {

@@ -32,6 +32,10 @@ struct ProcessOptions {
   std::string lcm_url = kDefaultLcmUrl;
   std::string config_path;
   std::string log_level = "info";
+  // auto: colour only when stderr is a terminal and NO_COLOR is unset or
+  // empty (https://no-color.org); always; never. bot-procman runs every
+  // command on a pseudo-terminal, so its .pmd files pass never.
+  std::string log_color = "auto";
   // Validate flags and configuration, print what would run, and exit.
   bool check = false;
   // For udpm:// URLs, speak LCM's wire format on our own socket (UdpmBus)
@@ -41,7 +45,8 @@ struct ProcessOptions {
   bool direct_udpm = true;
 };
 
-// Adds --lcm-url, --config, --log-level and --check to a CLI11 app.
+// Adds --lcm-url, --config, --log-level, --log-color and --check to a CLI11
+// app.
 void AddProcessFlags(CLI::App* app, ProcessOptions* options, bool config_required);
 
 // Counters and state for a process's STATUS heartbeat. Thread-safe: a
@@ -169,9 +174,18 @@ struct ProcessContext {
 std::unique_ptr<ProcessContext> StartProcess(const std::string& name, const ProcessOptions& options,
                                              std::string* error);
 
-// Sets spdlog's default logger to stderr with the process name and level
-// ("trace", "debug", "info", "warn", "error"); false for an unknown level.
-bool SetUpLogging(const std::string& process_name, const std::string& level);
+// Whether log lines get ANSI colour: `mode` "always" or "never" decides;
+// "auto" colours only a terminal (stderr_is_tty) and only when no_color (the
+// NO_COLOR variable, nullptr when unset) is unset or empty. A command-line
+// "always" overrides NO_COLOR, as no-color.org asks of per-run arguments.
+bool LogColorWanted(const std::string& mode, bool stderr_is_tty, const char* no_color);
+
+// Sets spdlog's default logger to stderr with the process name, level
+// ("trace", "debug", "info", "warn", "error") and colour mode ("auto",
+// "always", "never"; see LogColorWanted); false for an unknown level or
+// mode.
+bool SetUpLogging(const std::string& process_name, const std::string& level,
+                  const std::string& color = "auto");
 
 }  // namespace roomfix
 

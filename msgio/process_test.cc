@@ -14,6 +14,21 @@ std::map<std::string, int64_t> AsMap(const std::vector<counter_t>& counters) {
   return m;
 }
 
+// https://no-color.org: a non-empty NO_COLOR turns colour off; a
+// command-line mode overrides it either way.
+TEST(LogColorWanted, AutoColoursOnlyATerminalWithoutNoColor) {
+  EXPECT_TRUE(LogColorWanted("auto", true, nullptr));
+  EXPECT_TRUE(LogColorWanted("auto", true, ""));
+  EXPECT_FALSE(LogColorWanted("auto", true, "1"));
+  EXPECT_FALSE(LogColorWanted("auto", false, nullptr));
+  EXPECT_TRUE(LogColorWanted("always", false, "1"));
+  EXPECT_FALSE(LogColorWanted("never", true, nullptr));
+}
+
+TEST(SetUpLogging, RefusesAnUnknownColourMode) {
+  EXPECT_FALSE(SetUpLogging("set_up_logging_test", "info", "sometimes"));
+}
+
 TEST(StatusReporter, FillsTheHeartbeatWithCountersByReason) {
   StatusReporter status("trilat_proc", 1000000);
   status.SetState(process_status_t::STATE_RUNNING);

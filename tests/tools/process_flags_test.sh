@@ -15,6 +15,7 @@ for bin in roomfix_sim trilat_proc fusion_proc zigbee_bridge roomfix_viewer came
   [[ $bin == roomfix_viewer ]] && extra=(--headless --png /tmp/never_written.png)
   "$build/bin/$bin" --help | grep -q -- '--lcm-url' || fail "$bin --help lacks --lcm-url"
   "$build/bin/$bin" --help | grep -q -- '--config' || fail "$bin --help lacks --config"
+  "$build/bin/$bin" --help | grep -q -- '--log-color' || fail "$bin --help lacks --log-color"
   out=$("$build/bin/$bin" "${extra[@]}" --config "$site" --check 2>/dev/null) || fail "$bin --check failed"
   [[ "$out" == *"ok"* ]] || fail "$bin --check printed '$out'"
   err=$("$build/bin/$bin" "${extra[@]}" --config "$source/tests/data/broken_sites/duplicate_address.yaml" 2>&1 >/dev/null)
