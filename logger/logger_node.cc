@@ -5,6 +5,8 @@
 #include <chrono>
 #include <cstdio>
 #include <ctime>
+#include <string>
+#include <utility>
 
 namespace roomfix {
 
@@ -25,6 +27,10 @@ bool LoggerOptions::IsValid(std::string* error) const {
     *error = "rotation size and time must not be negative";
     return false;
   }
+  if (increment && overwrite) {
+    *error = "--increment and --force exclude each other (one never overwrites, the other does)";
+    return false;
+  }
   if (max_queue_bytes <= 0) {
     *error = "queue size must be positive";
     return false;
@@ -41,6 +47,34 @@ std::string RotatedLogPath(const std::string& path, int index) {
     return path + number;
   }
   return path.substr(0, dot) + number + path.substr(dot);
+}
+
+namespace {
+// "dir/session.lcm" -> ("dir/session", ".lcm"); no extension -> (path, "").
+std::pair<std::string, std::string> SplitExtension(const std::string& path) {
+  const size_t slash = path.find_last_of('/');
+  const size_t dot = path.find_last_of('.');
+  const bool has_extension =
+      dot != std::string::npos && dot > 0 && (slash == std::string::npos || dot > slash + 1);
+  if (!has_extension) return {path, ""};
+  return {path.substr(0, dot), path.substr(dot)};
+}
+
+bool PathExists(const std::string& path) {
+  struct stat st;
+  return ::lstat(path.c_str(), &st) == 0;
+}
+
+// Far beyond any real number of restarts; bounds the search on a folder
+// that somehow holds them all.
+constexpr int kMaxRunNumber = 100000;
+}  // namespace
+
+std::string IncrementedLogPath(const std::string& path, int number) {
+  char suffix[16];
+  std::snprintf(suffix, sizeof(suffix), "-%02d", number);
+  const auto [stem, extension] = SplitExtension(path);
+  return stem + suffix + extension;
 }
 
 std::string ExpandLogPath(const std::string& pattern, int64_t utime) {
@@ -81,7 +115,26 @@ LoggerNode::~LoggerNode() {
 
 bool LoggerNode::OpenNext(int64_t utime, std::string* error) {
   const std::string expanded = ExpandLogPath(options_.path, utime);
-  const std::string path = options_.rotating() ? RotatedLogPath(expanded, file_index_) : expanded;
+  const auto name_of = [&](const std::string& base) {
+    return options_.rotating() ? RotatedLogPath(base, file_index_) : base;
+  };
+  std::string path = name_of(expanded);
+  if (options_.increment) {
+    // The first number whose file is not there yet. A run's first file
+    // checks index 0 of each number, so a restarted rotating logger does not
+    // slip its files in among an earlier run's.
+    int number = run_number_;
+    while (number < kMaxRunNumber && PathExists(name_of(IncrementedLogPath(expanded, number)))) {
+      ++number;
+    }
+    if (number == kMaxRunNumber) {
+      *error = IncrementedLogPath(expanded, 0) + ": no free numbered name up to " +
+               std::to_string(kMaxRunNumber);
+      return false;
+    }
+    run_number_ = number;
+    path = name_of(IncrementedLogPath(expanded, number));
+  }
   if (writer_ != nullptr && !writer_->Flush(error)) return false;
   auto writer = LogWriter::Create(path, options_.overwrite, error);
   if (writer == nullptr) return false;

@@ -27,6 +27,13 @@ struct LoggerOptions {
   std::string channel_regex = ".*";
   // Replace existing files instead of refusing to start.
   bool overwrite = false;
+  // Never overwrite and never refuse: each run writes under the first free
+  // numbered name, session.lcm -> session-00.lcm, session-01.lcm, ... (with
+  // rotation session-01.0000.lcm, ...). What lcm-logger --increment does
+  // (it writes session.lcm.00, ...), keeping the .lcm extension. For a
+  // logger that bot-procman may restart: a restart never touches the last
+  // run's log. Excludes overwrite.
+  bool increment = false;
   // Written events reach the operating system at least this often, so a
   // kill -9 loses at most this much.
   int flush_interval_ms = 100;
@@ -102,12 +109,18 @@ class LoggerNode {
   int64_t file_bytes_ = 0;
   int64_t file_opened_utime_ = 0;
   int file_index_ = 0;
+  // With increment: the run number chosen for the first file; later files
+  // of the run start their search there, so a run's files share a number.
+  int run_number_ = 0;
   std::vector<std::string> files_;
   std::thread thread_;
 };
 
 // The name of rotated file `index`: "dir/session.lcm" -> "dir/session.0003.lcm".
 std::string RotatedLogPath(const std::string& path, int index);
+// The name of run `number` with --increment: "dir/session.lcm" ->
+// "dir/session-03.lcm" (at least two digits).
+std::string IncrementedLogPath(const std::string& path, int number);
 // `pattern` with its strftime conversions expanded for `utime` (UTC); the
 // pattern itself when it has none.
 std::string ExpandLogPath(const std::string& pattern, int64_t utime);

@@ -113,6 +113,59 @@ TEST_F(LoggerNodeTest, ADatedNameLetsARestartedLoggerStartAFreshFile) {
   EXPECT_EQ(second->files(), std::vector<std::string>{dir_.File("roomfix-20261123-000000.lcm")});
 }
 
+// Issue #18: bot-procman restarted the demo's logger, which had --force, and
+// the restart replaced a whole demo log with 13 KB. With --increment a
+// restart writes the next numbered file and the first stays byte for byte.
+TEST_F(LoggerNodeTest, IncrementLetsARestartedLoggerKeepTheFirstLogIntact) {
+  LoggerOptions o;
+  o.path = dir_.File("sim_demo.lcm");
+  o.increment = true;
+  std::string error;
+  auto first = LoggerNode::Create(bus_.get(), o, 0, &error);
+  ASSERT_NE(first, nullptr) << error;
+  Publish(200, 40, "POSE_A");
+  first->Stop(1);
+  // A restart is a new process: a new node on a bus of its own.
+  first.reset();
+  bus_ = LcmBus::Create("memq://", &error);
+  ASSERT_NE(bus_, nullptr) << error;
+  const std::string first_path = dir_.File("sim_demo-00.lcm");
+  ASSERT_EQ(ReadAll(first_path).size(), 200u);
+  const std::string first_bytes = ReadFile(first_path);
+
+  auto restarted = LoggerNode::Create(bus_.get(), o, 2, &error);
+  ASSERT_NE(restarted, nullptr) << error;
+  Publish(7, 40, "POSE_A");
+  restarted->Stop(3);
+  EXPECT_EQ(restarted->files(), std::vector<std::string>{dir_.File("sim_demo-01.lcm")});
+  EXPECT_EQ(ReadAll(dir_.File("sim_demo-01.lcm")).size(), 7u);
+  EXPECT_EQ(ReadFile(first_path), first_bytes);
+  EXPECT_FALSE(std::filesystem::exists(o.path));
+}
+
+// A gap left by a deleted log is taken (the first free number), and a
+// rotating run keeps one number for all its files.
+TEST_F(LoggerNodeTest, IncrementTakesTheFirstFreeNumberAndARunKeepsIt) {
+  ASSERT_TRUE(testing::WriteFile(dir_.File("s-00.0000.lcm"), "older run"));
+  ASSERT_TRUE(testing::WriteFile(dir_.File("s-02.0000.lcm"), "older run"));
+  LoggerOptions o;
+  o.path = dir_.File("s.lcm");
+  o.increment = true;
+  o.rotate_bytes = 1000;
+  std::string error;
+  auto node = LoggerNode::Create(bus_.get(), o, 0, &error);
+  ASSERT_NE(node, nullptr) << error;
+  Publish(40, 100);
+  node->Stop(1);
+  const auto files = node->files();
+  ASSERT_GE(files.size(), 3u);  // 40 x ~133 bytes in files of about 1000.
+  for (size_t i = 0; i < files.size(); ++i) {
+    EXPECT_EQ(files[i], RotatedLogPath(dir_.File("s-01.lcm"), static_cast<int>(i)));
+  }
+  EXPECT_EQ(ReadFile(dir_.File("s-00.0000.lcm")), "older run");
+  EXPECT_EQ(ReadFile(dir_.File("s-02.0000.lcm")), "older run");
+}
+
 TEST_F(LoggerNodeTest, RotatesBySizeIntoNumberedFilesWithoutLosingAnEvent) {
   LoggerOptions o;
   o.path = dir_.File("session.lcm");
@@ -185,6 +238,23 @@ TEST(ExpandLogPath, ExpandsStrftimeInUtcAndLeavesPlainNamesAlone) {
   EXPECT_EQ(ExpandLogPath("/logs/%Y-%m-%d/run-%H%M.lcm", 1'795'391'998'000'000),
             "/logs/2026-11-22/run-2359.lcm");
   EXPECT_EQ(ExpandLogPath("/logs/session.lcm", 0), "/logs/session.lcm");
+}
+
+TEST(IncrementedLogPath, NumbersTheRunBeforeTheExtension) {
+  EXPECT_EQ(IncrementedLogPath("/logs/sim_demo.lcm", 0), "/logs/sim_demo-00.lcm");
+  EXPECT_EQ(IncrementedLogPath("/logs/sim_demo.lcm", 123), "/logs/sim_demo-123.lcm");
+  EXPECT_EQ(IncrementedLogPath("/logs.d/session", 4), "/logs.d/session-04");
+  EXPECT_EQ(IncrementedLogPath("/logs/.hidden", 1), "/logs/.hidden-01");
+}
+
+TEST(LoggerOptions, IncrementAndForceExcludeEachOther) {
+  LoggerOptions o;
+  o.path = "a.lcm";
+  o.increment = true;
+  o.overwrite = true;
+  std::string error;
+  EXPECT_FALSE(o.IsValid(&error));
+  EXPECT_NE(error.find("exclude each other"), std::string::npos) << error;
 }
 
 TEST(RotatedLogPath, NumbersBeforeTheExtension) {

@@ -20,6 +20,9 @@ int main(int argc, char** argv) {
   app.add_option("--channel", options.channel_regex, "Channels to record (regular expression)")
       ->capture_default_str();
   app.add_flag("--force", options.overwrite, "Overwrite existing files");
+  app.add_flag("--increment", options.increment,
+               "Write under the first free numbered name (FILE-00.lcm, FILE-01.lcm, ...), so a "
+               "restarted logger never overwrites nor refuses; as lcm-logger --increment");
   app.add_option("--flush-interval", options.flush_interval_ms,
                  "Flush to the operating system every this many milliseconds")
       ->capture_default_str();
