@@ -28,7 +28,12 @@ ${VAR} substituted), with the first word replaced by BUILD/bin/NAME and
 with --check and exits without running.
 
     pmd_check.py --build BUILD --source SOURCE [FILE.pmd ...]
-        checks FILEs (default: SOURCE/config/procman/*.pmd); exit 1 on any error
+        checks FILEs (default: SOURCE/config/procman/*.pmd and
+        SOURCE/config/procman/installed/*.pmd); exit 1 on any error. Paths
+        under /usr/share/roomfix/ (the package's data) are read from SOURCE/.
+        A file in installed/ must also be the twin of the source-tree file of
+        its name: the same commands, attributes and scripts, its paths under
+        /usr/share/roomfix/ where the other has ${ROOMFIX_HOME}/.
     pmd_check.py --build BUILD --source SOURCE --expect-failures DIR
         every DIR/*.pmd starts with '# expect: TEXT': the check must fail on
         it with an error containing TEXT
@@ -45,8 +50,11 @@ import subprocess
 import sys
 import tempfile
 
-# Only fusion_proc may be missing from the build: it is being written.
-NOT_YET_BUILT_OK = {"fusion_proc"}
+# Where the package puts roomfix's data (GNUInstallDirs: DATADIR/roomfix),
+# laid out as the source tree's config/: the configurations for installed
+# hosts (config/procman/installed/) name files there, and the check reads
+# them from the source tree instead.
+INSTALLED_SHARE = "/usr/share/roomfix"
 
 # The variables the shipped configurations may use, and what the check
 # substitutes for them (docs/procman.md says what a deputy's environment sets).
@@ -418,6 +426,9 @@ def split_exec(cmd, variables, path):
     if not words:
         raise PmdError(path, cmd.line, 'command "%s": exec names no program' % cmd.name)
     argv = [substitute(w, variables, path, cmd.line, cmd.name) for w in words]
+    share = INSTALLED_SHARE + "/"
+    argv = [variables["ROOMFIX_HOME"] + "/" + w[len(share):] if w.startswith(share) else w
+            for w in argv]
     return env, argv
 
 
@@ -457,11 +468,8 @@ def check_file(path, build, variables, out):
                                    "and put its folder on the deputy's PATH" % (label, program)))
             continue
         binary = os.path.join(bin_dir, program)
+        # No exemptions: every program must be built and accept its flags.
         if not os.access(binary, os.X_OK):
-            if program in NOT_YET_BUILT_OK:
-                out.write("skip: %s: %s: %s is not built yet (being written); its flags are not "
-                          "checked\n" % (os.path.basename(path), label, program))
-                continue
             errors.append(PmdError(path, cmd.line, '%s: unknown binary "%s" (no %s)'
                                    % (label, program, binary)))
             continue
@@ -507,6 +515,47 @@ def check_file(path, build, variables, out):
         out.write("ok: %s: %d commands on %s, %d groups, scripts: %s\n"
                   % (os.path.basename(path), len(config.commands), ", ".join(hosts),
                      len(config.groups), ", ".join(sorted(config.scripts)) or "none"))
+    return errors
+
+
+def twin_errors(installed_path, source_path):
+    """An installed-host file must differ from its source-tree twin only in
+    where the data is: /usr/share/roomfix/ for ${ROOMFIX_HOME}/."""
+    try:
+        ours = parse_file(installed_path)
+        theirs = parse_file(source_path)
+    except PmdError as e:
+        return [e]
+    except OSError as e:
+        return [PmdError(installed_path, 0, "no source-tree twin: %s: %s"
+                         % (source_path, e.strerror))]
+
+    def commands(config, from_share):
+        result = {}
+        for c in config.commands:
+            attributes = dict(c.attributes)
+            attributes.pop("nickname", None)
+            text = c.exec_str
+            if from_share:
+                text = text.replace(INSTALLED_SHARE + "/", "${ROOMFIX_HOME}/")
+            result[c.name] = (c.host, c.group, text, sorted(
+                (k, v) for k, v in attributes.items() if k != "exec"))
+        return result
+
+    def scripts(config):
+        return {name: [str(a) for a in actions] for name, (_, actions) in config.scripts.items()}
+
+    errors = []
+    a, b = commands(ours, True), commands(theirs, False)
+    for name in sorted(set(a) | set(b)):
+        if a.get(name) != b.get(name):
+            line = next((c.line for c in ours.commands if c.name == name), 0)
+            errors.append(PmdError(installed_path, line, 'command "%s" differs from its twin in %s '
+                                   "(other than /usr/share/roomfix/ for ${ROOMFIX_HOME}/)"
+                                   % (name, source_path)))
+    if scripts(ours) != scripts(theirs):
+        errors.append(PmdError(installed_path, 0, "scripts differ from its twin in %s"
+                               % source_path))
     return errors
 
 
@@ -579,13 +628,19 @@ def main():
                     print("ok: rejected: %s" % next(t for t in texts if expected in t))
             return 1 if failures else 0
 
-        files = args.files or sorted(glob.glob(os.path.join(args.source, "config", "procman",
-                                                            "*.pmd")))
+        procman_dir = os.path.join(args.source, "config", "procman")
+        files = args.files or (sorted(glob.glob(os.path.join(procman_dir, "*.pmd"))) +
+                               sorted(glob.glob(os.path.join(procman_dir, "installed", "*.pmd"))))
         if not files:
             print("FAIL: no .pmd files to check")
             return 1
         for path in files:
-            for e in check_file(path, args.build, variables, sys.stdout):
+            errors = check_file(path, args.build, variables, sys.stdout)
+            if os.path.basename(os.path.dirname(os.path.abspath(path))) == "installed":
+                twin = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(path))),
+                                    os.path.basename(path))
+                errors += twin_errors(path, twin)
+            for e in errors:
                 print("FAIL: %s" % e)
                 failures += 1
         sys.stdout.flush()
