@@ -19,6 +19,34 @@ struct ChannelSummary {
   std::map<std::string, int64_t> types;
 };
 
+// bot-procman's own traffic (libbot2's bot2-procman): the deputy and the
+// sheriff use these fixed channel names, each for one type of package
+// bot_procman (read from bot2-procman's procman_deputy.c and sheriff.py;
+// the unnumbered ones are the older protocol, still spoken by both). A log
+// of a system run under bot-procman holds them, so they are named rather
+// than reported as unknown. Named by channel: roomfix does not carry
+// libbot2's type definitions to check their fingerprints.
+struct ForeignChannel {
+  const char* channel;
+  const char* type;
+};
+constexpr ForeignChannel kProcmanChannels[] = {
+    {"PMD_ORDERS2", "bot_procman.orders2_t (bot-procman, libbot2)"},
+    {"PMD_INFO2", "bot_procman.info2_t (bot-procman, libbot2)"},
+    {"PMD_PRINTF", "bot_procman.printf_t (bot-procman, libbot2)"},
+    {"PMD_DISCOVER", "bot_procman.discovery_t (bot-procman, libbot2)"},
+    {"PMD_ORDERS", "bot_procman.orders_t (bot-procman, libbot2)"},
+    {"PMD_INFO", "bot_procman.info_t (bot-procman, libbot2)"},
+};
+
+// What a payload that is no roomfix type is called on `channel`.
+const char* ForeignTypeName(const std::string& channel) {
+  for (const auto& c : kProcmanChannels) {
+    if (channel == c.channel) return c.type;
+  }
+  return "(not a roomfix type)";
+}
+
 constexpr size_t kMaxListedChannels = 1024;
 constexpr char kUnlistedChannels[] = "(other channels)";
 
@@ -56,7 +84,7 @@ void AddLogInfoCommand(CLI::App* app, int* exit_code) {
       ++c.events;
       c.bytes += static_cast<int64_t>(event.data.size());
       const char* type = RoomfixTypeName(event.data.data(), static_cast<int>(event.data.size()));
-      ++c.types[type != nullptr ? type : "(not a roomfix type)"];
+      ++c.types[type != nullptr ? type : ForeignTypeName(event.channel)];
     }
     std::printf("%s: %lld events, %lld bytes\n", path->c_str(),
                 static_cast<long long>(reader->events_read()),

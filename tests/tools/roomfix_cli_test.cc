@@ -2,8 +2,12 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "core/radio/wall_payload.h"
 #include "core/radio/xbee_frame.h"
@@ -168,6 +172,45 @@ TEST(RoomfixLogInfo, SumsChannelsPastTheListedLimitInOneRow) {
   int64_t events = 0;
   row >> events;
   EXPECT_EQ(events, 1100 - 1024) << out.substr(other, 80);
+}
+
+// A log of a system run under bot-procman also holds the deputy's and the
+// sheriff's traffic; log-info names it instead of calling it unknown.
+TEST(RoomfixLogInfo, NamesBotProcmansChannels) {
+  TempDir dir;
+  const std::string path = dir.File("procman.lcm");
+  const std::vector<std::pair<std::string, std::string>> expected = {
+      {"PMD_ORDERS2", "bot_procman.orders2_t (bot-procman, libbot2)"},
+      {"PMD_INFO2", "bot_procman.info2_t (bot-procman, libbot2)"},
+      {"PMD_PRINTF", "bot_procman.printf_t (bot-procman, libbot2)"},
+      {"PMD_DISCOVER", "bot_procman.discovery_t (bot-procman, libbot2)"},
+      {"PMD_ORDERS", "bot_procman.orders_t (bot-procman, libbot2)"},
+      {"PMD_INFO", "bot_procman.info_t (bot-procman, libbot2)"},
+      {"SOMEONE_ELSE", "(not a roomfix type)"}};
+  {
+    std::string error;
+    auto writer = LogWriter::Create(path, false, &error);
+    ASSERT_NE(writer, nullptr) << error;
+    const uint8_t bytes[16] = {0x12, 0x34};
+    int64_t utime = 1000;
+    for (const auto& [channel, type] : expected) {
+      ASSERT_TRUE(writer->Write(utime++, channel, bytes, sizeof(bytes), &error)) << error;
+    }
+  }
+  int rc = 0;
+  const std::string out = RunRoomfix({"log-info", path}, &rc);
+  EXPECT_EQ(rc, 0);
+  std::istringstream lines(out);
+  std::map<std::string, std::string> type_of;
+  for (std::string line; std::getline(lines, line);) {
+    std::istringstream row(line);
+    std::string channel, events, bytes, rate;
+    row >> channel >> events >> bytes >> rate;
+    std::string type;
+    std::getline(row >> std::ws, type);
+    type_of[channel] = type;
+  }
+  for (const auto& [channel, type] : expected) EXPECT_EQ(type_of[channel], type) << out;
 }
 
 TEST(RoomfixCompare, FitsTheReferenceCircleToTheRecordedGroundTruth) {
