@@ -368,7 +368,16 @@ std::string SiteMismatchWarning(const LoadedSite& a, const std::string& what_a, 
 }
 
 void SiteHashTracker::Observe(const std::string& hash15, const std::string& who) {
-  by_hash_[hash15].insert(who);
+  // Bounded: anyone on the bus can invent hashes and names.
+  auto it = by_hash_.find(hash15);
+  if (it == by_hash_.end()) {
+    if (by_hash_.size() >= kMaxHashes) {
+      ++unlisted_;
+      return;
+    }
+    it = by_hash_.emplace(hash15, std::set<std::string>()).first;
+  }
+  if (it->second.size() < kMaxNamesPerHash) it->second.insert(who);
 }
 
 void SiteHashTracker::ObserveSite(const site_t& msg) {
@@ -399,6 +408,7 @@ std::string SiteHashTracker::Disagreement() const {
       first_who = false;
     }
   }
+  if (unlisted_ > 0) line += "; and further hashes not listed";
   return line;
 }
 

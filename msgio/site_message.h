@@ -129,11 +129,17 @@ class SiteHashTracker {
   // and who stated it: "processes disagree on the site: 1a2b3c4d5e6f by
   // trilat_proc@lab-pc; 9f8e7d6c5b4a by fusion_proc@lab-pc2".
   std::string Disagreement() const;
-  size_t distinct_hashes() const { return by_hash_.size(); }
+  size_t distinct_hashes() const { return by_hash_.size() + (unlisted_ > 0 ? 1 : 0); }
+
+  // At most this many hashes and names per hash are kept (a flood of
+  // invented ones must not grow memory); further ones are counted.
+  static constexpr size_t kMaxHashes = 16;
+  static constexpr size_t kMaxNamesPerHash = 16;
 
  private:
   void Observe(const std::string& hash15, const std::string& who);
   std::map<std::string, std::set<std::string>> by_hash_;
+  int64_t unlisted_ = 0;
 };
 
 // What a log says about its site.
