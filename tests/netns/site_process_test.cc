@@ -155,5 +155,26 @@ TEST(SiteOnTheBus, ProcessesPublishTheirSiteAtStartAndEveryFiveSeconds) {
   EXPECT_NE(viewer_err.find("processes disagree on the site"), std::string::npos) << viewer_err;
 }
 
+// `roomfix listen --config` live: describes the site a process publishes
+// and names the key where it differs from the file.
+TEST(SiteOnTheBus, ListenNamesTheKeyWhereAPublishedSiteDiffersFromConfig) {
+  TempDir dir;
+  const std::string moved = MovedSite(dir);
+  ChildProcess listen(
+      {"sh", "-c",
+       "exec '" + BinDir() + "/roomfix' listen --channel SITE --count 1 --timeout 10 --config '" +
+           SourceDir() + "/config/sites/demo_room.yaml' 2>'" + dir.File("err.txt") + "'"});
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  ChildProcess trilat({BinDir() + "/trilat_proc", "--config", moved, "--log-level", "warn"});
+  EXPECT_EQ(listen.Wait(15), 0);
+  trilat.Signal(SIGINT);
+  EXPECT_EQ(trilat.Wait(10), 0);
+  const std::string err = ReadFile(dir.File("err.txt"));
+  EXPECT_NE(err.find("roomfix listen: site on SITE: demo_room, hash "), std::string::npos) << err;
+  EXPECT_NE(err.find("published by trilat_proc@"), std::string::npos) << err;
+  EXPECT_NE(err.find("differ at 1 key: receivers[2].position_m[0]: 4.0 -> 4.05"), std::string::npos)
+      << err;
+}
+
 }  // namespace
 }  // namespace roomfix
