@@ -33,3 +33,12 @@ record "$data/trilat_replay.lcm" 'RANGES|POSE_ULTRASOUND' -- \
    '$bin/roomfix_sim' --config '$site' --ranges --range-noise 0.02 --nlos-probability 0.1 \
      --dropout-probability 0.1 --seed 7 --duration 3.05 --log-level warn;
    sleep 0.3; kill -INT \$solver; wait \$solver"
+
+# Issue #20: a log that carries its site (SITE from trilat_proc and
+# roomfix_sim), for the tools that take the site from the log.
+record "$data/site_sample.lcm" 'SITE|STATUS|RANGES|POSE_.*' -- \
+  "'$bin/trilat_proc' --config '$site' --log-level warn & solver=\$!;
+   sleep 0.3;
+   '$bin/roomfix_sim' --config '$site' --ranges --range-noise 0.01 --seed 11 --duration 2.5 \
+     --log-level warn;
+   sleep 0.3; kill -INT \$solver; wait \$solver"

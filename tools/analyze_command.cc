@@ -28,6 +28,7 @@
 #include "msgio/pose_tracks.h"
 #include "msgio/wire_check.h"
 #include "tools/commands.h"
+#include "tools/tool_site.h"
 
 extern char** environ;
 
@@ -38,6 +39,8 @@ using json = nlohmann::ordered_json;
 
 struct AnalyzeOptions {
   std::vector<std::string> logs;
+  // The site to report against; default: each log's own (SITE).
+  std::string config_path;
   std::string out_dir;
   bool json = false;
   bool figures = true;
@@ -335,8 +338,47 @@ int RunAnalyze(const AnalyzeOptions& options) {
   json out;
   out["logs"] = json::array();
   int unreadable = 0;
+  // Which site each log was recorded in (or --config): said on stderr, in
+  // the summary and the report; two logs of different sites are a warning.
+  // The poses themselves need no site, so a log without SITE is a note.
+  std::vector<ToolSite> sites;
   for (const LogReadReport& r : logs.logs) {
+    sites.push_back(r.error.empty() ? ResolveSiteForLog(options.config_path, r.path) : ToolSite{});
+    if (!r.error.empty()) continue;
+    if (!ReportToolSite("roomfix analyze", sites.back(), /*required=*/false)) return 1;
+  }
+  if (options.config_path.empty()) {
+    size_t first = sites.size();
+    for (size_t i = 0; i < sites.size(); ++i) {
+      if (!sites[i].known) continue;
+      if (first == sites.size()) {
+        first = i;
+        continue;
+      }
+      const std::string mismatch =
+          SiteMismatchWarning(sites[first].site, "the site of " + logs.logs[first].path,
+                              sites[i].site, "the site of " + logs.logs[i].path);
+      if (mismatch.empty()) continue;
+      std::cerr << "roomfix analyze: warning: logs of different sites: " << mismatch << "\n";
+      sites[i].warnings.push_back("logs of different sites: " + mismatch);
+    }
+  }
+  for (size_t i = 0; i < logs.logs.size(); ++i) {
+    const LogReadReport& r = logs.logs[i];
     json j = {{"path", r.path}};
+    const ToolSite& site = sites[i];
+    if (site.known) {
+      j["site"] = {
+          {"name", site.site.site.name},
+          {"content_hash", site.site.content_hash},
+          {"source", site.source},
+          {"roomfix_version", site.site.roomfix_version},
+          {"publisher",
+           site.site.process.empty() ? std::string() : site.site.process + "@" + site.site.host}};
+    } else if (r.error.empty()) {
+      j["site"] = {{"error", site.error}};
+    }
+    if (!site.warnings.empty()) j["site_warnings"] = site.warnings;
     if (!r.error.empty()) {
       j["error"] = r.error;
       ++unreadable;
@@ -378,6 +420,13 @@ int RunAnalyze(const AnalyzeOptions& options) {
       md << "complete";
     }
     md << " |\n";
+  }
+  md << "\n";
+  for (size_t i = 0; i < logs.logs.size(); ++i) {
+    if (!logs.logs[i].error.empty()) continue;
+    md << "- `" << logs.logs[i].path
+       << "`: " << (sites[i].known ? sites[i].line : "site unknown: " + sites[i].error) << "\n";
+    for (const auto& w : sites[i].warnings) md << "  - warning: " << w << "\n";
   }
   if (logs.tracks.empty()) md << "\nNo pose2d_t on any POSE_* channel.\n";
 
@@ -597,6 +646,9 @@ void AddAnalyzeCommand(CLI::App* app, int* exit_code) {
       "static repeatability, timing, circle fits, motion, error against ground truth, camera "
       "against ultrasound; a Markdown report with PNG figures");
   cmd->add_option("LOG", options->logs, "LCM logs, analysed together")->required();
+  cmd->add_option("--config", options->config_path,
+                  "Site file to report against (default: the site each log carries on SITE); "
+                  "where the log's differs, a warning names the keys");
   cmd->add_option("--out", options->out_dir,
                   "Output folder (default: LOG without .lcm + _analysis)");
   cmd->add_flag("--json", options->json, "Print the summary as one JSON object on stdout");

@@ -14,6 +14,7 @@
 #include "msgio/pose_tracks.h"
 #include "msgio/wire_check.h"
 #include "tools/commands.h"
+#include "tools/tool_site.h"
 
 namespace roomfix {
 namespace {
@@ -34,10 +35,14 @@ void AddCompareCommand(CLI::App* app, int* exit_code) {
   cmd->add_option("--json", *json_path, "Also write the summary as JSON to this file");
   cmd->add_flag("--fit-circle", *fit_circle,
                 "Also fit the reference paper's circle models to each source's track");
+  auto config_path = std::make_shared<std::string>();
+  cmd->add_option("--config", *config_path,
+                  "Site file (default: the site the log carries on SITE); where the log's "
+                  "differs, a warning names the keys");
   auto report_path = std::make_shared<std::string>();
   cmd->add_option("--report", *report_path,
                   "Name this analysis report in the JSON (the demo's summary points to it)");
-  cmd->callback([log_path, json_path, report_path, fit_circle, exit_code] {
+  cmd->callback([log_path, json_path, report_path, fit_circle, config_path, exit_code] {
     PoseLogs logs = ReadPoseLogs({*log_path});
     const LogReadReport& report = logs.logs.front();
     if (!report.error.empty()) {
@@ -58,8 +63,20 @@ void AddCompareCommand(CLI::App* app, int* exit_code) {
       for (const PoseSample& s : track.samples) t.latencies_ms.push_back(s.latency_us * 1e-3);
       t.lost = track.lost;
     }
+    // The errors need no site; which one the log was recorded in is said
+    // (stderr and the JSON), a log without one is a note.
+    const ToolSite site = ResolveSiteForLog(*config_path, *log_path);
+    if (!ReportToolSite("roomfix compare", site, /*required=*/false)) {
+      *exit_code = 1;
+      return;
+    }
     nlohmann::json out;
     out["log"] = *log_path;
+    if (site.known) {
+      out["site"] = {{"name", site.site.site.name},
+                     {"content_hash", site.site.content_hash},
+                     {"source", site.source}};
+    }
     if (!report_path->empty()) out["report"] = *report_path;
     std::printf("%-12s %5s %7s %8s %8s %8s %8s %12s %5s\n", "source", "robot", "fixes", "rate_hz",
                 "rmse_m", "p95_m", "max_m", "latency_ms", "lost");

@@ -5,6 +5,7 @@
 #include <iostream>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <string>
 #include <thread>
 
@@ -12,8 +13,10 @@
 #include "msgio/log.h"
 #include "msgio/message_json.h"
 #include "msgio/process.h"
+#include "msgio/site_message.h"
 #include "msgio/wire_check.h"
 #include "tools/commands.h"
+#include "tools/tool_site.h"
 
 namespace roomfix {
 namespace {
@@ -23,6 +26,65 @@ struct ListenOptions {
   std::string channel = ".*";
   int64_t count = 0;
   double timeout_s = 0.0;
+  // Compared with every site heard on SITE (a warning naming the keys).
+  std::string config_path;
+};
+
+// Live: says on stderr which site each process publishes on SITE (once per
+// distinct site), warns when one differs from --config, and when processes
+// disagree (SITE or STATUS site_hash), whatever --channel prints.
+class LiveSiteWatch {
+ public:
+  bool Init(const std::string& config_path, std::string* error) {
+    if (config_path.empty()) return true;
+    has_config_ = true;
+    if (!LoadSiteWithTexts(config_path, &config_, error)) return false;
+    std::cerr << "roomfix listen: site from --config " << config_path << ": "
+              << DescribeSite(config_) << "\n";
+    return true;
+  }
+  void Observe(const MessageInfo& info, const void* data, int size) {
+    if (info.channel == kSiteChannel) {
+      site_t msg;
+      std::string reason;
+      std::string detail;
+      if (!DecodeChecked(data, size, &msg, &reason, &detail)) return;  // counted by PrintMessage
+      // At most 64 sites are described; a flood of invented ones is not.
+      if (seen_.size() >= 64 || !seen_.insert(msg.content_hash).second) {
+        Disagreement();
+        return;
+      }
+      LoadedSite site;
+      if (!LoadSiteFromMessage(msg, "SITE from " + msg.process, &site, &detail)) {
+        std::cerr << "roomfix listen: warning: site refused: " << detail << "\n";
+        return;
+      }
+      std::cerr << "roomfix listen: site on SITE: " << DescribeSite(site) << "\n";
+      const std::string mismatch =
+          has_config_ ? SiteMismatchWarning(config_, "--config", site, "SITE from " + msg.process)
+                      : "";
+      if (!mismatch.empty()) std::cerr << "roomfix listen: warning: " << mismatch << "\n";
+      tracker_.ObserveSite(msg);
+    } else if (info.channel == kStatusChannel) {
+      process_status_t status;
+      if (!DecodeChecked(data, size, &status, nullptr)) return;
+      tracker_.ObserveStatus(status);
+    }
+    Disagreement();
+  }
+
+ private:
+  void Disagreement() {
+    const std::string line = tracker_.Disagreement();
+    if (line.empty() || line == last_warning_) return;
+    last_warning_ = line;
+    std::cerr << "roomfix listen: warning: " << line << "\n";
+  }
+  bool has_config_ = false;
+  LoadedSite config_;
+  std::set<std::string> seen_;
+  SiteHashTracker tracker_;
+  std::string last_warning_;
 };
 
 // A channel name is whatever a publisher chose (quotes, control bytes,
@@ -82,6 +144,11 @@ int ListenToLog(const ListenOptions& o) {
     std::cerr << "roomfix listen: channel expression '" << o.channel << "' is not valid\n";
     return 1;
   }
+  // Which site the log was recorded in, before its messages.
+  if (!ReportToolSite("roomfix listen", ResolveSiteForLog(o.config_path, path),
+                      /*required=*/false)) {
+    return 1;
+  }
   InstallShutdownHandlers();
   const int64_t give_up =
       o.timeout_s > 0 ? NowUtime() + static_cast<int64_t>(o.timeout_s * 1e6) : INT64_MAX;
@@ -126,6 +193,9 @@ void AddListenCommand(CLI::App* app, int* exit_code) {
   auto o = std::make_shared<ListenOptions>();
   cmd->add_option("--lcm-url", o->lcm_url, "LCM URL")->capture_default_str();
   cmd->add_option("--channel", o->channel, "Channel regular expression")->capture_default_str();
+  cmd->add_option("--config", o->config_path,
+                  "Site file to compare with the sites heard on SITE (or the log's); a "
+                  "difference is a warning naming the keys");
   cmd->add_option("--count", o->count, "Stop after this many messages (0: no limit)");
   cmd->add_option("--timeout", o->timeout_s,
                   "Give up after this many seconds; exit 3 if fewer than --count arrived");
@@ -142,6 +212,15 @@ void AddListenCommand(CLI::App* app, int* exit_code) {
       return;
     }
     InstallShutdownHandlers();
+    LiveSiteWatch sites;
+    if (!sites.Init(o->config_path, &error)) {
+      std::cerr << "roomfix listen: " << error << "\n";
+      *exit_code = 1;
+      return;
+    }
+    bus->SubscribeRaw("SITE|STATUS", [&](const MessageInfo& info, const void* data, int size) {
+      sites.Observe(info, data, size);
+    });
     int64_t received = 0;
     std::map<std::string, int64_t> refused;
     bus->SubscribeRaw(o->channel, [&](const MessageInfo& info, const void* data, int size) {

@@ -24,6 +24,7 @@
 #include "msgio/wire_check.h"
 #include "roomfix/range_set_t.hpp"
 #include "tools/commands.h"
+#include "tools/tool_site.h"
 
 namespace roomfix {
 namespace {
@@ -75,12 +76,13 @@ bool ParsePins(const std::string& text, std::vector<int>* ids) {
 }
 
 int Run(const SurveyArgs& a) {
-  Site site;
+  // The starting values: --site/--config, or the site the log carries
+  // (SITE); needed either way, so a log without one is an error.
+  const ToolSite resolved = ResolveSiteForLog(a.site, a.log);
+  if (!ReportToolSite("roomfix survey", resolved, /*required=*/true)) return 1;
+  const Site& site = resolved.site.site;
+  const std::string site_name = a.site.empty() ? "the site of " + a.log : a.site;
   std::string error;
-  if (!LoadSite(a.site, &site, &error)) {
-    std::cerr << "roomfix survey: " << error << "\n";
-    return 1;
-  }
   // The robot and its beacon.
   const Robot* robot = nullptr;
   for (const Robot& r : site.robots) {
@@ -92,7 +94,7 @@ int Run(const SurveyArgs& a) {
   if (robot == nullptr) {
     std::cerr << "roomfix survey: no robot with a beacon"
               << (a.robot >= 0 ? " and id " + std::to_string(a.robot) : std::string()) << " in "
-              << a.site << "\n";
+              << site_name << "\n";
     return 1;
   }
   const Beacon* beacon = site.FindBeacon(*robot->beacon_id);
@@ -343,7 +345,9 @@ void AddSurveyCommand(CLI::App* app, int* exit_code) {
       "survey", "Receiver positions and range offsets from a drive with a reference track");
   auto a = std::make_shared<SurveyArgs>();
   cmd->add_option("LOG", a->log, "LCM log with RANGES and a POSE_* reference")->required();
-  cmd->add_option("--site", a->site, "Site file: starting values and the 'before'")->required();
+  cmd->add_option("--site,--config", a->site,
+                  "Site file: starting values and the 'before' (default: the site the log "
+                  "carries on SITE; given, a warning names the keys where the log's differs)");
   cmd->add_option("--reference", a->reference, "Reference pose source")
       ->check(CLI::IsMember({"camera", "ground_truth", "fused"}));
   cmd->add_option("--robot", a->robot, "Robot id (default: the first with a beacon)");

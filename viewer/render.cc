@@ -868,6 +868,10 @@ void DrawProcesses(PanelWriter* w, const ViewState& state) {
   w->Heading(Format("Processes (%zu)", state.processes.size()));
   int left = static_cast<int>(state.processes.size());
   const int right = w->width() - kPanelPadPx;
+  if (!state.site_warning.empty() && w->Next()) {
+    Text(w->panel(), Fit(Printable(state.site_warning, 400), kSmallFontScale, right - kPanelPadPx),
+         {kPanelPadPx, w->y()}, kSmallFontScale, WarningColour());
+  }
   for (const ProcessView& p : state.processes) {
     if (!w->Next(kLinePx + 2)) break;
     --left;

@@ -12,10 +12,13 @@
 #include <opencv2/highgui.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/videoio.hpp>
+#include <string>
+#include <vector>
 
 #include "camera_proc/image_file.h"
 #include "msgio/log.h"
 #include "msgio/process.h"
+#include "msgio/site_message.h"
 #include "viewer/render.h"
 #include "viewer/viewer_node.h"
 
@@ -100,7 +103,8 @@ int main(int argc, char** argv) {
       "roomfix_viewer: top-down view of the robots (every pose source), the range circles of "
       "each beacon's latest firing and every process's health; a window, or PNG/video "
       "without a display"};
-  roomfix::AddProcessFlags(&app, &process, /*config_required=*/true);
+  // --config is required live; a replayed log brings its own site (SITE).
+  roomfix::AddProcessFlags(&app, &process, /*config_required=*/false);
   app.add_flag("--headless", flags.headless, "No window: render to --png and/or --video");
   app.add_option("--png", flags.png, "Write the picture at the end (of the log, or --duration)");
   app.add_option("--video", flags.video,
@@ -138,11 +142,34 @@ int main(int argc, char** argv) {
     std::cerr << "roomfix_viewer: no display (DISPLAY is not set); use --headless --png FILE\n";
     return 1;
   }
-  if (!flags.log.empty()) process.lcm_url = "memq://";  // no network for a replay
+  if (flags.log.empty() && process.config_path.empty()) {
+    std::cerr << "roomfix_viewer: --config is required to view live (a --log brings its own "
+                 "site)\n";
+    return 1;
+  }
+  // A replay takes the log's site unless --config is given, and then warns
+  // where the two differ; it says on stderr which one it draws.
+  std::string config_path = process.config_path;
+  if (!flags.log.empty()) {
+    process.lcm_url = "memq://";  // no network for a replay
+    process.config_path.clear();
+  }
   auto ctx = roomfix::StartProcess("roomfix_viewer", process, &error);
   if (ctx == nullptr) {
     std::cerr << "roomfix_viewer: " << error << "\n";
     return 1;
+  }
+  if (!flags.log.empty()) {
+    roomfix::LoadedSite site;
+    std::string used;
+    std::vector<std::string> warnings;
+    if (!roomfix::ResolveToolSite(config_path, flags.log, &site, &used, &warnings, &error)) {
+      std::cerr << "roomfix_viewer: " << error << "\n";
+      return 1;
+    }
+    std::cerr << "roomfix_viewer: " << used << "\n";
+    for (const auto& w : warnings) std::cerr << "roomfix_viewer: warning: " << w << "\n";
+    ctx->site = site.site;
   }
   if (process.check) {
     std::cout << "roomfix_viewer: ok: " << (flags.headless ? "headless" : "window") << ", "

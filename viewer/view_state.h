@@ -119,6 +119,10 @@ struct ViewState {
   std::vector<TrackView> tracks;
   std::vector<RangeSetView> range_sets;
   std::vector<ProcessView> processes;
+  // "" or the line saying which processes run with which site when they
+  // disagree (msgio/site_message.h, SiteHashTracker), shown over the
+  // process list.
+  std::string site_warning;
   bool has_preview = false;
   PreviewView preview;
   // Sources shown (index: Source); hidden ones are still listed in the

@@ -1,5 +1,7 @@
 #include "viewer/viewer_node.h"
 
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <cmath>
 
@@ -230,7 +232,12 @@ ViewerNode::ViewerNode(const Site& site, Bus* bus, const ViewerNodeOptions& opti
                   [](const auto& a, const auto& b) { return a.second > b.second; });
         it->last_error = s.last_error;
         it->recv_utime = info.recv_utime;
+        NoteSites(s.utime, [&] { site_hashes_.ObserveStatus(s); });
       });
+  bus_->Subscribe<site_t>(kSiteChannel, [this](const site_t& m, const MessageInfo&) {
+    ++messages_;
+    NoteSites(m.utime, [&] { site_hashes_.ObserveSite(m); });
+  });
   bus_->Subscribe<image_t>(kCameraPreviewChannel, [this](const image_t& m, const MessageInfo&) {
     ++messages_;
     state_.has_preview = true;
@@ -360,6 +367,17 @@ const viewer::ViewState& ViewerNode::StateAt(int64_t now_utime) {
   }
   MarkRejectedRanges();
   return state_;
+}
+
+void ViewerNode::NoteSites(int64_t utime, const std::function<void()>& observe) {
+  const size_t before = site_hashes_.distinct_hashes();
+  observe();
+  if (site_hashes_.distinct_hashes() == before) return;
+  state_.site_warning = site_hashes_.Disagreement();
+  if (state_.site_warning.empty()) return;
+  status_.Count("site_disagreements");
+  status_.SetError(state_.site_warning, utime);
+  spdlog::warn("{}", state_.site_warning);
 }
 
 void ViewerNode::Tick(int64_t now_utime) {

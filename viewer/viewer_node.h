@@ -3,6 +3,7 @@
 
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <map>
 #include <string>
 #include <utility>
@@ -10,6 +11,7 @@
 #include "core/world/site.h"
 #include "msgio/bus.h"
 #include "msgio/process.h"
+#include "msgio/site_message.h"
 #include "viewer/view_state.h"
 
 namespace roomfix {
@@ -39,7 +41,8 @@ struct ViewerNodeOptions {
 
 // Keeps the viewer's picture of the system up to date from the bus: every
 // pose2d_t on POSE_.*, the range sets on RANGES, the STATUS heartbeats, the
-// camera previews (CAMERA_PREVIEW) and the markers found (MARKER_PIXELS).
+// camera previews (CAMERA_PREVIEW), the markers found (MARKER_PIXELS) and the
+// sites the processes run with (SITE and STATUS: a disagreement is a warning).
 // StateAt(now) gives the state to render as of `now` (trails pruned, rates,
 // stale marks, rejected ranges), so live and replayed logs are drawn by the
 // same code. Publishes its own STATUS heartbeat from Tick.
@@ -78,6 +81,9 @@ class ViewerNode {
   };
   viewer::TrackView* FindTrack(viewer::Source source, int robot_id);
   void MarkRejectedRanges();
+  // Runs `observe` on the site tracker and, when it saw a new hash, updates
+  // the warning (logged, counted as site_disagreements, and in STATUS).
+  void NoteSites(int64_t utime, const std::function<void()>& observe);
   // Drops rows not heard from for their forget time as of now_utime.
   void Expire(int64_t now_utime);
 
@@ -87,6 +93,9 @@ class ViewerNode {
   viewer::ViewState state_;
   std::map<std::pair<int, int>, TrackHistory> history_;
   std::map<std::string, StatusHistory> status_history_;
+  // Which site each process states (SITE, STATUS site_hash); a
+  // disagreement is warned about once per change and shown in the panel.
+  SiteHashTracker site_hashes_;
   // Preview pixels per full-frame pixel of the latest preview.
   double preview_scale_ = 1.0;
   int64_t messages_ = 0;

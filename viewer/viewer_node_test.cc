@@ -112,6 +112,42 @@ TEST(ViewerNode, ShowsEachProcessFromItsHeartbeatWithItsOutputRate) {
   EXPECT_EQ(v.processes[0].last_error, "/dev/ttyUSB0: device gone");
 }
 
+// Issue #20: two processes stating different sites in STATUS are named,
+// shown over the process list, counted and reported in the viewer's STATUS.
+TEST(ViewerNode, WarnsWhenProcessesRunWithDifferentSites) {
+  const Site site = DemoSite();
+  LoopbackBus bus;
+  ViewerNode node(site, &bus, {}, kT0);
+  bus.set_now_utime(kT0);
+  const std::pair<const char*, int64_t> processes[] = {{"trilat_proc", 0x0123456789abcdeLL},
+                                                       {"fusion_proc", 0x0123456789abcdeLL}};
+  for (const auto& [name, hash] : processes) {
+    process_status_t s{};
+    s.utime = kT0;
+    s.process = name;
+    s.host = "lab-pc";
+    s.counters = {counter_t{kSiteHashCounter, hash}};
+    s.num_counters = 1;
+    bus.Publish("STATUS", s);
+  }
+  EXPECT_EQ(node.StateAt(kT0).site_warning, "") << "the same site";
+  process_status_t other{};
+  other.utime = kT0;
+  other.process = "camera_proc";
+  other.host = "camera-pc";
+  other.counters = {counter_t{kSiteHashCounter, 0x0fedcba98765432LL}};
+  other.num_counters = 1;
+  bus.Publish("STATUS", other);
+  EXPECT_EQ(node.StateAt(kT0).site_warning,
+            "processes disagree on the site: 0123456789ab by fusion_proc@lab-pc, "
+            "trilat_proc@lab-pc; 0fedcba98765 by camera_proc@camera-pc");
+  EXPECT_EQ(node.status().counter("site_disagreements"), 1);
+  // Drawn without trouble (the text is fitted to the panel).
+  cv::Mat picture;
+  viewer::Render(node.StateAt(kT0), {}, &picture);
+  EXPECT_FALSE(picture.empty());
+}
+
 // Issue #15: the viewer tells a slow process (its kernel buffer overflowed)
 // from a hostile sender (forged fragments) by the causes behind `dropped`;
 // other counters are not losses and stay out of that list.

@@ -9,15 +9,16 @@ jar=$build/share/java/roomfix_lcmtypes.jar
 [[ -f "$jar" ]] || { echo "FAIL: $jar missing"; exit 1; }
 
 listing=$(jar tf "$jar")
-for t in counter_t image_t marker_t marker_pixels_t pose2d_t process_status_t range_t range_set_t; do
+for t in counter_t image_t marker_t marker_pixels_t pose2d_t process_status_t range_t range_set_t \
+    site_file_t site_t; do
   grep -qx "roomfix/$t.class" <<<"$listing" || { echo "FAIL: roomfix/$t.class not in the jar"; exit 1; }
 done
 echo "ok: the jar holds a class per type"
 
 # "  roomfix.pose2d_t fingerprint 0x..." -> "roomfix.pose2d_t=0x..."
 mapfile -t pairs < <("$build/bin/roomfix" version | awk '/fingerprint/ {print $1 "=" $3}')
-((${#pairs[@]} == 5)) || { echo "FAIL: roomfix version listed ${#pairs[@]} types, not 5"; exit 1; }
+((${#pairs[@]} == 6)) || { echo "FAIL: roomfix version listed ${#pairs[@]} types, not 6"; exit 1; }
 
 cp=$(ROOMFIX_BUILD_DIR=$build "$source/scripts/spy" --print-classpath)
 java -Djava.awt.headless=true -cp "$cp:$checker" LcmTypeCheck "${pairs[@]}" \
-  "--log=$source/tests/data/ground_truth_sample.lcm"
+  "--log=$source/tests/data/ground_truth_sample.lcm" "--log=$source/tests/data/site_sample.lcm"

@@ -1,0 +1,180 @@
+// Issue #20: real processes publish their site on SITE at start and every
+// 5 s, state its hash in STATUS, and a log recorded by LCM's own lcm-logger
+// carries it; two processes started with different sites are named by
+// `roomfix analyze` and the viewer.
+#include <gtest/gtest.h>
+#include <signal.h>
+
+#include <chrono>
+#include <map>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "core/world/file_io.h"
+#include "msgio/log.h"
+#include "msgio/site_message.h"
+#include "msgio/wire_check.h"
+#include "tests/testing/test_paths.h"
+
+namespace roomfix {
+namespace {
+
+using testing::BinDir;
+using testing::ChildProcess;
+using testing::ReadFile;
+using testing::SourceDir;
+using testing::TempDir;
+
+// A process republishes on its first heartbeat at least kSitePeriodUs after
+// the last SITE; heartbeats come from a run loop ticking every 10 ms or so
+// (50 ms for the sim's tick at 20 Hz). 0.3 s covers that and a loaded
+// machine's scheduling.
+constexpr int64_t kPeriodToleranceUs = 300000;
+
+struct Recorded {
+  std::map<std::string, std::vector<site_t>> sites;  // by process
+  std::map<std::string, std::vector<process_status_t>> statuses;
+};
+
+Recorded ReadLog(const std::string& path) {
+  Recorded r;
+  std::string error;
+  auto reader = LogReader::Open(path, &error);
+  EXPECT_NE(reader, nullptr) << error;
+  if (reader == nullptr) return r;
+  LogEvent e;
+  while (reader->Next(&e)) {
+    const int n = static_cast<int>(e.data.size());
+    if (e.channel == kSiteChannel) {
+      site_t m;
+      if (DecodeChecked(e.data.data(), n, &m, nullptr)) r.sites[m.process].push_back(m);
+    } else if (e.channel == "STATUS") {
+      process_status_t m;
+      if (DecodeChecked(e.data.data(), n, &m, nullptr)) r.statuses[m.process].push_back(m);
+    }
+  }
+  return r;
+}
+
+// The demo site with receiver 3 moved by 5 cm, beside its calibration.
+std::string MovedSite(const TempDir& dir) {
+  std::string text;
+  std::string error;
+  EXPECT_TRUE(ReadConfigFile(SourceDir() + "/config/sites/demo_room.yaml", &text, &error));
+  const std::string from = "position_m: [4.0, 3.0, 2.5]";
+  text.replace(text.find(from), from.size(), "position_m: [4.05, 3.0, 2.5]");
+  EXPECT_EQ(::system(("mkdir -p '" + dir.File("sites") + "' '" + dir.File("calibration") +
+                      "' && cp '" + SourceDir() + "/config/calibration/demo_room_camera.yaml' '" +
+                      dir.File("calibration") + "/'")
+                         .c_str()),
+            0);
+  EXPECT_TRUE(testing::WriteFile(dir.File("sites/moved.yaml"), text));
+  return dir.File("sites/moved.yaml");
+}
+
+TEST(SiteOnTheBus, ProcessesPublishTheirSiteAtStartAndEveryFiveSeconds) {
+  TempDir dir;
+  const std::string demo = SourceDir() + "/config/sites/demo_room.yaml";
+  const std::string moved = MovedSite(dir);
+  ChildProcess logger({"lcm-logger", "-q", "-f", dir.File("run.lcm")});
+  ASSERT_TRUE(logger.started());
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  ChildProcess trilat({BinDir() + "/trilat_proc", "--config", demo, "--log-level", "warn"});
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  // fusion_proc with another site: the disagreement the tools must name.
+  ChildProcess fusion({BinDir() + "/fusion_proc", "--config", moved, "--log-level", "warn"});
+  std::this_thread::sleep_for(std::chrono::milliseconds(11500));
+  trilat.Signal(SIGINT);
+  fusion.Signal(SIGINT);
+  EXPECT_EQ(trilat.Wait(10), 0);
+  EXPECT_EQ(fusion.Wait(10), 0);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  logger.Signal(SIGINT);
+  logger.Wait(5);
+
+  const Recorded r = ReadLog(dir.File("run.lcm"));
+  ASSERT_EQ(r.sites.count("trilat_proc"), 1u);
+  const std::vector<site_t>& sites = r.sites.at("trilat_proc");
+  const std::vector<process_status_t>& statuses = r.statuses.at("trilat_proc");
+  // About 11.5 s of running: SITE at 0, 5 and 10 s.
+  ASSERT_EQ(sites.size(), 3u);
+  // At start: with the first heartbeat.
+  EXPECT_EQ(sites[0].utime, statuses.front().utime);
+  for (size_t i = 1; i < sites.size(); ++i) {
+    EXPECT_NEAR(static_cast<double>(sites[i].utime - sites[i - 1].utime),
+                static_cast<double>(kSitePeriodUs), kPeriodToleranceUs);
+  }
+  // The texts are the files', the hash theirs, and STATUS states it.
+  LoadedSite on_disk;
+  std::string error;
+  ASSERT_TRUE(LoadSiteWithTexts(demo, &on_disk, &error)) << error;
+  EXPECT_EQ(sites[0].site_text, on_disk.texts.site_text);
+  EXPECT_EQ(sites[0].content_hash, on_disk.content_hash);
+  EXPECT_EQ(sites[0].roomfix_version, RoomfixVersion());
+  bool stated = false;
+  for (const auto& c : statuses.back().counters) {
+    if (c.name == kSiteHashCounter) {
+      stated = true;
+      EXPECT_EQ(SiteHashCounterText(c.count), on_disk.content_hash.substr(0, 15));
+    }
+  }
+  EXPECT_TRUE(stated);
+  ASSERT_EQ(r.sites.count("fusion_proc"), 1u);
+  EXPECT_NE(r.sites.at("fusion_proc")[0].content_hash, on_disk.content_hash);
+
+  // analyze, without --config: the log's first site (trilat_proc's), and the
+  // disagreement naming both processes.
+  ChildProcess analyze({"sh", "-c",
+                        "exec '" + BinDir() + "/roomfix' analyze '" + dir.File("run.lcm") +
+                            "' --no-figures --out '" + dir.File("report") + "' 2>'" +
+                            dir.File("err.txt") + "'"});
+  ASSERT_EQ(analyze.Wait(60), 0);
+  const std::string err = ReadFile(dir.File("err.txt"));
+  EXPECT_NE(err.find("site from " + dir.File("run.lcm") + ": demo_room, hash " +
+                     ShortSiteHash(on_disk.content_hash) + ", roomfix " + RoomfixVersion() +
+                     ", published by trilat_proc@"),
+            std::string::npos)
+      << err;
+  EXPECT_NE(err.find("warning: " + dir.File("run.lcm") + ": processes disagree on the site: "),
+            std::string::npos)
+      << err;
+  EXPECT_NE(err.find(ShortSiteHash(on_disk.content_hash) + " by trilat_proc@"), std::string::npos)
+      << err;
+  EXPECT_NE(err.find(ShortSiteHash(r.sites.at("fusion_proc")[0].content_hash) + " by fusion_proc@"),
+            std::string::npos)
+      << err;
+
+  // The viewer, replaying it, warns too (the same tracker as live).
+  ChildProcess viewer({"sh", "-c",
+                       "exec '" + BinDir() + "/roomfix_viewer' --log '" + dir.File("run.lcm") +
+                           "' --headless --png '" + dir.File("v.png") + "' 2>'" +
+                           dir.File("viewer.txt") + "'"});
+  ASSERT_EQ(viewer.Wait(60), 0);
+  const std::string viewer_err = ReadFile(dir.File("viewer.txt"));
+  EXPECT_NE(viewer_err.find("processes disagree on the site"), std::string::npos) << viewer_err;
+}
+
+// `roomfix listen --config` live: describes the site a process publishes
+// and names the key where it differs from the file.
+TEST(SiteOnTheBus, ListenNamesTheKeyWhereAPublishedSiteDiffersFromConfig) {
+  TempDir dir;
+  const std::string moved = MovedSite(dir);
+  ChildProcess listen(
+      {"sh", "-c",
+       "exec '" + BinDir() + "/roomfix' listen --channel SITE --count 1 --timeout 10 --config '" +
+           SourceDir() + "/config/sites/demo_room.yaml' 2>'" + dir.File("err.txt") + "'"});
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  ChildProcess trilat({BinDir() + "/trilat_proc", "--config", moved, "--log-level", "warn"});
+  EXPECT_EQ(listen.Wait(15), 0);
+  trilat.Signal(SIGINT);
+  EXPECT_EQ(trilat.Wait(10), 0);
+  const std::string err = ReadFile(dir.File("err.txt"));
+  EXPECT_NE(err.find("roomfix listen: site on SITE: demo_room, hash "), std::string::npos) << err;
+  EXPECT_NE(err.find("published by trilat_proc@"), std::string::npos) << err;
+  EXPECT_NE(err.find("differ at 1 key: receivers[2].position_m[0]: 4.0 -> 4.05"), std::string::npos)
+      << err;
+}
+
+}  // namespace
+}  // namespace roomfix
