@@ -28,6 +28,10 @@ constexpr double kCoplanarRatio = 0.05;
 // linear at a rate near residual / distance (a few percent), so what is left
 // is a few percent of a micrometre, far below any range noise.
 constexpr double kStepTolerance_m = 1e-6;
+// Consensus subsets are solved only to decide which ranges to keep, against
+// thresholds of centimetres; a tenth of a millimetre is plenty, and the chosen
+// set is refined to kStepTolerance_m afterwards.
+constexpr double kSubsetStepTolerance_m = 1e-4;
 // Nelder-Mead stops when the simplex is smaller than this (GSL's "size":
 // mean distance of the vertices from their centre): the same micrometre at
 // which Levenberg-Marquardt stops, so the benchmark compares the two at equal
@@ -101,7 +105,8 @@ double NormalEquations(const Ranges<D>& r, const std::vector<int>& active,
 // of iterations; *converged is false when the limit was reached.
 template <int D>
 int Refine(const Ranges<D>& r, const std::vector<int>& active, int max_iterations,
-           Eigen::Matrix<double, D, 1>* p, bool* converged) {
+           Eigen::Matrix<double, D, 1>* p, bool* converged,
+           double step_tolerance_m = kStepTolerance_m) {
   using Vec = Eigen::Matrix<double, D, 1>;
   using Mat = Eigen::Matrix<double, D, D>;
   Mat jtj;
@@ -119,7 +124,7 @@ int Refine(const Ranges<D>& r, const std::vector<int>& active, int max_iteration
     for (int k = 0; k < D; ++k) a(k, k) = jtj(k, k) * (1.0 + lambda) + lambda * floor;
     const Vec step = -a.inverse() * jte;
     if (!step.allFinite()) break;
-    if (step.norm() < kStepTolerance_m) {
+    if (step.norm() < step_tolerance_m) {
       // A step this short cannot raise the cost by anything that matters;
       // take it without evaluating it (the caller evaluates the final point).
       *p += step;
@@ -457,6 +462,45 @@ double DistanceToPrior(const Eigen::Matrix<double, D, 1>& p, const PositionPrior
   }
 }
 
+// Of the two points at horizontal distance rho_i = sqrt(d_i^2 - off2_i) from
+// anchors a and b, the one nearer the prior; when the circles do not meet,
+// the point on the line between the anchors that least squares would give
+// (the gap split evenly). False for coincident anchors or a range shorter
+// than its fixed vertical offset.
+template <int D>
+bool CircleIntersection(const Ranges<D>& r, int i, int j, const PositionPrior& prior,
+                        Eigen::Matrix<double, D, 1>* out) {
+  if constexpr (D != 2) {
+    return false;
+  } else {
+    r.evaluations += 2;
+    const double ri2 = r.d[i] * r.d[i] - r.off2[i];
+    const double rj2 = r.d[j] * r.d[j] - r.off2[j];
+    if (ri2 < 0.0 || rj2 < 0.0) return false;
+    const Eigen::Vector2d ab = r.a[j] - r.a[i];
+    const double l = ab.norm();
+    if (l < kCollinear_m) return false;
+    const Eigen::Vector2d u = ab / l;
+    const Eigen::Vector2d n(-u.y(), u.x());
+    // Along the baseline from a: x = (l^2 + ri^2 - rj^2) / 2l; across: h.
+    const double ri = std::sqrt(ri2), rj = std::sqrt(rj2);
+    if (ri + rj <= l || std::abs(ri - rj) >= l) {
+      const double x = ri + rj <= l
+                           ? ri + 0.5 * (l - ri - rj)
+                           : (ri > rj ? ri - 0.5 * (ri - rj - l) : -ri + 0.5 * (rj - ri - l));
+      *out = r.a[i] + u * x;
+      return true;
+    }
+    const double x = (l * l + ri2 - rj2) / (2.0 * l);
+    const double h = std::sqrt(std::max(0.0, ri2 - x * x));
+    const Eigen::Vector2d base = r.a[i] + u * x;
+    const Eigen::Vector2d p1 = base + n * h, p2 = base - n * h;
+    const Eigen::Vector2d pr = prior.position_m.head<2>();
+    *out = (p1 - pr).squaredNorm() <= (p2 - pr).squaredNorm() ? p1 : p2;
+    return true;
+  }
+}
+
 template <int D>
 void SolveIn(const std::vector<RangeMeasurement>& input, const SolverOptions& o,
              const Eigen::Vector3d* guess, const PositionPrior* prior, Ranges<D>* r, Fix* fix) {
@@ -486,16 +530,23 @@ void SolveIn(const std::vector<RangeMeasurement>& input, const SolverOptions& o,
 
   Workspace& w = ThreadWorkspace();
   auto solve_subset = [&](const std::vector<int>& active, const Eigen::Vector3d* start_guess,
-                          Vec* p, bool* converged) -> int {
+                          Vec* p, bool* converged, int max_iterations) -> int {
     if (!Start(*r, active, o, start_guess, spread, coplanar, p)) return -1;
     if (o.method == Method::kNelderMead)
-      return NelderMead(*r, active, o.max_iterations, p, converged);
-    return Refine(*r, active, o.max_iterations, p, converged);
+      return NelderMead(*r, active, max_iterations, p, converged);
+    return Refine(*r, active, max_iterations, p, converged,
+                  max_iterations < o.max_iterations ? kSubsetStepTolerance_m : kStepTolerance_m);
   };
+  // A consensus subset converges in a handful of Levenberg-Marquardt steps
+  // from the linear start or the prior (quadratically once close); one that
+  // has not within this many is not a consensus (two circles that do not
+  // meet, a subset holding a reflection), and its remaining iterations would
+  // set the solver's worst-case time.
+  constexpr int kSubsetIterations = 12;
 
   Vec p;
   bool converged = false;
-  int iterations = solve_subset(r->active, guess, &p, &converged);
+  int iterations = solve_subset(r->active, guess, &p, &converged, o.max_iterations);
   if (iterations < 0) {
     fix->flags |= kDegenerateGeometry;
     return;
@@ -560,8 +611,18 @@ void SolveIn(const std::vector<RangeMeasurement>& input, const SolverOptions& o,
           }
           Vec q;
           bool c = false;
-          const int its = solve_subset(w.subset, start, &q, &c);
-          if (its >= 0) {
+          int its = 0;
+          if (D == 2 && w.subset.size() == 2 && prior != nullptr) {
+            // Exactly determined in 2D: the two circles' intersection nearest
+            // the prior, in closed form (a tenth of a Levenberg-Marquardt
+            // solve, which for the worst sets, two reflections among four
+            // ranges and six such pairs, decides the solver's p99 time).
+            c = CircleIntersection(*r, w.subset[0], w.subset[1], *prior, &q);
+          } else {
+            its = solve_subset(w.subset, start, &q, &c,
+                               std::min(o.max_iterations, kSubsetIterations));
+          }
+          if (its >= 0 && c) {
             fix->iterations += its;
             double sub_worst = 0.0;
             Residuals(*r, w.subset, q, &sub_worst);
