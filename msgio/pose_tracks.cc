@@ -33,6 +33,15 @@ std::vector<analysis::TimedPosition> PoseTrack::Positions() const {
   return out;
 }
 
+std::vector<analysis::CovariantPosition> PoseTrack::CovariantPositions() const {
+  std::vector<analysis::CovariantPosition> out;
+  out.reserve(samples.size());
+  for (const PoseSample& s : samples) {
+    out.push_back({s.utime, s.x_m, s.y_m, s.cov_xx_m2, s.cov_xy_m2, s.cov_yy_m2, !s.degraded});
+  }
+  return out;
+}
+
 PoseLogs ReadPoseLogs(const std::vector<std::string>& paths,
                       const std::function<void(double)>& progress) {
   PoseLogs out;
@@ -84,6 +93,9 @@ PoseLogs ReadPoseLogs(const std::vector<std::string>& paths,
       s.latency_us = p.latency_us;
       s.recv_utime = e.utime;
       s.degraded = p.status == pose2d_t::STATUS_DEGRADED;
+      s.cov_xx_m2 = p.covariance[0][0];
+      s.cov_xy_m2 = p.covariance[0][1];
+      s.cov_yy_m2 = p.covariance[1][1];
       track.samples.push_back(s);
     }
     report.damaged = reader->damaged();

@@ -25,6 +25,10 @@ struct PoseSample {
   // When the logger received it: the log event's time.
   int64_t recv_utime = 0;
   bool degraded = false;
+  // The pose's (x, y) covariance, m^2, as published.
+  double cov_xx_m2 = 0.0;
+  double cov_xy_m2 = 0.0;
+  double cov_yy_m2 = 0.0;
 };
 
 // Every pose of one source ("camera", "ultrasound", "fused",
@@ -37,6 +41,8 @@ struct PoseTrack {
   int lost = 0;
 
   std::vector<analysis::TimedPosition> Positions() const;
+  // With covariances and the ok flag, for analysis::CovarianceCoverage.
+  std::vector<analysis::CovariantPosition> CovariantPositions() const;
 };
 
 // What reading a log found besides poses.

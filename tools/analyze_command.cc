@@ -568,6 +568,15 @@ int RunAnalyze(const AnalyzeOptions& options) {
         j["ground_truth_error"] = ErrorJson(e);
         md << "| error vs ground truth: RMSE, p95, max | " << Fixed(e.rmse_m * 100, 2) << ", "
            << Fixed(e.p95_m * 100, 2) << ", " << Fixed(e.max_m * 100, 2) << " cm |\n";
+        const analysis::CoverageSummary c =
+            analysis::CovarianceCoverage(t->CovariantPositions(), reference, max_gap_us);
+        j["covariance_coverage"] = {{"compared", c.compared},
+                                    {"share_inside_95", c.share_inside_95},
+                                    {"median_squared_mahalanobis", c.median_squared_mahalanobis},
+                                    {"worst_ok_m", c.worst_ok_m}};
+        md << "| errors inside the pose's own 95% ellipse (median e'C^-1e; 1.39 if calibrated) | "
+           << Fixed(c.share_inside_95 * 100, 1) << "% (" << Fixed(c.median_squared_mahalanobis, 2)
+           << ") |\n| worst error of an ok pose | " << Fixed(c.worst_ok_m * 100, 2) << " cm |\n";
         pictures.push_back(figures.ErrorOverTime(
             "error_" + stem, analysis::ErrorsOverTime(positions, reference, max_gap_us)));
       }
@@ -604,6 +613,8 @@ int RunAnalyze(const AnalyzeOptions& options) {
       if (j.contains("ground_truth_error")) {
         s["rmse_m"] = j["ground_truth_error"]["rmse_m"];
         s["p95_m"] = j["ground_truth_error"]["p95_m"];
+        s["inside_own_95_ellipse"] = j["covariance_coverage"]["share_inside_95"];
+        s["worst_ok_m"] = j["covariance_coverage"]["worst_ok_m"];
       }
       if (j.contains("latency_publish_ms")) {
         s["latency_ms_median"] = j["latency_publish_ms"]["median_ms"];
