@@ -25,6 +25,10 @@ struct PoseSample {
   // When the logger received it: the log event's time.
   int64_t recv_utime = 0;
   bool degraded = false;
+  // Position covariance from the message, m^2 (NaN when it has none).
+  double cov_xx_m2 = 0.0;
+  double cov_xy_m2 = 0.0;
+  double cov_yy_m2 = 0.0;
 };
 
 // Every pose of one source ("camera", "ultrasound", "fused",

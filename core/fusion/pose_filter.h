@@ -51,7 +51,7 @@ struct PoseFilterOptions {
   // floor's square: trilateration covariances are optimistic (they ignore
   // receiver survey errors and multipath), a camera's can be near zero.
   double camera_inflation = 1.0;
-  double camera_sigma_floor_m = 0.0005;
+  double camera_sigma_floor_m = 0.00005;
   double ultrasound_inflation = 1.0;
   double ultrasound_sigma_floor_m = 0.02;
   double heading_sigma_floor_rad = 0.01;
