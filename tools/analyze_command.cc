@@ -569,9 +569,6 @@ int RunAnalyze(const AnalyzeOptions& options) {
         }
         j["circle"] = circle;
       }
-      if (t != truth) {
-        j["quality"] = FixQualityFigures(*t, truth, max_gap_us, md, &quality_table);
-      }
       if (truth != nullptr && t != truth) {
         const std::vector<analysis::TimedPosition> reference = truth->Positions();
         const analysis::ErrorSummary e =
@@ -581,6 +578,9 @@ int RunAnalyze(const AnalyzeOptions& options) {
            << Fixed(e.p95_m * 100, 2) << ", " << Fixed(e.max_m * 100, 2) << " cm |\n";
         pictures.push_back(figures.ErrorOverTime(
             "error_" + stem, analysis::ErrorsOverTime(positions, reference, max_gap_us)));
+      }
+      if (t != truth) {
+        j["quality"] = FixQualityFigures(*t, truth, max_gap_us, md, &quality_table);
       }
       if (camera != nullptr && t->source == "ultrasound") {
         const analysis::TrackOffset o =
