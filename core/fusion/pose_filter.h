@@ -57,7 +57,7 @@ struct PoseFilterOptions {
   double camera_sigma_floor_m = 0.00005;
   double ultrasound_inflation = 1.0;
   double ultrasound_sigma_floor_m = 0.005;
-  double heading_sigma_floor_rad = 0.01;
+  double heading_sigma_floor_rad = 0.001;
 
   // Initial uncertainty of what a measurement does not give.
   double initial_speed_sigma_mps = 0.5;
