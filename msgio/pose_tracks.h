@@ -25,7 +25,7 @@ struct PoseSample {
   // When the logger received it: the log event's time.
   int64_t recv_utime = 0;
   bool degraded = false;
-  // Position covariance from the message, m^2 (NaN when it has none).
+  // The pose's (x, y) covariance, m^2, as published (NaN when it has none).
   double cov_xx_m2 = 0.0;
   double cov_xy_m2 = 0.0;
   double cov_yy_m2 = 0.0;
@@ -41,6 +41,8 @@ struct PoseTrack {
   int lost = 0;
 
   std::vector<analysis::TimedPosition> Positions() const;
+  // With covariances and the ok flag, for analysis::CovarianceCoverage.
+  std::vector<analysis::CovariantPosition> CovariantPositions() const;
 };
 
 // What reading a log found besides poses.

@@ -23,6 +23,9 @@ constexpr double kOutsideRoomMargin_m = 0.2;
 // unknown_beacon_height_m (a test bench); their warm-start state is then
 // capped at this many ids, so a flood of invented ids cannot grow it.
 constexpr size_t kMaxBeaconTracks = 256;
+// Receiver positions in a message are copies of the site's (zigbee_bridge
+// fills them in); more than this apart is a stale or foreign configuration.
+constexpr double kReceiverPositionTolerance_m = 0.01;
 
 bool TrilatNodeOptions::IsValid(std::string* error) const {
   if (!(warm_start_max_age_s >= 0.0)) {
@@ -33,6 +36,7 @@ bool TrilatNodeOptions::IsValid(std::string* error) const {
     *error = "forget_after_s must be finite and at least warm_start_max_age_s";
     return false;
   }
+  if (use_prior && !prior.IsValid(error)) return false;
   trilat::SolverOptions probe = solver;
   probe.fixed_height_m = 0.0;  // Set per beacon.
   return probe.IsValid(error);
@@ -86,10 +90,14 @@ void TrilatNode::OnRangeSet(const range_set_t& set, const MessageInfo& info) {
   }
   trilat::SolverOptions solver = options_.solver;
   int32_t robot_id = set.beacon_id;
+  trilat::BeaconPriorOptions prior_options = options_.prior;
   if (const Beacon* beacon = site_.FindBeacon(set.beacon_id)) {
     solver.fixed_height_m = beacon->height_m;
     for (const Robot& robot : site_.robots) {
-      if (robot.beacon_id && *robot.beacon_id == set.beacon_id) robot_id = robot.id;
+      if (robot.beacon_id && *robot.beacon_id == set.beacon_id) {
+        robot_id = robot.id;
+        prior_options.max_speed_mps = robot.max_speed_mps;
+      }
     }
   } else if (std::isfinite(options_.unknown_beacon_height_m)) {
     solver.fixed_height_m = options_.unknown_beacon_height_m;
@@ -120,14 +128,22 @@ void TrilatNode::OnRangeSet(const range_set_t& set, const MessageInfo& info) {
         !std::isfinite(r.time_of_flight_us)) {
       status_.Reject("non_finite");
       dropped_range = true;
-    } else if (site_.FindReceiver(m.receiver_id) == nullptr) {
+    } else if (const Receiver* receiver = site_.FindReceiver(m.receiver_id)) {
+      // The site is the authority on where its receivers are; the message's
+      // copy is only checked.
+      const Eigen::Vector3d site_m(receiver->position_m[0], receiver->position_m[1],
+                                   receiver->position_m[2]);
+      if ((site_m - m.receiver_m).norm() > kReceiverPositionTolerance_m) {
+        status_.Count("receiver_position_mismatch");
+      }
+      ranges_[kept] = m;
+      ranges_[kept++].receiver_m = site_m;
+    } else {
       status_.Reject("unknown_receiver");
       status_.SetError("range set from beacon " + std::to_string(set.beacon_id) + ": receiver " +
                            std::to_string(m.receiver_id) + ", which the site file does not list",
                        info.recv_utime);
       dropped_range = true;
-    } else {
-      ranges_[kept++] = m;
     }
   }
   ranges_.resize(kept);
@@ -135,12 +151,17 @@ void TrilatNode::OnRangeSet(const range_set_t& set, const MessageInfo& info) {
   auto found = tracks_.find(set.beacon_id);
   if (found == tracks_.end() && tracks_.size() < kMaxBeaconTracks) {
     found = tracks_.emplace(set.beacon_id, BeaconTrack()).first;
+    found->second.prior = trilat::BeaconPrior(prior_options);
   }
   BeaconTrack* track = found == tracks_.end() ? nullptr : &found->second;
   const bool warm = track != nullptr && track->has_fix && set.utime >= track->last_fix_utime &&
                     SaturatingDifferenceUs(set.utime, track->last_fix_utime) * 1e-6 <=
                         options_.warm_start_max_age_s;
-  trilat::Solve(ranges_, solver, warm ? &track->last_position_m : nullptr, &fix_);
+  const trilat::PositionPrior* prior = nullptr;
+  if (track != nullptr && options_.use_prior) {
+    prior = track->prior.At(set.utime);
+  }
+  trilat::Solve(ranges_, solver, warm ? &track->last_position_m : nullptr, prior, &fix_);
   if (warm) status_.Count("warm_starts");
   if (track != nullptr) track->last_recv_utime = info.recv_utime;
   if (dropped_range && fix_.status == trilat::FixStatus::kOk) {
@@ -183,7 +204,18 @@ void TrilatNode::OnRangeSet(const range_set_t& set, const MessageInfo& info) {
       fix_.used.clear();
     }
   }
+  if (track != nullptr && options_.use_prior) {
+    const trilat::BeaconPrior::Outcome outcome = track->prior.Observe(set.utime, fix_);
+    if (outcome == trilat::BeaconPrior::Outcome::kReset) {
+      status_.Count(trilat::BeaconPriorOutcomeName(outcome));
+    }
+  }
   if (fix_.has_position()) {
+    for (const trilat::RejectedRange& r : fix_.rejected) {
+      if (r.reason == trilat::RangeRejection::kOutlier) {
+        status_.Count("outlier_receiver_" + std::to_string(r.receiver_id));
+      }
+    }
     if (track != nullptr) {
       track->has_fix = true;
       track->last_fix_utime = set.utime;

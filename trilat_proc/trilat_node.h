@@ -7,6 +7,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "core/trilat/beacon_prior.h"
 #include "core/trilat/trilateration.h"
 #include "core/world/site.h"
 #include "msgio/bus.h"
@@ -31,6 +32,11 @@ struct TrilatNodeOptions {
   // A beacon's warm-start state is forgotten after this long without a range
   // set from it (receive clock), so ids that stop cost nothing.
   double forget_after_s = 10.0;
+  // The temporal prior per beacon (core/trilat/beacon_prior.h);
+  // max_speed_mps is replaced by the site's robots[].max_speed_mps for the
+  // robot carrying the beacon. use_prior false solves each set alone.
+  trilat::BeaconPriorOptions prior;
+  bool use_prior = true;
 
   bool IsValid(std::string* error) const;
 };
@@ -54,6 +60,15 @@ struct TrilatNodeOptions {
 // (non_finite) is dropped and the pose is at best DEGRADED. A fix outside
 // the room (kOutsideRoomMargin_m) or without a finite covariance is
 // published LOST with the reason (outside_room, non_finite_fix).
+//
+// Receiver positions are the site's, by receiver id: a position carried in
+// the message that differs from the site's by more than a centimetre is
+// counted (receiver_position_mismatch) and not used.
+//
+// Each beacon has a temporal prior (core/trilat/beacon_prior.h) that the
+// robust solver uses to identify long ranges; which ranges were excluded is
+// counted per receiver (outlier_receiver_<id>), and the prior's resets are
+// counted (prior_resets).
 class TrilatNode {
  public:
   TrilatNode(const Site& site, Bus* bus, const TrilatNodeOptions& options, int64_t start_utime);
@@ -70,6 +85,7 @@ class TrilatNode {
     int64_t last_fix_utime = 0;
     Eigen::Vector3d last_position_m;
     bool has_fix = false;
+    trilat::BeaconPrior prior;
   };
 
   void OnRangeSet(const range_set_t& set, const MessageInfo& info);

@@ -362,3 +362,55 @@ TEST_F(TrilatNodeTest, SaysSoWhenTheRangeSetsStop) {
 
 }  // namespace
 }  // namespace roomfix
+
+namespace roomfix {
+namespace {
+
+TEST_F(TrilatNodeTest, UsesTheSitesReceiverPositionsAndCountsAMessageThatDisagrees) {
+  TrilatNode node(site_, &bus_, TrilatNodeOptions(), 0);
+  range_set_t set = Firing(10, 1, 1000000, 1.0, 1.0, 1.3);
+  // A stale configuration elsewhere: receiver 3 said to be 0.5 m off.
+  set.ranges[2].receiver_position_m[0] -= 0.5;
+  Deliver(set, 1010000);
+  ASSERT_EQ(poses_.size(), 1u);
+  EXPECT_NEAR(poses_[0].x_m, 1.0, kExact_m);
+  EXPECT_NEAR(poses_[0].y_m, 1.0, kExact_m);
+  EXPECT_EQ(poses_[0].status, pose2d_t::STATUS_OK);
+  EXPECT_EQ(node.status().counter("receiver_position_mismatch"), 1);
+}
+
+// The prior in the node: a three-range set whose long range the set alone
+// cannot identify is solved from the other two, named, and never moves the
+// published position off the ranges; a robot carried 1.5 m away is followed
+// again after three fixes there.
+TEST_F(TrilatNodeTest, IdentifiesALongRangeWithTheBeaconsPriorAndResetsItWhenMoved) {
+  TrilatNodeOptions options;
+  options.solver.method = trilat::Method::kRobust;
+  TrilatNode node(site_, &bus_, options, 0);
+  int64_t t = 1000000;
+  Deliver(Firing(10, 1, t, 0.5, 1.5, 1.3), t + 10000);
+  t += 100000;
+  range_set_t three = Firing(10, 2, t, 0.52, 1.5, 1.3);
+  three.ranges.pop_back();         // Receiver 4 did not hear it.
+  three.ranges[1].range_m += 0.6;  // Receiver 2 heard a reflection.
+  three.num_ranges = 3;
+  Deliver(three, t + 10000);
+  ASSERT_EQ(poses_.size(), 2u);
+  EXPECT_NEAR(poses_[1].x_m, 0.52, kExact_m);
+  EXPECT_NEAR(poses_[1].y_m, 1.5, kExact_m);
+  EXPECT_EQ(poses_[1].status, pose2d_t::STATUS_DEGRADED);
+  EXPECT_EQ(poses_[1].num_measurements, 2);
+  EXPECT_EQ(node.status().counter("outlier_receiver_2"), 1);
+  EXPECT_EQ(node.status().counter("prior_identified"), 1);
+  // Carried to (2.0, 1.5): ok again once the prior has reset.
+  for (int k = 0; k < 4; ++k) {
+    t += 100000;
+    Deliver(Firing(10, 3 + k, t, 2.0, 1.5, 1.3), t + 10000);
+    EXPECT_NEAR(poses_.back().x_m, 2.0, kExact_m);
+  }
+  EXPECT_EQ(node.status().counter("prior_resets"), 1);
+  EXPECT_EQ(poses_.back().status, pose2d_t::STATUS_OK);
+}
+
+}  // namespace
+}  // namespace roomfix

@@ -37,7 +37,15 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--unknown-beacon-height", options.unknown_beacon_height_m,
                  "Height for beacons missing from the site file, m (default: refuse them)");
+  bool no_prior = false;
+  app.add_flag("--no-prior", no_prior,
+               "Solve each range set alone, without the beacon's temporal prior "
+               "(docs/trilateration.md, \"Temporal prior\")");
+  app.add_option("--prior-reset-after", options.prior.reset_after,
+                 "Replace a beacon's prior after this many consistent fixes that disagree with it")
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
+  options.use_prior = !no_prior;
 
   roomfix::trilat::ParseMethod(method, &options.solver.method);
   options.solver.dimension = dimension == "3d"       ? roomfix::trilat::Dimension::k3D

@@ -1,5 +1,6 @@
 #include "core/trilat/trilateration.h"
 
+#include <gsl/gsl_cdf.h>
 #include <gsl/gsl_errno.h>
 #include <gsl/gsl_multimin.h>
 
@@ -27,11 +28,23 @@ constexpr double kCoplanarRatio = 0.05;
 // linear at a rate near residual / distance (a few percent), so what is left
 // is a few percent of a micrometre, far below any range noise.
 constexpr double kStepTolerance_m = 1e-6;
+// Consensus subsets are solved only to decide which ranges to keep, against
+// thresholds of centimetres; a tenth of a millimetre is plenty, and the chosen
+// set is refined to kStepTolerance_m afterwards.
+constexpr double kSubsetStepTolerance_m = 1e-4;
 // Nelder-Mead stops when the simplex is smaller than this (GSL's "size":
 // mean distance of the vertices from their centre): the same micrometre at
 // which Levenberg-Marquardt stops, so the benchmark compares the two at equal
 // convergence rather than handicapping the baseline with a tighter target.
 constexpr double kSimplexTolerance_m = 1e-6;
+// A consensus subset must fit its ranges to within their noise as a whole:
+// cost / sigma^2 below the chi-square quantile at this probability for its
+// redundant ranges. Per-range residuals within the threshold are not enough:
+// ranges that are all long by different calibration biases (real receivers
+// before their offsets are surveyed) leave every subset inconsistent, and
+// dropping the most biased one would only make the fix worse (the LIAS data
+// in docs/trilateration.md); consistent biases are not outliers.
+constexpr double kConsensusChiSquareProbability = 0.999;
 
 // The ranges in the solver's own coordinates: anchors in the D free
 // coordinates, plus a fixed offset along the others (the beacon-to-receiver
@@ -92,7 +105,8 @@ double NormalEquations(const Ranges<D>& r, const std::vector<int>& active,
 // of iterations; *converged is false when the limit was reached.
 template <int D>
 int Refine(const Ranges<D>& r, const std::vector<int>& active, int max_iterations,
-           Eigen::Matrix<double, D, 1>* p, bool* converged) {
+           Eigen::Matrix<double, D, 1>* p, bool* converged,
+           double step_tolerance_m = kStepTolerance_m) {
   using Vec = Eigen::Matrix<double, D, 1>;
   using Mat = Eigen::Matrix<double, D, D>;
   Mat jtj;
@@ -110,7 +124,7 @@ int Refine(const Ranges<D>& r, const std::vector<int>& active, int max_iteration
     for (int k = 0; k < D; ++k) a(k, k) = jtj(k, k) * (1.0 + lambda) + lambda * floor;
     const Vec step = -a.inverse() * jte;
     if (!step.allFinite()) break;
-    if (step.norm() < kStepTolerance_m) {
+    if (step.norm() < step_tolerance_m) {
       // A step this short cannot raise the cost by anything that matters;
       // take it without evaluating it (the caller evaluates the final point).
       *p += step;
@@ -417,13 +431,87 @@ void Residuals(const Ranges<D>& r, const std::vector<int>& active,
   }
 }
 
+// The chi-square quantile at kConsensusChiSquareProbability, cached for the
+// few degrees of freedom a room has.
+double ChiSquareQuantile(int dof) {
+  static const std::vector<double> table = [] {
+    std::vector<double> t(65);
+    for (int k = 1; k < static_cast<int>(t.size()); ++k) {
+      t[k] = gsl_cdf_chisq_Pinv(kConsensusChiSquareProbability, k);
+    }
+    return t;
+  }();
+  if (dof < static_cast<int>(table.size())) return table[dof];
+  return gsl_cdf_chisq_Pinv(kConsensusChiSquareProbability, dof);
+}
+
+// Residual of range i at p: measured minus predicted, positive when the range
+// is long (a reflected path).
+template <int D>
+double Excess(const Ranges<D>& r, int i, const Eigen::Matrix<double, D, 1>& p) {
+  r.evaluations += 1;
+  return r.d[i] - std::sqrt((p - r.a[i]).squaredNorm() + r.off2[i]);
+}
+
+template <int D>
+double DistanceToPrior(const Eigen::Matrix<double, D, 1>& p, const PositionPrior& prior) {
+  if constexpr (D == 2) {
+    return (p - prior.position_m.head<2>()).norm();
+  } else {
+    return (p - prior.position_m).norm();
+  }
+}
+
+// Of the two points at horizontal distance rho_i = sqrt(d_i^2 - off2_i) from
+// anchors a and b, the one nearer the prior; when the circles do not meet,
+// the point on the line between the anchors that least squares would give
+// (the gap split evenly). False for coincident anchors or a range shorter
+// than its fixed vertical offset.
+template <int D>
+bool CircleIntersection(const Ranges<D>& r, int i, int j, const PositionPrior& prior,
+                        Eigen::Matrix<double, D, 1>* out) {
+  if constexpr (D != 2) {
+    return false;
+  } else {
+    r.evaluations += 2;
+    const double ri2 = r.d[i] * r.d[i] - r.off2[i];
+    const double rj2 = r.d[j] * r.d[j] - r.off2[j];
+    if (ri2 < 0.0 || rj2 < 0.0) return false;
+    const Eigen::Vector2d ab = r.a[j] - r.a[i];
+    const double l = ab.norm();
+    if (l < kCollinear_m) return false;
+    const Eigen::Vector2d u = ab / l;
+    const Eigen::Vector2d n(-u.y(), u.x());
+    // Along the baseline from a: x = (l^2 + ri^2 - rj^2) / 2l; across: h.
+    const double ri = std::sqrt(ri2), rj = std::sqrt(rj2);
+    if (ri + rj <= l || std::abs(ri - rj) >= l) {
+      const double x = ri + rj <= l
+                           ? ri + 0.5 * (l - ri - rj)
+                           : (ri > rj ? ri - 0.5 * (ri - rj - l) : -ri + 0.5 * (rj - ri - l));
+      *out = r.a[i] + u * x;
+      return true;
+    }
+    const double x = (l * l + ri2 - rj2) / (2.0 * l);
+    const double h = std::sqrt(std::max(0.0, ri2 - x * x));
+    const Eigen::Vector2d base = r.a[i] + u * x;
+    const Eigen::Vector2d p1 = base + n * h, p2 = base - n * h;
+    const Eigen::Vector2d pr = prior.position_m.head<2>();
+    *out = (p1 - pr).squaredNorm() <= (p2 - pr).squaredNorm() ? p1 : p2;
+    return true;
+  }
+}
+
 template <int D>
 void SolveIn(const std::vector<RangeMeasurement>& input, const SolverOptions& o,
-             const Eigen::Vector3d* guess, Ranges<D>* r, Fix* fix) {
+             const Eigen::Vector3d* guess, const PositionPrior* prior, Ranges<D>* r, Fix* fix) {
   using Vec = Eigen::Matrix<double, D, 1>;
   Collect(input, o, r, fix);
-  const int needed = D + 1;
-  if (static_cast<int>(r->active.size()) < needed) {
+  // Over-determined needs D + 1 ranges. Three receivers in 3D are enough
+  // when the mirror through their plane is resolved to the room side (three
+  // points are always coplanar): exactly determined, flagged unchecked.
+  const int over_determined = D + 1;
+  const int minimum = D == 3 ? 3 : over_determined;
+  if (static_cast<int>(r->active.size()) < minimum) {
     fix->flags |= kTooFewRanges;
     return;
   }
@@ -442,40 +530,66 @@ void SolveIn(const std::vector<RangeMeasurement>& input, const SolverOptions& o,
 
   Workspace& w = ThreadWorkspace();
   auto solve_subset = [&](const std::vector<int>& active, const Eigen::Vector3d* start_guess,
-                          Vec* p, bool* converged) -> int {
+                          Vec* p, bool* converged, int max_iterations) -> int {
     if (!Start(*r, active, o, start_guess, spread, coplanar, p)) return -1;
     if (o.method == Method::kNelderMead)
-      return NelderMead(*r, active, o.max_iterations, p, converged);
-    return Refine(*r, active, o.max_iterations, p, converged);
+      return NelderMead(*r, active, max_iterations, p, converged);
+    return Refine(*r, active, max_iterations, p, converged,
+                  max_iterations < o.max_iterations ? kSubsetStepTolerance_m : kStepTolerance_m);
   };
+  // A consensus subset converges in a handful of Levenberg-Marquardt steps
+  // from the linear start or the prior (quadratically once close); one that
+  // has not within this many is not a consensus (two circles that do not
+  // meet, a subset holding a reflection), and its remaining iterations would
+  // set the solver's worst-case time.
+  constexpr int kSubsetIterations = 12;
 
   Vec p;
   bool converged = false;
-  int iterations = solve_subset(r->active, guess, &p, &converged);
+  int iterations = solve_subset(r->active, guess, &p, &converged, o.max_iterations);
   if (iterations < 0) {
     fix->flags |= kDegenerateGeometry;
     return;
   }
   fix->iterations = iterations;
+  const double threshold = o.OutlierThreshold();
+  const double sigma2 = o.range_sigma_m * o.range_sigma_m;
 
   if (o.method == Method::kRobust) {
-    const double threshold = o.OutlierThreshold();
     double worst = 0.0;
     Residuals(*r, r->active, p, &worst);
     const int n = static_cast<int>(r->active.size());
-    const int max_out = std::min(o.max_outliers, n - needed);
-    if (worst > threshold && max_out > 0) {
-      // Consensus: the smallest set of excluded ranges after which every
-      // remaining residual is within the threshold; among equals, the lowest
-      // cost. Exhaustive over subsets, which for the handful of receivers in
-      // a room is a few dozen small solves at most; max_consensus_solves caps
-      // it for anything larger (C(n, 2) subsets of n ranges would let one
-      // message of 800 ranges take half a minute).
+    // With a prior, exactly determined subsets (D ranges) are admissible in
+    // 2D: the prior picks the right one of the two circle intersections and
+    // tells the long range apart. In 3D the smallest subset stays D + 1.
+    const int smallest_subset = (prior != nullptr && D == 2) ? D : over_determined;
+    const int max_out = std::min(o.max_outliers, n - smallest_subset);
+    // A consistent set with a single redundant range can still hide a long
+    // range (the fit absorbs it); beyond the prior it is searched too. With
+    // two or more redundant ranges a consistent set is trusted over the prior
+    // (a robot lifted and put down elsewhere).
+    const bool far = prior != nullptr && DistanceToPrior(p, *prior) > prior->radius_m;
+    const bool search = worst > threshold || (far && n <= over_determined);
+    if (search && max_out > 0) {
+      // Consensus: the fewest excluded ranges such that
+      //  - every remaining residual is within the threshold,
+      //  - every excluded range is long against the subset's fix by more than
+      //    the threshold (a reflection only lengthens a path: a subset that
+      //    explains a range as too short is physically impossible),
+      //  - with a prior, the fix is within the prior's radius;
+      // and among those the least score, cost / sigma^2, plus (distance to
+      // the prior / radius)^2 with a prior. Exhaustive over subsets, a few
+      // dozen small solves for a room; max_consensus_solves caps it for
+      // anything larger (C(n, 2) subsets of n ranges would let one message of
+      // 800 ranges take half a minute).
       bool found = false;
       bool exhausted = false;
-      double best_cost = kInf;
+      int admissible = 0;
+      double best_score = kInf;
       Vec best_p = p;
       int best_converged = 0;
+      int best_size = n;
+      const Eigen::Vector3d* start = prior != nullptr ? &prior->position_m : nullptr;
       for (int k = 1; k <= max_out && !found && !exhausted; ++k) {
         std::vector<int> pick(k);
         for (int j = 0; j < k; ++j) pick[j] = j;
@@ -486,8 +600,10 @@ void SolveIn(const std::vector<RangeMeasurement>& input, const SolverOptions& o,
           }
           ++fix->consensus_solves;
           w.subset.clear();
+          w.excluded.clear();
           for (int i = 0, j = 0; i < n; ++i) {
             if (j < k && pick[j] == i) {
+              w.excluded.push_back(r->active[i]);
               ++j;
             } else {
               w.subset.push_back(r->active[i]);
@@ -495,17 +611,75 @@ void SolveIn(const std::vector<RangeMeasurement>& input, const SolverOptions& o,
           }
           Vec q;
           bool c = false;
-          const int its = solve_subset(w.subset, nullptr, &q, &c);
-          if (its >= 0) {
+          int its = 0;
+          if (D == 2 && w.subset.size() == 2 && prior != nullptr) {
+            // Exactly determined in 2D: the two circles' intersection nearest
+            // the prior, in closed form (a tenth of a Levenberg-Marquardt
+            // solve, which for the worst sets, two reflections among four
+            // ranges and six such pairs, decides the solver's p99 time).
+            c = CircleIntersection(*r, w.subset[0], w.subset[1], *prior, &q);
+          } else {
+            its = solve_subset(w.subset, start, &q, &c,
+                               std::min(o.max_iterations, kSubsetIterations));
+          }
+          if (its >= 0 && c) {
             fix->iterations += its;
             double sub_worst = 0.0;
             Residuals(*r, w.subset, q, &sub_worst);
-            const double cost = Cost(*r, w.subset, q);
-            if (sub_worst <= threshold && cost < best_cost) {
+            // Long against the kept ranges: above their mean excess at q (a
+            // common offset, such as an uncalibrated receiver bias or a wrong
+            // speed of sound, lengthens every range, identifies none, and a
+            // fixed-height fit cannot absorb it) by the threshold plus five
+            // times their RMS scatter about that mean (kept ranges that
+            // scatter more than the noise model says, as differently biased
+            // receivers do, make a range stand out less). A reflection is
+            // long against the others.
+            double sub_mean = 0.0, sub_square = 0.0;
+            for (int i : w.subset) {
+              const double e = Excess(*r, i, q);
+              sub_mean += e;
+              sub_square += e * e;
+            }
+            const double m_count = static_cast<double>(w.subset.size());
+            sub_mean /= m_count;
+            const double scatter =
+                std::sqrt(std::max(0.0, sub_square / m_count - sub_mean * sub_mean));
+            bool long_enough = true;
+            for (int i : w.excluded) {
+              long_enough = long_enough &&
+                            Excess(*r, i, q) - std::max(0.0, sub_mean) > threshold + 5.0 * scatter;
+            }
+            double score = Cost(*r, w.subset, q) / sigma2;
+            bool near = true;
+            if (prior != nullptr) {
+              // Within the radius plus three of the subset fix's own standard
+              // deviations (its largest): an exactly determined pair of
+              // ranges at a shallow angle is centimetres of noise times its
+              // dilution of precision away from the truth.
+              Eigen::Matrix<double, D, D> q_jtj;
+              Vec q_jte;
+              NormalEquations(*r, w.subset, q, &q_jtj, &q_jte);
+              Vec q_values;
+              EigenSymmetric<D>(q_jtj, &q_values, nullptr);
+              const double q_sigma = q_values.minCoeff() > 0.0
+                                         ? o.range_sigma_m / std::sqrt(q_values.minCoeff())
+                                         : kInf;
+              const double reach = prior->radius_m + 3.0 * q_sigma;
+              const double d = DistanceToPrior(q, *prior) / reach;
+              near = d <= 1.0;
+              score += d * d;
+            }
+            const int dof = static_cast<int>(w.subset.size()) - D;
+            const bool fits = dof <= 0 || Cost(*r, w.subset, q) / sigma2 <= ChiSquareQuantile(dof);
+            if (sub_worst <= threshold && long_enough && near && fits) {
               found = true;
-              best_cost = cost;
-              best_p = q;
-              best_converged = c;
+              ++admissible;
+              if (score < best_score) {
+                best_score = score;
+                best_p = q;
+                best_converged = c;
+                best_size = static_cast<int>(w.subset.size());
+              }
             }
           }
           // Next combination of k indices out of n.
@@ -520,11 +694,8 @@ void SolveIn(const std::vector<RangeMeasurement>& input, const SolverOptions& o,
         // Re-admit any excluded range that agrees with the consensus point,
         // and refit on the final set.
         w.subset.clear();
-        r->evaluations += static_cast<int64_t>(r->active.size());
         for (int i : r->active) {
-          const double e =
-              std::abs(std::sqrt((best_p - r->a[i]).squaredNorm() + r->off2[i]) - r->d[i]);
-          if (e <= threshold) {
+          if (std::abs(Excess(*r, i, best_p)) <= threshold) {
             w.subset.push_back(i);
           } else {
             fix->rejected.push_back({r->ids[i], RangeRejection::kOutlier});
@@ -535,7 +706,11 @@ void SolveIn(const std::vector<RangeMeasurement>& input, const SolverOptions& o,
         converged = best_converged;
         fix->iterations += Refine(*r, r->active, o.max_iterations, &p, &converged);
         fix->flags |= kOutliersRejected;
-      } else {
+        if (prior != nullptr &&
+            (admissible > 1 || best_size < over_determined || worst <= threshold)) {
+          fix->flags |= kPriorIdentified;
+        }
+      } else if (worst > threshold) {
         fix->flags |= kInconsistentRanges;
         if (exhausted) fix->flags |= kConsensusBudgetExhausted;
       }
@@ -559,7 +734,6 @@ void SolveIn(const std::vector<RangeMeasurement>& input, const SolverOptions& o,
       fix->iterations += Refine(*r, r->active, o.max_iterations, &p, &converged);
       if ((p - previous).norm() < kStepTolerance_m) break;
     }
-    const double threshold = o.OutlierThreshold();
     w.subset.clear();
     r->evaluations += static_cast<int64_t>(r->active.size());
     for (int i : r->active) {
@@ -571,7 +745,7 @@ void SolveIn(const std::vector<RangeMeasurement>& input, const SolverOptions& o,
         fix->flags |= kOutliersRejected;
       }
     }
-    if (static_cast<int>(w.subset.size()) >= needed) r->active = w.subset;
+    if (static_cast<int>(w.subset.size()) >= over_determined) r->active = w.subset;
   }
 
   if constexpr (D == 3) {
@@ -594,33 +768,58 @@ void SolveIn(const std::vector<RangeMeasurement>& input, const SolverOptions& o,
   // (three ranges in 2D), or outside robust mode, the fix is still flagged.
   double worst_residual = 0.0;
   Residuals(*r, r->active, p, &worst_residual);
-  if (worst_residual > o.OutlierThreshold()) fix->flags |= kInconsistentRanges;
+  if (worst_residual > threshold) fix->flags |= kInconsistentRanges;
+  fix->redundant_ranges = static_cast<int>(r->active.size()) - D;
+  if (fix->redundant_ranges <= 0) fix->flags |= kUnchecked;
   Eigen::Matrix<double, D, D> jtj;
   Vec jte;
   const double cost = NormalEquations(*r, r->active, p, &jtj, &jte);
-  const double sigma2 = o.range_sigma_m * o.range_sigma_m;
   Eigen::Matrix<double, D, D> cov = Eigen::Matrix<double, D, D>::Constant(kInf);
   const double scale = jtj.trace();
   if (scale > 0.0 && std::abs(jtj.determinant()) > 1e-14 * std::pow(scale, D)) {
     cov = sigma2 * jtj.inverse();
   }
-  fix->covariance_m2.setZero();
-  fix->covariance_m2.topLeftCorner<D, D>() = cov;
   Vec cov_values = Vec::Constant(kInf);
   if (cov.allFinite()) EigenSymmetric<D>(cov, &cov_values, nullptr);
+  // Poor geometry is judged on the range noise alone, before any growth.
   if (!(cov_values.maxCoeff() <= o.max_position_sigma_m * o.max_position_sigma_m)) {
     fix->flags |= kPoorGeometry;
   }
+  fix->residual_rms_m = std::sqrt(cost / static_cast<double>(r->active.size()));
+  // Grown for what the ranges could not check (Fix::covariance_m2).
+  if ((fix->flags & kUnchecked) != 0) cov *= (sigma2 + threshold * threshold / 3.0) / sigma2;
+  if ((fix->flags & kInconsistentRanges) != 0) {
+    cov *= std::max(1.0, fix->residual_rms_m * fix->residual_rms_m / sigma2);
+  }
+  if (prior != nullptr) {
+    const double d = DistanceToPrior(p, *prior);
+    if (d > prior->radius_m) {
+      fix->flags |= kPriorDisagrees;
+      // Ranges that disagree among themselves, with no subset the prior
+      // admits, and a fix where the robot cannot be: not a position. (With
+      // consistent ranges the fix is kept: the robot may have been moved.)
+      if ((fix->flags & kInconsistentRanges) != 0) {
+        fix->residual_rms_m = kNaN;
+        return;
+      }
+      // chi-square with 2 degrees of freedom at 95%: 5.99.
+      cov.diagonal().array() += d * d / 5.99;
+    }
+  }
+  fix->covariance_m2.setZero();
+  fix->covariance_m2.topLeftCorner<D, D>() = cov;
   if constexpr (D == 2) {
     fix->position_m = {p.x(), p.y(),
                        o.dimension == Dimension::kFixedHeight2D ? o.fixed_height_m : 0.0};
   } else {
     fix->position_m = p;
   }
-  fix->residual_rms_m = std::sqrt(cost / static_cast<double>(r->active.size()));
   for (int i : r->active) fix->used.push_back(r->ids[i]);
+  // ok only for an over-determined, consistent fix that nothing had to be
+  // taken out of.
   const uint32_t degrading = kBadRangesDropped | kOutliersRejected | kInconsistentRanges |
-                             kPoorGeometry | kNotConverged | kConsensusBudgetExhausted;
+                             kPoorGeometry | kNotConverged | kConsensusBudgetExhausted |
+                             kUnchecked | kPriorDisagrees;
   fix->status = (fix->flags & degrading) != 0 ? FixStatus::kDegraded : FixStatus::kOk;
 }
 
@@ -692,6 +891,12 @@ const char* FixFlagName(FixFlag flag) {
       return "too_many_ranges";
     case kConsensusBudgetExhausted:
       return "consensus_budget_exhausted";
+    case kPriorIdentified:
+      return "prior_identified";
+    case kUnchecked:
+      return "unchecked";
+    case kPriorDisagrees:
+      return "prior_disagrees";
   }
   return "?";
 }
@@ -736,6 +941,12 @@ double SolverOptions::OutlierThreshold() const {
 
 void Solve(const std::vector<RangeMeasurement>& ranges, const SolverOptions& options,
            const Eigen::Vector3d* initial_guess, Fix* fix) {
+  Solve(ranges, options, initial_guess, nullptr, fix);
+}
+
+void Solve(const std::vector<RangeMeasurement>& ranges, const SolverOptions& options,
+           const Eigen::Vector3d* initial_guess, const PositionPrior* prior, Fix* fix) {
+  fix->redundant_ranges = 0;
   fix->status = FixStatus::kFailed;
   fix->flags = 0;
   fix->position_m.setConstant(kNaN);
@@ -750,12 +961,17 @@ void Solve(const std::vector<RangeMeasurement>& ranges, const SolverOptions& opt
     fix->flags |= kTooManyRanges;
     return;
   }
+  // A prior that cannot bound anything is no prior.
+  if (prior != nullptr &&
+      !(prior->position_m.allFinite() && prior->radius_m > 0.0 && std::isfinite(prior->radius_m))) {
+    prior = nullptr;
+  }
   Workspace& w = ThreadWorkspace();
   if (options.dimension == Dimension::k3D) {
-    SolveIn<3>(ranges, options, initial_guess, &w.r3, fix);
+    SolveIn<3>(ranges, options, initial_guess, prior, &w.r3, fix);
     fix->range_evaluations = w.r3.evaluations;
   } else {
-    SolveIn<2>(ranges, options, initial_guess, &w.r2, fix);
+    SolveIn<2>(ranges, options, initial_guess, prior, &w.r2, fix);
     fix->range_evaluations = w.r2.evaluations;
   }
 }

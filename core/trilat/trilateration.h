@@ -23,6 +23,8 @@ namespace roomfix::trilat {
 //  - k3D: x, y, z free. When the receivers are coplanar (all on one height,
 //    the common installation), p and its mirror image through their plane fit
 //    equally well; the solution on the room side is chosen and the fix says so.
+//    Three receivers (always coplanar) are then enough: the fix is exactly
+//    determined (flagged unchecked) and mirror-resolved.
 enum class Dimension { kFixedHeight2D, kPlanar2D, k3D };
 
 // kNelderMead: GSL's simplex (nmsimplex2) on F, as the reference paper did;
@@ -96,6 +98,8 @@ enum class RangeRejection : uint8_t {
   kTooLong,
   kDuplicateReceiver,
   kNonFiniteReceiver,
+  // Long against the consensus fix by more than the outlier threshold: a
+  // reflected path (the only way a range is excluded as an outlier).
   kOutlier,
 };
 const char* RangeRejectionName(RangeRejection reason);
@@ -129,9 +133,18 @@ enum FixFlag : uint32_t {
   // degraded: the consensus search stopped at max_consensus_solves with no
   // consistent subset among those tried.
   kConsensusBudgetExhausted = 1u << 10,
+  // note: the beacon's temporal prior chose among subsets that the ranges
+  // alone could not tell apart (or allowed an exactly determined subset).
+  kPriorIdentified = 1u << 11,
+  // degraded: no redundant range (as many ranges as unknowns), so no range
+  // could be checked against the others; the covariance is grown (see Fix).
+  kUnchecked = 1u << 12,
+  // degraded: the fix is further from the temporal prior than the robot can
+  // have moved; the covariance is grown to cover the prior's position.
+  kPriorDisagrees = 1u << 13,
 };
 // The highest bit in use, for loops over the flags.
-inline constexpr uint32_t kLastFixFlag = kConsensusBudgetExhausted;
+inline constexpr uint32_t kLastFixFlag = kPriorDisagrees;
 const char* FixFlagName(FixFlag flag);
 // "too_few_ranges,collinear_receivers" for the flags set.
 std::string DescribeFlags(uint32_t flags);
@@ -141,9 +154,19 @@ struct Fix {
   uint32_t flags = 0;
   // Room frame. For the 2D modes z is the fixed height (or 0 in kPlanar2D).
   Eigen::Vector3d position_m = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
-  // Covariance of (x, y, z), m^2: range_sigma_m^2 (J^T J)^-1 at the
-  // solution. Rows and columns of fixed coordinates are zero.
+  // Covariance of (x, y, z), m^2, rows and columns of fixed coordinates
+  // zero. From the range noise, sigma^2 (J^T J)^-1 at the solution, grown for
+  // what the ranges could not check (docs/trilateration.md, "Covariance"):
+  //  - unchecked (no redundant range): sigma^2 + t^2 / 3 per range, t the
+  //    outlier threshold: a reflection shorter than t passes unseen, and
+  //    uniform on [0, t] it has that mean square;
+  //  - inconsistent ranges: scaled by (residual_rms / sigma)^2 when above 1,
+  //    the a-posteriori variance factor;
+  //  - prior disagrees: plus d^2 / 5.99 on the diagonal, d the distance to
+  //    the prior, so that the prior's position is inside the 95% ellipse.
   Eigen::Matrix3d covariance_m2 = Eigen::Matrix3d::Zero();
+  // Ranges used minus unknowns: 0 is exactly determined (unchecked).
+  int redundant_ranges = 0;
   // sqrt(F(p) / n) over the ranges used.
   double residual_rms_m = std::numeric_limits<double>::quiet_NaN();
   std::vector<int> used;
@@ -158,10 +181,25 @@ struct Fix {
   bool has_position() const { return status != FixStatus::kFailed; }
 };
 
+// Where the beacon can be, from its own recent fixes (BeaconPrior): within
+// radius_m of position_m.
+struct PositionPrior {
+  Eigen::Vector3d position_m = Eigen::Vector3d::Zero();
+  double radius_m = 0.0;
+};
+
 // Solves one range set. `initial_guess`, when given (the previous fix of the
 // same beacon), replaces the linear start. Never throws; every failure is in
 // the returned Fix. `fix` is reused so that a caller in a loop does not
 // allocate.
+//
+// `prior`, when given, only chooses (kRobust): among the range subsets the
+// consensus admits it prefers those near the prior, it lets the search go
+// down to exactly determined subsets (two long ranges among four in 2D, one
+// among three), and a fix beyond it is flagged kPriorDisagrees. The position
+// itself always comes from ranges alone.
+void Solve(const std::vector<RangeMeasurement>& ranges, const SolverOptions& options,
+           const Eigen::Vector3d* initial_guess, const PositionPrior* prior, Fix* fix);
 void Solve(const std::vector<RangeMeasurement>& ranges, const SolverOptions& options,
            const Eigen::Vector3d* initial_guess, Fix* fix);
 Fix Solve(const std::vector<RangeMeasurement>& ranges, const SolverOptions& options,

@@ -318,8 +318,45 @@ TEST(Solve, GivesNoPositionWithFewerRangesThanTheModeNeeds) {
   EXPECT_TRUE(std::isnan(fix.position_m.x()));
   SolverOptions o3;
   o3.dimension = Dimension::k3D;
-  const auto three = ExactRanges({{0, 0, 2.5}, {4, 0, 2.5}, {4, 3, 2.5}}, {1, 1, 1.3});
-  EXPECT_EQ(Solve(three, o3).flags, static_cast<uint32_t>(kTooFewRanges));
+  const auto two = ExactRanges({{0, 0, 2.5}, {4, 0, 2.5}}, {1, 1, 1.3});
+  EXPECT_EQ(Solve(two, o3).flags, static_cast<uint32_t>(kTooFewRanges));
+}
+
+// Three receivers in 3D fix the beacon up to its mirror image through their
+// plane; the room side is chosen and the fix says it could not be checked.
+TEST(Solve, ThreeReceiversIn3DAreSolvedOnTheRoomSideAndFlagged) {
+  SolverOptions o;
+  o.dimension = Dimension::k3D;
+  const Eigen::Vector3d beacon(1.0, 1.2, 1.3);
+  const Fix fix = Solve(ExactRanges({{0, 0, 2.5}, {4, 0, 2.5}, {4, 3, 2.5}}, beacon), o);
+  ASSERT_EQ(fix.status, FixStatus::kDegraded);
+  EXPECT_EQ(fix.flags, static_cast<uint32_t>(kMirrorResolved | kUnchecked))
+      << DescribeFlags(fix.flags);
+  EXPECT_EQ(fix.redundant_ranges, 0);
+  EXPECT_NEAR((fix.position_m - beacon).norm(), 0.0, kExact_m);
+  // Three receivers on a line leave a circle of solutions: refused, in 2D
+  // and 3D alike.
+  const std::vector<Eigen::Vector3d> line = {{0, 0, 2.5}, {2, 0, 2.5}, {4, 0, 2.5}};
+  EXPECT_EQ(Solve(ExactRanges(line, beacon), o).flags, static_cast<uint32_t>(kCollinearReceivers));
+  EXPECT_EQ(Solve(ExactRanges(line, beacon), FixedHeight(Method::kRobust)).flags,
+            static_cast<uint32_t>(kCollinearReceivers));
+}
+
+// The case measured in issue #16: one range long by 0.71 m and three long by
+// 2 cm. Explaining a good range as too short is physically impossible, so
+// the long one is excluded even though another subset fits as tightly.
+TEST(Solve, ConsensusExcludesOnlyRangesThatAreLong) {
+  const Eigen::Vector3d beacon(1.6, 1.1, 1.3);
+  for (int bad = 0; bad < 4; ++bad) {
+    auto ranges = ExactRanges(Corners(), beacon);
+    for (int i = 0; i < 4; ++i) ranges[i].range_m += i == bad ? 0.71 : 0.02;
+    const Fix fix = Solve(ranges, FixedHeight(Method::kRobust));
+    ASSERT_EQ(fix.rejected.size(), 1u) << bad;
+    EXPECT_EQ(fix.rejected[0].receiver_id, bad + 1);
+    // The three kept ranges, all 2 cm long, put the fix within a few cm.
+    constexpr double kThreeLongBy2cm_m = 0.05;
+    EXPECT_LT((fix.position_m - beacon).norm(), kThreeLongBy2cm_m) << bad;
+  }
 }
 
 TEST(Solve, DropsNonFiniteNegativeAndOverlongRangesAndSaysWhich) {
@@ -493,9 +530,15 @@ TEST(RealData, LiasPlanarStaticMediansAgreeWithMotionCapture) {
           session.c_str(), MethodName(m), raw.mean, raw.max, unbiased.mean, unbiased.max, raw.n);
       EXPECT_LT(unbiased.max, kUnbiasedMax_m) << session << " " << MethodName(m);
       EXPECT_LT(unbiased.mean, raw.mean);
-      // On raw ranges every anchor is biased differently by 4-27 cm: the
-      // robust solver then takes the most biased anchors for outliers and
-      // does worse than least squares. Calibrate the offsets first.
+      // On raw ranges every anchor is biased differently by 4-27 cm. The
+      // robust solver excludes a range only when it stands out from the kept
+      // ranges' common level and scatter, so the biases are mostly kept:
+      // measured 15.8 against 15.0 cm mean on 8.14 (it was 24.0) and equal
+      // on 8.20. Not yet "never worse": the remaining gap is a handful of
+      // poses where one anchor reads 20 cm longer than the rest.
+      const ErrorStats plain = SolveAll(cases, session, site, none, Method::kDefault);
+      constexpr double kRobustRawGap = 1.06;
+      EXPECT_LE(raw.mean, kRobustRawGap * plain.mean) << session << " " << MethodName(m);
       if (m != Method::kRobust) {
         EXPECT_LT(raw.max, kRawMax_m) << session << " " << MethodName(m);
       }

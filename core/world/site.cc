@@ -227,10 +227,13 @@ void ParseRobots(const Reader& r, const YAML::Node& root, Site* site) {
     const YAML::Node node = robots[i];
     const std::string key = K::Index("robots", i);
     r.ExpectMap(node, key);
-    r.OnlyKeys(node, key, {"id", "name", "beacon_id"});
+    r.OnlyKeys(node, key, {"id", "name", "beacon_id", "max_speed_mps"});
     Robot robot;
     robot.id = r.UniqueId(node, key, "id", "robot", &ids);
     if (node["name"]) robot.name = r.String(node["name"], key + ".name");
+    if (node["max_speed_mps"]) {
+      robot.max_speed_mps = r.Positive(node["max_speed_mps"], key + ".max_speed_mps");
+    }
     if (const YAML::Node beacon = node["beacon_id"]) {
       robot.beacon_id = r.Int(beacon, key + ".beacon_id");
       if (site->FindBeacon(*robot.beacon_id) == nullptr) {

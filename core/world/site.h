@@ -108,6 +108,10 @@ struct Robot {
   std::string name;
   // Beacon carried by the robot; nullopt when it has none.
   std::optional<int> beacon_id;
+  // Top speed over the floor, m/s. trilat_proc bounds how far the beacon can
+  // have moved between two firings with it (docs/trilateration.md, "Temporal
+  // prior"); 1 m/s is above what a small indoor robot drives.
+  double max_speed_mps = 1.0;
 };
 
 // How a simulated robot moves.

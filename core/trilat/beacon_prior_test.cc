@@ -1,0 +1,237 @@
+#include "core/trilat/beacon_prior.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <random>
+
+#include "core/trilat/trilateration.h"
+#include "core/world/site.h"
+#include "core/world/ultrasound_model.h"
+#include "tests/testing/test_paths.h"
+
+namespace roomfix::trilat {
+namespace {
+
+// Zero-noise problems are solved to rounding.
+constexpr double kExact_m = 1e-9;
+// chi-square, 2 degrees of freedom, 95%: the squared Mahalanobis radius of a
+// 2D 95% ellipse.
+constexpr double kEllipse95 = 5.991;
+
+std::vector<Eigen::Vector3d> Corners() {
+  return {{0, 0, 2.5}, {4, 0, 2.5}, {4, 3, 2.5}, {0, 3, 2.5}};
+}
+
+std::vector<RangeMeasurement> ExactRanges(const std::vector<Eigen::Vector3d>& receivers,
+                                          const Eigen::Vector3d& beacon) {
+  std::vector<RangeMeasurement> out;
+  for (size_t i = 0; i < receivers.size(); ++i) {
+    out.push_back({static_cast<int>(i) + 1, receivers[i], (receivers[i] - beacon).norm()});
+  }
+  return out;
+}
+
+SolverOptions Robust() {
+  SolverOptions o;
+  o.method = Method::kRobust;
+  o.fixed_height_m = 1.3;
+  return o;
+}
+
+// A prior 0.1 s old at the beacon's previous position, 3 cm away.
+PositionPrior NearPrior(const Eigen::Vector3d& beacon) {
+  return {beacon + Eigen::Vector3d(0.03, -0.01, 0.0), 0.1 + 1.0 * 0.1};
+}
+
+TEST(PriorIdentifies, TheLongRangeOfAThreeRangeSet) {
+  const Eigen::Vector3d beacon(0.5, 1.5, 1.3);
+  const std::vector<Eigen::Vector3d> three = {{0, 0, 2.5}, {4, 0, 2.5}, {4, 3, 2.5}};
+  auto ranges = ExactRanges(three, beacon);
+  ranges[1].range_m += 0.6;
+  // Alone, the set is inconsistent and the fix is far off.
+  const Fix alone = Solve(ranges, Robust());
+  EXPECT_NE(alone.flags & kInconsistentRanges, 0u);
+  EXPECT_GT((alone.position_m - beacon).norm(), 0.1);
+  const PositionPrior prior = NearPrior(beacon);
+  Fix with;
+  Solve(ranges, Robust(), nullptr, &prior, &with);
+  ASSERT_EQ(with.status, FixStatus::kDegraded);
+  EXPECT_EQ(with.flags, static_cast<uint32_t>(kOutliersRejected | kPriorIdentified | kUnchecked))
+      << DescribeFlags(with.flags);
+  ASSERT_EQ(with.rejected.size(), 1u);
+  EXPECT_EQ(with.rejected[0].receiver_id, 2);
+  // From the two remaining ranges alone, not from the prior.
+  EXPECT_NEAR((with.position_m - beacon).norm(), 0.0, kExact_m);
+}
+
+TEST(PriorIdentifies, TwoLongRangesAmongFour) {
+  const Eigen::Vector3d beacon(2.9, 0.8, 1.3);
+  auto ranges = ExactRanges(Corners(), beacon);
+  ranges[0].range_m += 0.45;
+  ranges[2].range_m += 0.8;
+  const PositionPrior prior = NearPrior(beacon);
+  Fix fix;
+  Solve(ranges, Robust(), nullptr, &prior, &fix);
+  EXPECT_EQ(fix.used, (std::vector<int>{2, 4}));
+  EXPECT_NEAR((fix.position_m - beacon).norm(), 0.0, kExact_m);
+  EXPECT_EQ(fix.status, FixStatus::kDegraded);
+  EXPECT_NE(fix.flags & kUnchecked, 0u);
+}
+
+TEST(PriorIdentifies, NothingWhenTheRangesAgreeAndAFourthChecksThem) {
+  // A robot lifted 1 m away: four consistent ranges are trusted over the
+  // prior, published from the ranges, flagged and with the prior inside the
+  // grown covariance's 95% ellipse.
+  const Eigen::Vector3d beacon(2.0, 2.0, 1.3);
+  const PositionPrior prior{{1.0, 1.5, 1.3}, 0.2};
+  Fix fix;
+  Solve(ExactRanges(Corners(), beacon), Robust(), nullptr, &prior, &fix);
+  EXPECT_NEAR((fix.position_m - beacon).norm(), 0.0, kExact_m);
+  EXPECT_EQ(fix.flags, static_cast<uint32_t>(kPriorDisagrees));
+  EXPECT_EQ(fix.status, FixStatus::kDegraded);
+  const Eigen::Vector2d e = (prior.position_m - fix.position_m).head<2>();
+  EXPECT_LE(e.dot(fix.covariance_m2.topLeftCorner<2, 2>().inverse() * e), kEllipse95 + 1e-9);
+}
+
+TEST(BeaconPrior, ResetsAfterAFewFixesThatAgreeWithEachOtherNotWithIt) {
+  BeaconPriorOptions options;
+  options.reset_after = 3;
+  BeaconPrior prior(options);
+  const Eigen::Vector3d a(1.0, 1.0, 1.3), b(3.0, 2.0, 1.3);
+  int64_t t = 1'000'000;
+  const int64_t period = 100'000;
+  Fix fix;
+  Solve(ExactRanges(Corners(), a), Robust(), nullptr, prior.At(t), &fix);
+  EXPECT_EQ(prior.Observe(t, fix), BeaconPrior::Outcome::kStarted);
+  t += period;
+  Solve(ExactRanges(Corners(), a), Robust(), nullptr, prior.At(t), &fix);
+  EXPECT_EQ(prior.Observe(t, fix), BeaconPrior::Outcome::kFollowed);
+  EXPECT_EQ(fix.status, FixStatus::kOk);
+  // Lifted to b: two fixes disagree, the third resets the prior, and the
+  // next is ok again. Every one of them is at b, from its ranges.
+  for (int k = 0; k < 4; ++k) {
+    t += period;
+    const PositionPrior* p = prior.At(t);
+    ASSERT_NE(p, nullptr);
+    Solve(ExactRanges(Corners(), b), Robust(), nullptr, p, &fix);
+    EXPECT_NEAR((fix.position_m - b).norm(), 0.0, kExact_m) << k;
+    const BeaconPrior::Outcome outcome = prior.Observe(t, fix);
+    if (k < 2) {
+      EXPECT_EQ(outcome, BeaconPrior::Outcome::kDisagreed) << k;
+      EXPECT_EQ(fix.status, FixStatus::kDegraded) << k;
+    } else if (k == 2) {
+      EXPECT_EQ(outcome, BeaconPrior::Outcome::kReset);
+    } else {
+      EXPECT_EQ(outcome, BeaconPrior::Outcome::kFollowed);
+      EXPECT_EQ(fix.status, FixStatus::kOk);
+    }
+  }
+  // A restart (time jumps back by more than max_age_s) leaves no prior.
+  EXPECT_EQ(prior.At(t - 10'000'000), nullptr);
+}
+
+TEST(BeaconPrior, UncheckedFixesNeitherStartNorResetIt) {
+  BeaconPrior prior;
+  Fix unchecked;
+  unchecked.status = FixStatus::kDegraded;
+  unchecked.flags = kUnchecked;
+  unchecked.position_m = {1, 1, 1.3};
+  EXPECT_EQ(prior.Observe(0, unchecked), BeaconPrior::Outcome::kNone);
+  EXPECT_EQ(prior.At(0), nullptr);
+}
+
+// The demo's ultrasound path, deterministic: the demo site and trajectory,
+// roomfix_sim's range faults (2 cm noise, 5% non-line-of-sight ranges long by
+// 0.3-1 m, 2% dropouts) at 10 Hz, the radio's reordering (1%) and
+// duplicates (5%), through the prior and the robust solver as trilat_proc
+// runs them. The targets for the raw fixes: RMSE at most 4 cm, the
+// worst ok fix at most 10 cm, 90-98% of errors inside the fix's own 95%
+// ellipse.
+TEST(DemoStream, RawUltrasoundFixesMeetTheTargets) {
+  Site site;
+  std::string error;
+  ASSERT_TRUE(LoadSite(testing::SourceDir() + "/config/sites/demo_room.yaml", &site, &error))
+      << error;
+  ASSERT_FALSE(site.simulation.robots.empty());
+  const Trajectory& trajectory = *site.simulation.robots[0].trajectory;
+  const double height_m = site.beacons[0].height_m;
+  UltrasoundNoise noise;
+  noise.sigma_m = 0.02;
+  noise.nlos_probability = 0.05;
+  noise.dropout_probability = 0.02;
+  SolverOptions o = Robust();
+  o.fixed_height_m = height_m;
+  o.range_sigma_m = 0.02;
+  BeaconPriorOptions po;
+  po.max_speed_mps = site.robots[0].max_speed_mps;
+  BeaconPrior prior(po);
+  std::mt19937_64 rng(16);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  // 20 minutes of firings: enough that the coverage is known to about 0.3%.
+  constexpr int kFirings = 12000;
+  struct Firing {
+    int64_t utime;
+    std::vector<RangeMeasurement> ranges;
+    Eigen::Vector2d truth;
+  };
+  std::vector<Firing> stream;
+  for (int k = 0; k < kFirings; ++k) {
+    const double t = 0.1 * k;
+    const GroundTruthPose pose = trajectory.PoseAt(t);
+    Firing f{static_cast<int64_t>(k) * 100'000, {}, {pose.x_m, pose.y_m}};
+    for (const SimulatedRange& s :
+         SimulateRanges(site, {pose.x_m, pose.y_m, height_m}, 20.0, noise, &rng)) {
+      const Receiver* r = site.FindReceiver(s.receiver_id);
+      f.ranges.push_back(
+          {s.receiver_id, Eigen::Map<const Eigen::Vector3d>(r->position_m.data()), s.measured_m});
+    }
+    stream.push_back(f);
+    if (unit(rng) < 0.05) stream.push_back(f);
+    if (stream.size() >= 2 && unit(rng) < 0.01) {
+      std::swap(stream[stream.size() - 1], stream[stream.size() - 2]);
+    }
+  }
+  int published = 0, ok = 0, degraded = 0, lost = 0, inside = 0;
+  double sum2 = 0.0, worst_ok_m = 0.0, worst_m = 0.0;
+  Fix fix;
+  for (const Firing& f : stream) {
+    Solve(f.ranges, o, nullptr, prior.At(f.utime), &fix);
+    prior.Observe(f.utime, fix);
+    if (!fix.has_position()) {
+      ++lost;
+      continue;
+    }
+    ++published;
+    const Eigen::Vector2d e = fix.position_m.head<2>() - f.truth;
+    sum2 += e.squaredNorm();
+    worst_m = std::max(worst_m, e.norm());
+    if (fix.status == FixStatus::kOk) {
+      ++ok;
+      worst_ok_m = std::max(worst_ok_m, e.norm());
+    } else {
+      ++degraded;
+    }
+    if (e.dot(fix.covariance_m2.topLeftCorner<2, 2>().inverse() * e) <= kEllipse95) ++inside;
+  }
+  const double rmse_m = std::sqrt(sum2 / published);
+  const double coverage = static_cast<double>(inside) / published;
+  std::printf(
+      "[ RESULT   ] %zu sets: ok %d, degraded %d, lost %d; RMSE %.2f cm, max %.1f cm, worst ok "
+      "%.1f cm, inside own 95%% ellipse %.1f%%\n",
+      stream.size(), ok, degraded, lost, 100 * rmse_m, 100 * worst_m, 100 * worst_ok_m,
+      100 * coverage);
+  constexpr double kRmseTarget_m = 0.04;
+  constexpr double kWorstOkTarget_m = 0.10;
+  constexpr double kCoverageMin = 0.90, kCoverageMax = 0.98;
+  EXPECT_LE(rmse_m, kRmseTarget_m);
+  EXPECT_LE(worst_ok_m, kWorstOkTarget_m);
+  EXPECT_GE(coverage, kCoverageMin);
+  EXPECT_LE(coverage, kCoverageMax);
+}
+
+}  // namespace
+}  // namespace roomfix::trilat
