@@ -125,7 +125,7 @@ TEST(FusionCalibration, CameralessDemoUltrasoundFusesWithinTheIssuesTargets) {
   // inside. One 40 s run is about 40 independent samples of the share (the
   // fused error decorrelates over about a second), a binomial standard
   // deviation of 3.4 %: the upper bound gets one percent on top of the band.
-  // Measured on this recording: 1.32 cm, 98.2 % (the simulated streams
+  // Measured on this recording: 1.31 cm, 98.2 % (the simulated streams
   // above, pooled, carry the band itself).
   constexpr double kTargetRmseM = 0.015;
   constexpr double kSingleRunHigh = kCoverageHigh + 0.01;
