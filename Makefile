@@ -2,6 +2,7 @@
 # and runs every test. Both install missing Debian packages first.
 #
 #   make demo [DEMO_SECONDS=N]   the simulated pipeline for N seconds (default 30)
+#             [DEMO_CAMERA=0]    ... without the ceiling camera: ultrasound alone
 #   make test [SANITIZE=1]       the whole suite through ctest (ASan+UBSan build)
 #   make build                   configure and build into build/
 #   make spy                     lcm-spy with roomfix's types
@@ -9,6 +10,7 @@
 
 SANITIZE ?= 0
 DEMO_SECONDS ?= 30
+DEMO_CAMERA ?= 1
 JOBS ?= $(shell nproc)
 BUILD_TYPE ?= RelWithDebInfo
 
@@ -35,7 +37,7 @@ test: build
 	@cd $(BUILD_DIR) && ctest --output-on-failure -j $(JOBS) --timeout 600
 
 demo: build
-	@scripts/demo.sh $(BUILD_DIR) $(DEMO_SECONDS)
+	@DEMO_CAMERA=$(DEMO_CAMERA) scripts/demo.sh $(BUILD_DIR) $(DEMO_SECONDS)
 
 spy: build
 	@ROOMFIX_BUILD_DIR=$(BUILD_DIR) scripts/spy

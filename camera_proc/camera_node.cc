@@ -484,9 +484,11 @@ void CameraNode::PublishPoses(const camera::Frame& frame, int64_t now_utime) {
       p.x_m = x;
       p.y_m = y;
       p.num_measurements = 1;
-      // Covariance of the position: the centroid's pixel noise through the
-      // mapping's Jacobian, J = d(x, y)/d(u, v) by central differences,
-      // Sigma = sigma_px^2 J J^T.
+      // Covariance of the position: the pixel error through the mapping's
+      // Jacobian, J = d(x, y)/d(u, v) by central differences,
+      // Sigma = sigma_px^2 J J^T. sigma_px is the calibration's measured
+      // pixel_sigma_px (its fit's centroid noise plus its own model error,
+      // calibration_file.h), else the assumed centroid_sigma_px.
       const double h_px = 0.5;
       double xu0, yu0, xu1, yu1, xv0, yv0, xv1, yv1;
       const bool jac = calibration_->PixelToFloor(o.position.u_px - h_px, o.position.v_px, height_m,
@@ -502,7 +504,9 @@ void CameraNode::PublishPoses(const camera::Frame& frame, int64_t now_utime) {
         J << (xu1 - xu0) / (2 * h_px), (xv1 - xv0) / (2 * h_px), (yu1 - yu0) / (2 * h_px),
             (yv1 - yv0) / (2 * h_px);
       }
-      const double s2 = options_.centroid_sigma_px * options_.centroid_sigma_px;
+      const double sigma_px = calibration_->pixel_sigma_px > 0.0 ? calibration_->pixel_sigma_px
+                                                                 : options_.centroid_sigma_px;
+      const double s2 = sigma_px * sigma_px;
       const Eigen::Matrix2d cov = s2 * J * J.transpose();
       for (int r = 0; r < 2; ++r) {
         for (int c = 0; c < 2; ++c) p.covariance[r][c] = cov(r, c);

@@ -36,7 +36,9 @@ struct CameraNodeOptions {
   // A robot's top speed on the floor; the tracking window grows with it and
   // with the time since the last find.
   double max_speed_mps = 1.0;
-  // One-sigma centroid noise assumed for the pose covariance, pixels.
+  // One-sigma pixel error per axis for the pose covariance when the
+  // calibration does not state its measured pixel_sigma_px (older files,
+  // the 9-region model): an assumption, pixels.
   double centroid_sigma_px = 0.1;
   // Blur of the class masks, full-resolution pixels.
   double blur_sigma_px = 1.0;

@@ -94,7 +94,7 @@ PoseLogs ReadPoseLogs(const std::vector<std::string>& paths,
       s.recv_utime = e.utime;
       s.degraded = p.status == pose2d_t::STATUS_DEGRADED;
       s.cov_xx_m2 = p.covariance[0][0];
-      s.cov_xy_m2 = p.covariance[0][1];
+      s.cov_xy_m2 = 0.5 * (p.covariance[0][1] + p.covariance[1][0]);
       s.cov_yy_m2 = p.covariance[1][1];
       track.samples.push_back(s);
     }

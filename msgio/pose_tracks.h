@@ -25,7 +25,7 @@ struct PoseSample {
   // When the logger received it: the log event's time.
   int64_t recv_utime = 0;
   bool degraded = false;
-  // The pose's (x, y) covariance, m^2, as published.
+  // The pose's (x, y) covariance, m^2, as published (NaN when it has none).
   double cov_xx_m2 = 0.0;
   double cov_xy_m2 = 0.0;
   double cov_yy_m2 = 0.0;

@@ -42,3 +42,18 @@ record "$data/site_sample.lcm" 'SITE|STATUS|RANGES|POSE_.*' -- \
    '$bin/roomfix_sim' --config '$site' --ranges --range-noise 0.01 --seed 11 --duration 2.5 \
      --log-level warn;
    sleep 0.3; kill -INT \$solver; wait \$solver"
+
+# The camera-less demo's ultrasound (make demo DEMO_CAMERA=0: the radio with
+# the demo's faults, zigbee_bridge, trilat_proc --method robust) with ground
+# truth at 10 Hz, 40 s, for fusion's covariance calibration test.
+record "$data/ultrasound_demo_40s.lcm" 'POSE_ULTRASOUND|POSE_GROUND_TRUTH' -- \
+  "'$bin/trilat_proc' --config '$site' --method robust --log-level warn & solver=\$!;
+   rm -f /tmp/roomfix_record_radio;
+   '$bin/roomfix_sim' --config '$site' --rate-hz 10 --duration 40 --log-level warn \
+     --radio-pty --pty-link /tmp/roomfix_record_radio \
+     --range-noise 0.02 --nlos-probability 0.05 --dropout-probability 0.02 \
+     --buffering 0.05 --buffer-hold 0.04 --reorder 0.01 --duplicate 0.05 --lost-report 0.01 \
+     --foreign 0.1 --corrupt-byte 0.0002 --garbage 0.01 >/dev/null & sim=\$!;
+   for _ in \$(seq 100); do [[ -e /tmp/roomfix_record_radio ]] && break; sleep 0.05; done;
+   '$bin/zigbee_bridge' --config '$site' --port /tmp/roomfix_record_radio --log-level warn & bridge=\$!;
+   wait \$sim; sleep 0.3; kill -INT \$bridge \$solver; wait \$bridge \$solver"

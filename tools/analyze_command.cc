@@ -15,6 +15,7 @@
 #include <cstring>
 #include <fstream>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <set>
@@ -22,6 +23,7 @@
 #include <string>
 
 #include "core/analysis/circle_fit.h"
+#include "core/analysis/fix_quality.h"
 #include "core/analysis/track_error.h"
 #include "core/analysis/track_stats.h"
 #include "core/world/file_io.h"
@@ -132,6 +134,60 @@ std::string Fixed(double v, int digits) {
   char buffer[64];
   std::snprintf(buffer, sizeof(buffer), "%.*f", digits, v);
   return buffer;
+}
+
+// Whether a pose stream can be trusted (analysis::AssessFixes): accuracy
+// with the worst fix flagged ok, the shares of ok / degraded / lost fixes,
+// and the share of errors inside each fix's own 95 % covariance ellipse.
+// Adds the rows to the report, returns the JSON and appends one line to
+// `table` (the summary `make demo` prints). Without ground truth only the
+// status shares are known; the rest is NaN ("-").
+json FixQualityFigures(const PoseTrack& track, const PoseTrack* truth, int64_t max_gap_us,
+                       std::ostream& md, std::string* table) {
+  std::vector<analysis::RatedFix> fixes;
+  fixes.reserve(track.samples.size());
+  for (const PoseSample& s : track.samples) {
+    fixes.push_back({s.utime, s.x_m, s.y_m, s.degraded, s.cov_xx_m2, s.cov_xy_m2, s.cov_yy_m2});
+  }
+  const std::vector<analysis::TimedPosition> reference =
+      truth != nullptr ? truth->Positions() : std::vector<analysis::TimedPosition>{};
+  const analysis::FixQuality q = analysis::AssessFixes(fixes, track.lost, reference, max_gap_us);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const bool truth_known = q.compared > 0;
+  auto cm = [&](double m) { return Fixed(truth_known ? m * 100.0 : nan, 2); };
+  auto pct = [](double share) { return Fixed(share * 100.0, 1); };
+  md << "| fixes ok / degraded / lost | " << pct(q.share_ok) << " / " << pct(q.share_degraded)
+     << " / " << pct(q.share_lost) << " % |\n";
+  if (truth_known) {
+    md << "| error vs ground truth: p99, worst fix flagged ok | " << cm(q.p99_m) << ", "
+       << cm(q.worst_ok_m) << " cm |\n| errors inside the fix's own 95 % ellipse (median "
+       << "squared Mahalanobis; calibrated: 95 %, 1.39) | " << pct(q.share_inside_95) << " % ("
+       << Fixed(q.median_d2, 2) << ") over " << q.with_covariance << " fixes |\n";
+  }
+  char line[256];
+  std::snprintf(line, sizeof(line), "%-12s %5d %6d %6s %6s %6s %8s %8s %8s %9s %7s %7s\n",
+                track.source.c_str(), track.robot_id, q.fixes, pct(q.share_ok).c_str(),
+                pct(q.share_degraded).c_str(), pct(q.share_lost).c_str(), cm(q.rmse_m).c_str(),
+                cm(q.p99_m).c_str(), cm(q.max_m).c_str(), cm(q.worst_ok_m).c_str(),
+                pct(q.share_inside_95).c_str(), Fixed(q.median_d2, 2).c_str());
+  *table += line;
+  json j = {{"fixes", q.fixes},          {"ok", q.ok},
+            {"degraded", q.degraded},    {"lost", q.lost},
+            {"share_ok", q.share_ok},    {"share_degraded", q.share_degraded},
+            {"share_lost", q.share_lost}};
+  if (truth_known) {
+    j["compared"] = q.compared;
+    j["rmse_m"] = q.rmse_m;
+    j["p99_m"] = q.p99_m;
+    j["max_m"] = q.max_m;
+    j["worst_ok_m"] = std::isfinite(q.worst_ok_m) ? json(q.worst_ok_m) : json(nullptr);
+    j["with_covariance"] = q.with_covariance;
+    j["share_inside_95"] =
+        std::isfinite(q.share_inside_95) ? json(q.share_inside_95) : json(nullptr);
+    j["median_squared_mahalanobis"] =
+        std::isfinite(q.median_d2) ? json(q.median_d2) : json(nullptr);
+  }
+  return j;
 }
 
 // Draws the figures of one analysis; each returns the PNG's file name, or ""
@@ -431,6 +487,7 @@ int RunAnalyze(const AnalyzeOptions& options) {
   if (logs.tracks.empty()) md << "\nNo pose2d_t on any POSE_* channel.\n";
 
   out["robots"] = json::object();
+  std::string quality_table;
   for (const auto& [robot_id, tracks] : by_robot) {
     md << "\n## Robot " << robot_id << "\n\n";
     const std::string trajectory = figures.Trajectory(robot_id, tracks);
@@ -568,17 +625,11 @@ int RunAnalyze(const AnalyzeOptions& options) {
         j["ground_truth_error"] = ErrorJson(e);
         md << "| error vs ground truth: RMSE, p95, max | " << Fixed(e.rmse_m * 100, 2) << ", "
            << Fixed(e.p95_m * 100, 2) << ", " << Fixed(e.max_m * 100, 2) << " cm |\n";
-        const analysis::CoverageSummary c =
-            analysis::CovarianceCoverage(t->CovariantPositions(), reference, max_gap_us);
-        j["covariance_coverage"] = {{"compared", c.compared},
-                                    {"share_inside_95", c.share_inside_95},
-                                    {"median_squared_mahalanobis", c.median_squared_mahalanobis},
-                                    {"worst_ok_m", c.worst_ok_m}};
-        md << "| errors inside the pose's own 95% ellipse (median e'C^-1e; 1.39 if calibrated) | "
-           << Fixed(c.share_inside_95 * 100, 1) << "% (" << Fixed(c.median_squared_mahalanobis, 2)
-           << ") |\n| worst error of an ok pose | " << Fixed(c.worst_ok_m * 100, 2) << " cm |\n";
         pictures.push_back(figures.ErrorOverTime(
             "error_" + stem, analysis::ErrorsOverTime(positions, reference, max_gap_us)));
+      }
+      if (t != truth) {
+        j["quality"] = FixQualityFigures(*t, truth, max_gap_us, md, &quality_table);
       }
       if (camera != nullptr && t->source == "ultrasound") {
         const analysis::TrackOffset o =
@@ -613,12 +664,11 @@ int RunAnalyze(const AnalyzeOptions& options) {
       if (j.contains("ground_truth_error")) {
         s["rmse_m"] = j["ground_truth_error"]["rmse_m"];
         s["p95_m"] = j["ground_truth_error"]["p95_m"];
-        s["inside_own_95_ellipse"] = j["covariance_coverage"]["share_inside_95"];
-        s["worst_ok_m"] = j["covariance_coverage"]["worst_ok_m"];
       }
       if (j.contains("latency_publish_ms")) {
         s["latency_ms_median"] = j["latency_publish_ms"]["median_ms"];
       }
+      if (j.contains("quality")) s["quality"] = j["quality"];
       out["sources"][source] = s;
     }
   }
@@ -639,6 +689,16 @@ int RunAnalyze(const AnalyzeOptions& options) {
     std::cout << out.dump() << "\n";
   } else {
     std::cout << "report: " << out_dir << "/report.md\nsummary: " << out_dir << "/summary.json\n";
+    if (!quality_table.empty()) {
+      // Whether each source can be trusted: status shares, accuracy with
+      // the worst fix flagged ok, and the share of errors inside the fix's
+      // own 95 % ellipse (calibrated: 95 %, median squared Mahalanobis 1.39).
+      std::printf("\n%-12s %5s %6s %6s %6s %6s %8s %8s %8s %9s %7s %7s\n", "source", "robot",
+                  "fixes", "ok%", "degr%", "lost%", "rmse_cm", "p99_cm", "max_cm", "worst_ok",
+                  "in95%", "med_d2");
+      std::fputs(quality_table.c_str(), stdout);
+      std::fflush(stdout);
+    }
     for (const LogReadReport& r : logs.logs) {
       if (!r.error.empty()) std::cout << "unreadable: " << r.error << "\n";
       if (r.damaged) std::cout << r.path << ": damaged, " << r.damage << "\n";

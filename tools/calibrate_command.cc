@@ -725,6 +725,11 @@ void Run(const Flags& f) {
                   " px tolerance (--max-rms-px); not written");
   }
   full_cal.fit_rms_px = want_full ? rms_px : -1.0;
+  // The full fit's parameters: one focal length, the principal point, k1
+  // and k2, the rotation and the position (the options above).
+  constexpr int kFullModelParameters = 1 + 2 + 2 + 3 + 3;
+  full_cal.pixel_sigma_px =
+      want_full ? calib::PixelSigmaFromFit(rms_px, n_full, kFullModelParameters) : -1.0;
   region_cal.fit_rms_px = want_full ? -1.0 : rms_px;
   const Calibration& chosen = want_full ? full_cal : region_cal;
   std::ostringstream header;

@@ -21,7 +21,7 @@ namespace {
 using Reader = YamlReader;
 
 void ParseFull(const Reader& r, const YAML::Node& root, Calibration* c) {
-  r.OnlyKeys(root, "", {"model", "intrinsics", "pose", "fit_rms_px"});
+  r.OnlyKeys(root, "", {"model", "intrinsics", "pose", "fit_rms_px", "pixel_sigma_px"});
   const YAML::Node in = r.Required(root, "", "intrinsics");
   r.ExpectMap(in, "intrinsics");
   r.OnlyKeys(in, "intrinsics", {"width_px", "height_px", "fx_px", "fy_px", "cx_px", "cy_px", "k"});
@@ -92,8 +92,8 @@ RegionAxis ParseAxis(const Reader& r, const YAML::Node& node, const std::string&
 
 void ParseRegions(const Reader& r, const YAML::Node& root, Calibration* c) {
   r.OnlyKeys(root, "",
-             {"model", "fit_rms_px", "length_unit", "width_px", "height_px", "calibration_height_m",
-              "u_boundaries_px", "v_boundaries_px", "regions"});
+             {"model", "fit_rms_px", "pixel_sigma_px", "length_unit", "width_px", "height_px",
+              "calibration_height_m", "u_boundaries_px", "v_boundaries_px", "regions"});
   double metres_per_unit = 1.0;
   if (root["length_unit"]) {
     const std::string unit = r.String(root["length_unit"], "length_unit");
@@ -219,6 +219,10 @@ bool ParseCalibration(const std::string& yaml_text, const std::string& name,
           parsed.fit_rms_px = r.Double(fit, "fit_rms_px");
           if (parsed.fit_rms_px < 0.0) r.Fail(fit, "fit_rms_px", "must not be negative");
         }
+        if (const YAML::Node sigma = root["pixel_sigma_px"]) {
+          parsed.pixel_sigma_px = r.Double(sigma, "pixel_sigma_px");
+          if (!(parsed.pixel_sigma_px > 0.0)) r.Fail(sigma, "pixel_sigma_px", "must be positive");
+        }
       },
       error);
   if (!ok) return false;
@@ -240,6 +244,13 @@ std::string Px(double v) {
   return text;
 }
 
+double PixelSigmaFromFit(double rms_px, int points, int parameters) {
+  const double n2 = 2.0 * points;
+  if (!(n2 > parameters) || !(rms_px >= 0.0) || parameters < 0) return -1.0;
+  const double noise2 = rms_px * rms_px * points / (n2 - parameters);
+  return std::sqrt(noise2 * (1.0 + parameters / n2));
+}
+
 std::string CheckFitResidual(const Calibration& calibration, double max_rms_px) {
   if (calibration.fit_rms_px < 0.0 || calibration.fit_rms_px <= max_rms_px) return "";
   return "fit_rms_px: the fit's RMS residual " + Px(calibration.fit_rms_px) + " px is over the " +
@@ -252,6 +263,7 @@ std::string FormatCalibration(const Calibration& c, const std::string& header_co
   std::string line;
   while (std::getline(header, line)) s << (line.empty() ? "#" : "# " + line) << "\n";
   if (c.fit_rms_px >= 0.0) s << "fit_rms_px: " << Px(c.fit_rms_px) << "\n";
+  if (c.pixel_sigma_px > 0.0) s << "pixel_sigma_px: " << Px(c.pixel_sigma_px) << "\n";
   if (c.model == Calibration::Model::kFull) {
     const FisheyeIntrinsics& i = c.camera.intrinsics;
     const Eigen::Matrix3d& R = c.camera.pose.R_room_from_camera;

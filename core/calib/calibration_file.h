@@ -43,6 +43,12 @@ namespace roomfix::calib {
 //
 //   fit_rms_px: 0.047   # RMS reprojection residual of the fit, pixels
 //
+// and the one-sigma error, per pixel axis, of a marker's pixel mapped with
+// it (roomfix calibrate derives it from the fit; camera_proc's position
+// covariance is this through the mapping's Jacobian):
+//
+//   pixel_sigma_px: 0.0386
+//
 // A calibration whose fit_rms_px is over kMaxFitRmsPx is refused by
 // camera_proc and check-config (CheckFitResidual): it would place markers
 // wrongly by that much everywhere.
@@ -56,6 +62,14 @@ struct Calibration {
   // The fit's RMS residual in pixels when the file states it (fit_rms_px),
   // otherwise negative.
   double fit_rms_px = -1.0;
+  // One-sigma pixel error per axis of a marker mapped with this calibration
+  // (pixel_sigma_px), otherwise negative. From N points fitted with p
+  // parameters and residual norms r_i: the centroid noise per axis is
+  // sigma^2 = sum r_i^2 / (2N - p) (the fit absorbed p of the 2N degrees of
+  // freedom), and the fitted model's own error at a point adds on average
+  // sigma^2 p / (2N) (the prediction variance of least squares), so
+  // pixel_sigma^2 = sigma^2 (1 + p / (2N)) (PixelSigmaFromFit).
+  double pixel_sigma_px = -1.0;
 
   int width_px() const;
   int height_px() const;
@@ -67,6 +81,12 @@ struct Calibration {
   bool FloorToPixel(double x_m, double y_m, double height_m, double* u_px, double* v_px,
                     std::string* error) const;
 };
+
+// The pixel_sigma_px of a least-squares fit of `parameters` parameters to
+// `points` points whose residual norms have RMS `rms_px` (see
+// Calibration::pixel_sigma_px); negative when there are no degrees of
+// freedom left (2 points <= parameters).
+double PixelSigmaFromFit(double rms_px, int points, int parameters);
 
 // Reads a calibration file. On failure false and *error is one line
 // "FILE:LINE: KEY: WHAT" (as LoadSite): YAML syntax, missing or unknown keys,

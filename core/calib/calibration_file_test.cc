@@ -89,6 +89,29 @@ TEST(CalibrationFile, RegionTableInCentimetresIsTheSameAsInMetres) {
   EXPECT_FALSE(cm.PixelToFloor(720, 180, 0.0, &x, &y, &error));
 }
 
+TEST(CalibrationFile, StatesItsPixelErrorAndRefusesANonPositiveOne) {
+  Calibration c = FullExample();
+  c.pixel_sigma_px = 0.0386;
+  Calibration back;
+  std::string error;
+  ASSERT_TRUE(ParseCalibration(FormatCalibration(c, ""), "mem", &back, &error)) << error;
+  EXPECT_DOUBLE_EQ(back.pixel_sigma_px, 0.0386);
+  ASSERT_TRUE(ParseCalibration(FormatCalibration(FullExample(), ""), "mem", &back, &error));
+  EXPECT_LT(back.pixel_sigma_px, 0.0);  // not stated
+  EXPECT_FALSE(ParseCalibration(FormatCalibration(FullExample(), "") + "pixel_sigma_px: 0\n",
+                                "cal.yaml", &back, &error));
+  EXPECT_NE(error.find("pixel_sigma_px"), std::string::npos) << error;
+}
+
+TEST(PixelSigmaFromFit, AddsTheFitsLostDegreesOfFreedomAndItsOwnPredictionError) {
+  // The demo's calibration: 35 points, 11 parameters, 0.0466 px RMS.
+  // sigma^2 = 0.0466^2 * 35 / 59 = 0.0012882; times (1 + 11 / 70).
+  EXPECT_NEAR(PixelSigmaFromFit(0.0466, 35, 11), 0.038609, 1e-6);
+  // Many points: the per-axis share of the residual norm, 1 / sqrt(2).
+  EXPECT_NEAR(PixelSigmaFromFit(1.0, 100000, 11), std::sqrt(0.5), 1e-4);
+  EXPECT_LT(PixelSigmaFromFit(0.1, 5, 11), 0.0);  // 10 residuals, 11 parameters
+}
+
 TEST(CalibrationFile, ErrorsNameTheFileTheLineAndTheKey) {
   Calibration c;
   std::string error;

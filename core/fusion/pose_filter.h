@@ -48,13 +48,16 @@ struct PoseFilterOptions {
 
   // Measurement noise. Each covariance is multiplied by the source's
   // inflation factor, then its eigenvalues are raised to at least the
-  // floor's square: trilateration covariances are optimistic (they ignore
-  // receiver survey errors and multipath), a camera's can be near zero.
+  // floor's square. Both sources' covariances are calibrated against ground
+  // truth (camera: its calibration's measured pixel error; trilateration:
+  // docs/trilateration.md), so the factors are 1 and the floors only guard
+  // against a degenerate covariance, below either source's noise (camera
+  // 0.12 mm, ultrasound 1-2 cm in the demo; docs/fusion.md).
   double camera_inflation = 1.0;
-  double camera_sigma_floor_m = 0.0005;
+  double camera_sigma_floor_m = 0.00005;
   double ultrasound_inflation = 1.0;
-  double ultrasound_sigma_floor_m = 0.02;
-  double heading_sigma_floor_rad = 0.01;
+  double ultrasound_sigma_floor_m = 0.005;
+  double heading_sigma_floor_rad = 0.001;
 
   // Initial uncertainty of what a measurement does not give.
   double initial_speed_sigma_mps = 0.5;

@@ -33,13 +33,14 @@ struct StreamOptions {
   double camera_heading_sigma_rad = 0.02;
   double camera_latency_s = 0.040;
 
-  // The ultrasound: firing rate, true noise, the (optimistic) sigma the
-  // trilateration reports, latency from firing to receive with a uniform
+  // The ultrasound: firing rate, true noise, the sigma the trilateration
+  // reports (calibrated, as trilat_proc's covariance is: set it lower for an
+  // optimistic one), latency from firing to receive with a uniform
   // jitter on top, and outliers (a fraction of the firings off by
   // outlier_m in a random direction).
   double ultrasound_hz = 10.0;
   double ultrasound_sigma_m = 0.025;
-  double ultrasound_reported_sigma_m = 0.01;
+  double ultrasound_reported_sigma_m = 0.025;
   double ultrasound_latency_s = 0.030;
   double ultrasound_latency_jitter_s = 0.040;
   double outlier_fraction = 0.02;

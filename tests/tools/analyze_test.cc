@@ -196,6 +196,24 @@ TEST(RoomfixAnalyze, FitsTheReferenceCircleAndComparesEachSourceWithTruthAndCame
   EXPECT_NEAR(out["robots"]["1"]["camera"]["ground_truth_error"]["rmse_m"].get<double>(),
               std::hypot(0.02, 0.01), 0.001);
   EXPECT_NEAR(out["sources"]["ultrasound"]["latency_ms_median"].get<double>(), 12.0, 1e-9);
+  // Whether each source can be trusted. Every pose states a 1 cm sigma per
+  // axis (msgio/test_messages.h): honest for the ultrasound, whose 601
+  // errors must fill the 95 % ellipse as a Gaussian does (binomial standard
+  // deviation 0.9 %, three of them allowed) with a median squared distance
+  // of 2 ln 2 (its sampling spread about 0.08); the lost fix is a share.
+  const json& uq = u["quality"];
+  EXPECT_EQ(uq["fixes"], 602);
+  EXPECT_EQ(uq["lost"], 1);
+  EXPECT_NEAR(uq["share_ok"].get<double>(), 601.0 / 602.0, 1e-12);
+  EXPECT_NEAR(uq["share_inside_95"].get<double>(), 0.95, 0.027);
+  EXPECT_NEAR(uq["median_squared_mahalanobis"].get<double>(), 1.386, 0.25);
+  EXPECT_DOUBLE_EQ(uq["worst_ok_m"].get<double>(), uq["max_m"].get<double>());
+  EXPECT_GE(uq["p99_m"].get<double>(), u["ground_truth_error"]["p95_m"].get<double>());
+  // The camera's (2, -1) cm bias is not in its covariance: every squared
+  // distance is about (2^2 + 1^2) cm^2 / 1 cm^2 = 5, far above 1.39.
+  EXPECT_NEAR(out["robots"]["1"]["camera"]["quality"]["median_squared_mahalanobis"].get<double>(),
+              5.0, 0.3);
+  EXPECT_TRUE(out["sources"]["ultrasound"].contains("quality"));
   EXPECT_TRUE(NonEmptyFile(dir.File("report/trajectory_robot1.png")));
   EXPECT_TRUE(NonEmptyFile(dir.File("report/error_ultrasound_robot1.png")));
 }
