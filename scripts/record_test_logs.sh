@@ -33,3 +33,17 @@ record "$data/trilat_replay.lcm" 'RANGES|POSE_ULTRASOUND' -- \
    '$bin/roomfix_sim' --config '$site' --ranges --range-noise 0.02 --nlos-probability 0.1 \
      --dropout-probability 0.1 --seed 7 --duration 3.05 --log-level warn;
    sleep 0.3; kill -INT \$solver; wait \$solver"
+
+# The demo's pipeline as live processes (the camera on the synthetic ceiling
+# camera, trilat_proc robust, fusion_proc) for the replay tests
+# (tools/replay_test.cc): their inputs and outputs, without the camera's
+# pixels and previews, which the replay does not use.
+record "$data/pipeline_replay.lcm" 'RANGES|POSE_.*|STATUS' -- \
+  "'$bin/trilat_proc' --config '$site' --method robust --log-level warn & solver=\$!;
+   '$bin/fusion_proc' --config '$site' --log-level warn & fusion=\$!;
+   start=\$(( \$(date +%s%6N) + 1000000 ));
+   '$bin/camera_proc' --config '$site' --start-utime \$start --log-level warn & camera=\$!;
+   sleep 0.3;
+   '$bin/roomfix_sim' --config '$site' --start-utime \$start --ranges --range-noise 0.02 \
+     --nlos-probability 0.05 --dropout-probability 0.02 --seed 11 --duration 5 --log-level warn;
+   sleep 0.3; kill -INT \$camera \$fusion \$solver; wait \$camera \$fusion \$solver"

@@ -1,0 +1,108 @@
+#ifndef ROOMFIX_TOOLS_REPLAY_H_
+#define ROOMFIX_TOOLS_REPLAY_H_
+
+#include <cstdint>
+#include <map>
+#include <string>
+
+#include "core/world/site.h"
+#include "fusion/fusion_node.h"
+#include "msgio/log.h"
+#include "roomfix/process_status_t.hpp"
+#include "trilat_proc/trilat_node.h"
+
+namespace roomfix {
+
+// The re-run nodes' heartbeats, with host "replay" and pid 0 (the live
+// STATUS names the replaying machine's pid, which would make two replays
+// differ), on a channel of their own so no tool takes them for a live
+// process.
+inline constexpr char kReplayStatusChannel[] = "REPLAY_STATUS";
+
+struct PipelineReplayOptions {
+  // Which nodes run again. A re-run node's recorded outputs are left out of
+  // the new log (they stay in the old one) and replaced by its new ones.
+  bool trilat = true;
+  bool fusion = true;
+  // As trilat_proc's and fusion_proc's flags; the replay command's default
+  // method is robust, which every shipped configuration runs.
+  TrilatNodeOptions trilat_options;
+  FusionNodeOptions fusion_options;
+  // Re-derive every range of RANGES from the site, as zigbee_bridge would
+  // have with it: the receiver's position, and the range from the recorded
+  // time of flight and speed of sound minus the receiver's range offset
+  // (radio::RangeFromTimeOfFlight). For a site that is not the one the log
+  // was recorded with (new offsets from `roomfix survey`).
+  bool restamp_ranges = false;
+  // Ticks on a grid of log time, as RunLoop ticks a live node every 10 ms.
+  int tick_period_ms = 10;
+
+  bool IsValid(std::string* error) const;
+};
+
+struct PipelineReplaySummary {
+  // False when the run stopped: the log could not be read at all, or writing
+  // the new log failed (`error` says which).
+  bool ok = false;
+  std::string error;
+  int64_t events_read = 0;
+  // Recorded events copied to the new log (and delivered to the nodes).
+  int64_t inputs_written = 0;
+  // Recorded events LCM's tools could not replay (LogWriter::Loggable: a
+  // channel over 63 bytes...), left out of the new log and not delivered.
+  int64_t inputs_not_loggable = 0;
+  // Recorded outputs of the re-run nodes left out, by channel.
+  std::map<std::string, int64_t> old_outputs_dropped;
+  // What the re-run nodes published, by channel (STATUS as REPLAY_STATUS).
+  std::map<std::string, int64_t> new_outputs;
+  int64_t ranges_restamped = 0;
+  // Ranges whose time of flight or speed of sound was not a usable number:
+  // their position was restamped, their range kept as recorded.
+  int64_t ranges_kept = 0;
+  int64_t ticks = 0;
+  int64_t first_utime = 0;
+  int64_t last_utime = 0;
+  // The log's damage as LogReader counts it: every good event around it was
+  // replayed.
+  bool damaged = false;
+  int64_t bytes_skipped = 0;
+  int64_t damage_regions = 0;
+  std::string damage;
+  // Recorded messages the nodes refused before decoding (DecodeChecked), by
+  // `<CHANNEL>.<reason>`: hostile or corrupt input, counted, not fatal.
+  std::map<std::string, int64_t> refused;
+  // The nodes' final heartbeats (counters, rejections), when they ran.
+  process_status_t trilat_status{};
+  process_status_t fusion_status{};
+};
+
+// Re-runs the chosen nodes (the classes trilat_proc and fusion_proc run)
+// over a recorded log on the log's own time, and writes the recorded events
+// (minus the re-run nodes' old outputs) and the new outputs to `out`.
+//
+// Time: every node's "now" is the log's. A recorded event is delivered with
+// its log timestamp as receive time, and the nodes are ticked on a
+// tick_period_ms grid of log time before each event (at most
+// kMaxCatchUpTicks per gap, so a timestamp that jumps by a year costs no
+// more than a minute's ticks). A new output is written with the log time at
+// which it was published, after the event that caused it. Nothing reads the
+// wall clock, so the output is a function of the input log and the options
+// only: two runs give byte-identical logs.
+//
+// Bad input: damage is skipped by LogReader and counted; undecodable
+// messages are refused by the bus and counted; neither stops the replay.
+PipelineReplaySummary ReplayPipeline(LogReader* in, const Site& site,
+                                     const PipelineReplayOptions& options, LogWriter* out);
+
+// Twenty seconds of 10 ms ticks.
+inline constexpr int64_t kMaxCatchUpTicks = 2000;
+
+// The same run for a path: refuses `out_path` equal to `in_path` (the same
+// file, also through a link) and an existing `out_path` unless overwrite.
+PipelineReplaySummary ReplayPipelineFile(const std::string& in_path, const Site& site,
+                                         const PipelineReplayOptions& options,
+                                         const std::string& out_path, bool overwrite);
+
+}  // namespace roomfix
+
+#endif  // ROOMFIX_TOOLS_REPLAY_H_

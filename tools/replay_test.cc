@@ -1,0 +1,294 @@
+// `roomfix replay` (tools/replay.h) on a log the live pipeline recorded:
+// deterministic, faithful to the live run, and unbroken by damage.
+#include "tools/replay.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <map>
+#include <tuple>
+
+#include "msgio/wire_check.h"
+#include "roomfix/pose2d_t.hpp"
+#include "tests/testing/raw_log_event.h"
+#include "tests/testing/test_paths.h"
+
+namespace roomfix {
+namespace {
+
+using testing::ReadFile;
+using testing::SourceDir;
+using testing::TempDir;
+using testing::WriteFile;
+
+// Recorded by scripts/record_test_logs.sh: trilat_proc --method robust,
+// fusion_proc and camera_proc (on the synthetic ceiling camera) running live
+// in a private network namespace on roomfix_sim's robot and range sets
+// (tests/data/README.md).
+std::string LivePath() { return SourceDir() + "/tests/data/pipeline_replay.lcm"; }
+
+Site DemoSite() {
+  Site site;
+  std::string error;
+  EXPECT_TRUE(LoadSite(SourceDir() + "/config/sites/demo_room.yaml", &site, &error)) << error;
+  return site;
+}
+
+PipelineReplayOptions LiveOptions() {
+  PipelineReplayOptions options;
+  options.trilat_options.solver.method = trilat::Method::kRobust;  // As recorded.
+  return options;
+}
+
+// Every pose2d_t of a channel in a log.
+std::vector<pose2d_t> Poses(const std::string& path, const std::string& channel) {
+  std::vector<pose2d_t> out;
+  std::vector<LogEvent> events;
+  std::string error;
+  EXPECT_TRUE(ReadLogEvents(path, &events, &error)) << error;
+  for (const LogEvent& e : events) {
+    if (e.channel != channel) continue;
+    pose2d_t p{};
+    std::string reason;
+    EXPECT_TRUE(DecodeChecked(e.data.data(), static_cast<int>(e.data.size()), &p, &reason));
+    out.push_back(p);
+  }
+  return out;
+}
+
+std::map<std::string, int> ChannelCounts(const std::string& path) {
+  std::vector<LogEvent> events;
+  std::string error;
+  EXPECT_TRUE(ReadLogEvents(path, &events, &error)) << error;
+  std::map<std::string, int> counts;
+  for (const LogEvent& e : events) ++counts[e.channel];
+  return counts;
+}
+
+bool Same(double a, double b) { return std::memcmp(&a, &b, sizeof(double)) == 0; }
+
+PipelineReplaySummary Replay(const std::string& in, const std::string& out,
+                             const PipelineReplayOptions& options = LiveOptions(),
+                             const Site& site = DemoSite()) {
+  PipelineReplaySummary s = ReplayPipelineFile(in, site, options, out, /*overwrite=*/false);
+  EXPECT_TRUE(s.ok) << s.error;
+  return s;
+}
+
+TEST(PipelineReplay, TwoReplaysOfALogAreByteIdentical) {
+  TempDir dir;
+  Replay(LivePath(), dir.File("a.lcm"));
+  Replay(LivePath(), dir.File("b.lcm"));
+  const std::string a = ReadFile(dir.File("a.lcm"));
+  ASSERT_GT(a.size(), 50'000u);
+  EXPECT_TRUE(a == ReadFile(dir.File("b.lcm")));
+}
+
+TEST(PipelineReplay, KeepsTheRecordedInputsAndReplacesTheRerunNodesOutputs) {
+  TempDir dir;
+  const PipelineReplaySummary s = Replay(LivePath(), dir.File("new.lcm"));
+  const std::map<std::string, int> before = ChannelCounts(LivePath());
+  const std::map<std::string, int> after = ChannelCounts(dir.File("new.lcm"));
+  for (const char* input : {"RANGES", "POSE_CAMERA", "POSE_GROUND_TRUTH", "STATUS"}) {
+    EXPECT_EQ(after.at(input), before.at(input)) << input;
+  }
+  // One ultrasonic pose per range set, as live; one fused pose per camera
+  // and ultrasonic measurement.
+  EXPECT_EQ(after.at("POSE_ULTRASOUND"), before.at("RANGES"));
+  EXPECT_EQ(s.old_outputs_dropped.at("POSE_ULTRASOUND"), before.at("POSE_ULTRASOUND"));
+  EXPECT_EQ(s.old_outputs_dropped.at("POSE_FUSED"), before.at("POSE_FUSED"));
+  EXPECT_EQ(after.at("POSE_FUSED"), s.new_outputs.at("POSE_FUSED"));
+  EXPECT_GE(after.at("POSE_FUSED"), after.at("POSE_CAMERA") + after.at("POSE_ULTRASOUND") - 4);
+  // The re-run nodes' heartbeats: at 1 Hz of log time each, named "replay".
+  const double span_s = (s.last_utime - s.first_utime) * 1e-6;
+  EXPECT_GE(after.at(kReplayStatusChannel), 2 * static_cast<int>(span_s));
+  EXPECT_EQ(s.trilat_status.inputs, before.at("RANGES"));
+  EXPECT_EQ(s.fusion_status.inputs, before.at("POSE_CAMERA") + before.at("RANGES"));
+  EXPECT_FALSE(s.damaged);
+}
+
+TEST(PipelineReplay, FusionAloneKeepsTheRecordedUltrasonicPoses) {
+  TempDir dir;
+  PipelineReplayOptions options = LiveOptions();
+  options.trilat = false;
+  Replay(LivePath(), dir.File("new.lcm"), options);
+  const std::vector<pose2d_t> live = Poses(LivePath(), "POSE_ULTRASOUND");
+  const std::vector<pose2d_t> kept = Poses(dir.File("new.lcm"), "POSE_ULTRASOUND");
+  ASSERT_EQ(kept.size(), live.size());
+  for (size_t i = 0; i < live.size(); ++i) {
+    EXPECT_EQ(kept[i].measurement_seq, live[i].measurement_seq);
+    EXPECT_TRUE(Same(kept[i].x_m, live[i].x_m));
+  }
+}
+
+// trilat_proc's pose depends only on the range set and the beacon's previous
+// fix (by firing time), so the replay must give the live poses bit for bit;
+// only latency_us differs (live: trilat_proc's receive time; replay: the
+// logger's).
+TEST(PipelineReplay, ReproducesTheLiveUltrasonicPosesExactly) {
+  TempDir dir;
+  Replay(LivePath(), dir.File("new.lcm"));
+  std::map<int64_t, pose2d_t> live;
+  for (const pose2d_t& p : Poses(LivePath(), "POSE_ULTRASOUND")) live[p.measurement_seq] = p;
+  ASSERT_GE(live.size(), 30u);
+  int compared = 0;
+  for (const pose2d_t& p : Poses(dir.File("new.lcm"), "POSE_ULTRASOUND")) {
+    auto it = live.find(p.measurement_seq);
+    if (it == live.end()) continue;
+    const pose2d_t& r = it->second;
+    EXPECT_EQ(p.utime, r.utime);
+    EXPECT_EQ(p.status, r.status);
+    EXPECT_TRUE(Same(p.x_m, r.x_m)) << p.x_m << " vs " << r.x_m;
+    EXPECT_TRUE(Same(p.y_m, r.y_m)) << p.y_m << " vs " << r.y_m;
+    EXPECT_TRUE(Same(p.covariance[0][0], r.covariance[0][0]));
+    ++compared;
+  }
+  EXPECT_EQ(compared, static_cast<int>(live.size()));
+}
+
+// fusion_proc's pose at a measurement is the filter's estimate given what
+// it had received by then. Live, an ultrasonic pose reaches fusion_proc
+// after trilat_proc's solve (a millisecond or more after the range set, as
+// the scheduler allows) and camera poses race it from another process; in
+// the replay it arrives at the range set's log time. So near a firing a
+// camera pose can be fused before the ultrasonic one in one run and after it
+// in the other: that order is the live run's own timing noise, and it
+// changes an estimate by at most one ultrasonic update. kFusedToleranceM
+// bounds that update: the filter moves by its gain times the innovation. Fed
+// by the camera at 30 Hz (sigma floor 0.5 mm), the estimate's variance is a
+// few (0.5 mm)^2, the ultrasonic fix's at least (20 mm)^2 (its sigma floor),
+// so the gain is under 4 x (0.5/20)^2 = 2.5e-3; the gate (chi-square 13.82)
+// passes an innovation of at most 3.7 x 20 mm = 74 mm: 0.19 mm, so 0.5 mm.
+// Most poses see the same order and must agree to rounding (kSameOrderM), so
+// the median separates a replay that follows the live order from one that
+// does not. (Measured: a median of 0 and a largest difference of 6 um.)
+constexpr double kFusedToleranceM = 5e-4;
+constexpr double kSameOrderM = 1e-9;
+
+TEST(PipelineReplay, ReproducesTheLiveFusedPosesWithinTheLiveTimingNoise) {
+  TempDir dir;
+  Replay(LivePath(), dir.File("new.lcm"));
+  using Key = std::tuple<int, int64_t, int64_t>;  // robot, measurement time, seq
+  std::map<Key, pose2d_t> live;
+  for (const pose2d_t& p : Poses(LivePath(), "POSE_FUSED")) {
+    if (p.status != pose2d_t::STATUS_LOST) live[{p.robot_id, p.utime, p.measurement_seq}] = p;
+  }
+  ASSERT_GE(live.size(), 100u);
+  std::vector<double> errors_m;
+  for (const pose2d_t& p : Poses(dir.File("new.lcm"), "POSE_FUSED")) {
+    auto it = live.find({p.robot_id, p.utime, p.measurement_seq});
+    if (it == live.end() || p.status == pose2d_t::STATUS_LOST) continue;
+    const double error_m = std::hypot(p.x_m - it->second.x_m, p.y_m - it->second.y_m);
+    EXPECT_LE(error_m, kFusedToleranceM) << "robot " << p.robot_id << " at " << p.utime;
+    errors_m.push_back(error_m);
+  }
+  // Every live fused pose has its replayed twin: the same measurements went
+  // in.
+  EXPECT_GE(errors_m.size(), live.size());
+  std::sort(errors_m.begin(), errors_m.end());
+  std::printf("fused poses compared: %zu of %zu live; replay - live: median %.3g m, max %.3g m\n",
+              errors_m.size(), live.size(), errors_m[errors_m.size() / 2], errors_m.back());
+  EXPECT_LE(errors_m[errors_m.size() / 2], kSameOrderM);
+}
+
+// New receiver offsets (`roomfix survey`) re-derive the ranges from their
+// recorded times of flight: a receiver whose offset grows by 5 cm moves the
+// fixes; the same site re-derives the recorded ranges to rounding.
+TEST(PipelineReplay, ANewSiteRederivesTheRangesFromTheTimesOfFlight) {
+  TempDir dir;
+  PipelineReplayOptions options = LiveOptions();
+  options.restamp_ranges = true;
+  const PipelineReplaySummary same = Replay(LivePath(), dir.File("same.lcm"), options);
+  EXPECT_GT(same.ranges_restamped, 100);
+  EXPECT_EQ(same.ranges_kept, 0);
+  Site moved = DemoSite();
+  moved.receivers[0].range_offset_m += 0.05;
+  Replay(LivePath(), dir.File("moved.lcm"), options, moved);
+
+  std::map<int64_t, pose2d_t> live;
+  for (const pose2d_t& p : Poses(LivePath(), "POSE_ULTRASOUND")) live[p.measurement_seq] = p;
+  // Rounding of tof x c - offset against the simulator's own range: 1e-12 m
+  // is a thousand times the double's resolution at 5 m, and the solver
+  // amplifies it by its dilution of precision (under 10 here).
+  constexpr double kRoundingM = 1e-9;
+  for (const pose2d_t& p : Poses(dir.File("same.lcm"), "POSE_ULTRASOUND")) {
+    const pose2d_t& r = live.at(p.measurement_seq);
+    if (p.status == pose2d_t::STATUS_LOST) continue;
+    EXPECT_NEAR(p.x_m, r.x_m, kRoundingM);
+    EXPECT_NEAR(p.y_m, r.y_m, kRoundingM);
+  }
+  double largest_shift_m = 0;
+  for (const pose2d_t& p : Poses(dir.File("moved.lcm"), "POSE_ULTRASOUND")) {
+    const pose2d_t& r = live.at(p.measurement_seq);
+    if (p.status == pose2d_t::STATUS_LOST || r.status == pose2d_t::STATUS_LOST) continue;
+    largest_shift_m = std::max(largest_shift_m, std::hypot(p.x_m - r.x_m, p.y_m - r.y_m));
+  }
+  // Shortening one of four ranges by 5 cm moves a fix by centimetres, or
+  // the robust solver drops that range as an outlier (a smaller move).
+  EXPECT_GT(largest_shift_m, 0.005);
+  EXPECT_LT(largest_shift_m, 0.2);
+}
+
+TEST(PipelineReplay, ADamagedLogIsReplayedAroundTheDamageAndCounted) {
+  TempDir dir;
+  std::string bytes = ReadFile(LivePath());
+  ASSERT_GT(bytes.size(), 60'000u);
+  // Garbage in the middle, a RANGES message that is not a range set, and an
+  // end cut in the middle of an event (a writer killed by -9).
+  std::string garbage(777, '\0');
+  for (size_t i = 0; i < garbage.size(); ++i) garbage[i] = static_cast<char>(i * 131 + 7);
+  const std::string hostile = testing::RawLogEvent(0, 1, "RANGES", "not a range set", 6, 15);
+  const size_t sync = bytes.find("\xED\xA1\xDA\x01", 30'000);
+  ASSERT_NE(sync, std::string::npos);
+  const std::string damaged =
+      bytes.substr(0, sync) + garbage + hostile + bytes.substr(sync, bytes.size() - sync - 50);
+  ASSERT_TRUE(WriteFile(dir.File("damaged.lcm"), damaged));
+
+  const PipelineReplaySummary s = Replay(dir.File("damaged.lcm"), dir.File("new.lcm"));
+  EXPECT_TRUE(s.damaged);
+  EXPECT_EQ(s.damage_regions, 2);  // The garbage and the cut end.
+  EXPECT_GT(s.bytes_skipped, 777);
+  EXPECT_NE(s.damage.find("truncated 1"), std::string::npos) << s.damage;
+  ASSERT_EQ(s.refused.size(), 1u);
+  EXPECT_EQ(s.refused.begin()->first.rfind("RANGES.", 0), 0u);
+  EXPECT_EQ(s.refused.begin()->second, 1);
+  // The undamaged events before and after were replayed.
+  std::vector<LogEvent> all;
+  std::string error;
+  ASSERT_TRUE(ReadLogEvents(LivePath(), &all, &error)) << error;
+  EXPECT_EQ(s.events_read,
+            static_cast<int64_t>(all.size()));  // All but the cut one, plus the hostile one.
+  EXPECT_GT(s.new_outputs.at("POSE_ULTRASOUND"), 30);
+}
+
+TEST(PipelineReplay, RefusesToWriteOverItsInputOrAnExistingLog) {
+  TempDir dir;
+  ASSERT_TRUE(WriteFile(dir.File("in.lcm"), ReadFile(LivePath())));
+  PipelineReplaySummary s =
+      ReplayPipelineFile(dir.File("in.lcm"), DemoSite(), LiveOptions(), dir.File("in.lcm"), true);
+  EXPECT_FALSE(s.ok);
+  EXPECT_NE(s.error.find("is the input log"), std::string::npos) << s.error;
+  EXPECT_EQ(ReadFile(dir.File("in.lcm")), ReadFile(LivePath()));
+
+  ASSERT_TRUE(WriteFile(dir.File("old.lcm"), "keep me"));
+  s = ReplayPipelineFile(dir.File("in.lcm"), DemoSite(), LiveOptions(), dir.File("old.lcm"), false);
+  EXPECT_FALSE(s.ok);
+  EXPECT_NE(s.error.find("--force"), std::string::npos) << s.error;
+  EXPECT_EQ(ReadFile(dir.File("old.lcm")), "keep me");
+  s = ReplayPipelineFile(dir.File("in.lcm"), DemoSite(), LiveOptions(), dir.File("old.lcm"), true);
+  EXPECT_TRUE(s.ok) << s.error;
+  EXPECT_NE(ReadFile(dir.File("old.lcm")), "keep me");
+}
+
+TEST(PipelineReplay, AMissingLogIsAOneLineError) {
+  TempDir dir;
+  const PipelineReplaySummary s = ReplayPipelineFile(dir.File("none.lcm"), DemoSite(),
+                                                     LiveOptions(), dir.File("new.lcm"), false);
+  EXPECT_FALSE(s.ok);
+  EXPECT_NE(s.error.find("none.lcm"), std::string::npos) << s.error;
+}
+
+}  // namespace
+}  // namespace roomfix
