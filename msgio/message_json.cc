@@ -10,6 +10,7 @@
 #include "roomfix/pose2d_t.hpp"
 #include "roomfix/process_status_t.hpp"
 #include "roomfix/range_set_t.hpp"
+#include "roomfix/site_t.hpp"
 
 namespace roomfix {
 namespace {
@@ -168,6 +169,23 @@ std::string ToJson(const image_t& m) {
   return j.str();
 }
 
+// The texts are summarised by size: the site and its files are kilobytes,
+// and `content_hash` names them exactly.
+std::string ToJson(const site_t& m) {
+  Json j;
+  j.Open('{').Key("type").Str("roomfix.site_t").Key("utime").Int(m.utime);
+  j.Key("site_name").Str(m.site_name).Key("site_path").Str(m.site_path);
+  j.Key("site_text_bytes").Int(static_cast<int64_t>(m.site_text.size())).Key("files").Open('[');
+  for (const auto& f : m.files) {
+    j.Open('{').Key("name").Str(f.name).Key("bytes").Int(static_cast<int64_t>(f.text.size()));
+    j.Close('}');
+  }
+  j.Close(']').Key("missing").Str(m.missing).Key("content_hash").Str(m.content_hash);
+  j.Key("roomfix_version").Str(m.roomfix_version).Key("process").Str(m.process);
+  j.Key("host").Str(m.host).Key("pid").Int(m.pid).Close('}');
+  return j.str();
+}
+
 template <class Msg>
 bool Decode(const void* data, int size, std::string* json, std::string* error,
             std::string* reason) {
@@ -191,6 +209,7 @@ const char* RoomfixTypeName(const void* data, int size) {
   if (fp == range_set_t::getHash()) return "roomfix.range_set_t";
   if (fp == process_status_t::getHash()) return "roomfix.process_status_t";
   if (fp == image_t::getHash()) return "roomfix.image_t";
+  if (fp == site_t::getHash()) return "roomfix.site_t";
   return nullptr;
 }
 
@@ -200,6 +219,7 @@ int64_t RoomfixTypeFingerprint(const std::string& type_name) {
   if (type_name == "roomfix.range_set_t") return range_set_t::getHash();
   if (type_name == "roomfix.process_status_t") return process_status_t::getHash();
   if (type_name == "roomfix.image_t") return image_t::getHash();
+  if (type_name == "roomfix.site_t") return site_t::getHash();
   return 0;
 }
 
@@ -215,6 +235,7 @@ bool MessageToJson(const void* data, int size, std::string* json, std::string* e
     return Decode<process_status_t>(data, size, json, error, reason);
   }
   if (fp == image_t::getHash()) return Decode<image_t>(data, size, json, error, reason);
+  if (fp == site_t::getHash()) return Decode<site_t>(data, size, json, error, reason);
   if (error != nullptr) *error = "not a roomfix message (unknown fingerprint)";
   if (reason != nullptr) *reason = kUnknownTypeReason;
   return false;

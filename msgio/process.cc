@@ -18,6 +18,7 @@
 #include <utility>
 
 #include "msgio/log.h"
+#include "msgio/site_message.h"
 #include "msgio/udpm_bus.h"
 #include "msgio/wire_check.h"
 
@@ -143,6 +144,12 @@ process_status_t StatusReporter::Make(int64_t utime, const BusStats* bus_stats) 
   s.dropped = dropped_;
   auto rejected = rejected_;
   auto counters = counters_;
+  // Which site the process runs with (site_message.h): equal values mean
+  // equal site and calibration texts.
+  if (const auto site = ProcessSite()) {
+    const int64_t hash = SiteHashCounterValue(site->content_hash);
+    if (hash >= 0) counters[kSiteHashCounter] = hash;
+  }
   s.last_error = last_error_;
   s.last_error_utime = last_error_utime_;
   if (bus_stats != nullptr) {
@@ -212,6 +219,9 @@ bool StatusReporter::Publish(Bus* bus, int64_t now_utime) {
     std::lock_guard<std::mutex> lock(mutex_);
     last_publish_utime_ = now_utime;
   }
+  // The site travels beside the heartbeat: at the first one and every
+  // kSitePeriodUs, whichever node of the process beats.
+  MaybePublishProcessSite(bus, now_utime);
   bus->RefreshStats();
   const BusStats stats = bus->stats();
   return bus->Publish(kStatusChannel, Make(now_utime, &stats));
@@ -330,8 +340,22 @@ std::unique_ptr<ProcessContext> StartProcess(const std::string& name, const Proc
     *error = "unknown log level '" + options.log_level + "'";
     return nullptr;
   }
-  if (!options.config_path.empty() && !LoadSite(options.config_path, &ctx->site, error)) {
-    return nullptr;
+  if (!options.config_path.empty()) {
+    LoadedSite loaded;
+    if (!LoadSiteWithTexts(options.config_path, &loaded, error)) return nullptr;
+    ctx->site = loaded.site;
+    for (const auto& missing : loaded.texts.missing) {
+      spdlog::warn("site {}: calibration file {} not carried on {}", options.config_path, missing,
+                   kSiteChannel);
+    }
+    // A site too big for a site_t still runs; it just cannot travel.
+    auto msg = std::make_shared<site_t>();
+    std::string why;
+    if (MakeSiteMessage(loaded, name, NowUtime(), msg.get(), &why)) {
+      SetProcessSite(std::move(msg));
+    } else {
+      spdlog::warn("site not published on {}: {}", kSiteChannel, why);
+    }
   }
   InstallShutdownHandlers();
   if (options.check) return ctx;

@@ -97,6 +97,28 @@ constexpr Field kProcessStatusFields[] = {
 };
 constexpr Layout kProcessStatus{"process_status_t", kProcessStatusFields, 10};
 
+constexpr Field kSiteFileFields[] = {
+    {"name", kString, wire_cap::kPathBytes, nullptr},
+    {"text", kString, wire_cap::kSiteFileBytes, nullptr},
+};
+constexpr Layout kSiteFile{"site_file_t", kSiteFileFields, 2};
+
+constexpr Field kSiteFields[] = {
+    {"utime", kFixed, 8, nullptr},
+    {"site_name", kString, wire_cap::kNameBytes, nullptr},
+    {"site_path", kString, wire_cap::kPathBytes, nullptr},
+    {"site_text", kString, wire_cap::kSiteTextBytes, nullptr},
+    {"num_files", kCount, wire_cap::kSiteFiles, nullptr},
+    {"files", kStructArray, 0, &kSiteFile},
+    {"missing", kString, wire_cap::kPathBytes, nullptr},
+    {"content_hash", kString, wire_cap::kHashBytes, nullptr},
+    {"roomfix_version", kString, wire_cap::kVersionBytes, nullptr},
+    {"process", kString, wire_cap::kNameBytes, nullptr},
+    {"host", kString, wire_cap::kNameBytes, nullptr},
+    {"pid", kFixed, 4, nullptr},
+};
+constexpr Layout kSite{"site_t", kSiteFields, 12};
+
 // The fewest bytes one element can take: what a count must be paid for with
 // before anything is walked, so a huge count fails in constant time.
 int64_t MinEncodedSize(const Layout& layout) {
@@ -226,6 +248,8 @@ const Layout& LayoutOf(const pose2d_t*) { return kPose; }
 const Layout& LayoutOf(const process_status_t*) { return kProcessStatus; }
 const Layout& LayoutOf(const range_set_t*) { return kRangeSet; }
 const Layout& LayoutOf(const range_t*) { return kRange; }
+const Layout& LayoutOf(const site_file_t*) { return kSiteFile; }
+const Layout& LayoutOf(const site_t*) { return kSite; }
 
 const char* CheckEncoded(const Layout& layout, int64_t fingerprint, const void* data, int size,
                          std::string* detail) {

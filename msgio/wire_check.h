@@ -29,6 +29,8 @@ class pose2d_t;
 class process_status_t;
 class range_set_t;
 class range_t;
+class site_file_t;
+class site_t;
 
 // Why an encoded message was refused; names are lower_case_with_underscores
 // and appear in STATUS as `rejected[]` entries `<CHANNEL>.<reason>`.
@@ -55,14 +57,20 @@ inline constexpr char kUndecodable[] = "undecodable";
 // Per-type caps (docs/messages.md says why each is what it is). String caps
 // count the terminating NUL, as LCM's length field does.
 namespace wire_cap {
-inline constexpr int32_t kRangesPerSet = 256;       // range_set_t.num_ranges
-inline constexpr int32_t kMarkersPerFrame = 1024;   // marker_pixels_t.num_markers
-inline constexpr int32_t kPreviewBytes = 16 << 20;  // image_t.num_bytes
-inline constexpr int32_t kStatusCounters = 1024;    // process_status_t.num_rejected, num_counters
-inline constexpr int32_t kNameBytes = 256;          // counter_t.name, process, host
-inline constexpr int32_t kLastErrorBytes = 4096;    // process_status_t.last_error
-inline constexpr int32_t kColourClassBytes = 64;    // marker_t.colour_class
-inline constexpr int32_t kImageFormatBytes = 16;    // image_t.format
+inline constexpr int32_t kRangesPerSet = 256;         // range_set_t.num_ranges
+inline constexpr int32_t kMarkersPerFrame = 1024;     // marker_pixels_t.num_markers
+inline constexpr int32_t kPreviewBytes = 16 << 20;    // image_t.num_bytes
+inline constexpr int32_t kStatusCounters = 1024;      // process_status_t.num_rejected, num_counters
+inline constexpr int32_t kNameBytes = 256;            // counter_t.name, process, host
+inline constexpr int32_t kLastErrorBytes = 4096;      // process_status_t.last_error
+inline constexpr int32_t kColourClassBytes = 64;      // marker_t.colour_class
+inline constexpr int32_t kImageFormatBytes = 16;      // image_t.format
+inline constexpr int32_t kSiteTextBytes = 1 << 20;    // site_t.site_text
+inline constexpr int32_t kSiteFiles = 16;             // site_t.num_files
+inline constexpr int32_t kSiteFileBytes = 256 << 10;  // site_file_t.text
+inline constexpr int32_t kPathBytes = 4096;           // site_t.site_path, missing; site_file_t.name
+inline constexpr int32_t kHashBytes = 65;             // site_t.content_hash: 64 hex digits
+inline constexpr int32_t kVersionBytes = 64;          // site_t.roomfix_version
 }  // namespace wire_cap
 
 namespace wire {
@@ -100,6 +108,8 @@ const Layout& LayoutOf(const pose2d_t*);
 const Layout& LayoutOf(const process_status_t*);
 const Layout& LayoutOf(const range_set_t*);
 const Layout& LayoutOf(const range_t*);
+const Layout& LayoutOf(const site_file_t*);
+const Layout& LayoutOf(const site_t*);
 
 // Checks `size` bytes at `data` as a whole encoded message (8-byte fingerprint
 // then the fields). nullptr when it may be decoded; otherwise the reason (one

@@ -58,6 +58,8 @@ TEST(WireCheck, AcceptsARealMessageOfEveryTypeAndNoPrefixOfIt) {
   ExpectTableMatchesEncoder(testing::MakeTestStatus());
   ExpectTableMatchesEncoder(testing::MakeTestRangeSet(4));
   ExpectTableMatchesEncoder(testing::MakeTestRange(2, 1.75));
+  ExpectTableMatchesEncoder(testing::MakeTestSiteFile());
+  ExpectTableMatchesEncoder(testing::MakeTestSite());
 }
 
 TEST(WireCheck, AcceptsEmptyArraysAndEmptyStrings) {
@@ -184,6 +186,26 @@ TEST(WireCheck, AcceptsStringsAtTheirCapsAndRefusesOneByteMore) {
   image_t preview = testing::MakeTestImage();
   preview.format.assign(wire_cap::kImageFormatBytes, 'f');
   EXPECT_EQ(Verdict<image_t>(Encode(preview)), "string_over_cap");
+
+  site_t site = testing::MakeTestSite();
+  site.site_text.assign(wire_cap::kSiteTextBytes - 1, 's');
+  site.files[0].text.assign(wire_cap::kSiteFileBytes - 1, 'c');
+  EXPECT_EQ(Verdict<site_t>(Encode(site)), "ok");
+  site.site_text.push_back('s');
+  EXPECT_EQ(Verdict<site_t>(Encode(site)), "string_over_cap");
+  site.site_text.pop_back();
+  site.files[0].text.push_back('c');
+  EXPECT_EQ(Verdict<site_t>(Encode(site)), "string_over_cap");
+}
+
+TEST(WireCheck, AcceptsSiteFilesAtTheirCapAndRefusesOneMore) {
+  site_t site = testing::MakeTestSite();
+  site.files.assign(wire_cap::kSiteFiles, testing::MakeTestSiteFile());
+  site.num_files = wire_cap::kSiteFiles;
+  EXPECT_EQ(Verdict<site_t>(Encode(site)), "ok");
+  site.files.push_back(testing::MakeTestSiteFile());
+  site.num_files = wire_cap::kSiteFiles + 1;
+  EXPECT_EQ(Verdict<site_t>(Encode(site)), "count_over_cap");
 }
 
 TEST(WireCheck, RefusesStringsLcmWouldNeverWrite) {

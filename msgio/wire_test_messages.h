@@ -18,6 +18,8 @@
 #include "roomfix/process_status_t.hpp"
 #include "roomfix/range_set_t.hpp"
 #include "roomfix/range_t.hpp"
+#include "roomfix/site_file_t.hpp"
+#include "roomfix/site_t.hpp"
 
 namespace roomfix::testing {
 
@@ -129,6 +131,30 @@ inline process_status_t MakeTestStatus() {
   s.num_counters = static_cast<int32_t>(s.counters.size());
   s.last_error = "range 3 is negative";
   s.last_error_utime = 1699999999000000;
+  return s;
+}
+
+inline site_file_t MakeTestSiteFile() {
+  site_file_t f{};
+  f.name = "../calibration/demo_room_camera.yaml";
+  f.text = "model: full\nfit_rms_px: 0.05\n";
+  return f;
+}
+
+inline site_t MakeTestSite() {
+  site_t s{};
+  s.utime = 1700000000000000;
+  s.site_name = "demo_room";
+  s.site_path = "config/sites/demo_room.yaml";
+  s.site_text = "name: demo_room\nroom: {size_m: [6, 4, 3]}\n";
+  s.files = {MakeTestSiteFile()};
+  s.num_files = static_cast<int32_t>(s.files.size());
+  s.missing = "missing_camera.yaml";
+  s.content_hash = std::string(64, 'a');
+  s.roomfix_version = "0.1.0";
+  s.process = "trilat_proc";
+  s.host = "lab-pc";
+  s.pid = 4321;
   return s;
 }
 

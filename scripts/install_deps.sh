@@ -9,7 +9,7 @@ packages=(
   build-essential cmake pkg-config git
   liblcm-dev liblcm-bin liblcm-java libjchart2d-java default-jdk-headless
   libopencv-dev libjpeg62-turbo-dev zlib1g-dev libgsl-dev libeigen3-dev libserialport-dev
-  libyaml-cpp-dev libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev
+  libyaml-cpp-dev libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev libssl-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   gnuplot-nox iproute2 util-linux procps xvfb xauth x11-apps
 )

@@ -2,7 +2,7 @@
 // (DecodeChecked, msgio/wire_check.h), the one path by which bytes from the
 // bus or a log reach a generated decoder.
 //
-// The input is tried twice for each of the 8 types: as a whole encoded
+// The input is tried twice for each of the 10 types: as a whole encoded
 // message (so real messages are seeds as they are), and, when it is at least
 // 1 byte long, with that type's fingerprint put in front of the bytes after
 // the first (so mutations explore the fields of every type, not just the
@@ -31,6 +31,8 @@
 #include "roomfix/process_status_t.hpp"
 #include "roomfix/range_set_t.hpp"
 #include "roomfix/range_t.hpp"
+#include "roomfix/site_file_t.hpp"
+#include "roomfix/site_t.hpp"
 
 namespace {
 
@@ -85,5 +87,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   AsIsAndWithFingerprint<roomfix::process_status_t>(data, size, &scratch);
   AsIsAndWithFingerprint<roomfix::range_set_t>(data, size, &scratch);
   AsIsAndWithFingerprint<roomfix::range_t>(data, size, &scratch);
+  AsIsAndWithFingerprint<roomfix::site_file_t>(data, size, &scratch);
+  AsIsAndWithFingerprint<roomfix::site_t>(data, size, &scratch);
   return 0;
 }

@@ -1,0 +1,544 @@
+#include "msgio/site_message.h"
+
+#include <openssl/evp.h>
+#include <unistd.h>
+#include <yaml-cpp/yaml.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <mutex>
+#include <utility>
+
+#include "core/world/file_io.h"
+#include "core/world/yaml_reader.h"
+#include "msgio/log.h"
+#include "msgio/wire_check.h"
+
+#ifndef ROOMFIX_VERSION
+#define ROOMFIX_VERSION "unknown"
+#endif
+
+namespace roomfix {
+namespace {
+
+// As site.cc resolves cameras[].calibration: against the site file's folder.
+std::string DirName(const std::string& path) {
+  const size_t slash = path.find_last_of('/');
+  if (slash == std::string::npos) return ".";
+  return slash == 0 ? "/" : path.substr(0, slash);
+}
+
+void AppendLengthPrefixed(std::string* out, const std::string& text) {
+  *out += std::to_string(text.size());
+  *out += '\n';
+  *out += text;
+}
+
+std::string Sha256Hex(const std::string& bytes) {
+  unsigned char digest[EVP_MAX_MD_SIZE];
+  unsigned int length = 0;
+  // EVP_Digest fails only on allocation failure inside OpenSSL; an empty
+  // hash then never equals a real one, so nothing is silently accepted.
+  if (EVP_Digest(bytes.data(), bytes.size(), digest, &length, EVP_sha256(), nullptr) != 1) {
+    return "";
+  }
+  static const char kHex[] = "0123456789abcdef";
+  std::string hex;
+  for (unsigned int i = 0; i < length; ++i) {
+    hex += kHex[digest[i] >> 4];
+    hex += kHex[digest[i] & 15];
+  }
+  return hex;
+}
+
+std::string Who(const std::string& process, const std::string& host, int32_t pid) {
+  std::string who = process.empty() ? "?" : process;
+  if (!host.empty()) who += "@" + host;
+  if (pid > 0) who += " (pid " + std::to_string(pid) + ")";
+  return who;
+}
+
+// --- YAML difference by key path -------------------------------------------
+
+std::string Brief(const YAML::Node& node) {
+  if (!node.IsDefined() || node.IsNull()) return "absent";
+  if (node.IsMap()) return "a mapping";
+  if (node.IsSequence()) return "a list of " + std::to_string(node.size());
+  std::string text = node.Scalar();
+  if (text.size() > 40) text = text.substr(0, 37) + "...";
+  return text;
+}
+
+bool ScalarsEqual(const std::string& a, const std::string& b) {
+  if (a == b) return true;
+  // Numbers compare by value: 2.50 and 2.5 are one receiver position.
+  char* end_a = nullptr;
+  char* end_b = nullptr;
+  const double x = std::strtod(a.c_str(), &end_a);
+  const double y = std::strtod(b.c_str(), &end_b);
+  return !a.empty() && !b.empty() && *end_a == '\0' && *end_b == '\0' && x == y;
+}
+
+void DiffNodes(const YAML::Node& a, const YAML::Node& b, const std::string& key,
+               std::vector<std::string>* out) {
+  const bool a_absent = !a.IsDefined() || a.IsNull();
+  const bool b_absent = !b.IsDefined() || b.IsNull();
+  if (a_absent && b_absent) return;
+  const std::string shown = key.empty() ? "(document)" : key;
+  if (a_absent || b_absent || a.Type() != b.Type()) {
+    out->push_back(shown + ": " + Brief(a) + " -> " + Brief(b));
+    return;
+  }
+  if (a.IsMap()) {
+    std::vector<std::string> keys;
+    std::set<std::string> seen;
+    for (const YAML::Node& m : {a, b}) {
+      for (const auto& kv : m) {
+        const std::string k = kv.first.Scalar();
+        if (seen.insert(k).second) keys.push_back(k);
+      }
+    }
+    for (const std::string& k : keys) {
+      DiffNodes(a[k], b[k], YamlReader::Join(key, k), out);
+    }
+    return;
+  }
+  if (a.IsSequence()) {
+    const size_t n = std::max(a.size(), b.size());
+    for (size_t i = 0; i < n; ++i) {
+      const YAML::Node ai = i < a.size() ? a[i] : YAML::Node(YAML::NodeType::Undefined);
+      const YAML::Node bi = i < b.size() ? b[i] : YAML::Node(YAML::NodeType::Undefined);
+      DiffNodes(ai, bi, YamlReader::Index(key, i), out);
+    }
+    return;
+  }
+  if (!ScalarsEqual(a.Scalar(), b.Scalar())) {
+    out->push_back(shown + ": " + Brief(a) + " -> " + Brief(b));
+  }
+}
+
+// Texts that passed ParseSite or came from a file; a text that is not YAML
+// (a calibration the publisher could not parse) differs as a whole.
+void DiffTexts(const std::string& a, const std::string& b, const std::string& prefix,
+               std::vector<std::string>* out) {
+  if (a == b) return;
+  try {
+    std::vector<std::string> local;
+    DiffNodes(YAML::Load(a), YAML::Load(b), "", &local);
+    for (const auto& line : local) out->push_back(prefix + line);
+  } catch (const YAML::Exception&) {
+    out->push_back(prefix + "(text differs; not YAML)");
+  }
+}
+
+// --- the process's site -----------------------------------------------------
+
+std::mutex g_site_mutex;
+std::shared_ptr<const site_t> g_site;
+int64_t g_site_last_publish_utime = -1;
+
+}  // namespace
+
+std::string RoomfixVersion() { return ROOMFIX_VERSION; }
+
+std::string SiteContentHash(const SiteTexts& texts) {
+  std::string bytes = "roomfix site v1\n";
+  AppendLengthPrefixed(&bytes, texts.site_text);
+  for (const auto& [name, text] : texts.files) {  // std::map: sorted by name
+    AppendLengthPrefixed(&bytes, name);
+    AppendLengthPrefixed(&bytes, text);
+  }
+  return Sha256Hex(bytes);
+}
+
+int64_t SiteHashCounterValue(const std::string& content_hash) {
+  if (content_hash.size() < 15) return -1;
+  int64_t value = 0;
+  for (size_t i = 0; i < 15; ++i) {
+    const char c = content_hash[i];
+    int digit = -1;
+    if (c >= '0' && c <= '9') digit = c - '0';
+    if (c >= 'a' && c <= 'f') digit = c - 'a' + 10;
+    if (digit < 0) return -1;
+    value = value * 16 + digit;
+  }
+  return value;
+}
+
+std::string SiteHashCounterText(int64_t value) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof(buffer), "%015llx", static_cast<unsigned long long>(value));
+  return buffer;
+}
+
+std::string ShortSiteHash(const std::string& content_hash) { return content_hash.substr(0, 12); }
+
+bool LoadSiteWithTexts(const std::string& path, LoadedSite* out, std::string* error) {
+  LoadedSite loaded;
+  if (!ReadConfigFile(path, &loaded.texts.site_text, error)) return false;
+  if (!ParseSite(loaded.texts.site_text, path, DirName(path), &loaded.site, error)) return false;
+  loaded.site.path = path;
+  loaded.texts.site_path = path;
+  // The names as written (no folder to resolve against) key the texts, so a
+  // reader resolves them to the texts without any folder.
+  Site as_written;
+  if (!ParseSite(loaded.texts.site_text, path, "", &as_written, error)) return false;
+  for (size_t i = 0; i < loaded.site.cameras.size(); ++i) {
+    const std::string& name = as_written.cameras[i].calibration_file;
+    if (name.empty() || loaded.texts.files.count(name) > 0) continue;
+    std::string text;
+    std::string why;
+    if (ReadConfigFile(loaded.site.cameras[i].calibration_file, &text, &why)) {
+      loaded.texts.files[name] = std::move(text);
+    } else {
+      loaded.texts.missing.push_back(name + " (" + why + ")");
+    }
+  }
+  loaded.content_hash = SiteContentHash(loaded.texts);
+  *out = std::move(loaded);
+  return true;
+}
+
+bool MakeSiteMessage(const LoadedSite& loaded, const std::string& process, int64_t utime,
+                     site_t* msg, std::string* error) {
+  const auto over = [&](const std::string& what, size_t bytes, int32_t cap) {
+    if (bytes < static_cast<size_t>(cap)) return false;
+    *error = what + " is " + ByteSizeText(bytes) + ", over the " +
+             ByteSizeText(static_cast<size_t>(cap) - 1) + " a site_t carries";
+    return true;
+  };
+  if (over("the site file " + loaded.texts.site_path, loaded.texts.site_text.size(),
+           wire_cap::kSiteTextBytes)) {
+    return false;
+  }
+  if (loaded.texts.files.size() > static_cast<size_t>(wire_cap::kSiteFiles)) {
+    *error = "the site names " + std::to_string(loaded.texts.files.size()) +
+             " calibration files, over the " + std::to_string(wire_cap::kSiteFiles) +
+             " a site_t carries";
+    return false;
+  }
+  site_t m{};
+  m.utime = utime;
+  for (const auto& [name, text] : loaded.texts.files) {
+    if (over("calibration file " + name, text.size(), wire_cap::kSiteFileBytes) ||
+        over("the name " + name, name.size(), wire_cap::kPathBytes)) {
+      return false;
+    }
+    site_file_t f{};
+    f.name = name;
+    f.text = text;
+    m.files.push_back(std::move(f));
+  }
+  m.num_files = static_cast<int32_t>(m.files.size());
+  m.site_text = loaded.texts.site_text;
+  // Informative fields are clipped to their caps rather than refused.
+  const auto clip = [](std::string text, int32_t cap) {
+    if (text.size() >= static_cast<size_t>(cap)) text.resize(static_cast<size_t>(cap) - 1);
+    return text;
+  };
+  m.site_name = clip(loaded.site.name, wire_cap::kNameBytes);
+  m.site_path = clip(loaded.texts.site_path, wire_cap::kPathBytes);
+  std::string missing;
+  for (const auto& line : loaded.texts.missing) missing += (missing.empty() ? "" : "\n") + line;
+  m.missing = clip(missing, wire_cap::kPathBytes);
+  m.content_hash = loaded.content_hash;
+  m.roomfix_version = clip(RoomfixVersion(), wire_cap::kVersionBytes);
+  m.process = clip(process, wire_cap::kNameBytes);
+  char host[256] = {0};
+  if (::gethostname(host, sizeof(host) - 1) == 0) m.host = clip(host, wire_cap::kNameBytes);
+  m.pid = static_cast<int32_t>(::getpid());
+  *msg = std::move(m);
+  return true;
+}
+
+namespace {
+// LoadSiteFromMessage, with the refusal's reason for the counters:
+// "over_cap", "duplicate_file", "hash_mismatch" or "invalid_site".
+bool LoadFromMessage(const site_t& msg, const std::string& origin, LoadedSite* out,
+                     std::string* error, std::string* reason) {
+  LoadedSite loaded;
+  // The same cap as a site file read from disk (the wire cap is lower; this
+  // holds for a site_t that did not come through DecodeChecked).
+  if (msg.site_text.size() > kConfigFileCapBytes) {
+    *error = origin + ": site text of " + ByteSizeText(msg.site_text.size()) + " is over the " +
+             ByteSizeText(kConfigFileCapBytes) + " cap for configuration files";
+    *reason = "over_cap";
+    return false;
+  }
+  loaded.texts.site_text = msg.site_text;
+  loaded.texts.site_path = msg.site_path;
+  for (const auto& f : msg.files) {
+    if (f.text.size() > kConfigFileCapBytes) {
+      *error = origin + ": file '" + f.name + "' is over the " + ByteSizeText(kConfigFileCapBytes) +
+               " cap for configuration files";
+      *reason = "over_cap";
+      return false;
+    }
+    if (!loaded.texts.files.emplace(f.name, f.text).second) {
+      *error = origin + ": file '" + f.name + "' carried twice";
+      *reason = "duplicate_file";
+      return false;
+    }
+  }
+  const std::string hash = SiteContentHash(loaded.texts);
+  if (hash != msg.content_hash) {
+    *error = origin + ": content_hash " + ShortSiteHash(msg.content_hash) +
+             " does not match the texts carried (" + ShortSiteHash(hash) + ")";
+    *reason = "hash_mismatch";
+    return false;
+  }
+  // No folder: calibration names stay as written and key loaded.texts.files.
+  if (!ParseSite(msg.site_text, origin, "", &loaded.site, error)) {
+    *reason = "invalid_site";
+    return false;
+  }
+  loaded.site.path.clear();
+  if (!msg.missing.empty()) {
+    size_t start = 0;
+    while (start <= msg.missing.size()) {
+      const size_t end = msg.missing.find('\n', start);
+      loaded.texts.missing.push_back(msg.missing.substr(start, end - start));
+      if (end == std::string::npos) break;
+      start = end + 1;
+    }
+  }
+  loaded.content_hash = hash;
+  loaded.roomfix_version = msg.roomfix_version;
+  loaded.process = msg.process;
+  loaded.host = msg.host;
+  loaded.pid = msg.pid;
+  loaded.utime = msg.utime;
+  *out = std::move(loaded);
+  return true;
+}
+}  // namespace
+
+bool LoadSiteFromMessage(const site_t& msg, const std::string& origin, LoadedSite* out,
+                         std::string* error) {
+  std::string reason;
+  return LoadFromMessage(msg, origin, out, error, &reason);
+}
+
+const std::string* SiteCalibrationText(const LoadedSite& loaded, size_t camera_index) {
+  if (camera_index >= loaded.site.cameras.size()) return nullptr;
+  const std::string& file = loaded.site.cameras[camera_index].calibration_file;
+  if (file.empty()) return nullptr;
+  // A site loaded from a file has the name resolved against its folder; the
+  // texts are keyed by the name as written, which that path ends with.
+  auto it = loaded.texts.files.find(file);
+  if (it != loaded.texts.files.end()) return &it->second;
+  const std::string folder = DirName(loaded.texts.site_path) + "/";
+  if (file.rfind(folder, 0) == 0) {
+    it = loaded.texts.files.find(file.substr(folder.size()));
+    if (it != loaded.texts.files.end()) return &it->second;
+  }
+  return nullptr;
+}
+
+std::vector<std::string> SiteDifferences(const SiteTexts& a, const SiteTexts& b) {
+  std::vector<std::string> out;
+  DiffTexts(a.site_text, b.site_text, "", &out);
+  std::set<std::string> names;
+  for (const auto& kv : a.files) names.insert(kv.first);
+  for (const auto& kv : b.files) names.insert(kv.first);
+  for (const std::string& name : names) {
+    const auto ia = a.files.find(name);
+    const auto ib = b.files.find(name);
+    const std::string prefix = "calibration '" + name + "' ";
+    if (ia == a.files.end() || ib == b.files.end()) {
+      out.push_back(prefix + (ia == a.files.end() ? "absent -> present" : "present -> absent"));
+      continue;
+    }
+    DiffTexts(ia->second, ib->second, prefix, &out);
+  }
+  return out;
+}
+
+std::string SiteMismatchWarning(const LoadedSite& a, const std::string& what_a, const LoadedSite& b,
+                                const std::string& what_b, size_t max_keys) {
+  if (a.content_hash == b.content_hash) return "";
+  const std::vector<std::string> keys = SiteDifferences(a.texts, b.texts);
+  std::string line = what_a + " (" + ShortSiteHash(a.content_hash) + ") and " + what_b + " (" +
+                     ShortSiteHash(b.content_hash) + ") differ";
+  if (keys.empty()) return line + " only in layout or comments";
+  line += " at " + std::to_string(keys.size()) + (keys.size() == 1 ? " key: " : " keys: ");
+  for (size_t i = 0; i < keys.size() && i < max_keys; ++i) line += (i ? "; " : "") + keys[i];
+  if (keys.size() > max_keys) line += "; and " + std::to_string(keys.size() - max_keys) + " more";
+  return line;
+}
+
+void SiteHashTracker::Observe(const std::string& hash15, const std::string& who) {
+  by_hash_[hash15].insert(who);
+}
+
+void SiteHashTracker::ObserveSite(const site_t& msg) {
+  const int64_t value = SiteHashCounterValue(msg.content_hash);
+  if (value < 0) return;
+  Observe(SiteHashCounterText(value), Who(msg.process, msg.host, 0));
+}
+
+void SiteHashTracker::ObserveStatus(const process_status_t& msg) {
+  for (const auto& c : msg.counters) {
+    if (c.name == kSiteHashCounter && c.count >= 0) {
+      Observe(SiteHashCounterText(c.count), Who(msg.process, msg.host, 0));
+    }
+  }
+}
+
+std::string SiteHashTracker::Disagreement() const {
+  if (by_hash_.size() < 2) return "";
+  std::string line = "processes disagree on the site:";
+  bool first = true;
+  for (const auto& [hash, who] : by_hash_) {
+    line += first ? " " : "; ";
+    first = false;
+    line += hash.substr(0, 12) + " by ";
+    bool first_who = true;
+    for (const auto& w : who) {
+      line += (first_who ? "" : ", ") + w;
+      first_who = false;
+    }
+  }
+  return line;
+}
+
+bool ReadSiteFromLog(const std::string& log_path, SiteFromLog* out, std::string* error) {
+  auto reader = LogReader::Open(log_path, error);
+  if (reader == nullptr) return false;
+  SiteFromLog result;
+  SiteHashTracker tracker;
+  LogEvent event;
+  while (reader->Next(&event)) {
+    const bool is_site = event.channel == kSiteChannel;
+    if (!is_site && event.channel != "STATUS") continue;
+    const int size = static_cast<int>(event.data.size());
+    if (!is_site) {
+      process_status_t status;
+      if (DecodeChecked(event.data.data(), size, &status, nullptr)) tracker.ObserveStatus(status);
+      continue;
+    }
+    const auto refuse = [&](const std::string& reason, const std::string& detail) {
+      ++result.refused;
+      ++result.refused_by_reason[reason];
+      if (result.first_refusal.empty()) {
+        result.first_refusal = "event " + std::to_string(event.eventnum) + ": " + detail;
+      }
+    };
+    site_t msg;
+    std::string reason;
+    std::string detail;
+    if (!DecodeChecked(event.data.data(), size, &msg, &reason, &detail)) {
+      refuse(reason, detail);
+      continue;
+    }
+    const std::string origin = log_path + ": SITE from " + Who(msg.process, msg.host, msg.pid);
+    LoadedSite loaded;
+    std::string why;
+    if (!LoadFromMessage(msg, origin, &loaded, &why, &reason)) {
+      refuse(reason, why);
+      continue;
+    }
+    tracker.ObserveSite(msg);
+    if (result.accepted++ == 0) {
+      result.site = std::move(loaded);
+      result.event_utime = event.utime;
+    }
+  }
+  result.disagreement = tracker.Disagreement();
+  if (result.accepted == 0) {
+    *error = log_path + " holds no SITE message";
+    if (result.refused > 0) {
+      *error += " that passes: " + std::to_string(result.refused) + " refused (" +
+                RefusalCounts(result.refused_by_reason) + "); first " + result.first_refusal;
+    } else {
+      *error += " (recorded before processes published their site, or without the SITE channel)";
+    }
+    *error += "; give the site file with --config";
+    *out = std::move(result);
+    return false;
+  }
+  *out = std::move(result);
+  return true;
+}
+
+std::string DescribeSite(const LoadedSite& loaded) {
+  std::string line = loaded.site.name + ", hash " + ShortSiteHash(loaded.content_hash);
+  if (!loaded.process.empty()) {
+    line += ", roomfix " + (loaded.roomfix_version.empty() ? "?" : loaded.roomfix_version) +
+            ", published by " + Who(loaded.process, loaded.host, loaded.pid);
+    if (!loaded.texts.site_path.empty()) line += " from " + loaded.texts.site_path;
+  } else {
+    line += ", file " + loaded.texts.site_path;
+  }
+  if (!loaded.texts.missing.empty()) {
+    line +=
+        "; calibration files missing at the source: " + std::to_string(loaded.texts.missing.size());
+  }
+  return line;
+}
+
+bool ResolveToolSite(const std::string& config_path, const std::string& log_path, LoadedSite* out,
+                     std::string* used_line, std::vector<std::string>* warnings,
+                     std::string* error) {
+  SiteFromLog from_log;
+  std::string log_error;
+  const bool log_has_site = !log_path.empty() && ReadSiteFromLog(log_path, &from_log, &log_error);
+  if (!log_path.empty()) {
+    if (from_log.refused > 0) {
+      warnings->push_back(log_path + ": " + std::to_string(from_log.refused) +
+                          " SITE messages refused (" + RefusalCounts(from_log.refused_by_reason) +
+                          "); first " + from_log.first_refusal);
+    }
+    if (!from_log.disagreement.empty()) {
+      warnings->push_back(log_path + ": " + from_log.disagreement);
+    }
+  }
+  if (config_path.empty()) {
+    if (!log_has_site) {
+      *error = log_path.empty() ? "no site: give --config" : log_error;
+      return false;
+    }
+    *out = std::move(from_log.site);
+    *used_line = "site from " + log_path + ": " + DescribeSite(*out);
+    return true;
+  }
+  LoadedSite file;
+  if (!LoadSiteWithTexts(config_path, &file, error)) return false;
+  *used_line = "site from --config " + config_path + ": " + DescribeSite(file);
+  if (log_has_site) {
+    const std::string mismatch = SiteMismatchWarning(from_log.site, "the site in " + log_path, file,
+                                                     "--config " + config_path);
+    if (!mismatch.empty()) warnings->push_back(mismatch);
+  }
+  *out = std::move(file);
+  return true;
+}
+
+void SetProcessSite(std::shared_ptr<const site_t> msg) {
+  std::lock_guard<std::mutex> lock(g_site_mutex);
+  g_site = std::move(msg);
+  g_site_last_publish_utime = -1;
+}
+
+std::shared_ptr<const site_t> ProcessSite() {
+  std::lock_guard<std::mutex> lock(g_site_mutex);
+  return g_site;
+}
+
+bool MaybePublishProcessSite(Bus* bus, int64_t now_utime) {
+  std::shared_ptr<const site_t> site;
+  {
+    std::lock_guard<std::mutex> lock(g_site_mutex);
+    if (g_site == nullptr) return false;
+    if (g_site_last_publish_utime >= 0 && now_utime - g_site_last_publish_utime < kSitePeriodUs) {
+      return false;
+    }
+    g_site_last_publish_utime = now_utime;
+    site = g_site;
+  }
+  site_t msg = *site;
+  msg.utime = now_utime;
+  return bus->Publish(kSiteChannel, msg);
+}
+
+}  // namespace roomfix

@@ -1,0 +1,187 @@
+#ifndef ROOMFIX_MSGIO_SITE_MESSAGE_H_
+#define ROOMFIX_MSGIO_SITE_MESSAGE_H_
+
+// The site travels with the data: every process that loads a site publishes
+// it as a site_t on SITE (its text, its calibration files' texts, their
+// SHA-256), at start and every kSitePeriodUs, and states the hash in STATUS
+// (the `site_hash` counter). Tools reading a log take the site from there when
+// no --config is given (docs/messages.md, docs/site_file.md).
+//
+// A site_t from a bus or a log is outside input: it is decoded only with
+// DecodeChecked, and its texts go through exactly the checks a site file
+// does (ReadConfigFile's size cap, ParseSite: YAML syntax, duplicated keys,
+// every validation rule), plus the hash, which must match the texts.
+// Calibration files the site names resolve to the texts the message
+// carries, never to files on disk.
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <set>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "core/world/site.h"
+#include "msgio/bus.h"
+#include "roomfix/process_status_t.hpp"
+#include "roomfix/site_t.hpp"
+
+namespace roomfix {
+
+inline constexpr char kSiteChannel[] = "SITE";
+// How often a process republishes its site: a log started (or a logger
+// restarted) mid-run holds a SITE within this long. 5 s of a few kB is
+// negligible beside the poses and ranges.
+inline constexpr int64_t kSitePeriodUs = 5000000;
+// The STATUS counter (a gauge, StatusReporter::SetCounter) holding the first
+// 60 bits of the site's SHA-256: the first 15 hex digits of content_hash read
+// as one number. Carried as a counter so process_status_t, its fingerprint
+// and every recorded log keep working (docs/messages.md says why).
+inline constexpr char kSiteHashCounter[] = "site_hash";
+
+// The texts a site is made of. `files` are the calibration files the
+// cameras name, by the name as the site file writes it, without repeats;
+// `missing` are names whose files could not be read (with the reason), which
+// the process runs without (only camera_proc needs them, and refuses then).
+struct SiteTexts {
+  std::string site_path;
+  std::string site_text;
+  std::map<std::string, std::string> files;
+  std::vector<std::string> missing;
+};
+
+// A site with the texts it was loaded from and where it came from.
+struct LoadedSite {
+  Site site;
+  SiteTexts texts;
+  // SiteContentHash(texts): 64 lower-case hex digits.
+  std::string content_hash;
+  // From a site_t only (empty or 0 for a file): the publisher and its
+  // version, and the message's utime.
+  std::string roomfix_version;
+  std::string process;
+  std::string host;
+  int32_t pid = 0;
+  int64_t utime = 0;
+};
+
+// This build's version (CMake PROJECT_VERSION).
+std::string RoomfixVersion();
+
+// SHA-256 over the site text and the files (sorted by name), each length-
+// prefixed so that no two different sets of texts hash alike by moving bytes
+// between them. 64 lower-case hex digits.
+std::string SiteContentHash(const SiteTexts& texts);
+// The first 15 hex digits of a content hash as the non-negative number the
+// STATUS `site_hash` counter holds; -1 for a malformed hash.
+int64_t SiteHashCounterValue(const std::string& content_hash);
+// The counter value back as 15 hex digits (to compare with a content_hash's
+// start, and for messages).
+std::string SiteHashCounterText(int64_t value);
+// The short form people see: the first 12 hex digits.
+std::string ShortSiteHash(const std::string& content_hash);
+
+// Loads a site file as LoadSite does (same checks, same error lines) and
+// reads the calibration files its cameras name (resolved against the site's
+// folder, through ReadConfigFile).
+bool LoadSiteWithTexts(const std::string& path, LoadedSite* out, std::string* error);
+
+// The message for a loaded site, published by `process` at `utime`. False
+// with a one-line reason when a text is over its wire cap (site text 1 MiB,
+// a file 256 KiB, 16 files; docs/messages.md): a receiver would refuse it.
+bool MakeSiteMessage(const LoadedSite& loaded, const std::string& process, int64_t utime,
+                     site_t* msg, std::string* error);
+
+// The site a site_t carries, through the same checks as a site file (size
+// cap, YAML, duplicated keys, validation) plus: the content hash matches the
+// texts, file names are unique. `origin` names the message in errors and
+// becomes the site's name for messages ("demo.lcm: SITE from trilat_proc").
+// False with one line.
+bool LoadSiteFromMessage(const site_t& msg, const std::string& origin, LoadedSite* out,
+                         std::string* error);
+
+// The text of the calibration a camera of a loaded site names, from the
+// texts loaded with it (never from disk), or nullptr when the site carries
+// none (the camera names none, or its file was missing at the publisher).
+// Parse it with calib::ParseCalibration(*text, name, ...).
+const std::string* SiteCalibrationText(const LoadedSite& loaded, size_t camera_index);
+
+// The keys at which two sites differ, as key paths ("receivers[2].position_m[0]:
+// 2.5 -> 2.55", "cameras[0].calibration file 'x.yaml': intrinsics.fx_px: ...").
+// Both site texts are parsed as YAML and compared key by key (numbers
+// numerically, so 2.50 equals 2.5); the calibration files carried are
+// compared the same way by name. Empty when they agree.
+std::vector<std::string> SiteDifferences(const SiteTexts& a, const SiteTexts& b);
+// One warning line for two sites: "" when the hashes are equal, otherwise
+// "<what_a> and <what_b> differ at N keys: k1, k2, ... (and M more)".
+std::string SiteMismatchWarning(const LoadedSite& a, const std::string& what_a, const LoadedSite& b,
+                                const std::string& what_b, size_t max_keys = 8);
+
+// Which site each process states, from SITE messages and STATUS `site_hash`
+// counters: processes disagree when two of them state different hashes
+// (compared on the 15 hex digits STATUS carries).
+class SiteHashTracker {
+ public:
+  void ObserveSite(const site_t& msg);
+  void ObserveStatus(const process_status_t& msg);
+  // "" when at most one hash was seen; otherwise one line naming each hash
+  // and who stated it: "processes disagree on the site: 1a2b3c4d5e6f by
+  // trilat_proc@lab-pc; 9f8e7d6c5b4a by fusion_proc@lab-pc2".
+  std::string Disagreement() const;
+  size_t distinct_hashes() const { return by_hash_.size(); }
+
+ private:
+  void Observe(const std::string& hash15, const std::string& who);
+  std::map<std::string, std::set<std::string>> by_hash_;
+};
+
+// What a log says about its site.
+struct SiteFromLog {
+  // The site of the first SITE message that passed every check.
+  LoadedSite site;
+  // Its event's receive time, microseconds.
+  int64_t event_utime = 0;
+  // SITE messages that passed, and those refused (wire check, hash, site
+  // validation) by reason: wire_refusal::* or "hash_mismatch",
+  // "invalid_site"; the first refusal in words.
+  int64_t accepted = 0;
+  int64_t refused = 0;
+  std::map<std::string, int64_t> refused_by_reason;
+  std::string first_refusal;
+  // "" or the disagreement line (SiteHashTracker) over the whole log.
+  std::string disagreement;
+};
+
+// Reads every SITE (and STATUS) event of a log. False with a one-line error
+// when the log cannot be read or holds no SITE that passes ("LOG holds no
+// SITE message: give --config" or "... N SITE messages refused (reasons):
+// first: ...").
+bool ReadSiteFromLog(const std::string& log_path, SiteFromLog* out, std::string* error);
+
+// The one line tools print on stderr: "site: demo_room, hash 1a2b3c4d5e6f,
+// roomfix 0.1.0, published by trilat_proc@lab-pc (pid 12)".
+std::string DescribeSite(const LoadedSite& loaded);
+
+// What a tool uses: the site of --config when given (warning on stderr
+// lines in *warnings when the log's differs, naming the keys), otherwise the
+// log's. *used_line says which ("site from LOG: ..." or "site from --config
+// PATH: ..."). A log with neither SITE nor --config is an error saying so.
+bool ResolveToolSite(const std::string& config_path, const std::string& log_path, LoadedSite* out,
+                     std::string* used_line, std::vector<std::string>* warnings,
+                     std::string* error);
+
+// The site this process loaded: StartProcess sets it, and every
+// StatusReporter of the process then publishes it on SITE (at its first
+// heartbeat and every kSitePeriodUs) and its hash in STATUS. One per
+// process because every node builds its own StatusReporter while the
+// process has one site.
+void SetProcessSite(std::shared_ptr<const site_t> msg);
+std::shared_ptr<const site_t> ProcessSite();
+// Publishes the process's site when one is set and kSitePeriodUs has
+// passed since the last time (or never published). True when it published.
+bool MaybePublishProcessSite(Bus* bus, int64_t now_utime);
+
+}  // namespace roomfix
+
+#endif  // ROOMFIX_MSGIO_SITE_MESSAGE_H_

@@ -1,0 +1,380 @@
+#include "msgio/site_message.h"
+
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+#include "core/world/file_io.h"
+#include "msgio/log.h"
+#include "msgio/process.h"
+#include "msgio/wire_check.h"
+#include "msgio/wire_test_messages.h"
+#include "tests/testing/test_paths.h"
+
+namespace roomfix {
+namespace {
+
+using testing::Encode;
+using testing::TempDir;
+
+std::string DemoSitePath() { return testing::SourceDir() + "/config/sites/demo_room.yaml"; }
+
+LoadedSite LoadDemo() {
+  LoadedSite loaded;
+  std::string error;
+  EXPECT_TRUE(LoadSiteWithTexts(DemoSitePath(), &loaded, &error)) << error;
+  return loaded;
+}
+
+site_t DemoMessage(const LoadedSite& loaded) {
+  site_t msg;
+  std::string error;
+  EXPECT_TRUE(MakeSiteMessage(loaded, "trilat_proc", 1700000000000000, &msg, &error)) << error;
+  return msg;
+}
+
+// The bytes a receiver gets, decoded the only way roomfix decodes them.
+site_t ThroughTheWire(const site_t& msg) {
+  const std::vector<uint8_t> bytes = Encode(msg);
+  site_t out;
+  std::string reason;
+  EXPECT_TRUE(DecodeChecked(bytes.data(), static_cast<int>(bytes.size()), &out, &reason)) << reason;
+  return out;
+}
+
+std::string Replace(std::string text, const std::string& from, const std::string& to) {
+  const size_t at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  if (at != std::string::npos) text.replace(at, from.size(), to);
+  return text;
+}
+
+TEST(SiteMessage, ASiteFileTravelsAndComesBackAsTheSameSite) {
+  const LoadedSite original = LoadDemo();
+  // The demo names one calibration, read beside the site file.
+  ASSERT_EQ(original.texts.files.size(), 1u);
+  EXPECT_EQ(original.texts.files.begin()->first, "../calibration/demo_room_camera.yaml");
+  EXPECT_TRUE(original.texts.missing.empty());
+  EXPECT_EQ(original.content_hash.size(), 64u);
+
+  const site_t msg = ThroughTheWire(DemoMessage(original));
+  EXPECT_EQ(msg.content_hash, original.content_hash);
+  EXPECT_EQ(msg.roomfix_version, RoomfixVersion());
+  EXPECT_EQ(msg.process, "trilat_proc");
+
+  LoadedSite back;
+  std::string error;
+  ASSERT_TRUE(LoadSiteFromMessage(msg, "test SITE", &back, &error)) << error;
+  EXPECT_EQ(back.content_hash, original.content_hash);
+  EXPECT_TRUE(SiteDifferences(original.texts, back.texts).empty());
+  EXPECT_EQ(back.site.name, "demo_room");
+  ASSERT_EQ(back.site.receivers.size(), original.site.receivers.size());
+  for (size_t i = 0; i < back.site.receivers.size(); ++i) {
+    EXPECT_EQ(back.site.receivers[i].id, original.site.receivers[i].id);
+    EXPECT_EQ(back.site.receivers[i].address, original.site.receivers[i].address);
+    EXPECT_EQ(back.site.receivers[i].position_m, original.site.receivers[i].position_m);
+    EXPECT_EQ(back.site.receivers[i].range_offset_m, original.site.receivers[i].range_offset_m);
+  }
+  ASSERT_EQ(back.site.cameras.size(), 1u);
+  EXPECT_EQ(back.site.simulation.robots.size(), original.site.simulation.robots.size());
+  // The calibration resolves to the carried text, not to a path on disk.
+  EXPECT_EQ(back.site.cameras[0].calibration_file, "../calibration/demo_room_camera.yaml");
+  const std::string* text = SiteCalibrationText(back, 0);
+  ASSERT_NE(text, nullptr);
+  std::string on_disk;
+  ASSERT_TRUE(ReadConfigFile(testing::SourceDir() + "/config/calibration/demo_room_camera.yaml",
+                             &on_disk, &error));
+  EXPECT_EQ(*text, on_disk);
+  // And from the original too, whose path was resolved against its folder.
+  ASSERT_NE(SiteCalibrationText(original, 0), nullptr);
+  EXPECT_EQ(*SiteCalibrationText(original, 0), on_disk);
+}
+
+TEST(SiteMessage, TheCarriedCalibrationIsUsedEvenWhereNoFileIsOnDisk) {
+  // The site in a temporary folder with no calibration beside it: loaded
+  // from the message, the calibration is still there.
+  LoadedSite original = LoadDemo();
+  original.texts.files.begin()->second = "model: full\n# edited\n";
+  original.content_hash = SiteContentHash(original.texts);
+  LoadedSite back;
+  std::string error;
+  ASSERT_TRUE(LoadSiteFromMessage(ThroughTheWire(DemoMessage(original)), "m", &back, &error));
+  EXPECT_EQ(*SiteCalibrationText(back, 0), "model: full\n# edited\n");
+}
+
+TEST(SiteMessage, TheHashChangesWithAnyTextAndNotWithFileOrder) {
+  SiteTexts a;
+  a.site_text = "name: x\n";
+  a.files["a.yaml"] = "1";
+  a.files["b.yaml"] = "2";
+  SiteTexts b = a;
+  EXPECT_EQ(SiteContentHash(a), SiteContentHash(b));
+  b.files["a.yaml"] = "12";
+  b.files["b.yaml"] = "";
+  // The same bytes moved between files: length prefixes tell them apart.
+  EXPECT_NE(SiteContentHash(a), SiteContentHash(b));
+  SiteTexts c = a;
+  c.site_text = "name: y\n";
+  EXPECT_NE(SiteContentHash(a), SiteContentHash(c));
+  // SHA-256 of the framed texts, in hex: a known value pins the framing, so
+  // that a change to it (which would make every recorded hash disagree) is
+  // deliberate.
+  SiteTexts empty;
+  EXPECT_EQ(SiteContentHash(empty).size(), 64u);
+  EXPECT_EQ(SiteHashCounterText(SiteHashCounterValue(SiteContentHash(a))),
+            SiteContentHash(a).substr(0, 15));
+  EXPECT_EQ(SiteHashCounterValue("zz"), -1);
+}
+
+TEST(SiteMessage, AMismatchNamesTheDifferingKeysByPath) {
+  const LoadedSite original = LoadDemo();
+  LoadedSite moved = original;
+  moved.texts.site_text =
+      Replace(Replace(original.texts.site_text, "position_m: [4.0, 3.0, 2.5], range_offset_m: 0.0",
+                      "position_m: [4.05, 3.0, 2.5], range_offset_m: 0.03"),
+              "height_m: 3.3 ", "height_m: 3.30 ");  // the same number written otherwise
+  moved.content_hash = SiteContentHash(moved.texts);
+  const std::vector<std::string> keys = SiteDifferences(original.texts, moved.texts);
+  EXPECT_EQ(keys, (std::vector<std::string>{"receivers[2].position_m[0]: 4.0 -> 4.05",
+                                            "receivers[2].range_offset_m: 0.0 -> 0.03"}));
+  const std::string warning = SiteMismatchWarning(original, "the log's site", moved, "--config");
+  EXPECT_NE(warning.find("differ at 2 keys: receivers[2].position_m[0]: 4.0 -> 4.05; "
+                         "receivers[2].range_offset_m: 0.0 -> 0.03"),
+            std::string::npos)
+      << warning;
+  EXPECT_EQ(SiteMismatchWarning(original, "a", original, "b"), "");
+
+  // Calibration files differ by name and key too; added keys are named.
+  moved = original;
+  moved.texts.files.begin()->second =
+      Replace(moved.texts.files.begin()->second, "fx_px: 916.47728685868469", "fx_px: 917.0");
+  const std::vector<std::string> cal = SiteDifferences(original.texts, moved.texts);
+  ASSERT_EQ(cal.size(), 1u);
+  EXPECT_EQ(cal[0],
+            "calibration '../calibration/demo_room_camera.yaml' intrinsics.fx_px: "
+            "916.47728685868469 -> 917.0");
+  // A key present on one side only is named as absent on the other.
+  moved.texts.site_text = original.texts.site_text + "beacons_note: x\n";
+  EXPECT_EQ(SiteDifferences(original.texts, moved.texts)[0], "beacons_note: absent -> x");
+}
+
+TEST(SiteMessage, ACommentOnlyChangeIsADifferentHashButNoKey) {
+  const LoadedSite original = LoadDemo();
+  LoadedSite commented = original;
+  commented.texts.site_text += "# surveyed again 2026-11-20\n";
+  commented.content_hash = SiteContentHash(commented.texts);
+  EXPECT_NE(SiteMismatchWarning(original, "a", commented, "b").find("only in layout or comments"),
+            std::string::npos);
+}
+
+TEST(SiteMessage, HostileSiteMessagesAreRefusedWithAReason) {
+  const LoadedSite original = LoadDemo();
+  LoadedSite out;
+  std::string error;
+
+  site_t wrong_hash = DemoMessage(original);
+  wrong_hash.content_hash[0] = wrong_hash.content_hash[0] == '0' ? '1' : '0';
+  EXPECT_FALSE(LoadSiteFromMessage(wrong_hash, "m", &out, &error));
+  EXPECT_NE(error.find("content_hash"), std::string::npos) << error;
+
+  // Text edited after hashing: the hash no longer matches.
+  site_t edited = DemoMessage(original);
+  edited.site_text += "\n";
+  EXPECT_FALSE(LoadSiteFromMessage(edited, "m", &out, &error));
+  EXPECT_NE(error.find("does not match"), std::string::npos) << error;
+
+  // Not YAML, with a matching hash: the site file's own error.
+  LoadedSite broken = original;
+  broken.texts.site_text = "name: [unclosed\n";
+  broken.content_hash = SiteContentHash(broken.texts);
+  site_t invalid = DemoMessage(broken);
+  EXPECT_FALSE(LoadSiteFromMessage(invalid, "log.lcm: SITE", &out, &error));
+  EXPECT_EQ(error.rfind("log.lcm: SITE:", 0), 0u) << error;
+
+  // A duplicated key, which yaml-cpp alone would accept (last wins).
+  broken.texts.site_text = original.texts.site_text + "name: other_room\n";
+  broken.content_hash = SiteContentHash(broken.texts);
+  EXPECT_FALSE(LoadSiteFromMessage(DemoMessage(broken), "m", &out, &error));
+  EXPECT_NE(error.find("duplicated key 'name'"), std::string::npos) << error;
+
+  // Valid YAML, invalid site: two receivers only.
+  broken.texts.site_text = Replace(original.texts.site_text,
+                                   "  - {id: 4, address: \"0x0013A20041000004\", position_m: "
+                                   "[0.0, 3.0, 2.5], range_offset_m: 0.0}\n",
+                                   "");
+  broken.texts.site_text = Replace(broken.texts.site_text,
+                                   "  - {id: 3, address: \"0x0013A20041000003\", position_m: "
+                                   "[4.0, 3.0, 2.5], range_offset_m: 0.0}\n",
+                                   "");
+  broken.content_hash = SiteContentHash(broken.texts);
+  EXPECT_FALSE(LoadSiteFromMessage(DemoMessage(broken), "m", &out, &error));
+  EXPECT_NE(error.find("receivers"), std::string::npos) << error;
+
+  // The same file twice.
+  site_t twice = DemoMessage(original);
+  twice.files.push_back(twice.files[0]);
+  twice.num_files = 2;
+  EXPECT_FALSE(LoadSiteFromMessage(twice, "m", &out, &error));
+  EXPECT_NE(error.find("carried twice"), std::string::npos) << error;
+
+  // Over the configuration file cap, when not through the wire check.
+  site_t huge = DemoMessage(original);
+  huge.site_text.assign(kConfigFileCapBytes + 1, '#');
+  EXPECT_FALSE(LoadSiteFromMessage(huge, "m", &out, &error));
+  EXPECT_NE(error.find("cap for configuration files"), std::string::npos) << error;
+}
+
+TEST(SiteMessage, ASiteOverTheWireCapIsNotMadeIntoAMessage) {
+  LoadedSite big = LoadDemo();
+  big.texts.site_text.append(wire_cap::kSiteTextBytes, '#');
+  site_t msg;
+  std::string error;
+  EXPECT_FALSE(MakeSiteMessage(big, "p", 0, &msg, &error));
+  EXPECT_NE(error.find("over the 1048575 bytes a site_t carries"), std::string::npos) << error;
+}
+
+// Writes a log of the given SITE payloads (and a STATUS) for ReadSiteFromLog.
+std::string WriteLog(const TempDir& dir, const std::vector<std::vector<uint8_t>>& sites,
+                     const std::vector<process_status_t>& statuses = {}) {
+  const std::string path = dir.File("site.lcm");
+  std::string error;
+  auto writer = LogWriter::Create(path, true, &error);
+  EXPECT_NE(writer, nullptr) << error;
+  int64_t t = 1700000000000000;
+  for (const auto& bytes : sites) {
+    EXPECT_TRUE(writer->Write(t += 1000, kSiteChannel, bytes.data(), static_cast<int>(bytes.size()),
+                              &error))
+        << error;
+  }
+  for (const auto& s : statuses) {
+    const auto bytes = Encode(s);
+    EXPECT_TRUE(writer->Write(t += 1000, kStatusChannel, bytes.data(),
+                              static_cast<int>(bytes.size()), &error));
+  }
+  EXPECT_TRUE(writer->Flush(&error));
+  return path;
+}
+
+TEST(SiteFromLog, TakesTheFirstGoodSiteAndCountsTheRefusedOnes) {
+  const LoadedSite original = LoadDemo();
+  site_t wrong_hash = DemoMessage(original);
+  wrong_hash.content_hash = std::string(64, 'f');
+  std::vector<uint8_t> oversized = Encode(DemoMessage(original));
+  testing::PutInt32(&oversized, 8 + 8 + 4 + 10, wire_cap::kSiteTextBytes + 1);  // site_path len
+  TempDir dir;
+  const std::string path =
+      WriteLog(dir, {Encode(wrong_hash), oversized, Encode(DemoMessage(original))});
+  SiteFromLog from_log;
+  std::string error;
+  ASSERT_TRUE(ReadSiteFromLog(path, &from_log, &error)) << error;
+  EXPECT_EQ(from_log.accepted, 1);
+  EXPECT_EQ(from_log.refused, 2);
+  EXPECT_EQ(from_log.refused_by_reason.at("hash_mismatch"), 1);
+  EXPECT_EQ(from_log.refused_by_reason.count("hash_mismatch") +
+                from_log.refused_by_reason.count("string_over_cap") +
+                from_log.refused_by_reason.count("truncated"),
+            2u);
+  EXPECT_EQ(from_log.site.content_hash, original.content_hash);
+  EXPECT_EQ(from_log.site.process, "trilat_proc");
+  EXPECT_EQ(from_log.disagreement, "");
+}
+
+TEST(SiteFromLog, ALogWithoutASiteIsAClearError) {
+  TempDir dir;
+  const std::string path = WriteLog(dir, {}, {testing::MakeTestStatus()});
+  SiteFromLog from_log;
+  std::string error;
+  EXPECT_FALSE(ReadSiteFromLog(path, &from_log, &error));
+  EXPECT_NE(error.find("holds no SITE message"), std::string::npos) << error;
+  EXPECT_NE(error.find("--config"), std::string::npos) << error;
+
+  LoadedSite site;
+  std::string used;
+  std::vector<std::string> warnings;
+  EXPECT_FALSE(ResolveToolSite("", path, &site, &used, &warnings, &error));
+  EXPECT_NE(error.find("holds no SITE message"), std::string::npos) << error;
+}
+
+TEST(SiteFromLog, ProcessesStatingDifferentSitesAreNamed) {
+  const LoadedSite original = LoadDemo();
+  process_status_t other = testing::MakeTestStatus();
+  other.process = "fusion_proc";
+  other.host = "lab-pc2";
+  other.counters.push_back(testing::MakeTestCounter(kSiteHashCounter, 0x123456789abcdefLL));
+  other.num_counters = static_cast<int32_t>(other.counters.size());
+  TempDir dir;
+  const std::string path = WriteLog(dir, {Encode(DemoMessage(original))}, {other});
+  SiteFromLog from_log;
+  std::string error;
+  ASSERT_TRUE(ReadSiteFromLog(path, &from_log, &error)) << error;
+  EXPECT_NE(from_log.disagreement.find("processes disagree on the site"), std::string::npos);
+  EXPECT_NE(from_log.disagreement.find("123456789abc by fusion_proc@lab-pc2"), std::string::npos)
+      << from_log.disagreement;
+  EXPECT_NE(from_log.disagreement.find(ShortSiteHash(original.content_hash) + " by trilat_proc@"),
+            std::string::npos)
+      << from_log.disagreement;
+}
+
+TEST(SiteFromLog, ConfigBesideALogWarnsWithTheDifferingKeys) {
+  LoadedSite logged = LoadDemo();
+  logged.texts.site_text = Replace(logged.texts.site_text, "range_offset_m: 0.0}\n  - {id: 2",
+                                   "range_offset_m: 0.02}\n  - {id: 2");
+  logged.content_hash = SiteContentHash(logged.texts);
+  TempDir dir;
+  const std::string path = WriteLog(dir, {Encode(DemoMessage(logged))});
+
+  LoadedSite used;
+  std::string line;
+  std::vector<std::string> warnings;
+  std::string error;
+  ASSERT_TRUE(ResolveToolSite(DemoSitePath(), path, &used, &line, &warnings, &error)) << error;
+  EXPECT_EQ(line.rfind("site from --config " + DemoSitePath(), 0), 0u) << line;
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_NE(warnings[0].find("receivers[0].range_offset_m: 0.02 -> 0.0"), std::string::npos)
+      << warnings[0];
+
+  warnings.clear();
+  ASSERT_TRUE(ResolveToolSite("", path, &used, &line, &warnings, &error)) << error;
+  EXPECT_TRUE(warnings.empty());
+  EXPECT_EQ(used.content_hash, logged.content_hash);
+  EXPECT_EQ(
+      line.rfind("site from " + path + ": demo_room, hash " + ShortSiteHash(logged.content_hash) +
+                     ", roomfix " + RoomfixVersion() + ", published by trilat_proc@",
+                 0),
+      0u)
+      << line;
+}
+
+TEST(ProcessSite, PublishedAtTheFirstHeartbeatAndEveryFiveSeconds) {
+  const LoadedSite original = LoadDemo();
+  SetProcessSite(std::make_shared<site_t>(DemoMessage(original)));
+  LoopbackBus bus;
+  std::vector<int64_t> site_utimes;
+  bus.Subscribe<site_t>(
+      kSiteChannel, [&](const site_t& m, const MessageInfo&) { site_utimes.push_back(m.utime); });
+  std::vector<process_status_t> statuses;
+  bus.Subscribe<process_status_t>(
+      kStatusChannel,
+      [&](const process_status_t& m, const MessageInfo&) { statuses.push_back(m); });
+  StatusReporter status("trilat_proc", 0);
+  const int64_t t0 = 1700000000000000;
+  // A heartbeat every second for 11 s: SITE at 0, 5 and 10 s.
+  for (int s = 0; s <= 11; ++s) status.MaybePublish(&bus, t0 + s * 1000000LL);
+  EXPECT_EQ(site_utimes, (std::vector<int64_t>{t0, t0 + 5000000, t0 + 10000000}));
+  ASSERT_EQ(statuses.size(), 12u);
+  bool stated = false;
+  for (const auto& c : statuses.back().counters) {
+    if (c.name == kSiteHashCounter) {
+      stated = true;
+      EXPECT_EQ(SiteHashCounterText(c.count), original.content_hash.substr(0, 15));
+    }
+  }
+  EXPECT_TRUE(stated);
+  SetProcessSite(nullptr);
+  status.Publish(&bus, t0 + 20000000);
+  EXPECT_EQ(site_utimes.size(), 3u);
+}
+
+}  // namespace
+}  // namespace roomfix
