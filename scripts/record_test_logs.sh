@@ -38,7 +38,7 @@ record "$data/trilat_replay.lcm" 'RANGES|POSE_ULTRASOUND' -- \
 # camera, trilat_proc robust, fusion_proc) for the replay tests
 # (tools/replay_test.cc): their inputs and outputs, without the camera's
 # pixels and previews, which the replay does not use.
-record "$data/pipeline_replay.lcm" 'RANGES|POSE_.*|STATUS' -- \
+record "$data/pipeline_replay.lcm" 'RANGES|POSE_.*|STATUS|SITE' -- \
   "'$bin/trilat_proc' --config '$site' --method robust --log-level warn & solver=\$!;
    '$bin/fusion_proc' --config '$site' --log-level warn & fusion=\$!;
    start=\$(( \$(date +%s%6N) + 1000000 ));

@@ -39,12 +39,13 @@ struct Case {
 };
 
 int RunBenchReplay(const BenchReplayArgs& args) {
-  Site site;
+  ReplaySite replay_site;
   std::string error;
-  if (!LoadSite(args.site_path, &site, &error)) {
+  if (!ResolveReplaySite(args.log_path, args.site_path, "", &replay_site, &error)) {
     std::cerr << "roomfix bench replay: " << error << "\n";
     return 1;
   }
+  const Site& site = replay_site.loaded.site;
   if (args.repeat < 1) {
     std::cerr << "roomfix bench replay: --repeat must be at least 1\n";
     return 1;
@@ -123,7 +124,8 @@ void AddBenchReplayCommand(CLI::App* bench, int* exit_code) {
   auto args = std::make_shared<BenchReplayArgs>();
   cmd->add_option("LOG", args->log_path, "Recorded log with RANGES, POSE_CAMERA, POSE_ULTRASOUND")
       ->required();
-  cmd->add_option("--config", args->site_path, "The site file the log was recorded in")->required();
+  cmd->add_option("--config", args->site_path,
+                  "The site file the log was recorded in (default: the log's SITE)");
   cmd->add_option("--repeat", args->repeat, "Runs per case (the median is printed)")
       ->capture_default_str();
   cmd->add_flag("--json", args->json, "Print one JSON object instead of a table");

@@ -3,6 +3,7 @@
 #include <sys/stat.h>
 
 #include <cmath>
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -73,7 +74,39 @@ bool RestampRanges(const Site& site, std::vector<uint8_t>* data, PipelineReplayS
   return set.encode(data->data(), 0, size) == size;
 }
 
+int64_t SaturatingAddUs(int64_t a, int64_t b) { return a > INT64_MAX - b ? INT64_MAX : a + b; }
+
 }  // namespace
+
+bool MakeReplaySiteMessage(const LoadedSite& loaded, site_t* msg, std::string* error) {
+  if (!MakeSiteMessage(loaded, "roomfix replay", 0, msg, error)) return false;
+  msg->host = "replay";
+  msg->pid = 0;
+  return true;
+}
+
+bool ResolveReplaySite(const std::string& log_path, const std::string& config_path,
+                       const std::string& new_site_path, ReplaySite* out, std::string* error) {
+  if (!config_path.empty() && !new_site_path.empty()) {
+    *error = "give --config (the recorded site) or --site (a new one), not both";
+    return false;
+  }
+  out->is_new = !new_site_path.empty();
+  out->from_file = !config_path.empty() || out->is_new;
+  const std::string& path = out->is_new ? new_site_path : config_path;
+  std::vector<std::string> lines;
+  if (!ResolveToolSite(path, log_path, &out->loaded, &out->used_line, &lines, error)) {
+    if (!out->from_file) *error += " (or --site NEW.yaml)";
+    return false;
+  }
+  if (out->is_new) {
+    out->used_line = "new site from --site " + new_site_path + ": " + DescribeSite(out->loaded);
+    out->notes = lines;
+  } else {
+    out->warnings = lines;
+  }
+  return true;
+}
 
 bool PipelineReplayOptions::IsValid(std::string* error) const {
   if (!trilat && !fusion) {
@@ -122,6 +155,9 @@ PipelineReplaySummary ReplayPipeline(LogReader* in, const Site& site,
   std::vector<std::string> replaced;
   if (options.trilat) replaced.push_back(kUltrasoundPoseChannel);
   if (options.fusion) replaced.push_back(options.fusion_options.fused_channel);
+  if (options.site_message) replaced.push_back(kSiteChannel);
+  std::vector<uint8_t> site_bytes;
+  int64_t next_site_utime = 0;
 
   // The nodes start at the log's first event, as the live ones started
   // before it; their uptime in REPLAY_STATUS is log time.
@@ -157,6 +193,15 @@ PipelineReplaySummary ReplayPipeline(LogReader* in, const Site& site,
       }
       tick(next_tick);
       next_tick += tick_us;
+    }
+    if (options.site_message && event.utime >= next_site_utime) {
+      site_t site_msg = *options.site_message;
+      site_msg.utime = event.utime;
+      site_bytes.assign(static_cast<size_t>(site_msg.getEncodedSize()), 0);
+      site_msg.encode(site_bytes.data(), 0, static_cast<int>(site_bytes.size()));
+      write(event.utime, kSiteChannel, site_bytes.data(), static_cast<int>(site_bytes.size()));
+      ++summary.new_outputs[kSiteChannel];
+      next_site_utime = SaturatingAddUs(event.utime, kSitePeriodUs);
     }
     bool is_replaced = false;
     for (const std::string& channel : replaced)

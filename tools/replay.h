@@ -3,11 +3,14 @@
 
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <string>
+#include <vector>
 
 #include "core/world/site.h"
 #include "fusion/fusion_node.h"
 #include "msgio/log.h"
+#include "msgio/site_message.h"
 #include "roomfix/process_status_t.hpp"
 #include "trilat_proc/trilat_node.h"
 
@@ -36,6 +39,12 @@ struct PipelineReplayOptions {
   bool restamp_ranges = false;
   // Ticks on a grid of log time, as RunLoop ticks a live node every 10 ms.
   int tick_period_ms = 10;
+  // The site the new log carries, when it is not the recorded one (a site
+  // file given on the command line): the recorded SITE events are left out
+  // and this one is written at the first event's log time and every
+  // kSitePeriodUs of log time after, as a live process publishes it, with
+  // that time as its utime. Unset: the recorded SITE events are copied.
+  std::optional<site_t> site_message;
 
   bool IsValid(std::string* error) const;
 };
@@ -93,6 +102,35 @@ struct PipelineReplaySummary {
 // messages are refused by the bus and counted; neither stops the replay.
 PipelineReplaySummary ReplayPipeline(LogReader* in, const Site& site,
                                      const PipelineReplayOptions& options, LogWriter* out);
+
+// Where the replay's site comes from (docs/replay.md, "The site").
+struct ReplaySite {
+  LoadedSite loaded;
+  // --site: a new site; the recorded ranges are re-derived from it.
+  bool is_new = false;
+  // Loaded from a file (--config or --site), so the new log carries it
+  // (PipelineReplayOptions::site_message); else it is the log's own.
+  bool from_file = false;
+  // "site from LOG: demo_room, hash ..." or "site from --config PATH: ...".
+  std::string used_line;
+  // For --config: a mismatch with the log's site, naming the keys, and SITE
+  // messages refused in the log. For --site the mismatch is the point: it is
+  // in `notes`.
+  std::vector<std::string> warnings;
+  std::vector<std::string> notes;
+};
+
+// The site of a replay: --config (the recorded site; a warning names the
+// keys where the log's own differs), --site (a new one), or neither: the
+// log's SITE (ReadSiteFromLog). False with one line when both are given, a
+// file does not load, or the log holds no usable SITE and neither is given.
+bool ResolveReplaySite(const std::string& log_path, const std::string& config_path,
+                       const std::string& new_site_path, ReplaySite* out, std::string* error);
+
+// The SITE message the new log carries for a site from a file: published by
+// "roomfix replay" on host "replay" with pid 0, so two replays are
+// byte-identical.
+bool MakeReplaySiteMessage(const LoadedSite& loaded, site_t* msg, std::string* error);
 
 // Twenty seconds of 10 ms ticks.
 inline constexpr int64_t kMaxCatchUpTicks = 2000;

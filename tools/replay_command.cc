@@ -89,23 +89,33 @@ int RunReplayCommand(const ReplayCommandArgs& args) {
     std::cerr << "roomfix replay: --method: unknown method '" << args.method << "'\n";
     return 1;
   }
-  if (args.site_path.empty() == args.config_path.empty()) {
-    std::cerr << "roomfix replay: " << args.log_path
-              << ": give either --config SITE.yaml (the site the log was recorded in) or --site "
-                 "NEW.yaml (a new one); reading the site from the log is not available in this "
-                 "build\n";
-    return 1;
-  }
-  const std::string& site_path = args.site_path.empty() ? args.config_path : args.site_path;
-  Site site;
-  if (!LoadSite(site_path, &site, &error)) {
+  ReplaySite replay_site;
+  if (!ResolveReplaySite(args.log_path, args.config_path, args.site_path, &replay_site, &error)) {
     std::cerr << "roomfix replay: " << error << "\n";
     return 1;
   }
+  std::cerr << "roomfix replay: " << replay_site.used_line << "\n";
+  for (const std::string& line : replay_site.warnings) {
+    std::cerr << "roomfix replay: warning: " << line << "\n";
+  }
+  for (const std::string& line : replay_site.notes) {
+    std::cerr << "roomfix replay: " << line << "\n";
+  }
+  const Site& site = replay_site.loaded.site;
+  const std::string site_path = replay_site.used_line;
   // The point of a new site is new receiver positions and offsets: the
   // recorded ranges are re-derived from it. The recorded site is used as
   // is, so the ranges are exactly the recorded ones.
-  options.restamp_ranges = !args.site_path.empty();
+  options.restamp_ranges = replay_site.is_new;
+  // A site from a file travels in the new log in place of the recorded one.
+  if (replay_site.from_file) {
+    site_t msg{};
+    if (!MakeReplaySiteMessage(replay_site.loaded, &msg, &error)) {
+      std::cerr << "roomfix replay: warning: the new log carries no SITE: " << error << "\n";
+    } else {
+      options.site_message = msg;
+    }
+  }
   const auto start = std::chrono::steady_clock::now();
   const PipelineReplaySummary s =
       ReplayPipelineFile(args.log_path, site, options, args.out_path, args.force);
@@ -142,7 +152,7 @@ int RunReplayCommand(const ReplayCommandArgs& args) {
     if (options.fusion) j["fusion_proc"] = StatusJson(s.fusion_status);
     std::printf("%s\n", j.dump(2).c_str());
   } else {
-    std::printf("%s -> %s: %lld events, %.2f s of log, site %s\n", args.log_path.c_str(),
+    std::printf("%s -> %s: %lld events, %.2f s of log, %s\n", args.log_path.c_str(),
                 args.out_path.c_str(), static_cast<long long>(s.events_read), span_s,
                 site_path.c_str());
     std::printf("  copied:   %lld recorded events (%lld ranges re-derived from the site)\n",
@@ -185,8 +195,9 @@ void AddReplayCommand(CLI::App* app, int* exit_code) {
       ->required();
   cmd->add_option("--nodes", args->nodes, "Nodes to re-run: trilat, fusion or trilat,fusion")
       ->capture_default_str();
-  auto* config = cmd->add_option("--config", args->config_path,
-                                 "The site file (YAML) the log was recorded in, used as it is");
+  auto* config = cmd->add_option(
+      "--config", args->config_path,
+      "The site file (YAML) the log was recorded in, used as it is (default: the log's SITE)");
   cmd->add_option("--site", args->site_path,
                   "A new site file (YAML), e.g. with receiver offsets from `roomfix survey`: "
                   "the recorded ranges are re-derived from its receivers")

@@ -282,6 +282,100 @@ TEST(PipelineReplay, RefusesToWriteOverItsInputOrAnExistingLog) {
   EXPECT_NE(ReadFile(dir.File("old.lcm")), "keep me");
 }
 
+// Logs carry their site (SITE, msgio/site_message.h): without --config the
+// replay takes it from there, and gives the same log as with the file.
+TEST(ReplaySite, ComesFromTheLogWhenNoSiteFileIsGiven) {
+  ReplaySite from_log;
+  std::string error;
+  ASSERT_TRUE(ResolveReplaySite(LivePath(), "", "", &from_log, &error)) << error;
+  EXPECT_FALSE(from_log.from_file);
+  EXPECT_FALSE(from_log.is_new);
+  EXPECT_EQ(from_log.loaded.site.name, "demo_room");
+  EXPECT_NE(from_log.used_line.find("site from " + LivePath()), std::string::npos);
+  EXPECT_TRUE(from_log.warnings.empty());
+  ReplaySite from_file;
+  ASSERT_TRUE(ResolveReplaySite(LivePath(), SourceDir() + "/config/sites/demo_room.yaml", "",
+                                &from_file, &error))
+      << error;
+  EXPECT_TRUE(from_file.warnings.empty());  // The same site as recorded.
+  EXPECT_EQ(from_file.loaded.content_hash, from_log.loaded.content_hash);
+
+  TempDir dir;
+  Replay(LivePath(), dir.File("a.lcm"), LiveOptions(), from_log.loaded.site);
+  Replay(LivePath(), dir.File("b.lcm"), LiveOptions(), DemoSite());
+  EXPECT_TRUE(ReadFile(dir.File("a.lcm")) == ReadFile(dir.File("b.lcm")));
+  // The recorded SITE events are copied: the new log names its site too.
+  EXPECT_EQ(ChannelCounts(dir.File("a.lcm")).at("SITE"), ChannelCounts(LivePath()).at("SITE"));
+}
+
+TEST(ReplaySite, ALogWithoutASiteNeedsASiteFile) {
+  TempDir dir;
+  std::vector<LogEvent> events;
+  std::string error;
+  ASSERT_TRUE(ReadLogEvents(LivePath(), &events, &error)) << error;
+  {
+    auto writer = LogWriter::Create(dir.File("no_site.lcm"), false, &error);
+    ASSERT_NE(writer, nullptr) << error;
+    for (const LogEvent& e : events) {
+      if (e.channel == "SITE") continue;
+      ASSERT_TRUE(writer->Write(e.utime, e.channel, e.data.data(), static_cast<int>(e.data.size()),
+                                &error));
+    }
+  }
+  ReplaySite site;
+  EXPECT_FALSE(ResolveReplaySite(dir.File("no_site.lcm"), "", "", &site, &error));
+  EXPECT_NE(error.find("holds no SITE"), std::string::npos) << error;
+  EXPECT_NE(error.find("--config"), std::string::npos) << error;
+  EXPECT_NE(error.find("--site"), std::string::npos) << error;
+  EXPECT_TRUE(ResolveReplaySite(dir.File("no_site.lcm"),
+                                SourceDir() + "/config/sites/demo_room.yaml", "", &site, &error))
+      << error;
+  EXPECT_FALSE(ResolveReplaySite(LivePath(), SourceDir() + "/config/sites/demo_room.yaml",
+                                 SourceDir() + "/config/sites/demo_room.yaml", &site, &error));
+  EXPECT_NE(error.find("not both"), std::string::npos) << error;
+}
+
+// A new site (receiver 1's offset from `roomfix survey`) replaces the
+// recorded one in the new log, so a tool reading that log uses the site its
+// poses were solved with.
+TEST(ReplaySite, ANewSiteTravelsInTheNewLog) {
+  TempDir dir;
+  std::string text = ReadFile(SourceDir() + "/config/sites/demo_room.yaml");
+  const std::string old_receiver = "position_m: [0.0, 0.0, 2.5], range_offset_m: 0.0}";
+  const size_t at = text.find(old_receiver);
+  ASSERT_NE(at, std::string::npos);
+  text.replace(at, old_receiver.size(), "position_m: [0.0, 0.0, 2.5], range_offset_m: 0.05}");
+  ASSERT_TRUE(WriteFile(dir.File("new_site.yaml"), text));
+
+  ReplaySite site;
+  std::string error;
+  ASSERT_TRUE(ResolveReplaySite(LivePath(), "", dir.File("new_site.yaml"), &site, &error)) << error;
+  EXPECT_TRUE(site.is_new);
+  EXPECT_TRUE(site.from_file);
+  ASSERT_EQ(site.notes.size(), 1u);
+  EXPECT_NE(site.notes[0].find("receivers[0].range_offset_m"), std::string::npos) << site.notes[0];
+
+  PipelineReplayOptions options = LiveOptions();
+  options.restamp_ranges = true;
+  site_t msg{};
+  ASSERT_TRUE(MakeReplaySiteMessage(site.loaded, &msg, &error)) << error;
+  options.site_message = msg;
+  const PipelineReplaySummary s =
+      Replay(LivePath(), dir.File("new.lcm"), options, site.loaded.site);
+  EXPECT_EQ(s.old_outputs_dropped.at("SITE"), ChannelCounts(LivePath()).at("SITE"));
+  // At the start and every 5 s of log time.
+  const double span_s = (s.last_utime - s.first_utime) * 1e-6;
+  EXPECT_EQ(s.new_outputs.at("SITE"), 1 + static_cast<int>(span_s / 5.0));
+  SiteFromLog carried;
+  ASSERT_TRUE(ReadSiteFromLog(dir.File("new.lcm"), &carried, &error)) << error;
+  EXPECT_EQ(carried.site.content_hash, site.loaded.content_hash);
+  EXPECT_EQ(carried.refused, 0);
+  EXPECT_DOUBLE_EQ(carried.site.site.receivers[0].range_offset_m, 0.05);
+  // Deterministic with a site of its own, too.
+  Replay(LivePath(), dir.File("again.lcm"), options, site.loaded.site);
+  EXPECT_TRUE(ReadFile(dir.File("new.lcm")) == ReadFile(dir.File("again.lcm")));
+}
+
 TEST(PipelineReplay, AMissingLogIsAOneLineError) {
   TempDir dir;
   const PipelineReplaySummary s = ReplayPipelineFile(dir.File("none.lcm"), DemoSite(),
