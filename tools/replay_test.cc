@@ -376,6 +376,45 @@ TEST(ReplaySite, ANewSiteTravelsInTheNewLog) {
   EXPECT_TRUE(ReadFile(dir.File("new.lcm")) == ReadFile(dir.File("again.lcm")));
 }
 
+// The command as a user runs it: the replay, its refusals, and compare
+// OLD NEW on the result.
+int RunRoomfix(const std::vector<std::string>& args, const std::string& stdout_path) {
+  std::vector<std::string> argv = {testing::BinDir() + "/roomfix"};
+  argv.insert(argv.end(), args.begin(), args.end());
+  testing::ChildProcess child(argv, stdout_path);
+  return child.Wait(60);
+}
+
+TEST(ReplayCommand, ReplaysRefusesToOverwriteAndComparesOldWithNew) {
+  TempDir dir;
+  const std::string out = dir.File("new.lcm");
+  ASSERT_EQ(RunRoomfix({"replay", LivePath(), "--out", out}, dir.File("replay.txt")), 0);
+  const std::string summary = ReadFile(dir.File("replay.txt"));
+  EXPECT_NE(summary.find("replaced: POSE_FUSED 133, POSE_ULTRASOUND 44"), std::string::npos)
+      << summary;
+  const std::string replayed = ReadFile(out);
+  ASSERT_GT(replayed.size(), 50'000u);
+
+  EXPECT_EQ(RunRoomfix({"replay", LivePath(), "--out", out}, dir.File("again.txt")), 1);
+  EXPECT_TRUE(ReadFile(out) == replayed);
+  EXPECT_EQ(RunRoomfix({"replay", LivePath(), "--out", out, "--force"}, dir.File("force.txt")), 0);
+  EXPECT_TRUE(ReadFile(out) == replayed);  // Deterministic.
+  EXPECT_EQ(RunRoomfix({"replay", LivePath(), "--out", LivePath(), "--force"}, dir.File("x.txt")),
+            1);
+  EXPECT_EQ(RunRoomfix({"replay", LivePath(), "--out", dir.File("c.lcm"), "--nodes", "camera"},
+                       dir.File("camera.txt")),
+            1);
+
+  ASSERT_EQ(RunRoomfix({"compare", LivePath(), out, "--json", dir.File("compare.json")},
+                       dir.File("compare.txt")),
+            0);
+  const std::string table = ReadFile(dir.File("compare.txt"));
+  EXPECT_NE(table.find("against OLD"), std::string::npos) << table;
+  const std::string json = ReadFile(dir.File("compare.json"));
+  // The fused and ultrasonic poses of the replay, each against the live one.
+  EXPECT_NE(json.find("\"new_minus_old_max_m\""), std::string::npos) << json;
+}
+
 TEST(PipelineReplay, AMissingLogIsAOneLineError) {
   TempDir dir;
   const PipelineReplaySummary s = ReplayPipelineFile(dir.File("none.lcm"), DemoSite(),
