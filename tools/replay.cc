@@ -192,7 +192,7 @@ PipelineReplaySummary ReplayPipeline(LogReader* in, const Site& site,
         break;
       }
       tick(next_tick);
-      next_tick += tick_us;
+      next_tick = SaturatingAddUs(next_tick, tick_us);
     }
     if (options.site_message && event.utime >= next_site_utime) {
       site_t site_msg = *options.site_message;

@@ -263,6 +263,37 @@ TEST(PipelineReplay, ADamagedLogIsReplayedAroundTheDamageAndCounted) {
   EXPECT_GT(s.new_outputs.at("POSE_ULTRASOUND"), 30);
 }
 
+// A hostile log's timestamps jump by a century, to the end of int64 and
+// back to 0: the replay ticks at most kMaxCatchUpTicks per jump, never
+// overflows, and every message is still delivered (and judged by the node:
+// a range set far from its receive time is refused as utime_out_of_range).
+TEST(PipelineReplay, TimestampsThatJumpCostBoundedTicks) {
+  TempDir dir;
+  std::vector<LogEvent> events;
+  std::string error;
+  ASSERT_TRUE(ReadLogEvents(LivePath(), &events, &error)) << error;
+  std::vector<LogEvent> ranges;
+  for (const LogEvent& e : events) {
+    if (e.channel == "RANGES") ranges.push_back(e);
+  }
+  ASSERT_GE(ranges.size(), 4u);
+  const int64_t century_us = int64_t{100} * 365 * 24 * 3600 * 1'000'000;
+  const int64_t times[] = {ranges[0].utime, ranges[0].utime + century_us, INT64_MAX, 0};
+  {
+    auto writer = LogWriter::Create(dir.File("jumps.lcm"), false, &error);
+    ASSERT_NE(writer, nullptr) << error;
+    for (int i = 0; i < 4; ++i) {
+      ASSERT_TRUE(writer->Write(times[i], "RANGES", ranges[i].data.data(),
+                                static_cast<int>(ranges[i].data.size()), &error));
+    }
+  }
+  const PipelineReplaySummary s = Replay(dir.File("jumps.lcm"), dir.File("new.lcm"));
+  EXPECT_EQ(s.inputs_written, 4);
+  EXPECT_LE(s.ticks, 2 * kMaxCatchUpTicks + 2);
+  EXPECT_EQ(s.trilat_status.inputs, 4);
+  EXPECT_EQ(s.new_outputs.at("POSE_ULTRASOUND"), 1);  // Only the first is on time.
+}
+
 TEST(PipelineReplay, RefusesToWriteOverItsInputOrAnExistingLog) {
   TempDir dir;
   ASSERT_TRUE(WriteFile(dir.File("in.lcm"), ReadFile(LivePath())));
