@@ -460,7 +460,11 @@ void CameraNode::OnMarkerPixels(const marker_pixels_t& msg, int64_t now_utime) {
     blobs.push_back(b);
   }
   Track(msg.utime, plans, blobs, now_utime);
-  if (calibration_) PublishPoses(msg.utime, msg.frame_seq, msg.processing_time_us);
+  if (calibration_) {
+    // The frame's output here is its POSE_CAMERA set (live: MARKER_PIXELS).
+    PublishPoses(msg.utime, msg.frame_seq, msg.processing_time_us);
+    status_.AddOutputs();
+  }
 }
 
 void CameraNode::Track(int64_t capture_utime, const std::vector<vision::SearchPlan>& plans,

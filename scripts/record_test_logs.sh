@@ -36,9 +36,9 @@ record "$data/trilat_replay.lcm" 'RANGES|POSE_ULTRASOUND' -- \
 
 # The demo's pipeline as live processes (the camera on the synthetic ceiling
 # camera, trilat_proc robust, fusion_proc) for the replay tests
-# (tools/replay_test.cc): their inputs and outputs, without the camera's
-# pixels and previews, which the replay does not use.
-record "$data/pipeline_replay.lcm" 'RANGES|POSE_.*|STATUS|SITE' -- \
+# (tools/replay_test.cc): their inputs and outputs, with the camera's marker
+# pixels (the input of --nodes camera) but not its previews.
+record "$data/pipeline_replay.lcm" 'RANGES|POSE_.*|STATUS|SITE|MARKER_PIXELS' -- \
   "'$bin/trilat_proc' --config '$site' --method robust --log-level warn & solver=\$!;
    '$bin/fusion_proc' --config '$site' --log-level warn & fusion=\$!;
    start=\$(( \$(date +%s%6N) + 1000000 ));

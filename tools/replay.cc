@@ -12,6 +12,7 @@
 #include "core/radio/range_assembler.h"
 #include "msgio/process.h"
 #include "msgio/wire_check.h"
+#include "roomfix/marker_pixels_t.hpp"
 #include "roomfix/range_set_t.hpp"
 
 namespace roomfix {
@@ -108,11 +109,58 @@ bool ResolveReplaySite(const std::string& log_path, const std::string& config_pa
   return true;
 }
 
+bool ReplayCameraCalibrations(const LoadedSite& loaded, std::map<int, calib::Calibration>* out,
+                              std::string* error) {
+  out->clear();
+  for (size_t i = 0; i < loaded.site.cameras.size(); ++i) {
+    const Camera& camera = loaded.site.cameras[i];
+    const std::string* text = SiteCalibrationText(loaded, i);
+    if (text == nullptr) continue;
+    calib::Calibration c;
+    const std::string name =
+        "camera " + std::to_string(camera.id) + "'s calibration " + camera.calibration_file;
+    if (!calib::ParseCalibration(*text, name, &c, error)) return false;
+    if (c.width_px() != camera.width_px || c.height_px() != camera.height_px) {
+      *error = name + " is for " + std::to_string(c.width_px()) + "x" +
+               std::to_string(c.height_px()) + " px, the camera delivers " +
+               std::to_string(camera.width_px) + "x" + std::to_string(camera.height_px);
+      return false;
+    }
+    // camera_proc refuses a fit this poor; so does its replay.
+    if (const std::string fit = calib::CheckFitResidual(c); !fit.empty()) {
+      *error = name + ": " + fit;
+      return false;
+    }
+    (*out)[camera.id] = std::move(c);
+  }
+  return true;
+}
+
+bool LogHoldsChannel(const std::string& path, const std::string& channel, bool* holds,
+                     std::string* error) {
+  *holds = false;
+  auto reader = LogReader::Open(path, error);
+  if (reader == nullptr) return false;
+  LogEvent event;
+  while (reader->Next(&event)) {
+    if (event.channel == channel) {
+      *holds = true;
+      break;
+    }
+  }
+  return true;
+}
+
 bool PipelineReplayOptions::IsValid(std::string* error) const {
-  if (!trilat && !fusion) {
-    *error = "no node to re-run (choose trilat, fusion or both)";
+  if (!trilat && !fusion && !camera) {
+    *error = "no node to re-run (choose trilat, fusion, camera)";
     return false;
   }
+  if (camera && camera_calibrations.empty()) {
+    *error = "camera: no camera of the site has a calibration, so there is no POSE_CAMERA to make";
+    return false;
+  }
+  if (camera && !camera_options.IsValid(error)) return false;
   if (tick_period_ms <= 0 || tick_period_ms > 1000) {
     *error = "tick_period_ms must be in 1..1000";
     return false;
@@ -155,6 +203,7 @@ PipelineReplaySummary ReplayPipeline(LogReader* in, const Site& site,
   std::vector<std::string> replaced;
   if (options.trilat) replaced.push_back(kUltrasoundPoseChannel);
   if (options.fusion) replaced.push_back(options.fusion_options.fused_channel);
+  if (options.camera) replaced.push_back(kCameraPoseChannel);
   if (options.site_message) replaced.push_back(kSiteChannel);
   std::vector<uint8_t> site_bytes;
   int64_t next_site_utime = 0;
@@ -163,12 +212,18 @@ PipelineReplaySummary ReplayPipeline(LogReader* in, const Site& site,
   // before it; their uptime in REPLAY_STATUS is log time.
   std::optional<TrilatNode> trilat;
   std::optional<FusionNode> fusion;
+  // Heap-held: a node's subscriptions capture its address.
+  std::vector<std::unique_ptr<CameraNode>> cameras;
+  CameraNodeOptions camera_options = options.camera_options;
+  // OnMarkerPixels never measures time, and nothing else may read a clock.
+  camera_options.steady_clock = [] { return int64_t{0}; };
   const int64_t tick_us = int64_t{options.tick_period_ms} * 1000;
   int64_t next_tick = 0;
   auto tick = [&](int64_t now) {
     bus->set_now_utime(now);
     if (trilat) trilat->Tick(now);
     if (fusion) fusion->Tick(now);
+    for (auto& c : cameras) c->Tick(now);
     ++summary.ticks;
   };
 
@@ -179,6 +234,26 @@ PipelineReplaySummary ReplayPipeline(LogReader* in, const Site& site,
       bus->set_now_utime(event.utime);
       if (options.trilat) trilat.emplace(site, bus.get(), options.trilat_options, event.utime);
       if (options.fusion) fusion.emplace(site, bus.get(), options.fusion_options, event.utime);
+      // The node keeps a reference to its camera: the site's own entry.
+      for (const Camera& camera : site.cameras) {
+        if (!options.camera) break;
+        auto it = options.camera_calibrations.find(camera.id);
+        if (it == options.camera_calibrations.end()) continue;
+        auto node = std::make_unique<CameraNode>(site, camera, it->second, bus.get(),
+                                                 camera_options, event.utime);
+        std::string why;
+        if (!node->ok(&why)) {
+          summary.ok = false;
+          summary.error = "camera " + std::to_string(camera.id) + ": " + why;
+          return summary;
+        }
+        CameraNode* raw = node.get();
+        bus->Subscribe<marker_pixels_t>(kMarkerPixelsChannel,
+                                        [raw](const marker_pixels_t& m, const MessageInfo& info) {
+                                          raw->OnMarkerPixels(m, info.recv_utime);
+                                        });
+        cameras.push_back(std::move(node));
+      }
       next_tick = event.utime;
     }
     ++summary.events_read;
@@ -235,6 +310,10 @@ PipelineReplaySummary ReplayPipeline(LogReader* in, const Site& site,
     if (fusion) {
       fusion->Stop(summary.last_utime);
       summary.fusion_status = fusion->status().Make(summary.last_utime, nullptr);
+    }
+    for (auto& c : cameras) {
+      c->Stop(summary.last_utime);
+      summary.camera_status.push_back(c->status().Make(summary.last_utime, nullptr));
     }
   }
   if (write_error.empty()) out->Flush(&write_error);

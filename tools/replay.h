@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "camera_proc/camera_node.h"
+#include "core/calib/calibration_file.h"
 #include "core/world/site.h"
 #include "fusion/fusion_node.h"
 #include "msgio/log.h"
@@ -27,6 +29,15 @@ struct PipelineReplayOptions {
   // the new log (they stay in the old one) and replaced by its new ones.
   bool trilat = true;
   bool fusion = true;
+  // camera_proc's node from the recorded MARKER_PIXELS (CameraNode::
+  // OnMarkerPixels): tracking, floor mapping and POSE_CAMERA, one node per
+  // camera of the site with a calibration in camera_calibrations. The
+  // frames themselves are not in logs; detection is not re-run.
+  bool camera = false;
+  // By camera id: the calibration each camera's node maps pixels with (the
+  // log's SITE carries the files' texts; ReplayCameraCalibrations).
+  std::map<int, calib::Calibration> camera_calibrations;
+  CameraNodeOptions camera_options;
   // As trilat_proc's and fusion_proc's flags; the replay command's default
   // method is robust, which every shipped configuration runs.
   TrilatNodeOptions trilat_options;
@@ -83,9 +94,12 @@ struct PipelineReplaySummary {
   // The nodes' final heartbeats (counters, rejections), when they ran.
   process_status_t trilat_status{};
   process_status_t fusion_status{};
+  // One per re-run camera node, in the site's camera order.
+  std::vector<process_status_t> camera_status;
 };
 
-// Re-runs the chosen nodes (the classes trilat_proc and fusion_proc run)
+// Re-runs the chosen nodes (the classes trilat_proc, fusion_proc and
+// camera_proc run)
 // over a recorded log on the log's own time, and writes the recorded events
 // (minus the re-run nodes' old outputs) and the new outputs to `out`.
 //
@@ -131,6 +145,18 @@ bool ResolveReplaySite(const std::string& log_path, const std::string& config_pa
 // "roomfix replay" on host "replay" with pid 0, so two replays are
 // byte-identical.
 bool MakeReplaySiteMessage(const LoadedSite& loaded, site_t* msg, std::string* error);
+
+// The calibrations of the site's cameras, parsed from the texts the loaded
+// site carries (from the log's SITE or read with the site file), by camera
+// id; a camera without one is left out. False with one line when a text does
+// not parse or is for another image size than the camera's.
+bool ReplayCameraCalibrations(const LoadedSite& loaded, std::map<int, calib::Calibration>* out,
+                              std::string* error);
+
+// Whether the log holds at least one event on `channel` (--nodes camera
+// needs MARKER_PIXELS). False with the reason when the log cannot be read.
+bool LogHoldsChannel(const std::string& path, const std::string& channel, bool* holds,
+                     std::string* error);
 
 // Twenty seconds of 10 ms ticks.
 inline constexpr int64_t kMaxCatchUpTicks = 2000;

@@ -1,4 +1,5 @@
-// roomfix replay: re-runs trilat_proc's and fusion_proc's nodes over a
+// roomfix replay: re-runs trilat_proc's, fusion_proc's (and camera_proc's,
+// from recorded MARKER_PIXELS) nodes over a
 // recorded log, on the log's time and as fast as the machine allows, and
 // writes a new log (docs/replay.md).
 #include <CLI/CLI.hpp>
@@ -40,17 +41,14 @@ bool ParseNodes(const std::string& list, PipelineReplayOptions* options, std::st
     } else if (node == "fusion") {
       options->fusion = true;
     } else if (node == "camera") {
-      *error =
-          "--nodes camera: re-running camera_proc is not supported yet (it needs the frames, "
-          "which logs do not hold); replay trilat and fusion, and keep the recorded POSE_CAMERA";
-      return false;
+      options->camera = true;
     } else {
-      *error = "--nodes: unknown node '" + node + "' (trilat, fusion)";
+      *error = "--nodes: unknown node '" + node + "' (trilat, fusion, camera)";
       return false;
     }
   }
-  if (!options->trilat && !options->fusion) {
-    *error = "--nodes: name at least one of trilat, fusion";
+  if (!options->trilat && !options->fusion && !options->camera) {
+    *error = "--nodes: name at least one of trilat, fusion, camera";
     return false;
   }
   return true;
@@ -101,6 +99,26 @@ int RunReplayCommand(const ReplayCommandArgs& args) {
   for (const std::string& line : replay_site.notes) {
     std::cerr << "roomfix replay: " << line << "\n";
   }
+  if (options.camera) {
+    // camera_proc's node starts from the detector's output: without it there
+    // is nothing to track (logs never hold the full frames).
+    bool holds = false;
+    if (!LogHoldsChannel(args.log_path, kMarkerPixelsChannel, &holds, &error)) {
+      std::cerr << "roomfix replay: " << error << "\n";
+      return 1;
+    }
+    if (!holds) {
+      std::cerr << "roomfix replay: --nodes camera: " << args.log_path
+                << " holds no MARKER_PIXELS (the camera's detections), so camera_proc's node has "
+                   "no input; record MARKER_PIXELS too, or replay trilat,fusion and keep the "
+                   "recorded POSE_CAMERA\n";
+      return 1;
+    }
+    if (!ReplayCameraCalibrations(replay_site.loaded, &options.camera_calibrations, &error)) {
+      std::cerr << "roomfix replay: --nodes camera: " << error << "\n";
+      return 1;
+    }
+  }
   const Site& site = replay_site.loaded.site;
   const std::string site_path = replay_site.used_line;
   // The point of a new site is new receiver positions and offsets: the
@@ -150,6 +168,7 @@ int RunReplayCommand(const ReplayCommandArgs& args) {
                         {"damage", s.damage}};
     if (options.trilat) j["trilat_proc"] = StatusJson(s.trilat_status);
     if (options.fusion) j["fusion_proc"] = StatusJson(s.fusion_status);
+    for (const process_status_t& c : s.camera_status) j["camera_proc"].push_back(StatusJson(c));
     std::printf("%s\n", j.dump(2).c_str());
   } else {
     std::printf("%s -> %s: %lld events, %.2f s of log, %s\n", args.log_path.c_str(),
@@ -162,6 +181,9 @@ int RunReplayCommand(const ReplayCommandArgs& args) {
     std::printf("  new:      %s\n", Counts(s.new_outputs).c_str());
     if (options.trilat) std::printf("  trilat:   %s\n", StatusLine(s.trilat_status).c_str());
     if (options.fusion) std::printf("  fusion:   %s\n", StatusLine(s.fusion_status).c_str());
+    for (const process_status_t& c : s.camera_status) {
+      std::printf("  camera:   %s\n", StatusLine(c).c_str());
+    }
     std::printf("  ran in %.3f s: %.0fx real time\n", wall_s, speedup);
   }
   std::fflush(stdout);
@@ -183,17 +205,19 @@ int RunReplayCommand(const ReplayCommandArgs& args) {
 }  // namespace
 
 void AddReplayCommand(CLI::App* app, int* exit_code) {
-  auto* cmd = app->add_subcommand(
-      "replay",
-      "Re-run trilat_proc's and fusion_proc's nodes over a log, on its time, as fast as possible, "
-      "into a new log (docs/replay.md)");
+  auto* cmd = app->add_subcommand("replay",
+                                  "Re-run trilat_proc's, fusion_proc's and camera_proc's nodes "
+                                  "over a log, on its time, as fast as possible, "
+                                  "into a new log (docs/replay.md)");
   auto args = std::make_shared<ReplayCommandArgs>();
   cmd->add_option("LOG", args->log_path, "Recorded LCM log (roomfix_logger or lcm-logger)")
       ->required();
   cmd->add_option("--out", args->out_path,
                   "New log: the recorded events with the re-run nodes' outputs replaced")
       ->required();
-  cmd->add_option("--nodes", args->nodes, "Nodes to re-run: trilat, fusion or trilat,fusion")
+  cmd->add_option("--nodes", args->nodes,
+                  "Nodes to re-run: trilat, fusion, camera (from the log's "
+                  "MARKER_PIXELS), comma-separated")
       ->capture_default_str();
   auto* config = cmd->add_option(
       "--config", args->config_path,

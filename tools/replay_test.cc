@@ -9,6 +9,7 @@
 #include <fstream>
 #include <map>
 #include <tuple>
+#include <vector>
 
 #include "msgio/wire_check.h"
 #include "roomfix/pose2d_t.hpp"
@@ -191,6 +192,103 @@ TEST(PipelineReplay, ReproducesTheLiveFusedPosesWithinTheLiveTimingNoise) {
   std::printf("fused poses compared: %zu of %zu live; replay - live: median %.3g m, max %.3g m\n",
               errors_m.size(), live.size(), errors_m[errors_m.size() / 2], errors_m.back());
   EXPECT_LE(errors_m[errors_m.size() / 2], kSameOrderM);
+}
+
+// camera_proc's node from the recorded MARKER_PIXELS (--nodes camera).
+PipelineReplayOptions CameraOptions() {
+  PipelineReplayOptions options = LiveOptions();
+  options.camera = true;
+  LoadedSite loaded;
+  std::string error;
+  EXPECT_TRUE(LoadSiteWithTexts(SourceDir() + "/config/sites/demo_room.yaml", &loaded, &error))
+      << error;
+  EXPECT_TRUE(ReplayCameraCalibrations(loaded, &options.camera_calibrations, &error)) << error;
+  EXPECT_EQ(options.camera_calibrations.size(), 1u);
+  return options;
+}
+
+std::vector<uint8_t> Encoded(const pose2d_t& p) {
+  std::vector<uint8_t> bytes(static_cast<size_t>(p.getEncodedSize()));
+  p.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+  return bytes;
+}
+
+// The live camera_proc ran detection, then CameraNode::Track and
+// PublishPoses on the detected blobs; the replay runs the same two on the
+// blobs MARKER_PIXELS recorded (every blob: the demo's frames are far below
+// the wire cap of 1024 markers, and the cap keeps the robots' markers
+// first). The tracker's state is a function of the frames' blobs and the
+// hints; the demo floor has no look-alike, so a hint never decides a
+// search, and the two trackers plan the same searches (search_mode_differs
+// stays 0). So every camera pose must come back bit for bit, latency
+// included (the recorded processing_time_us): no tolerance. Where hints do
+// decide (a look-alike in view), a hint heard a frame earlier or later in
+// the replay than live can settle an ambiguous start-up a frame apart;
+// search_mode_differs counts such frames.
+TEST(PipelineReplay, ReproducesTheLiveCameraPosesBitForBit) {
+  TempDir dir;
+  const PipelineReplaySummary s = Replay(LivePath(), dir.File("new.lcm"), CameraOptions());
+  const std::vector<pose2d_t> live = Poses(LivePath(), "POSE_CAMERA");
+  const std::vector<pose2d_t> replayed = Poses(dir.File("new.lcm"), "POSE_CAMERA");
+  ASSERT_GE(live.size(), 100u);
+  ASSERT_EQ(replayed.size(), live.size());
+  int found = 0;
+  for (size_t i = 0; i < live.size(); ++i) {
+    EXPECT_EQ(Encoded(replayed[i]), Encoded(live[i]))
+        << "frame " << live[i].measurement_seq << ": " << replayed[i].x_m << " vs " << live[i].x_m;
+    found += live[i].status != pose2d_t::STATUS_LOST;
+  }
+  EXPECT_GE(found, 100);
+  EXPECT_EQ(s.old_outputs_dropped.at("POSE_CAMERA"), static_cast<int64_t>(live.size()));
+  ASSERT_EQ(s.camera_status.size(), 1u);
+  EXPECT_EQ(s.camera_status[0].inputs, static_cast<int64_t>(live.size()));
+  for (const counter_t& c : s.camera_status[0].counters) {
+    EXPECT_NE(c.name, "search_mode_differs");
+    EXPECT_NE(c.name, "capped_frames");
+  }
+  EXPECT_TRUE(s.camera_status[0].rejected.empty());
+  // fusion_proc heard the new camera poses, not the recorded ones.
+  EXPECT_EQ(s.fusion_status.inputs, static_cast<int64_t>(live.size()) + 43);
+}
+
+TEST(PipelineReplay, TwoReplaysWithTheCameraAreByteIdentical) {
+  TempDir dir;
+  Replay(LivePath(), dir.File("a.lcm"), CameraOptions());
+  Replay(LivePath(), dir.File("b.lcm"), CameraOptions());
+  const std::string a = ReadFile(dir.File("a.lcm"));
+  ASSERT_GT(a.size(), 50'000u);
+  EXPECT_TRUE(a == ReadFile(dir.File("b.lcm")));
+}
+
+// With the camera re-run as well, fusion's input is the same measurements,
+// so its poses stay within the live timing noise (kFusedToleranceM).
+TEST(PipelineReplay, FusionOnTheReplayedCameraPosesStaysWithinTheLiveTimingNoise) {
+  TempDir dir;
+  Replay(LivePath(), dir.File("new.lcm"), CameraOptions());
+  using Key = std::tuple<int, int64_t, int64_t>;
+  std::map<Key, pose2d_t> live;
+  for (const pose2d_t& p : Poses(LivePath(), "POSE_FUSED")) {
+    if (p.status != pose2d_t::STATUS_LOST) live[{p.robot_id, p.utime, p.measurement_seq}] = p;
+  }
+  ASSERT_GE(live.size(), 100u);
+  size_t compared = 0;
+  for (const pose2d_t& p : Poses(dir.File("new.lcm"), "POSE_FUSED")) {
+    auto it = live.find({p.robot_id, p.utime, p.measurement_seq});
+    if (it == live.end() || p.status == pose2d_t::STATUS_LOST) continue;
+    EXPECT_LE(std::hypot(p.x_m - it->second.x_m, p.y_m - it->second.y_m), kFusedToleranceM);
+    ++compared;
+  }
+  EXPECT_GE(compared, live.size());
+}
+
+TEST(PipelineReplay, TheCameraNeedsACalibratedCamera) {
+  TempDir dir;
+  PipelineReplayOptions options = LiveOptions();
+  options.camera = true;  // No calibration given.
+  const PipelineReplaySummary s =
+      ReplayPipelineFile(LivePath(), DemoSite(), options, dir.File("new.lcm"), false);
+  EXPECT_FALSE(s.ok);
+  EXPECT_NE(s.error.find("calibration"), std::string::npos) << s.error;
 }
 
 // New receiver offsets (`roomfix survey`) re-derive the ranges from their
@@ -421,7 +519,7 @@ TEST(ReplayCommand, ReplaysRefusesToOverwriteAndComparesOldWithNew) {
   const std::string out = dir.File("new.lcm");
   ASSERT_EQ(RunRoomfix({"replay", LivePath(), "--out", out}, dir.File("replay.txt")), 0);
   const std::string summary = ReadFile(dir.File("replay.txt"));
-  EXPECT_NE(summary.find("replaced: POSE_FUSED 133, POSE_ULTRASOUND 44"), std::string::npos)
+  EXPECT_NE(summary.find("replaced: POSE_FUSED 181, POSE_ULTRASOUND 43"), std::string::npos)
       << summary;
   const std::string replayed = ReadFile(out);
   ASSERT_GT(replayed.size(), 50'000u);
@@ -432,9 +530,41 @@ TEST(ReplayCommand, ReplaysRefusesToOverwriteAndComparesOldWithNew) {
   EXPECT_TRUE(ReadFile(out) == replayed);  // Deterministic.
   EXPECT_EQ(RunRoomfix({"replay", LivePath(), "--out", LivePath(), "--force"}, dir.File("x.txt")),
             1);
-  EXPECT_EQ(RunRoomfix({"replay", LivePath(), "--out", dir.File("c.lcm"), "--nodes", "camera"},
+  // The camera too, from the recorded MARKER_PIXELS: the same camera poses,
+  // and fusion fed with them.
+  ASSERT_EQ(RunRoomfix({"replay", LivePath(), "--out", dir.File("c.lcm"), "--nodes",
+                        "trilat,fusion,camera"},
                        dir.File("camera.txt")),
+            0);
+  const std::string camera_summary = ReadFile(dir.File("camera.txt"));
+  EXPECT_NE(camera_summary.find("replaced: POSE_CAMERA 140, POSE_FUSED 181, POSE_ULTRASOUND 43"),
+            std::string::npos)
+      << camera_summary;
+  EXPECT_NE(camera_summary.find("camera:   inputs 140, outputs 140"), std::string::npos)
+      << camera_summary;
+  const std::vector<pose2d_t> live_camera = Poses(LivePath(), "POSE_CAMERA");
+  const std::vector<pose2d_t> new_camera = Poses(dir.File("c.lcm"), "POSE_CAMERA");
+  ASSERT_EQ(new_camera.size(), live_camera.size());
+  for (size_t i = 0; i < live_camera.size(); ++i) {
+    EXPECT_TRUE(Same(new_camera[i].x_m, live_camera[i].x_m)) << i;
+  }
+  ASSERT_EQ(RunRoomfix({"replay", LivePath(), "--out", dir.File("c2.lcm"), "--nodes",
+                        "trilat,fusion,camera"},
+                       dir.File("camera2.txt")),
+            0);
+  EXPECT_TRUE(ReadFile(dir.File("c.lcm")) == ReadFile(dir.File("c2.lcm")));
+  // A log without the camera's detections has nothing for its node.
+  const std::string no_pixels = SourceDir() + "/tests/data/trilat_replay.lcm";
+  EXPECT_EQ(RunRoomfix({"replay", no_pixels, "--out", dir.File("d.lcm"), "--config",
+                        SourceDir() + "/config/sites/demo_room.yaml", "--nodes", "camera"},
+                       dir.File("refused.txt")),
             1);
+  EXPECT_FALSE(std::ifstream(dir.File("d.lcm")).good()) << "a refused replay writes no log";
+  // ... while its ranges replay (so the refusal is the camera's).
+  EXPECT_EQ(RunRoomfix({"replay", no_pixels, "--out", dir.File("e.lcm"), "--config",
+                        SourceDir() + "/config/sites/demo_room.yaml", "--nodes", "trilat"},
+                       dir.File("trilat.txt")),
+            0);
 
   ASSERT_EQ(RunRoomfix({"compare", LivePath(), out, "--json", dir.File("compare.json")},
                        dir.File("compare.txt")),
