@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <iostream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -36,6 +37,7 @@ struct Case {
   const char* name;
   bool trilat;
   bool fusion;
+  bool camera = false;
 };
 
 int RunBenchReplay(const BenchReplayArgs& args) {
@@ -58,13 +60,22 @@ int RunBenchReplay(const BenchReplayArgs& args) {
     return 1;
   }
   ::close(fd);
-  const Case cases[] = {
+  std::vector<Case> cases = {
       {"trilat", true, false}, {"fusion", false, true}, {"trilat,fusion", true, true}};
+  // camera_proc's node too, when the log holds its detections and the site
+  // a calibration (roomfix replay --nodes camera).
+  std::map<int, calib::Calibration> calibrations;
+  bool holds_pixels = false;
+  if (LogHoldsChannel(args.log_path, kMarkerPixelsChannel, &holds_pixels, &error) && holds_pixels &&
+      ReplayCameraCalibrations(replay_site.loaded, &calibrations, &error) &&
+      !calibrations.empty()) {
+    cases.push_back({"trilat,fusion,camera", true, true, true});
+  }
   nlohmann::json out = {{"log", args.log_path}, {"repeat", args.repeat}};
   if (!args.json) {
     std::printf("replay of %s, %d runs each, single-threaded (one core); median per run\n",
                 args.log_path.c_str(), args.repeat);
-    std::printf("%-14s %8s %10s %10s %10s %12s %12s\n", "nodes", "events", "log_s", "wall_ms",
+    std::printf("%-20s %8s %10s %10s %10s %12s %12s\n", "nodes", "events", "log_s", "wall_ms",
                 "cpu_ms", "x_real_time", "x_rt_by_cpu");
   }
   int rc = 0;
@@ -72,6 +83,8 @@ int RunBenchReplay(const BenchReplayArgs& args) {
     PipelineReplayOptions options;
     options.trilat = c.trilat;
     options.fusion = c.fusion;
+    options.camera = c.camera;
+    if (c.camera) options.camera_calibrations = calibrations;
     options.trilat_options.solver.method = trilat::Method::kRobust;
     std::vector<double> wall_s;
     std::vector<double> cpu_s;
@@ -106,7 +119,7 @@ int RunBenchReplay(const BenchReplayArgs& args) {
           {"wall_ms", wall * 1e3},      {"cpu_ms", cpu * 1e3},
           {"times_real_time", speedup}, {"times_real_time_by_cpu", cpu_speedup}};
     } else {
-      std::printf("%-14s %8lld %10.2f %10.3f %10.3f %11.0fx %11.0fx\n", c.name,
+      std::printf("%-20s %8lld %10.2f %10.3f %10.3f %11.0fx %11.0fx\n", c.name,
                   static_cast<long long>(s.events_read), span_s, wall * 1e3, cpu * 1e3, speedup,
                   cpu_speedup);
     }
