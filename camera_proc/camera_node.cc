@@ -452,6 +452,13 @@ void CameraNode::OnMarkerPixels(const marker_pixels_t& msg, int64_t now_utime) {
       status_.Reject("unknown_marker_class");
       continue;
     }
+    // A recorded message is outside input: a centre or size that is not a
+    // finite number would poison the track (and its window) for good.
+    if (!std::isfinite(m.u_px) || !std::isfinite(m.v_px) || !std::isfinite(m.radius_px) ||
+        !std::isfinite(m.circularity) || !std::isfinite(m.area_px)) {
+      status_.Reject("non_finite_marker");
+      continue;
+    }
     b.u_px = m.u_px;
     b.v_px = m.v_px;
     b.radius_px = m.radius_px;

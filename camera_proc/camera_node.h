@@ -103,7 +103,8 @@ class CameraNode {
   // a log's pixels gives the live poses. Time is the message's: the frame's
   // capture utime, the pose latency its processing_time_us. Nothing is
   // published on MARKER_PIXELS. Pixels of another camera are ignored;
-  // counted: wrong_frame_size, unknown_marker_class (rejections),
+  // counted: wrong_frame_size, unknown_marker_class, non_finite_marker
+  // (rejections; the frame's other markers are used),
   // search_mode_differs (this tracker planned another search than the live
   // one), capped_frames (the message held the wire cap's number of markers).
   void OnMarkerPixels(const marker_pixels_t& msg, int64_t now_utime);

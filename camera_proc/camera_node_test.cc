@@ -488,5 +488,41 @@ TEST_F(CameraNodeTest, RecordedMarkerPixelsGiveTheLivePosesBitForBit) {
   EXPECT_EQ(node.status().counter("hints"), live.node->status().counter("hints"));
 }
 
+// Recorded pixels are outside input: a marker of a class the site lacks or
+// with a centre that is not a number is refused and counted, the frame's
+// good marker still tracked; pixels for another image size are refused.
+TEST_F(CameraNodeTest, BadRecordedMarkerPixelsAreCountedNotTracked) {
+  const PipelineRun live = RunFrames("clean", 3);
+  ASSERT_EQ(live.pixels.size(), 3u);
+  ASSERT_NE(live.poses.back().status, pose2d_t::STATUS_LOST);
+  calib::Calibration c;
+  c.model = calib::Calibration::Model::kFull;
+  c.camera = lens_;
+  LoopbackBus bus;
+  std::vector<pose2d_t> poses;
+  bus.Subscribe<pose2d_t>(kCameraPoseChannel,
+                          [&](const pose2d_t& p, const MessageInfo&) { poses.push_back(p); });
+  CameraNode node(site_, camera_, c, &bus, CameraNodeOptions{}, kStartUtime);
+  marker_pixels_t bad = live.pixels[0];
+  marker_t nan_marker = bad.markers.front();
+  nan_marker.u_px = std::numeric_limits<double>::quiet_NaN();
+  marker_t unknown = bad.markers.front();
+  unknown.colour_class = "ultraviolet";
+  bad.markers.push_back(nan_marker);
+  bad.markers.push_back(unknown);
+  bad.num_markers = static_cast<int32_t>(bad.markers.size());
+  node.OnMarkerPixels(bad, bad.utime);
+  marker_pixels_t wrong_size = live.pixels[1];
+  wrong_size.width_px /= 2;
+  node.OnMarkerPixels(wrong_size, wrong_size.utime);
+  node.OnMarkerPixels(live.pixels[2], live.pixels[2].utime);
+  EXPECT_EQ(node.status().rejected("non_finite_marker"), 1);
+  EXPECT_EQ(node.status().rejected("unknown_marker_class"), 1);
+  EXPECT_EQ(node.status().rejected("wrong_frame_size"), 1);
+  ASSERT_EQ(poses.size(), 2u);  // Frames 0 and 2.
+  EXPECT_NE(poses[0].status, pose2d_t::STATUS_LOST);
+  EXPECT_EQ(poses[1].x_m, live.poses[2].x_m);
+}
+
 }  // namespace
 }  // namespace roomfix
