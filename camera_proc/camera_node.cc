@@ -52,6 +52,15 @@ double ImageRadiusPx(const calib::CameraModel& lens, double x_m, double y_m, dou
   return n > 0 ? sum / n : 0.0;
 }
 
+// Appends `b` unless a blob of its class lies within a pixel of it (the
+// same marker measured by two searches).
+void AddIfUnseen(const vision::Blob& b, std::vector<vision::Blob>* all) {
+  const bool seen = std::any_of(all->begin(), all->end(), [&](const vision::Blob& a) {
+    return a.class_index == b.class_index && std::hypot(a.u_px - b.u_px, a.v_px - b.v_px) < 1.0;
+  });
+  if (!seen) all->push_back(b);
+}
+
 }  // namespace
 
 bool CameraNodeOptions::IsValid(std::string* error) const {
@@ -332,12 +341,17 @@ void CameraNode::OnFrame(camera::Frame* frame, int64_t now_utime) {
     status_.SetError("frame " + std::to_string(frame->seq) + ": " + error, now_utime);
     return;
   }
-  observations_ = tracker_->Update(frame->capture_utime, plans, full_blobs, window_blobs);
-  ++frames_processed_;
-  status_.Count(full ? "full_searches" : "window_searches");
-
   // Every blob seen, once: a robot's markers may be in its window and in the
-  // full-frame search of the same frame.
+  // full-frame search of the same frame. A window's own measurement is kept
+  // (windows first), so the tracker gets the same blob for a tracked robot
+  // whether it reads the lists made here or the published MARKER_PIXELS.
+  std::vector<vision::Blob> all;
+  for (const auto& list : window_blobs) {
+    for (const vision::Blob& b : list) AddIfUnseen(b, &all);
+  }
+  for (const vision::Blob& b : full_blobs) AddIfUnseen(b, &all);
+  Track(frame->capture_utime, plans, all, now_utime);
+
   marker_pixels_t msg{};
   msg.utime = frame->capture_utime;
   msg.camera_id = camera_.id;
@@ -346,15 +360,6 @@ void CameraNode::OnFrame(camera::Frame* frame, int64_t now_utime) {
   msg.height_px = image->height_px();
   msg.search_mode =
       full ? marker_pixels_t::SEARCH_FULL_FRAME : marker_pixels_t::SEARCH_REGION_OF_INTEREST;
-  std::vector<vision::Blob> all = full_blobs;
-  for (const auto& list : window_blobs) {
-    for (const vision::Blob& b : list) {
-      const bool seen = std::any_of(all.begin(), all.end(), [&](const vision::Blob& a) {
-        return a.class_index == b.class_index && std::hypot(a.u_px - b.u_px, a.v_px - b.v_px) < 1.0;
-      });
-      if (!seen) all.push_back(b);
-    }
-  }
   for (const vision::Blob& b : all) {
     marker_t m{};
     m.colour_class = setup_.classes[static_cast<size_t>(b.class_index)].name;
@@ -403,8 +408,97 @@ void CameraNode::OnFrame(camera::Frame* frame, int64_t now_utime) {
                           std::numeric_limits<int32_t>::max()));
   status_.SetCounter("last_frame_us", elapsed_us);
   if (bus_->Publish(kMarkerPixelsChannel, msg)) status_.AddOutputs();
+  // The pose's latency is the recorded processing time, so a replay from
+  // MARKER_PIXELS (OnMarkerPixels) gives the same number.
+  if (calibration_) PublishPoses(msg.utime, msg.frame_seq, msg.processing_time_us);
   last_pixels_ = std::move(msg);
+  MaybePublishPreview(*frame);
+}
 
+void CameraNode::OnMarkerPixels(const marker_pixels_t& msg, int64_t now_utime) {
+  if (tracker_ == nullptr) return;
+  // Another camera's pixels are another node's input.
+  if (msg.camera_id != camera_.id) return;
+  status_.AddInputs();
+  if (last_seq_ >= 0 && msg.frame_seq > last_seq_ + 1)
+    status_.AddDropped(msg.frame_seq - last_seq_ - 1);
+  last_seq_ = msg.frame_seq;
+  if (msg.width_px != camera_.width_px || msg.height_px != camera_.height_px) {
+    status_.Reject("wrong_frame_size");
+    status_.SetError("marker pixels of frame " + std::to_string(msg.frame_seq) + " are for " +
+                         std::to_string(msg.width_px) + "x" + std::to_string(msg.height_px) +
+                         ", the site says " + std::to_string(camera_.width_px) + "x" +
+                         std::to_string(camera_.height_px),
+                     now_utime);
+    return;
+  }
+  std::vector<vision::SearchPlan> plans = tracker_->Plan(msg.utime);
+  bool full = false;
+  for (const vision::SearchPlan& p : plans) full = full || p.full_frame;
+  // The live node searched as its tracker planned; a different plan here
+  // means the trackers' states differ (a hint heard at another moment).
+  if (full != (msg.search_mode == marker_pixels_t::SEARCH_FULL_FRAME)) {
+    status_.Count("search_mode_differs");
+  }
+  // A capped message lost markers no robot had taken (the robots' go first):
+  // a full-frame search here sees fewer look-alikes than the live one did.
+  if (msg.num_markers >= wire_cap::kMarkersPerFrame) status_.Count("capped_frames");
+  std::vector<vision::Blob> blobs;
+  blobs.reserve(msg.markers.size());
+  for (const marker_t& m : msg.markers) {
+    vision::Blob b;
+    b.class_index = ClassIndex(setup_.classes, m.colour_class);
+    if (b.class_index < 0) {
+      status_.Reject("unknown_marker_class");
+      continue;
+    }
+    // A recorded message is outside input: a centre or size that is not a
+    // finite number would poison the track (and its window) for good.
+    if (!std::isfinite(m.u_px) || !std::isfinite(m.v_px) || !std::isfinite(m.radius_px) ||
+        !std::isfinite(m.circularity) || !std::isfinite(m.area_px)) {
+      status_.Reject("non_finite_marker");
+      continue;
+    }
+    b.u_px = m.u_px;
+    b.v_px = m.v_px;
+    b.radius_px = m.radius_px;
+    b.circularity = m.circularity;
+    b.area_px = m.area_px;
+    blobs.push_back(b);
+  }
+  Track(msg.utime, plans, blobs, now_utime);
+  if (calibration_) {
+    // The frame's output here is its POSE_CAMERA set (live: MARKER_PIXELS).
+    PublishPoses(msg.utime, msg.frame_seq, msg.processing_time_us);
+    status_.AddOutputs();
+  }
+}
+
+void CameraNode::Track(int64_t capture_utime, const std::vector<vision::SearchPlan>& plans,
+                       const std::vector<vision::Blob>& blobs, int64_t now_utime) {
+  // The tracker's lists from the frame's blobs: every blob for a full-frame
+  // search; for robot i's window, the blobs of its two classes whose centre
+  // lies in the window (a window's detection yields exactly those).
+  bool full = false;
+  for (const vision::SearchPlan& p : plans) full = full || p.full_frame;
+  std::vector<vision::Blob> full_blobs;
+  if (full) full_blobs = blobs;
+  std::vector<std::vector<vision::Blob>> window_blobs(plans.size());
+  for (size_t i = 0; i < plans.size(); ++i) {
+    if (plans[i].full_frame || plans[i].window.empty()) continue;
+    const vision::TrackedRobotSpec& spec = tracker_->robots()[i];
+    const cv::Rect& r = plans[i].window;
+    for (const vision::Blob& b : blobs) {
+      if (b.class_index != spec.position_class && b.class_index != spec.heading_class) continue;
+      if (b.u_px >= r.x - 0.5 && b.u_px <= r.x + r.width - 0.5 && b.v_px >= r.y - 0.5 &&
+          b.v_px <= r.y + r.height - 0.5) {
+        window_blobs[i].push_back(b);
+      }
+    }
+  }
+  observations_ = tracker_->Update(capture_utime, plans, full_blobs, window_blobs);
+  ++frames_processed_;
+  status_.Count(full ? "full_searches" : "window_searches");
   // A line per robot when its state changes, so STATUS and the log say why
   // a robot is not tracked (ambiguous start-up, lost) without one per frame.
   last_states_.resize(observations_.size(), -1);
@@ -425,8 +519,6 @@ void CameraNode::OnFrame(camera::Frame* frame, int64_t now_utime) {
     if (o.state == vision::TrackState::kAmbiguous) status_.Count("ambiguous_frames");
     if (!o.found) status_.Count("robot_not_found");
   }
-  if (calibration_) PublishPoses(*frame, now_utime + elapsed_us);
-  MaybePublishPreview(*frame);
 }
 
 void CameraNode::MaybePublishPreview(const camera::Frame& frame) {
@@ -463,15 +555,15 @@ bool CameraNode::MapMarker(const vision::Blob& blob, double radius_m, double hei
   return calibration_->PixelToFloor(blob.u_px, blob.v_px, height_m, x_m, y_m, &error);
 }
 
-void CameraNode::PublishPoses(const camera::Frame& frame, int64_t now_utime) {
+void CameraNode::PublishPoses(int64_t capture_utime, int64_t frame_seq, int64_t latency_us) {
   for (size_t i = 0; i < observations_.size(); ++i) {
     const vision::RobotObservation& o = observations_[i];
     const double height_m = setup_.marker_height_m[i];
     pose2d_t p{};
-    p.utime = frame.capture_utime;
+    p.utime = capture_utime;
     p.source = pose2d_t::SOURCE_CAMERA;
     p.robot_id = o.robot_id;
-    p.measurement_seq = frame.seq;
+    p.measurement_seq = frame_seq;
     p.z_m = height_m;
     p.x_m = p.y_m = p.heading_rad = kNaN;
     for (auto& row : p.covariance) {
@@ -530,7 +622,7 @@ void CameraNode::PublishPoses(const camera::Frame& frame, int64_t now_utime) {
       }
       p.residual_m = 0.0;
     }
-    p.latency_us = now_utime - frame.capture_utime;
+    p.latency_us = latency_us;
     if (bus_->Publish(kCameraPoseChannel, p)) status_.Count("poses");
   }
 }

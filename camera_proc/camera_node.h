@@ -98,6 +98,18 @@ class CameraNode {
   bool ok(std::string* error) const;
 
   void OnFrame(camera::Frame* frame, int64_t now_utime);
+  // The stages after detection for a recorded MARKER_PIXELS of this camera
+  // (the detector's output as OnFrame published it): tracking, pixel to
+  // floor with the calibration, covariance, POSE_CAMERA. OnFrame runs the
+  // same code (Track, PublishPoses) on the blobs it detected, so a replay of
+  // a log's pixels gives the live poses. Time is the message's: the frame's
+  // capture utime, the pose latency its processing_time_us. Nothing is
+  // published on MARKER_PIXELS. Pixels of another camera are ignored;
+  // counted: wrong_frame_size, unknown_marker_class, non_finite_marker
+  // (rejections; the frame's other markers are used),
+  // search_mode_differs (this tracker planned another search than the live
+  // one), capped_frames (the message held the wire cap's number of markers).
+  void OnMarkerPixels(const marker_pixels_t& msg, int64_t now_utime);
   // The source gave an unreadable frame (`reason` lower_case) or lost the
   // device, or reopened it.
   void OnBadFrame(const std::string& reason, const std::string& error, int64_t now_utime);
@@ -118,7 +130,11 @@ class CameraNode {
  private:
   bool SearchFullFrame(camera::FrameImage* image, std::vector<vision::Blob>* blobs,
                        std::string* error);
-  void PublishPoses(const camera::Frame& frame, int64_t now_utime);
+  // Tracking from one frame's blobs (each marker once): sets observations_
+  // and the per-robot state lines and counters.
+  void Track(int64_t capture_utime, const std::vector<vision::SearchPlan>& plans,
+             const std::vector<vision::Blob>& blobs, int64_t now_utime);
+  void PublishPoses(int64_t capture_utime, int64_t frame_seq, int64_t latency_us);
   void OnHint(const pose2d_t& pose, const MessageInfo& info);
   void MaybePublishPreview(const camera::Frame& frame);
   bool MapMarker(const vision::Blob& blob, double radius_m, double height_m, double* x_m,

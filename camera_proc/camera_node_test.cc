@@ -8,6 +8,7 @@
 #include <memory>
 #include <opencv2/imgcodecs.hpp>
 #include <random>
+#include <utility>
 #include <vector>
 
 #include "camera_proc/sim_frame_source.h"
@@ -35,6 +36,9 @@ struct PipelineRun {
   std::vector<pose2d_t> poses;
   std::vector<marker_pixels_t> pixels;
   std::vector<image_t> previews;
+  // The ultrasound hints published, with the index of the frame they
+  // preceded.
+  std::vector<std::pair<size_t, pose2d_t>> hints;
   std::vector<std::vector<sim::RobotState>> truth;  // per frame
   std::unique_ptr<CameraNode> node;
 };
@@ -117,6 +121,7 @@ class CameraNodeTest : public ::testing::Test {
         hint.status = pose2d_t::STATUS_OK;
         bus_->set_now_utime(frame.capture_utime + 5'000);  // The radio's delay.
         bus_->Publish("POSE_ULTRASOUND", hint);
+        run.hints.emplace_back(static_cast<size_t>(i), hint);
       }
       run.node->OnFrame(&frame, frame.capture_utime + 1000);
     }
@@ -425,6 +430,98 @@ TEST_F(CameraNodeTest, ARobotOutOfViewIsLost) {
     EXPECT_EQ(m.num_markers, 0);
     EXPECT_EQ(m.search_mode, marker_pixels_t::SEARCH_FULL_FRAME);
   }
+}
+
+// The entry point for recorded pixels (roomfix replay --nodes camera) runs
+// the code the live frame path runs after detection: fed the MARKER_PIXELS a
+// live node published, a fresh node publishes the very same POSE_CAMERA,
+// bit for bit. "harsh" has look-alikes, noise and lighting changes, so the
+// run holds full-frame searches, window searches and refused candidates.
+TEST_F(CameraNodeTest, RecordedMarkerPixelsGiveTheLivePosesBitForBit) {
+  hint_sigma_m_ = 0.03;  // Resolves the look-alike, so the robot is tracked.
+  const PipelineRun live = RunFrames("harsh", 120);
+  ASSERT_EQ(live.pixels.size(), 120u);
+  ASSERT_EQ(live.poses.size(), 120u);
+  int windows = 0;
+  for (const marker_pixels_t& m : live.pixels) {
+    windows += m.search_mode == marker_pixels_t::SEARCH_REGION_OF_INTEREST;
+  }
+  EXPECT_GT(windows, 60) << "the run must exercise the tracking windows";
+
+  calib::Calibration c;
+  c.model = calib::Calibration::Model::kFull;
+  c.camera = lens_;
+  LoopbackBus bus;
+  std::vector<pose2d_t> poses;
+  int pixels_published = 0;
+  bus.Subscribe<pose2d_t>(kCameraPoseChannel,
+                          [&](const pose2d_t& p, const MessageInfo&) { poses.push_back(p); });
+  bus.Subscribe<marker_pixels_t>(
+      kMarkerPixelsChannel,
+      [&](const marker_pixels_t&, const MessageInfo&) { ++pixels_published; });
+  CameraNode node(site_, camera_, c, &bus, CameraNodeOptions{}, kStartUtime);
+  std::string error;
+  ASSERT_TRUE(node.ok(&error)) << error;
+  // The hints in the order the live node heard them, before their frame.
+  size_t next_hint = 0;
+  for (size_t i = 0; i < live.pixels.size(); ++i) {
+    for (; next_hint < live.hints.size() && live.hints[next_hint].first == i; ++next_hint) {
+      bus.set_now_utime(live.hints[next_hint].second.utime + 5'000);
+      bus.Publish("POSE_ULTRASOUND", live.hints[next_hint].second);
+    }
+    node.OnMarkerPixels(live.pixels[i], live.pixels[i].utime + 1000);
+  }
+
+  EXPECT_EQ(pixels_published, 0) << "the recorded pixels are the input, not republished";
+  ASSERT_EQ(poses.size(), live.poses.size());
+  int found = 0;
+  for (size_t i = 0; i < poses.size(); ++i) {
+    std::vector<uint8_t> a(static_cast<size_t>(poses[i].getEncodedSize()));
+    std::vector<uint8_t> b(static_cast<size_t>(live.poses[i].getEncodedSize()));
+    poses[i].encode(a.data(), 0, static_cast<int>(a.size()));
+    live.poses[i].encode(b.data(), 0, static_cast<int>(b.size()));
+    EXPECT_EQ(a, b) << "pose " << i << " (frame " << live.poses[i].measurement_seq << ")";
+    found += poses[i].status != pose2d_t::STATUS_LOST;
+  }
+  EXPECT_GT(found, 100);
+  EXPECT_EQ(node.status().counter("search_mode_differs"), 0) << "the trackers planned alike";
+  EXPECT_EQ(node.status().counter("hints"), live.node->status().counter("hints"));
+}
+
+// Recorded pixels are outside input: a marker of a class the site lacks or
+// with a centre that is not a number is refused and counted, the frame's
+// good marker still tracked; pixels for another image size are refused.
+TEST_F(CameraNodeTest, BadRecordedMarkerPixelsAreCountedNotTracked) {
+  const PipelineRun live = RunFrames("clean", 3);
+  ASSERT_EQ(live.pixels.size(), 3u);
+  ASSERT_NE(live.poses.back().status, pose2d_t::STATUS_LOST);
+  calib::Calibration c;
+  c.model = calib::Calibration::Model::kFull;
+  c.camera = lens_;
+  LoopbackBus bus;
+  std::vector<pose2d_t> poses;
+  bus.Subscribe<pose2d_t>(kCameraPoseChannel,
+                          [&](const pose2d_t& p, const MessageInfo&) { poses.push_back(p); });
+  CameraNode node(site_, camera_, c, &bus, CameraNodeOptions{}, kStartUtime);
+  marker_pixels_t bad = live.pixels[0];
+  marker_t nan_marker = bad.markers.front();
+  nan_marker.u_px = std::numeric_limits<double>::quiet_NaN();
+  marker_t unknown = bad.markers.front();
+  unknown.colour_class = "ultraviolet";
+  bad.markers.push_back(nan_marker);
+  bad.markers.push_back(unknown);
+  bad.num_markers = static_cast<int32_t>(bad.markers.size());
+  node.OnMarkerPixels(bad, bad.utime);
+  marker_pixels_t wrong_size = live.pixels[1];
+  wrong_size.width_px /= 2;
+  node.OnMarkerPixels(wrong_size, wrong_size.utime);
+  node.OnMarkerPixels(live.pixels[2], live.pixels[2].utime);
+  EXPECT_EQ(node.status().rejected("non_finite_marker"), 1);
+  EXPECT_EQ(node.status().rejected("unknown_marker_class"), 1);
+  EXPECT_EQ(node.status().rejected("wrong_frame_size"), 1);
+  ASSERT_EQ(poses.size(), 2u);  // Frames 0 and 2.
+  EXPECT_NE(poses[0].status, pose2d_t::STATUS_LOST);
+  EXPECT_EQ(poses[1].x_m, live.poses[2].x_m);
 }
 
 }  // namespace

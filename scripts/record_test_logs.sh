@@ -57,3 +57,17 @@ record "$data/ultrasound_demo_40s.lcm" 'POSE_ULTRASOUND|POSE_GROUND_TRUTH' -- \
    for _ in \$(seq 100); do [[ -e /tmp/roomfix_record_radio ]] && break; sleep 0.05; done;
    '$bin/zigbee_bridge' --config '$site' --port /tmp/roomfix_record_radio --log-level warn & bridge=\$!;
    wait \$sim; sleep 0.3; kill -INT \$bridge \$solver; wait \$bridge \$solver"
+
+# The demo's pipeline as live processes (the camera on the synthetic ceiling
+# camera, trilat_proc robust, fusion_proc) for the replay tests
+# (tools/replay_test.cc): their inputs and outputs, with the camera's marker
+# pixels (the input of --nodes camera) but not its previews.
+record "$data/pipeline_replay.lcm" 'RANGES|POSE_.*|STATUS|SITE|MARKER_PIXELS' -- \
+  "'$bin/trilat_proc' --config '$site' --method robust --log-level warn & solver=\$!;
+   '$bin/fusion_proc' --config '$site' --log-level warn & fusion=\$!;
+   start=\$(( \$(date +%s%6N) + 1000000 ));
+   '$bin/camera_proc' --config '$site' --start-utime \$start --log-level warn & camera=\$!;
+   sleep 0.3;
+   '$bin/roomfix_sim' --config '$site' --start-utime \$start --ranges --range-noise 0.02 \
+     --nlos-probability 0.05 --dropout-probability 0.02 --seed 11 --duration 5 --log-level warn;
+   sleep 0.3; kill -INT \$camera \$fusion \$solver; wait \$camera \$fusion \$solver"

@@ -23,6 +23,7 @@ void AddCalibrateCommand(CLI::App* app, int* exit_code);
 void AddMapCommand(CLI::App* app, int* exit_code);
 void AddRenderCameraCommand(CLI::App* app, int* exit_code);
 void AddSurveyCommand(CLI::App* app, int* exit_code);
+void AddReplayCommand(CLI::App* app, int* exit_code);
 // Adds `logger` under the `bench` subcommand.
 void AddBenchLoggerCommand(CLI::App* bench, int* exit_code);
 // Adds `radio` under the `bench` subcommand.
@@ -30,6 +31,8 @@ void AddBenchRadioCommand(CLI::App* bench, int* exit_code);
 void AddBenchViewerCommand(CLI::App* bench, int* exit_code);
 // Adds `camera` under the `bench` subcommand.
 void AddBenchCameraCommand(CLI::App* bench, int* exit_code);
+// Adds `replay` under the `bench` subcommand.
+void AddBenchReplayCommand(CLI::App* bench, int* exit_code);
 
 }  // namespace roomfix
 

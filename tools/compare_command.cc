@@ -6,6 +6,7 @@
 #include <iostream>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <string>
 
 #include "core/analysis/circle_fit.h"
@@ -23,6 +24,51 @@ namespace {
 // running, and nothing is compared there.
 constexpr int64_t kMaxReferenceGap_us = 200000;
 
+// `roomfix compare OLD NEW` (a log and its `roomfix replay`): per source and
+// robot, the poses in each, the error of each against the ground truth, and
+// NEW's poses against OLD's at NEW's measurement times. A replay keeps the
+// measurement times, so matched poses are compared exactly; between OLD's
+// poses (a pose only one log has) OLD's track is interpolated, within the
+// same gap as the ground truth.
+nlohmann::json PrintDifference(const PoseLogs& old_logs, const PoseLogs& new_logs) {
+  auto positions = [](const PoseLogs& logs, const std::pair<std::string, int>& key) {
+    std::vector<analysis::TimedPosition> out;
+    auto it = logs.tracks.find(key);
+    if (it != logs.tracks.end()) out = it->second.Positions();
+    return out;
+  };
+  std::set<std::pair<std::string, int>> keys;
+  for (const auto& [key, track] : old_logs.tracks) keys.insert(key);
+  for (const auto& [key, track] : new_logs.tracks) keys.insert(key);
+  nlohmann::json out;
+  std::printf("\nNEW %s against OLD %s:\n", new_logs.logs.front().path.c_str(),
+              old_logs.logs.front().path.c_str());
+  std::printf("%-12s %5s %7s %7s %10s %10s %9s %12s %10s\n", "source", "robot", "old", "new",
+              "rmse_old_m", "rmse_new_m", "compared", "new-old_rms", "new-old_max");
+  for (const auto& key : keys) {
+    if (key.first == "ground_truth") continue;
+    const auto old_track = positions(old_logs, key);
+    const auto new_track = positions(new_logs, key);
+    auto truth = positions(old_logs, {"ground_truth", key.second});
+    if (truth.empty()) truth = positions(new_logs, {"ground_truth", key.second});
+    const analysis::ErrorSummary old_error =
+        analysis::CompareToReference(old_track, truth, kMaxReferenceGap_us);
+    const analysis::ErrorSummary new_error =
+        analysis::CompareToReference(new_track, truth, kMaxReferenceGap_us);
+    const analysis::ErrorSummary change =
+        analysis::CompareToReference(new_track, old_track, kMaxReferenceGap_us);
+    std::printf("%-12s %5d %7zu %7zu %10.4f %10.4f %9d %12.4f %10.4f\n", key.first.c_str(),
+                key.second, old_track.size(), new_track.size(), old_error.rmse_m, new_error.rmse_m,
+                change.compared, change.rmse_m, change.max_m);
+    out[key.first][std::to_string(key.second)] = {
+        {"old_fixes", old_track.size()},      {"new_fixes", new_track.size()},
+        {"old_rmse_m", old_error.rmse_m},     {"new_rmse_m", new_error.rmse_m},
+        {"compared", change.compared},        {"new_minus_old_rms_m", change.rmse_m},
+        {"new_minus_old_max_m", change.max_m}};
+  }
+  return out;
+}
+
 }  // namespace
 
 void AddCompareCommand(CLI::App* app, int* exit_code) {
@@ -32,6 +78,10 @@ void AddCompareCommand(CLI::App* app, int* exit_code) {
   auto json_path = std::make_shared<std::string>();
   auto fit_circle = std::make_shared<bool>(false);
   cmd->add_option("LOG", *log_path, "LCM log with POSE_* channels")->required();
+  auto new_log_path = std::make_shared<std::string>();
+  cmd->add_option("NEW", *new_log_path,
+                  "A second log (e.g. from `roomfix replay LOG`): also print each source's "
+                  "difference from LOG");
   cmd->add_option("--json", *json_path, "Also write the summary as JSON to this file");
   cmd->add_flag("--fit-circle", *fit_circle,
                 "Also fit the reference paper's circle models to each source's track");
@@ -42,7 +92,7 @@ void AddCompareCommand(CLI::App* app, int* exit_code) {
   auto report_path = std::make_shared<std::string>();
   cmd->add_option("--report", *report_path,
                   "Name this analysis report in the JSON (the demo's summary points to it)");
-  cmd->callback([log_path, json_path, report_path, fit_circle, config_path, exit_code] {
+  cmd->callback([log_path, new_log_path, json_path, report_path, fit_circle, config_path, exit_code] {
     PoseLogs logs = ReadPoseLogs({*log_path});
     const LogReadReport& report = logs.logs.front();
     if (!report.error.empty()) {
@@ -149,6 +199,22 @@ void AddCompareCommand(CLI::App* app, int* exit_code) {
     if (report.damaged) {
       std::fflush(stdout);
       std::cerr << "roomfix compare: warning: " << report.path << ": " << report.damage << "\n";
+    }
+    if (!new_log_path->empty()) {
+      const PoseLogs new_logs = ReadPoseLogs({*new_log_path});
+      const LogReadReport& new_report = new_logs.logs.front();
+      if (!new_report.error.empty()) {
+        std::cerr << "roomfix compare: " << new_report.error << "\n";
+        *exit_code = 1;
+        return;
+      }
+      out["new_log"] = *new_log_path;
+      out["difference"] = PrintDifference(logs, new_logs);
+      if (new_report.damaged) {
+        std::fflush(stdout);
+        std::cerr << "roomfix compare: warning: " << new_report.path << ": " << new_report.damage
+                  << "\n";
+      }
     }
     if (!json_path->empty()) {
       std::string error;

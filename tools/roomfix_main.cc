@@ -29,6 +29,7 @@ int main(int argc, char** argv) {
   roomfix::AddMapCommand(&app, &exit_code);
   roomfix::AddRenderCameraCommand(&app, &exit_code);
   roomfix::AddSurveyCommand(&app, &exit_code);
+  roomfix::AddReplayCommand(&app, &exit_code);
   CLI11_PARSE(app, argc, argv);
   // Standard output is an output like any file (bench --json, frames,
   // map): a command whose output was lost (`> /dev/full`, a full disk)

@@ -418,7 +418,7 @@ void RangeAssembler::Close(BeaconState* state, size_t index, CloseReason reason,
     range.receiver_id = r.id;
     range.receiver_position_m = r.position_m;
     range.time_of_flight_us = tof_us;
-    range.range_m = tof_us * 1e-6 * set.speed_of_sound_mps - r.range_offset_m;
+    range.range_m = RangeFromTimeOfFlight(tof_us, set.speed_of_sound_mps, r.range_offset_m);
     range.arrival_utime = a.arrival_utime;
     set.ranges.push_back(range);
   }

@@ -12,6 +12,15 @@
 
 namespace roomfix::radio {
 
+// A receiver's range: the time of flight times the speed of sound, minus
+// the receiver's calibrated offset (Receiver::range_offset_m). The one
+// formula for live assembly and for `roomfix replay --site`, which re-derives
+// recorded ranges with new offsets.
+inline double RangeFromTimeOfFlight(double time_of_flight_us, double speed_of_sound_mps,
+                                    double range_offset_m) {
+  return time_of_flight_us * 1e-6 * speed_of_sound_mps - range_offset_m;
+}
+
 struct AssemblerOptions {
   // A firing's set is published this long after its first packet arrived
   // (normally the beacon's announcement) if some receiver has not answered

@@ -208,6 +208,20 @@ TEST_P(DamagedLogTest, SurveyReadsAroundTheDamageAndSaysSo) {
   ExpectOneDamageLine(r, "roomfix survey", GetParam());
 }
 
+// roomfix replay re-solves every range set on both sides of the damage.
+TEST_P(DamagedLogTest, ReplayRunsAroundTheDamageAndSaysSo) {
+  const ToolRun r =
+      RunTool(dir_, {BinDir() + "/roomfix", "replay", path_, "--out", dir_.File("replayed.lcm"),
+                     "--config", SourceDir() + "/config/sites/demo_room.yaml", "--json"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;  // Damaged, and replayed.
+  const json out = json::parse(r.out, nullptr, false);
+  ASSERT_FALSE(out.is_discarded()) << r.out;
+  EXPECT_EQ(out["events_read"], GetParam().good_events);
+  EXPECT_EQ(out["bytes_skipped"], GetParam().skipped);
+  EXPECT_EQ(out["damage_regions"], 1);
+  ExpectOneDamageLine(r, "roomfix replay", GetParam());
+}
+
 // Any process can be pointed at a log with --lcm-url file://...; it reads
 // through LogFileBus (LCM's file provider SIGSEGVs on the 0x7FFFFFFF event)
 // and, as with LCM's provider, stops with exit 1 at the end of the log.

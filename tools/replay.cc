@@ -1,0 +1,357 @@
+#include "tools/replay.h"
+
+#include <sys/stat.h>
+
+#include <cmath>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "core/radio/range_assembler.h"
+#include "msgio/process.h"
+#include "msgio/wire_check.h"
+#include "roomfix/marker_pixels_t.hpp"
+#include "roomfix/range_set_t.hpp"
+
+namespace roomfix {
+namespace {
+
+// The bus the re-run nodes talk to. Recorded events come in through
+// Inject(); what a node publishes goes to `on_publish` (the new log) and, as
+// on a live bus, to every subscriber, so fusion hears the new trilat poses.
+// Single-threaded and synchronous: the order of the output is the order of
+// the calls, which is what makes it deterministic.
+class ReplayBus final : public Bus {
+ public:
+  using PublishHook = std::function<void(const std::string& channel, const void* data, int size)>;
+  explicit ReplayBus(PublishHook on_publish) : on_publish_(std::move(on_publish)) {}
+
+  bool PublishRaw(const std::string& channel, const void* data, int size) override {
+    CountPublished(true, channel);
+    on_publish_(channel, data, size);
+    DeliverToSubscribers(MessageInfo{channel, now_utime_}, data, size);
+    return true;
+  }
+  SubscriptionId SubscribeRaw(const std::string& channel_regex, RawHandler handler) override {
+    return AddSubscription(channel_regex, std::move(handler));
+  }
+  void Unsubscribe(SubscriptionId id) override { RemoveSubscription(id); }
+
+  void Inject(const std::string& channel, const void* data, int size) {
+    DeliverToSubscribers(MessageInfo{channel, now_utime_}, data, size);
+  }
+  void set_now_utime(int64_t utime) { now_utime_ = utime; }
+  int64_t now_utime() const { return now_utime_; }
+
+ private:
+  PublishHook on_publish_;
+  int64_t now_utime_ = 0;
+};
+
+// Re-derives a recorded range set's ranges from `site` (restamp_ranges).
+// Returns false when the set is not a range set DecodeChecked accepts; the
+// event is then passed on unchanged, for the node to refuse and count.
+bool RestampRanges(const Site& site, std::vector<uint8_t>* data, PipelineReplaySummary* summary) {
+  range_set_t set{};
+  std::string reason;
+  if (!DecodeChecked(data->data(), static_cast<int>(data->size()), &set, &reason)) return false;
+  for (range_t& r : set.ranges) {
+    const Receiver* receiver = site.FindReceiver(r.receiver_id);
+    if (receiver == nullptr) continue;  // trilat refuses it: unknown_receiver.
+    for (int k = 0; k < 3; ++k) r.receiver_position_m[k] = receiver->position_m[k];
+    if (std::isfinite(r.time_of_flight_us) && r.time_of_flight_us > 0 &&
+        std::isfinite(set.speed_of_sound_mps)) {
+      r.range_m = radio::RangeFromTimeOfFlight(r.time_of_flight_us, set.speed_of_sound_mps,
+                                               receiver->range_offset_m);
+      ++summary->ranges_restamped;
+    } else {
+      ++summary->ranges_kept;
+    }
+  }
+  const int size = set.getEncodedSize();
+  data->assign(static_cast<size_t>(size), 0);
+  return set.encode(data->data(), 0, size) == size;
+}
+
+int64_t SaturatingAddUs(int64_t a, int64_t b) { return a > INT64_MAX - b ? INT64_MAX : a + b; }
+
+}  // namespace
+
+bool MakeReplaySiteMessage(const LoadedSite& loaded, site_t* msg, std::string* error) {
+  if (!MakeSiteMessage(loaded, "roomfix replay", 0, msg, error)) return false;
+  msg->host = "replay";
+  msg->pid = 0;
+  return true;
+}
+
+bool ResolveReplaySite(const std::string& log_path, const std::string& config_path,
+                       const std::string& new_site_path, ReplaySite* out, std::string* error) {
+  if (!config_path.empty() && !new_site_path.empty()) {
+    *error = "give --config (the recorded site) or --site (a new one), not both";
+    return false;
+  }
+  out->is_new = !new_site_path.empty();
+  out->from_file = !config_path.empty() || out->is_new;
+  const std::string& path = out->is_new ? new_site_path : config_path;
+  std::vector<std::string> lines;
+  if (!ResolveToolSite(path, log_path, &out->loaded, &out->used_line, &lines, error)) {
+    if (!out->from_file) *error += " (or --site NEW.yaml)";
+    return false;
+  }
+  if (out->is_new) {
+    out->used_line = "new site from --site " + new_site_path + ": " + DescribeSite(out->loaded);
+    out->notes = lines;
+  } else {
+    out->warnings = lines;
+  }
+  return true;
+}
+
+bool ReplayCameraCalibrations(const LoadedSite& loaded, std::map<int, calib::Calibration>* out,
+                              std::string* error) {
+  out->clear();
+  for (size_t i = 0; i < loaded.site.cameras.size(); ++i) {
+    const Camera& camera = loaded.site.cameras[i];
+    const std::string* text = SiteCalibrationText(loaded, i);
+    if (text == nullptr) continue;
+    calib::Calibration c;
+    const std::string name =
+        "camera " + std::to_string(camera.id) + "'s calibration " + camera.calibration_file;
+    if (!calib::ParseCalibration(*text, name, &c, error)) return false;
+    if (c.width_px() != camera.width_px || c.height_px() != camera.height_px) {
+      *error = name + " is for " + std::to_string(c.width_px()) + "x" +
+               std::to_string(c.height_px()) + " px, the camera delivers " +
+               std::to_string(camera.width_px) + "x" + std::to_string(camera.height_px);
+      return false;
+    }
+    // camera_proc refuses a fit this poor; so does its replay.
+    if (const std::string fit = calib::CheckFitResidual(c); !fit.empty()) {
+      *error = name + ": " + fit;
+      return false;
+    }
+    (*out)[camera.id] = std::move(c);
+  }
+  return true;
+}
+
+bool LogHoldsChannel(const std::string& path, const std::string& channel, bool* holds,
+                     std::string* error) {
+  *holds = false;
+  auto reader = LogReader::Open(path, error);
+  if (reader == nullptr) return false;
+  LogEvent event;
+  while (reader->Next(&event)) {
+    if (event.channel == channel) {
+      *holds = true;
+      break;
+    }
+  }
+  return true;
+}
+
+bool PipelineReplayOptions::IsValid(std::string* error) const {
+  if (!trilat && !fusion && !camera) {
+    *error = "no node to re-run (choose trilat, fusion, camera)";
+    return false;
+  }
+  if (camera && camera_calibrations.empty()) {
+    *error = "camera: no camera of the site has a calibration, so there is no POSE_CAMERA to make";
+    return false;
+  }
+  if (camera && !camera_options.IsValid(error)) return false;
+  if (tick_period_ms <= 0 || tick_period_ms > 1000) {
+    *error = "tick_period_ms must be in 1..1000";
+    return false;
+  }
+  if (trilat && !trilat_options.IsValid(error)) return false;
+  if (fusion && !fusion_options.IsValid(error)) return false;
+  return true;
+}
+
+PipelineReplaySummary ReplayPipeline(LogReader* in, const Site& site,
+                                     const PipelineReplayOptions& options, LogWriter* out) {
+  PipelineReplaySummary summary;
+  if (!options.IsValid(&summary.error)) return summary;
+  summary.ok = true;
+  std::string write_error;
+  auto write = [&](int64_t utime, const std::string& channel, const void* data, int size) {
+    if (!write_error.empty()) return;
+    out->Write(utime, channel, data, size, &write_error);
+  };
+
+  std::unique_ptr<ReplayBus> bus;
+  bus = std::make_unique<ReplayBus>([&](const std::string& channel, const void* data, int size) {
+    if (channel != kStatusChannel) {
+      ++summary.new_outputs[channel];
+      write(bus->now_utime(), channel, data, size);
+      return;
+    }
+    process_status_t status{};
+    std::string reason;
+    if (!DecodeChecked(data, size, &status, &reason)) return;  // Our own encoding: cannot happen.
+    status.host = "replay";
+    status.pid = 0;
+    std::vector<uint8_t> buffer(static_cast<size_t>(status.getEncodedSize()));
+    status.encode(buffer.data(), 0, static_cast<int>(buffer.size()));
+    ++summary.new_outputs[kReplayStatusChannel];
+    write(bus->now_utime(), kReplayStatusChannel, buffer.data(), static_cast<int>(buffer.size()));
+  });
+
+  // The recorded outputs the new ones replace.
+  std::vector<std::string> replaced;
+  if (options.trilat) replaced.push_back(kUltrasoundPoseChannel);
+  if (options.fusion) replaced.push_back(options.fusion_options.fused_channel);
+  if (options.camera) replaced.push_back(kCameraPoseChannel);
+  if (options.site_message) replaced.push_back(kSiteChannel);
+  std::vector<uint8_t> site_bytes;
+  int64_t next_site_utime = 0;
+
+  // The nodes start at the log's first event, as the live ones started
+  // before it; their uptime in REPLAY_STATUS is log time.
+  std::optional<TrilatNode> trilat;
+  std::optional<FusionNode> fusion;
+  // Heap-held: a node's subscriptions capture its address.
+  std::vector<std::unique_ptr<CameraNode>> cameras;
+  CameraNodeOptions camera_options = options.camera_options;
+  // OnMarkerPixels never measures time, and nothing else may read a clock.
+  camera_options.steady_clock = [] { return int64_t{0}; };
+  const int64_t tick_us = int64_t{options.tick_period_ms} * 1000;
+  int64_t next_tick = 0;
+  auto tick = [&](int64_t now) {
+    bus->set_now_utime(now);
+    if (trilat) trilat->Tick(now);
+    if (fusion) fusion->Tick(now);
+    for (auto& c : cameras) c->Tick(now);
+    ++summary.ticks;
+  };
+
+  LogEvent event;
+  while (write_error.empty() && in->Next(&event)) {
+    if (summary.events_read == 0) {
+      summary.first_utime = event.utime;
+      bus->set_now_utime(event.utime);
+      if (options.trilat) trilat.emplace(site, bus.get(), options.trilat_options, event.utime);
+      if (options.fusion) fusion.emplace(site, bus.get(), options.fusion_options, event.utime);
+      // The node keeps a reference to its camera: the site's own entry.
+      for (const Camera& camera : site.cameras) {
+        if (!options.camera) break;
+        auto it = options.camera_calibrations.find(camera.id);
+        if (it == options.camera_calibrations.end()) continue;
+        auto node = std::make_unique<CameraNode>(site, camera, it->second, bus.get(),
+                                                 camera_options, event.utime);
+        std::string why;
+        if (!node->ok(&why)) {
+          summary.ok = false;
+          summary.error = "camera " + std::to_string(camera.id) + ": " + why;
+          return summary;
+        }
+        CameraNode* raw = node.get();
+        bus->Subscribe<marker_pixels_t>(kMarkerPixelsChannel,
+                                        [raw](const marker_pixels_t& m, const MessageInfo& info) {
+                                          raw->OnMarkerPixels(m, info.recv_utime);
+                                        });
+        cameras.push_back(std::move(node));
+      }
+      next_tick = event.utime;
+    }
+    ++summary.events_read;
+    summary.last_utime = event.utime;
+    // The ticks a live node would have had before this event arrived. A gap
+    // of more than kMaxCatchUpTicks periods (a pause, or a timestamp that
+    // jumps) is crossed in one step after that many.
+    for (int64_t n = 0; next_tick <= event.utime; ++n) {
+      if (n == kMaxCatchUpTicks) {
+        next_tick = event.utime;
+        break;
+      }
+      tick(next_tick);
+      next_tick = SaturatingAddUs(next_tick, tick_us);
+    }
+    if (options.site_message && event.utime >= next_site_utime) {
+      site_t site_msg = *options.site_message;
+      site_msg.utime = event.utime;
+      site_bytes.assign(static_cast<size_t>(site_msg.getEncodedSize()), 0);
+      site_msg.encode(site_bytes.data(), 0, static_cast<int>(site_bytes.size()));
+      write(event.utime, kSiteChannel, site_bytes.data(), static_cast<int>(site_bytes.size()));
+      ++summary.new_outputs[kSiteChannel];
+      next_site_utime = SaturatingAddUs(event.utime, kSitePeriodUs);
+    }
+    bool is_replaced = false;
+    for (const std::string& channel : replaced)
+      is_replaced = is_replaced || event.channel == channel;
+    if (is_replaced) {
+      ++summary.old_outputs_dropped[event.channel];
+      continue;
+    }
+    if (options.restamp_ranges && event.channel == kRangesChannel) {
+      RestampRanges(site, &event.data, &summary);
+    }
+    const int size = static_cast<int>(event.data.size());
+    std::string why;
+    if (!LogWriter::Loggable(event.channel, size, &why)) {
+      // LogReader reads channels LCM's tools cannot replay (up to 999
+      // bytes); such an event is counted and left out, not a failed run.
+      ++summary.inputs_not_loggable;
+      continue;
+    }
+    write(event.utime, event.channel, event.data.data(), size);
+    ++summary.inputs_written;
+    bus->set_now_utime(event.utime);
+    bus->Inject(event.channel, event.data.data(), size);
+  }
+  if (summary.events_read > 0 && write_error.empty()) {
+    tick(summary.last_utime);
+    if (trilat) {
+      trilat->Stop(summary.last_utime);
+      summary.trilat_status = trilat->status().Make(summary.last_utime, nullptr);
+    }
+    if (fusion) {
+      fusion->Stop(summary.last_utime);
+      summary.fusion_status = fusion->status().Make(summary.last_utime, nullptr);
+    }
+    for (auto& c : cameras) {
+      c->Stop(summary.last_utime);
+      summary.camera_status.push_back(c->status().Make(summary.last_utime, nullptr));
+    }
+  }
+  if (write_error.empty()) out->Flush(&write_error);
+  summary.refused = bus->stats().refused;
+  summary.damaged = in->damaged();
+  summary.bytes_skipped = in->bytes_skipped();
+  summary.damage_regions = in->damage_regions();
+  summary.damage = in->DamageSummary();
+  if (!write_error.empty()) {
+    summary.ok = false;
+    summary.error = write_error;
+  }
+  return summary;
+}
+
+PipelineReplaySummary ReplayPipelineFile(const std::string& in_path, const Site& site,
+                                         const PipelineReplayOptions& options,
+                                         const std::string& out_path, bool overwrite) {
+  PipelineReplaySummary summary;
+  if (!options.IsValid(&summary.error)) return summary;
+  struct stat in_stat {};
+  struct stat out_stat {};
+  if (::stat(out_path.c_str(), &out_stat) == 0) {
+    if (::stat(in_path.c_str(), &in_stat) == 0 && in_stat.st_dev == out_stat.st_dev &&
+        in_stat.st_ino == out_stat.st_ino) {
+      summary.error = out_path + ": is the input log; the replay writes a new one";
+      return summary;
+    }
+    if (!overwrite) {
+      summary.error = out_path + ": exists (give --force to replace it)";
+      return summary;
+    }
+  }
+  auto reader = LogReader::Open(in_path, &summary.error);
+  if (reader == nullptr) return summary;
+  auto writer = LogWriter::Create(out_path, overwrite, &summary.error);
+  if (writer == nullptr) return summary;
+  return ReplayPipeline(reader.get(), site, options, writer.get());
+}
+
+}  // namespace roomfix

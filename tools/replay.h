@@ -1,0 +1,172 @@
+#ifndef ROOMFIX_TOOLS_REPLAY_H_
+#define ROOMFIX_TOOLS_REPLAY_H_
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "camera_proc/camera_node.h"
+#include "core/calib/calibration_file.h"
+#include "core/world/site.h"
+#include "fusion/fusion_node.h"
+#include "msgio/log.h"
+#include "msgio/site_message.h"
+#include "roomfix/process_status_t.hpp"
+#include "trilat_proc/trilat_node.h"
+
+namespace roomfix {
+
+// The re-run nodes' heartbeats, with host "replay" and pid 0 (the live
+// STATUS names the replaying machine's pid, which would make two replays
+// differ), on a channel of their own so no tool takes them for a live
+// process.
+inline constexpr char kReplayStatusChannel[] = "REPLAY_STATUS";
+
+struct PipelineReplayOptions {
+  // Which nodes run again. A re-run node's recorded outputs are left out of
+  // the new log (they stay in the old one) and replaced by its new ones.
+  bool trilat = true;
+  bool fusion = true;
+  // camera_proc's node from the recorded MARKER_PIXELS (CameraNode::
+  // OnMarkerPixels): tracking, floor mapping and POSE_CAMERA, one node per
+  // camera of the site with a calibration in camera_calibrations. The
+  // frames themselves are not in logs; detection is not re-run.
+  bool camera = false;
+  // By camera id: the calibration each camera's node maps pixels with (the
+  // log's SITE carries the files' texts; ReplayCameraCalibrations).
+  std::map<int, calib::Calibration> camera_calibrations;
+  CameraNodeOptions camera_options;
+  // As trilat_proc's and fusion_proc's flags; the replay command's default
+  // method is robust, which every shipped configuration runs.
+  TrilatNodeOptions trilat_options;
+  FusionNodeOptions fusion_options;
+  // Re-derive every range of RANGES from the site, as zigbee_bridge would
+  // have with it: the receiver's position, and the range from the recorded
+  // time of flight and speed of sound minus the receiver's range offset
+  // (radio::RangeFromTimeOfFlight). For a site that is not the one the log
+  // was recorded with (new offsets from `roomfix survey`).
+  bool restamp_ranges = false;
+  // Ticks on a grid of log time, as RunLoop ticks a live node every 10 ms.
+  int tick_period_ms = 10;
+  // The site the new log carries, when it is not the recorded one (a site
+  // file given on the command line): the recorded SITE events are left out
+  // and this one is written at the first event's log time and every
+  // kSitePeriodUs of log time after, as a live process publishes it, with
+  // that time as its utime. Unset: the recorded SITE events are copied.
+  std::optional<site_t> site_message;
+
+  bool IsValid(std::string* error) const;
+};
+
+struct PipelineReplaySummary {
+  // False when the run stopped: the log could not be read at all, or writing
+  // the new log failed (`error` says which).
+  bool ok = false;
+  std::string error;
+  int64_t events_read = 0;
+  // Recorded events copied to the new log (and delivered to the nodes).
+  int64_t inputs_written = 0;
+  // Recorded events LCM's tools could not replay (LogWriter::Loggable: a
+  // channel over 63 bytes...), left out of the new log and not delivered.
+  int64_t inputs_not_loggable = 0;
+  // Recorded outputs of the re-run nodes left out, by channel.
+  std::map<std::string, int64_t> old_outputs_dropped;
+  // What the re-run nodes published, by channel (STATUS as REPLAY_STATUS).
+  std::map<std::string, int64_t> new_outputs;
+  int64_t ranges_restamped = 0;
+  // Ranges whose time of flight or speed of sound was not a usable number:
+  // their position was restamped, their range kept as recorded.
+  int64_t ranges_kept = 0;
+  int64_t ticks = 0;
+  int64_t first_utime = 0;
+  int64_t last_utime = 0;
+  // The log's damage as LogReader counts it: every good event around it was
+  // replayed.
+  bool damaged = false;
+  int64_t bytes_skipped = 0;
+  int64_t damage_regions = 0;
+  std::string damage;
+  // Recorded messages the nodes refused before decoding (DecodeChecked), by
+  // `<CHANNEL>.<reason>`: hostile or corrupt input, counted, not fatal.
+  std::map<std::string, int64_t> refused;
+  // The nodes' final heartbeats (counters, rejections), when they ran.
+  process_status_t trilat_status{};
+  process_status_t fusion_status{};
+  // One per re-run camera node, in the site's camera order.
+  std::vector<process_status_t> camera_status;
+};
+
+// Re-runs the chosen nodes (the classes trilat_proc, fusion_proc and
+// camera_proc run)
+// over a recorded log on the log's own time, and writes the recorded events
+// (minus the re-run nodes' old outputs) and the new outputs to `out`.
+//
+// Time: every node's "now" is the log's. A recorded event is delivered with
+// its log timestamp as receive time, and the nodes are ticked on a
+// tick_period_ms grid of log time before each event (at most
+// kMaxCatchUpTicks per gap, so a timestamp that jumps by a year costs no
+// more than a minute's ticks). A new output is written with the log time at
+// which it was published, after the event that caused it. Nothing reads the
+// wall clock, so the output is a function of the input log and the options
+// only: two runs give byte-identical logs.
+//
+// Bad input: damage is skipped by LogReader and counted; undecodable
+// messages are refused by the bus and counted; neither stops the replay.
+PipelineReplaySummary ReplayPipeline(LogReader* in, const Site& site,
+                                     const PipelineReplayOptions& options, LogWriter* out);
+
+// Where the replay's site comes from (docs/replay.md, "The site").
+struct ReplaySite {
+  LoadedSite loaded;
+  // --site: a new site; the recorded ranges are re-derived from it.
+  bool is_new = false;
+  // Loaded from a file (--config or --site), so the new log carries it
+  // (PipelineReplayOptions::site_message); else it is the log's own.
+  bool from_file = false;
+  // "site from LOG: demo_room, hash ..." or "site from --config PATH: ...".
+  std::string used_line;
+  // For --config: a mismatch with the log's site, naming the keys, and SITE
+  // messages refused in the log. For --site the mismatch is the point: it is
+  // in `notes`.
+  std::vector<std::string> warnings;
+  std::vector<std::string> notes;
+};
+
+// The site of a replay: --config (the recorded site; a warning names the
+// keys where the log's own differs), --site (a new one), or neither: the
+// log's SITE (ReadSiteFromLog). False with one line when both are given, a
+// file does not load, or the log holds no usable SITE and neither is given.
+bool ResolveReplaySite(const std::string& log_path, const std::string& config_path,
+                       const std::string& new_site_path, ReplaySite* out, std::string* error);
+
+// The SITE message the new log carries for a site from a file: published by
+// "roomfix replay" on host "replay" with pid 0, so two replays are
+// byte-identical.
+bool MakeReplaySiteMessage(const LoadedSite& loaded, site_t* msg, std::string* error);
+
+// The calibrations of the site's cameras, parsed from the texts the loaded
+// site carries (from the log's SITE or read with the site file), by camera
+// id; a camera without one is left out. False with one line when a text does
+// not parse or is for another image size than the camera's.
+bool ReplayCameraCalibrations(const LoadedSite& loaded, std::map<int, calib::Calibration>* out,
+                              std::string* error);
+
+// Whether the log holds at least one event on `channel` (--nodes camera
+// needs MARKER_PIXELS). False with the reason when the log cannot be read.
+bool LogHoldsChannel(const std::string& path, const std::string& channel, bool* holds,
+                     std::string* error);
+
+// Twenty seconds of 10 ms ticks.
+inline constexpr int64_t kMaxCatchUpTicks = 2000;
+
+// The same run for a path: refuses `out_path` equal to `in_path` (the same
+// file, also through a link) and an existing `out_path` unless overwrite.
+PipelineReplaySummary ReplayPipelineFile(const std::string& in_path, const Site& site,
+                                         const PipelineReplayOptions& options,
+                                         const std::string& out_path, bool overwrite);
+
+}  // namespace roomfix
+
+#endif  // ROOMFIX_TOOLS_REPLAY_H_

@@ -1,0 +1,238 @@
+// roomfix replay: re-runs trilat_proc's, fusion_proc's (and camera_proc's,
+// from recorded MARKER_PIXELS) nodes over a
+// recorded log, on the log's time and as fast as the machine allows, and
+// writes a new log (docs/replay.md).
+#include <CLI/CLI.hpp>
+#include <chrono>
+#include <cstdio>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+
+#include "core/world/site.h"
+#include "tools/commands.h"
+#include "tools/replay.h"
+
+namespace roomfix {
+namespace {
+
+struct ReplayCommandArgs {
+  std::string log_path;
+  std::string out_path;
+  std::string nodes = "trilat,fusion";
+  // --site: a new site, whose receivers re-derive the recorded ranges.
+  // --config: the site the log was recorded in, used as it is.
+  std::string site_path;
+  std::string config_path;
+  std::string method = "robust";
+  bool force = false;
+  bool json = false;
+};
+
+// "trilat,fusion" into the options; false with the reason for anything else.
+bool ParseNodes(const std::string& list, PipelineReplayOptions* options, std::string* error) {
+  options->trilat = options->fusion = false;
+  std::stringstream stream(list);
+  std::string node;
+  while (std::getline(stream, node, ',')) {
+    if (node == "trilat") {
+      options->trilat = true;
+    } else if (node == "fusion") {
+      options->fusion = true;
+    } else if (node == "camera") {
+      options->camera = true;
+    } else {
+      *error = "--nodes: unknown node '" + node + "' (trilat, fusion, camera)";
+      return false;
+    }
+  }
+  if (!options->trilat && !options->fusion && !options->camera) {
+    *error = "--nodes: name at least one of trilat, fusion, camera";
+    return false;
+  }
+  return true;
+}
+
+std::string Counts(const std::map<std::string, int64_t>& counts) {
+  std::string out;
+  for (const auto& [name, n] : counts) {
+    out += (out.empty() ? "" : ", ") + name + " " + std::to_string(n);
+  }
+  return out.empty() ? "none" : out;
+}
+
+std::string StatusLine(const process_status_t& s) {
+  std::string out = "inputs " + std::to_string(s.inputs) + ", outputs " + std::to_string(s.outputs);
+  for (const counter_t& c : s.rejected)
+    out += ", rejected " + c.name + " " + std::to_string(c.count);
+  return out;
+}
+
+nlohmann::json StatusJson(const process_status_t& s) {
+  nlohmann::json j = {{"inputs", s.inputs}, {"outputs", s.outputs}};
+  for (const counter_t& c : s.rejected) j["rejected"][c.name] = c.count;
+  for (const counter_t& c : s.counters) j["counters"][c.name] = c.count;
+  return j;
+}
+
+int RunReplayCommand(const ReplayCommandArgs& args) {
+  PipelineReplayOptions options;
+  std::string error;
+  if (!ParseNodes(args.nodes, &options, &error)) {
+    std::cerr << "roomfix replay: " << error << "\n";
+    return 1;
+  }
+  if (!trilat::ParseMethod(args.method, &options.trilat_options.solver.method)) {
+    std::cerr << "roomfix replay: --method: unknown method '" << args.method << "'\n";
+    return 1;
+  }
+  ReplaySite replay_site;
+  if (!ResolveReplaySite(args.log_path, args.config_path, args.site_path, &replay_site, &error)) {
+    std::cerr << "roomfix replay: " << error << "\n";
+    return 1;
+  }
+  std::cerr << "roomfix replay: " << replay_site.used_line << "\n";
+  for (const std::string& line : replay_site.warnings) {
+    std::cerr << "roomfix replay: warning: " << line << "\n";
+  }
+  for (const std::string& line : replay_site.notes) {
+    std::cerr << "roomfix replay: " << line << "\n";
+  }
+  if (options.camera) {
+    // camera_proc's node starts from the detector's output: without it there
+    // is nothing to track (logs never hold the full frames).
+    bool holds = false;
+    if (!LogHoldsChannel(args.log_path, kMarkerPixelsChannel, &holds, &error)) {
+      std::cerr << "roomfix replay: " << error << "\n";
+      return 1;
+    }
+    if (!holds) {
+      std::cerr << "roomfix replay: --nodes camera: " << args.log_path
+                << " holds no MARKER_PIXELS (the camera's detections), so camera_proc's node has "
+                   "no input; record MARKER_PIXELS too, or replay trilat,fusion and keep the "
+                   "recorded POSE_CAMERA\n";
+      return 1;
+    }
+    if (!ReplayCameraCalibrations(replay_site.loaded, &options.camera_calibrations, &error)) {
+      std::cerr << "roomfix replay: --nodes camera: " << error << "\n";
+      return 1;
+    }
+  }
+  const Site& site = replay_site.loaded.site;
+  const std::string site_path = replay_site.used_line;
+  // The point of a new site is new receiver positions and offsets: the
+  // recorded ranges are re-derived from it. The recorded site is used as
+  // is, so the ranges are exactly the recorded ones.
+  options.restamp_ranges = replay_site.is_new;
+  // A site from a file travels in the new log in place of the recorded one.
+  if (replay_site.from_file) {
+    site_t msg{};
+    if (!MakeReplaySiteMessage(replay_site.loaded, &msg, &error)) {
+      std::cerr << "roomfix replay: warning: the new log carries no SITE: " << error << "\n";
+    } else {
+      options.site_message = msg;
+    }
+  }
+  const auto start = std::chrono::steady_clock::now();
+  const PipelineReplaySummary s =
+      ReplayPipelineFile(args.log_path, site, options, args.out_path, args.force);
+  const double wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (!s.ok) {
+    std::cerr << "roomfix replay: " << s.error << "\n";
+    return 1;
+  }
+  const double span_s = (s.last_utime - s.first_utime) * 1e-6;
+  const double speedup = wall_s > 0 ? span_s / wall_s : 0.0;
+  if (args.json) {
+    nlohmann::json j = {{"log", args.log_path},
+                        {"out", args.out_path},
+                        {"site", site_path},
+                        {"ranges_rederived", options.restamp_ranges},
+                        {"nodes", args.nodes},
+                        {"events_read", s.events_read},
+                        {"inputs_written", s.inputs_written},
+                        {"inputs_not_loggable", s.inputs_not_loggable},
+                        {"old_outputs_dropped", s.old_outputs_dropped},
+                        {"new_outputs", s.new_outputs},
+                        {"ranges_restamped", s.ranges_restamped},
+                        {"ranges_kept", s.ranges_kept},
+                        {"refused", s.refused},
+                        {"log_span_s", span_s},
+                        {"wall_s", wall_s},
+                        {"times_real_time", speedup},
+                        {"damaged", s.damaged},
+                        {"bytes_skipped", s.bytes_skipped},
+                        {"damage_regions", s.damage_regions},
+                        {"damage", s.damage}};
+    if (options.trilat) j["trilat_proc"] = StatusJson(s.trilat_status);
+    if (options.fusion) j["fusion_proc"] = StatusJson(s.fusion_status);
+    for (const process_status_t& c : s.camera_status) j["camera_proc"].push_back(StatusJson(c));
+    std::printf("%s\n", j.dump(2).c_str());
+  } else {
+    std::printf("%s -> %s: %lld events, %.2f s of log, %s\n", args.log_path.c_str(),
+                args.out_path.c_str(), static_cast<long long>(s.events_read), span_s,
+                site_path.c_str());
+    std::printf("  copied:   %lld recorded events (%lld ranges re-derived from the site)\n",
+                static_cast<long long>(s.inputs_written),
+                static_cast<long long>(s.ranges_restamped));
+    std::printf("  replaced: %s\n", Counts(s.old_outputs_dropped).c_str());
+    std::printf("  new:      %s\n", Counts(s.new_outputs).c_str());
+    if (options.trilat) std::printf("  trilat:   %s\n", StatusLine(s.trilat_status).c_str());
+    if (options.fusion) std::printf("  fusion:   %s\n", StatusLine(s.fusion_status).c_str());
+    for (const process_status_t& c : s.camera_status) {
+      std::printf("  camera:   %s\n", StatusLine(c).c_str());
+    }
+    std::printf("  ran in %.3f s: %.0fx real time\n", wall_s, speedup);
+  }
+  std::fflush(stdout);
+  if (!s.refused.empty()) {
+    std::cerr << "roomfix replay: warning: " << args.log_path
+              << ": recorded messages refused before decoding: " << Counts(s.refused) << "\n";
+  }
+  if (s.inputs_not_loggable > 0) {
+    std::cerr << "roomfix replay: warning: " << args.log_path << ": " << s.inputs_not_loggable
+              << " events on channels LCM cannot replay left out\n";
+  }
+  if (s.damaged) {
+    std::cerr << "roomfix replay: warning: " << args.log_path << ": " << s.damage
+              << "; every readable event was replayed\n";
+  }
+  return 0;
+}
+
+}  // namespace
+
+void AddReplayCommand(CLI::App* app, int* exit_code) {
+  auto* cmd = app->add_subcommand("replay",
+                                  "Re-run trilat_proc's, fusion_proc's and camera_proc's nodes "
+                                  "over a log, on its time, as fast as possible, "
+                                  "into a new log (docs/replay.md)");
+  auto args = std::make_shared<ReplayCommandArgs>();
+  cmd->add_option("LOG", args->log_path, "Recorded LCM log (roomfix_logger or lcm-logger)")
+      ->required();
+  cmd->add_option("--out", args->out_path,
+                  "New log: the recorded events with the re-run nodes' outputs replaced")
+      ->required();
+  cmd->add_option("--nodes", args->nodes,
+                  "Nodes to re-run: trilat, fusion, camera (from the log's "
+                  "MARKER_PIXELS), comma-separated")
+      ->capture_default_str();
+  auto* config = cmd->add_option(
+      "--config", args->config_path,
+      "The site file (YAML) the log was recorded in, used as it is (default: the log's SITE)");
+  cmd->add_option("--site", args->site_path,
+                  "A new site file (YAML), e.g. with receiver offsets from `roomfix survey`: "
+                  "the recorded ranges are re-derived from its receivers")
+      ->excludes(config);
+  cmd->add_option("--method", args->method,
+                  "trilat_proc's --method (the shipped configurations run robust)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"nelder-mead", "default", "robust", "cauchy"}));
+  cmd->add_flag("--force", args->force, "Replace --out if it exists");
+  cmd->add_flag("--json", args->json, "Print the summary as JSON");
+  cmd->callback([args, exit_code] { *exit_code = RunReplayCommand(*args); });
+}
+
+}  // namespace roomfix
