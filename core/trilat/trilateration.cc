@@ -628,8 +628,10 @@ void SolveIn(const std::vector<RangeMeasurement>& input, const SolverOptions& o,
           }
           const double m_count = static_cast<double>(w.subset.size());
           sub_mean /= m_count;
+          const int scatter_dof = static_cast<int>(w.subset.size()) - D - 1;
           const double scatter =
-              std::sqrt(std::max(0.0, sub_square / m_count - sub_mean * sub_mean));
+              std::sqrt(std::max(0.0, (sub_square - m_count * sub_mean * sub_mean) /
+                                          (scatter_dof > 0 ? scatter_dof : m_count)));
           bool long_enough = true;
           for (int i : w.excluded) {
             long_enough = long_enough &&

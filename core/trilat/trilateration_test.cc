@@ -532,13 +532,18 @@ TEST(RealData, LiasPlanarStaticMediansAgreeWithMotionCapture) {
       EXPECT_LT(unbiased.mean, raw.mean);
       // On raw ranges every anchor is biased differently by 4-27 cm. The
       // robust solver excludes a range only when it stands out from the kept
-      // ranges' common level and scatter, so the biases are mostly kept:
-      // measured 15.8 against 15.0 cm mean on 8.14 (it was 24.0) and equal
-      // on 8.20. Not yet "never worse": the remaining gap is a handful of
-      // poses where one anchor reads 20 cm longer than the rest.
+      // ranges' common level and their scatter (estimated with its degrees
+      // of freedom), so the biases are kept: equal on 8.20, and on 8.14
+      // 15.18 against 14.95 cm mean (it was 24.0, then 15.8). The target,
+      // "never worse than least squares", is not met on 8.14 by
+      // kKnownGap_m: two poses where one anchor is 39-43 cm long against
+      // seven that fit within the 5 cm noise (3.5 and 2.5 cm RMS) and yet
+      // carry biases that put that fit 28-29 cm off; no test on one range
+      // set can tell this from a reflection. Calibrating the offsets (below)
+      // is the remedy.
       const ErrorStats plain = SolveAll(cases, session, site, none, Method::kDefault);
-      constexpr double kRobustRawGap = 1.06;
-      EXPECT_LE(raw.mean, kRobustRawGap * plain.mean) << session << " " << MethodName(m);
+      constexpr double kKnownGap_m = 0.0025;
+      EXPECT_LE(raw.mean, plain.mean + kKnownGap_m) << session << " " << MethodName(m);
       if (m != Method::kRobust) {
         EXPECT_LT(raw.max, kRawMax_m) << session << " " << MethodName(m);
       }
