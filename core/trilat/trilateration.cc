@@ -619,7 +619,13 @@ void SolveIn(const std::vector<RangeMeasurement>& input, const SolverOptions& o,
           // times their RMS scatter about that mean (kept ranges that
           // scatter more than the noise model says, as differently biased
           // receivers do, make a range stand out less). A reflection is
-          // long against the others.
+          // long against the others. The scatter is estimated with its
+          // degrees of freedom (m ranges less D coordinates and the mean)
+          // and, where it has any, never below the configured range noise:
+          // a handful of kept ranges that happen to fit tighter than the
+          // noise is chance, not evidence, and would otherwise make a
+          // consistently biased receiver (the LIAS data, docs/trilateration.md)
+          // look like a reflection.
           double sub_mean = 0.0, sub_square = 0.0;
           for (int i : w.subset) {
             const double e = Excess(*r, i, q);
@@ -629,9 +635,9 @@ void SolveIn(const std::vector<RangeMeasurement>& input, const SolverOptions& o,
           const double m_count = static_cast<double>(w.subset.size());
           sub_mean /= m_count;
           const int scatter_dof = static_cast<int>(w.subset.size()) - D - 1;
-          const double scatter =
-              std::sqrt(std::max(0.0, (sub_square - m_count * sub_mean * sub_mean) /
-                                          (scatter_dof > 0 ? scatter_dof : m_count)));
+          double scatter = std::sqrt(std::max(0.0, (sub_square - m_count * sub_mean * sub_mean) /
+                                                       (scatter_dof > 0 ? scatter_dof : m_count)));
+          if (scatter_dof > 0) scatter = std::max(scatter, o.range_sigma_m);
           bool long_enough = true;
           for (int i : w.excluded) {
             long_enough = long_enough &&
