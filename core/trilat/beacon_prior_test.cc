@@ -80,6 +80,26 @@ TEST(PriorIdentifies, TwoLongRangesAmongFour) {
   EXPECT_NEAR((fix.position_m - beacon).norm(), 0.0, kExact_m);
   EXPECT_EQ(fix.status, FixStatus::kDegraded);
   EXPECT_NE(fix.flags & kUnchecked, 0u);
+  // Both ranges are longer than the prior predicts by more than its radius
+  // plus the threshold: excluded together in one subset solve, not after the
+  // C(4, 1) + C(4, 2) = 10 of the search without a prior's identification.
+  EXPECT_EQ(fix.consensus_solves, 1);
+}
+
+TEST(PriorIdentifies, FallsBackToTheFullSearchWhenAReflectionHidesInTheRadius) {
+  // A prior of 0.5 m radius names only the 0.8 m reflection (0.45 m is within
+  // 0.5 m + 8 cm of what the prior predicts); the subset without it still
+  // holds the other and is refused, and the search finds the pair.
+  const Eigen::Vector3d beacon(2.9, 0.8, 1.3);
+  auto ranges = ExactRanges(Corners(), beacon);
+  ranges[0].range_m += 0.45;
+  ranges[2].range_m += 0.8;
+  const PositionPrior prior{beacon + Eigen::Vector3d(0.03, -0.01, 0.0), 0.5};
+  Fix fix;
+  Solve(ranges, Robust(), nullptr, &prior, &fix);
+  EXPECT_EQ(fix.used, (std::vector<int>{2, 4}));
+  EXPECT_NEAR((fix.position_m - beacon).norm(), 0.0, kExact_m);
+  EXPECT_EQ(fix.consensus_solves, 1 + 4 + 6);
 }
 
 TEST(PriorIdentifies, NothingWhenTheRangesAgreeAndAFourthChecksThem) {

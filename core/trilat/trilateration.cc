@@ -590,6 +590,120 @@ void SolveIn(const std::vector<RangeMeasurement>& input, const SolverOptions& o,
       int best_converged = 0;
       int best_size = n;
       const Eigen::Vector3d* start = prior != nullptr ? &prior->position_m : nullptr;
+      bool identified_by_prior = false;
+      // Solves w.subset (w.excluded left out) and keeps it as the best so far
+      // when it is admissible; true when it is.
+      auto evaluate = [&]() -> bool {
+        const int admissible_before = admissible;
+        Vec q;
+        bool c = false;
+        int its = 0;
+        if (D == 2 && w.subset.size() == 2 && prior != nullptr) {
+          // Exactly determined in 2D: the two circles' intersection nearest
+          // the prior, in closed form (a tenth of a Levenberg-Marquardt
+          // solve, which for the worst sets, two reflections among four
+          // ranges and six such pairs, decides the solver's p99 time).
+          c = CircleIntersection(*r, w.subset[0], w.subset[1], *prior, &q);
+        } else {
+          its =
+              solve_subset(w.subset, start, &q, &c, std::min(o.max_iterations, kSubsetIterations));
+        }
+        if (its >= 0 && c) {
+          fix->iterations += its;
+          double sub_worst = 0.0;
+          Residuals(*r, w.subset, q, &sub_worst);
+          // Long against the kept ranges: above their mean excess at q (a
+          // common offset, such as an uncalibrated receiver bias or a wrong
+          // speed of sound, lengthens every range, identifies none, and a
+          // fixed-height fit cannot absorb it) by the threshold plus five
+          // times their RMS scatter about that mean (kept ranges that
+          // scatter more than the noise model says, as differently biased
+          // receivers do, make a range stand out less). A reflection is
+          // long against the others. The scatter is estimated with its
+          // degrees of freedom (m ranges less D coordinates and the mean)
+          // and, where it has any, never below the configured range noise:
+          // a handful of kept ranges that happen to fit tighter than the
+          // noise is chance, not evidence, and would otherwise make a
+          // consistently biased receiver (the LIAS data, docs/trilateration.md)
+          // look like a reflection.
+          double sub_mean = 0.0, sub_square = 0.0;
+          for (int i : w.subset) {
+            const double e = Excess(*r, i, q);
+            sub_mean += e;
+            sub_square += e * e;
+          }
+          const double m_count = static_cast<double>(w.subset.size());
+          sub_mean /= m_count;
+          const int scatter_dof = static_cast<int>(w.subset.size()) - D - 1;
+          double scatter = std::sqrt(std::max(0.0, (sub_square - m_count * sub_mean * sub_mean) /
+                                                       (scatter_dof > 0 ? scatter_dof : m_count)));
+          if (scatter_dof > 0) scatter = std::max(scatter, o.range_sigma_m);
+          bool long_enough = true;
+          for (int i : w.excluded) {
+            long_enough = long_enough &&
+                          Excess(*r, i, q) - std::max(0.0, sub_mean) > threshold + 5.0 * scatter;
+          }
+          double score = Cost(*r, w.subset, q) / sigma2;
+          bool near = true;
+          if (prior != nullptr) {
+            // Within the radius plus three of the subset fix's own standard
+            // deviations (its largest): an exactly determined pair of
+            // ranges at a shallow angle is centimetres of noise times its
+            // dilution of precision away from the truth.
+            Eigen::Matrix<double, D, D> q_jtj;
+            Vec q_jte;
+            NormalEquations(*r, w.subset, q, &q_jtj, &q_jte);
+            Vec q_values;
+            EigenSymmetric<D>(q_jtj, &q_values, nullptr);
+            const double q_sigma =
+                q_values.minCoeff() > 0.0 ? o.range_sigma_m / std::sqrt(q_values.minCoeff()) : kInf;
+            const double reach = prior->radius_m + 3.0 * q_sigma;
+            const double d = DistanceToPrior(q, *prior) / reach;
+            near = d <= 1.0;
+            score += d * d;
+          }
+          const int dof = static_cast<int>(w.subset.size()) - D;
+          const bool fits = dof <= 0 || Cost(*r, w.subset, q) / sigma2 <= ChiSquareQuantile(dof);
+          if (sub_worst <= threshold && long_enough && near && fits) {
+            ++admissible;
+            if (score < best_score) {
+              best_score = score;
+              best_p = q;
+              best_converged = c;
+              best_size = static_cast<int>(w.subset.size());
+            }
+          }
+        }
+        return admissible > admissible_before;
+      };
+      // With a prior, a range longer than the prior predicts by more than the
+      // prior's radius plus the threshold is long against wherever the beacon
+      // can be (|d_pred(p) - d_pred(prior)| <= |p - prior| <= radius), so it
+      // is a reflection whatever the other ranges say. Excluding exactly
+      // those first settles the common case in one subset solve instead of
+      // all C(n, 1) + C(n, 2): two reflections among four ranges otherwise
+      // cost ten, which set the solver's p99 time. The subset must pass the
+      // same tests as any other; when it does not (a reflection too short
+      // to stand out against the prior, a wrong prior) the search below runs
+      // as without the shortcut.
+      if (prior != nullptr) {
+        w.subset.clear();
+        w.excluded.clear();
+        const Vec prior_p = prior->position_m.template head<D>();
+        for (int i : r->active) {
+          if (Excess(*r, i, prior_p) > prior->radius_m + threshold) {
+            w.excluded.push_back(i);
+          } else {
+            w.subset.push_back(i);
+          }
+        }
+        const int excluded = static_cast<int>(w.excluded.size());
+        if (excluded >= 1 && excluded <= max_out && o.max_consensus_solves > 0) {
+          ++fix->consensus_solves;
+          found = evaluate();
+          identified_by_prior = found;
+        }
+      }
       for (int k = 1; k <= max_out && !found && !exhausted; ++k) {
         std::vector<int> pick(k);
         for (int j = 0; j < k; ++j) pick[j] = j;
@@ -609,79 +723,7 @@ void SolveIn(const std::vector<RangeMeasurement>& input, const SolverOptions& o,
               w.subset.push_back(r->active[i]);
             }
           }
-          Vec q;
-          bool c = false;
-          int its = 0;
-          if (D == 2 && w.subset.size() == 2 && prior != nullptr) {
-            // Exactly determined in 2D: the two circles' intersection nearest
-            // the prior, in closed form (a tenth of a Levenberg-Marquardt
-            // solve, which for the worst sets, two reflections among four
-            // ranges and six such pairs, decides the solver's p99 time).
-            c = CircleIntersection(*r, w.subset[0], w.subset[1], *prior, &q);
-          } else {
-            its = solve_subset(w.subset, start, &q, &c,
-                               std::min(o.max_iterations, kSubsetIterations));
-          }
-          if (its >= 0 && c) {
-            fix->iterations += its;
-            double sub_worst = 0.0;
-            Residuals(*r, w.subset, q, &sub_worst);
-            // Long against the kept ranges: above their mean excess at q (a
-            // common offset, such as an uncalibrated receiver bias or a wrong
-            // speed of sound, lengthens every range, identifies none, and a
-            // fixed-height fit cannot absorb it) by the threshold plus five
-            // times their RMS scatter about that mean (kept ranges that
-            // scatter more than the noise model says, as differently biased
-            // receivers do, make a range stand out less). A reflection is
-            // long against the others.
-            double sub_mean = 0.0, sub_square = 0.0;
-            for (int i : w.subset) {
-              const double e = Excess(*r, i, q);
-              sub_mean += e;
-              sub_square += e * e;
-            }
-            const double m_count = static_cast<double>(w.subset.size());
-            sub_mean /= m_count;
-            const double scatter =
-                std::sqrt(std::max(0.0, sub_square / m_count - sub_mean * sub_mean));
-            bool long_enough = true;
-            for (int i : w.excluded) {
-              long_enough = long_enough &&
-                            Excess(*r, i, q) - std::max(0.0, sub_mean) > threshold + 5.0 * scatter;
-            }
-            double score = Cost(*r, w.subset, q) / sigma2;
-            bool near = true;
-            if (prior != nullptr) {
-              // Within the radius plus three of the subset fix's own standard
-              // deviations (its largest): an exactly determined pair of
-              // ranges at a shallow angle is centimetres of noise times its
-              // dilution of precision away from the truth.
-              Eigen::Matrix<double, D, D> q_jtj;
-              Vec q_jte;
-              NormalEquations(*r, w.subset, q, &q_jtj, &q_jte);
-              Vec q_values;
-              EigenSymmetric<D>(q_jtj, &q_values, nullptr);
-              const double q_sigma = q_values.minCoeff() > 0.0
-                                         ? o.range_sigma_m / std::sqrt(q_values.minCoeff())
-                                         : kInf;
-              const double reach = prior->radius_m + 3.0 * q_sigma;
-              const double d = DistanceToPrior(q, *prior) / reach;
-              near = d <= 1.0;
-              score += d * d;
-            }
-            const int dof = static_cast<int>(w.subset.size()) - D;
-            const bool fits = dof <= 0 || Cost(*r, w.subset, q) / sigma2 <= ChiSquareQuantile(dof);
-            if (sub_worst <= threshold && long_enough && near && fits) {
-              found = true;
-              ++admissible;
-              if (score < best_score) {
-                best_score = score;
-                best_p = q;
-                best_converged = c;
-                best_size = static_cast<int>(w.subset.size());
-              }
-            }
-          }
+          if (evaluate()) found = true;
           // Next combination of k indices out of n.
           int j = k - 1;
           while (j >= 0 && pick[j] == n - k + j) --j;
@@ -706,8 +748,8 @@ void SolveIn(const std::vector<RangeMeasurement>& input, const SolverOptions& o,
         converged = best_converged;
         fix->iterations += Refine(*r, r->active, o.max_iterations, &p, &converged);
         fix->flags |= kOutliersRejected;
-        if (prior != nullptr &&
-            (admissible > 1 || best_size < over_determined || worst <= threshold)) {
+        if (prior != nullptr && (identified_by_prior || admissible > 1 ||
+                                 best_size < over_determined || worst <= threshold)) {
           fix->flags |= kPriorIdentified;
         }
       } else if (worst > threshold) {
