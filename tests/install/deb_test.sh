@@ -81,7 +81,15 @@ satisfied() {  # name [op version]
   local name=$1 op=${2:-} want=${3:-} have
   have=$(dpkg-query -W -f='${Version}\n' "$name" 2>/dev/null | head -1)
   [[ -n "$have" ]] || have=$(apt-cache show "$name" 2>/dev/null | sed -n 's/^Version: //p' | head -1)
-  [[ -n "$have" ]] || return 1
+  if [[ -z "$have" ]]; then
+    # A virtual package (libspdlog1.10-fmt9 is provided by libspdlog1.10):
+    # an installed package or one in the apt lists must provide it.
+    dpkg-query -W -f='${Provides}\n' 2>/dev/null | tr ',' '\n' |
+      grep -qE "^ *$name( |\$)" && return 0
+    apt-cache showpkg "$name" 2>/dev/null | sed -n '/^Reverse Provides:/,$p' |
+      sed 1d | grep -q . && return 0
+    return 1
+  fi
   [[ -z "$op" ]] && return 0
   case $op in
     '>=') op=ge ;; '<=') op=le ;; '>>') op=gt ;; '<<') op=lt ;; '=') op=eq ;;
@@ -102,7 +110,7 @@ for clause in "${clauses[@]}"; do
   checked=$((checked + 1))
   ((ok)) || fail "Depends: no Debian 12 package satisfies '$clause'"
 done
-echo "Depends: $checked clauses, all satisfied"
+echo "Depends: $checked clauses checked: $depends"
 
 if ((failures)); then
   echo "$failures failures"; exit 1
