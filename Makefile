@@ -1,18 +1,26 @@
 # roomfix: `make demo` runs the pipeline on the simulator, `make test` builds
 # and runs every test. Both install missing Debian packages first.
 #
-#   make demo [DEMO_SECONDS=N]   the simulated pipeline for N seconds (default 30)
+#   make demo [DEMO_SECONDS=N]   builds only the demo's programs, then runs the
+#                                simulated pipeline for N seconds (default 30)
 #             [DEMO_CAMERA=0]    ... without the ceiling camera: ultrasound alone
-#   make test [SANITIZE=1]       the whole suite through ctest (ASan+UBSan build)
-#   make build                   configure and build into build/
+#   make test [SANITIZE=1]       the whole suite through ctest (ASan+UBSan build);
+#                                warnings are errors (ROOMFIX_WERROR)
+#   make build                   configure and build everything into build/
+#   make package                 a Release build in build/release and its
+#                                Debian package build/release/roomfix_<version>_<arch>.deb
 #   make spy                     lcm-spy with roomfix's types
 #   make format                  clang-format every C++ file
+#
+# WERROR=1 turns warnings into errors for any of them; `make test` sets it.
+# A build folder keeps its setting until it is given again.
 
 SANITIZE ?= 0
 DEMO_SECONDS ?= 30
 DEMO_CAMERA ?= 1
 JOBS ?= $(shell nproc)
 BUILD_TYPE ?= RelWithDebInfo
+RELEASE_DIR ?= build/release
 
 ifeq ($(SANITIZE),1)
 BUILD_DIR ?= build/sanitize
@@ -20,24 +28,38 @@ CMAKE_FLAGS += -DROOMFIX_SANITIZE=ON
 else
 BUILD_DIR ?= build
 endif
+# Passed only when given, so that `make demo` after `make test` does not flip
+# the setting (and rebuild everything).
+WERROR_FLAG = $(if $(WERROR),-DROOMFIX_WERROR=$(if $(filter 1 ON on,$(WERROR)),ON,OFF))
 
-.PHONY: all deps build test demo spy format clean
+.PHONY: all deps configure build test demo package spy format clean
 
 all: build
 
 deps:
 	@scripts/install_deps.sh
 
-build: deps
-	@cmake -S . -B $(BUILD_DIR) -DCMAKE_BUILD_TYPE=$(BUILD_TYPE) $(CMAKE_FLAGS) > $(BUILD_DIR).configure.log 2>&1 \
-	  || { cat $(BUILD_DIR).configure.log; exit 1; }
+configure: deps
+	@mkdir -p $(dir $(BUILD_DIR))
+	@cmake -S . -B $(BUILD_DIR) -DCMAKE_BUILD_TYPE=$(BUILD_TYPE) $(CMAKE_FLAGS) $(WERROR_FLAG) \
+	  > $(BUILD_DIR).configure.log 2>&1 || { cat $(BUILD_DIR).configure.log; exit 1; }
+
+build: configure
 	@cmake --build $(BUILD_DIR) -j $(JOBS) -- --no-print-directory
 
+test: WERROR = 1
 test: build
 	@cd $(BUILD_DIR) && ctest --output-on-failure -j $(JOBS) --timeout 600
 
-demo: build
+# Only what scripts/demo.sh runs: no test, no GoogleTest, no Java.
+demo: configure
+	@cmake --build $(BUILD_DIR) -j $(JOBS) --target demo -- --no-print-directory
 	@DEMO_CAMERA=$(DEMO_CAMERA) scripts/demo.sh $(BUILD_DIR) $(DEMO_SECONDS)
+
+package: BUILD_DIR = $(RELEASE_DIR)
+package: BUILD_TYPE = Release
+package: build
+	@cd $(RELEASE_DIR) && cpack -G DEB
 
 spy: build
 	@ROOMFIX_BUILD_DIR=$(BUILD_DIR) scripts/spy

@@ -1,6 +1,7 @@
 # Every dependency is a Debian 12 package (scripts/install_deps.sh installs
-# them). LCM 1.3.1 ships neither CMake files nor a pkg-config file usable
-# without glib's development headers, so it is found by hand.
+# them; docs/install.md lists the fewest that build the processes). LCM 1.3.1
+# ships neither CMake files nor a pkg-config file usable without glib's
+# development headers, so it is found by hand.
 find_package(Threads REQUIRED)
 find_package(yaml-cpp REQUIRED)
 find_package(CLI11 REQUIRED)
@@ -8,14 +9,51 @@ find_package(spdlog REQUIRED)
 find_package(fmt REQUIRED)
 # SHA-256 of the site texts (msgio/site_message.h).
 find_package(OpenSSL REQUIRED COMPONENTS Crypto)
-find_package(GTest REQUIRED)
-find_package(Java 11 REQUIRED COMPONENTS Development Runtime)
 
 find_path(LCM_INCLUDE_DIR lcm/lcm-cpp.hpp REQUIRED)
 find_library(LCM_LIBRARY lcm REQUIRED)
 find_program(LCM_GEN lcm-gen REQUIRED)
-find_file(LCM_JAR lcm.jar PATHS /usr/share/java NO_DEFAULT_PATH REQUIRED)
 add_library(lcm::lcm UNKNOWN IMPORTED)
 set_target_properties(lcm::lcm PROPERTIES
   IMPORTED_LOCATION ${LCM_LIBRARY}
   INTERFACE_INCLUDE_DIRECTORIES ${LCM_INCLUDE_DIR})
+
+# Optional parts. Each is on when what it needs is found and off, saying so,
+# when not; asking for one explicitly (-D...=ON) without its packages fails at
+# configure time with the packages to install.
+
+# The tests: GoogleTest is needed for them only.
+find_package(GTest QUIET)
+option(BUILD_TESTING "Build the tests (libgtest-dev, libgmock-dev)" ${GTest_FOUND})
+if(BUILD_TESTING)
+  if(NOT GTest_FOUND)
+    message(FATAL_ERROR "BUILD_TESTING is on but GoogleTest is missing: apt-get install "
+                        "libgtest-dev libgmock-dev, or configure with -DBUILD_TESTING=OFF")
+  endif()
+  enable_testing()
+  include(GoogleTest)
+endif()
+
+# The Java types jar (lcm-spy decodes roomfix's messages with it).
+find_package(Java 11 QUIET COMPONENTS Development Runtime)
+find_file(LCM_JAR lcm.jar PATHS /usr/share/java NO_DEFAULT_PATH)
+if(Java_FOUND AND LCM_JAR)
+  set(roomfix_java_default ON)
+else()
+  set(roomfix_java_default OFF)
+endif()
+option(ROOMFIX_JAVA "Build the Java types jar for lcm-spy (default-jdk-headless, liblcm-java)"
+       ${roomfix_java_default})
+if(ROOMFIX_JAVA AND NOT (Java_FOUND AND LCM_JAR))
+  message(FATAL_ERROR "ROOMFIX_JAVA is on but a JDK (11 or later) or lcm.jar is missing: "
+                      "apt-get install default-jdk-headless liblcm-java, or -DROOMFIX_JAVA=OFF")
+endif()
+
+# The viewer's window (OpenCV's highgui, which brings GTK); without it the
+# viewer still renders headless to PNG and video.
+find_package(OpenCV 4 QUIET COMPONENTS highgui)
+option(ROOMFIX_VIEWER_WINDOW "roomfix_viewer can open a window (OpenCV highgui)" ${OpenCV_FOUND})
+if(ROOMFIX_VIEWER_WINDOW AND NOT OpenCV_FOUND)
+  message(FATAL_ERROR "ROOMFIX_VIEWER_WINDOW is on but OpenCV's highgui is missing: "
+                      "apt-get install libopencv-highgui-dev, or -DROOMFIX_VIEWER_WINDOW=OFF")
+endif()

@@ -3,8 +3,9 @@
 # Runs lcm-gen on the given type definitions and makes
 #  - <name>: a library whose include directory holds the generated C++
 #    headers (<package>/<type>.hpp), linked with liblcm;
-#  - <name>_java: the Java classes compiled against lcm.jar and packed into
-#    ${CMAKE_BINARY_DIR}/share/java/<jar-name>, so lcm-spy decodes the types.
+#  - <name>_java (when ROOMFIX_JAVA is on): the Java classes compiled against
+#    lcm.jar and packed into ${CMAKE_BINARY_DIR}/share/java/<jar-name>, so
+#    lcm-spy decodes the types.
 # Generated file names follow lcm-gen: one header and one class per struct,
 # named after the .lcm file (one struct per file, as DESIGN.md requires).
 function(roomfix_lcm_types)
@@ -55,8 +56,10 @@ function(roomfix_lcm_types)
   file(CONFIGURE OUTPUT ${constants_cc} CONTENT "${constants_text}")
 
   add_library(${ARG_TARGET} STATIC ${constants_cc})
+  # Installed for other lab software, which may link it into a shared library.
+  set_target_properties(${ARG_TARGET} PROPERTIES POSITION_INDEPENDENT_CODE ON)
   add_dependencies(${ARG_TARGET} ${ARG_TARGET}_gen)
-  target_include_directories(${ARG_TARGET} SYSTEM PUBLIC ${cpp_dir})
+  target_include_directories(${ARG_TARGET} SYSTEM PUBLIC $<BUILD_INTERFACE:${cpp_dir}>)
   target_link_libraries(${ARG_TARGET} PUBLIC lcm::lcm)
   # LCM 1.3.1's lcm_coretypes.h decodes a double by writing through an
   # int64_t pointer. With strict aliasing (GCC 12 at -O2) the compiler may
@@ -64,6 +67,19 @@ function(roomfix_lcm_types)
   # file that includes the generated headers must be built without it.
   target_compile_options(${ARG_TARGET} PUBLIC -fno-strict-aliasing)
 
+  # The headers and the .lcm files are installed for other lab software
+  # (find_package(roomfix): roomfix::lcmtypes, see cmake/roomfixConfig.cmake.in).
+  target_include_directories(${ARG_TARGET} SYSTEM INTERFACE
+    $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
+  install(FILES ${headers} DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/${ARG_PACKAGE}
+          COMPONENT dev)
+  install(FILES ${lcm_files} DESTINATION ${CMAKE_INSTALL_DATADIR}/roomfix/lcmtypes
+          COMPONENT dev)
+
+  set(${ARG_TARGET}_JAR "" PARENT_SCOPE)
+  if(NOT ROOMFIX_JAVA)
+    return()
+  endif()
   add_custom_command(
     OUTPUT ${jar}
     COMMAND ${CMAKE_COMMAND} -E remove_directory ${class_dir}
@@ -75,5 +91,6 @@ function(roomfix_lcm_types)
     COMMENT "javac + jar: ${ARG_JAR}"
     VERBATIM)
   add_custom_target(${ARG_TARGET}_java ALL DEPENDS ${jar})
+  install(FILES ${jar} DESTINATION ${CMAKE_INSTALL_DATADIR}/java COMPONENT dev)
   set(${ARG_TARGET}_JAR ${jar} PARENT_SCOPE)
 endfunction()

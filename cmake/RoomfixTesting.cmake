@@ -13,8 +13,12 @@ set(ROOMFIX_TEST_ENVIRONMENT
 set(ROOMFIX_SKIP_CODE 77)
 
 # roomfix_add_gtest(<name> SOURCES ... LIBS ...): a GoogleTest binary beside
-# the code it tests; each TEST becomes its own ctest entry.
+# the code it tests; each TEST becomes its own ctest entry. Nothing when
+# BUILD_TESTING is off (no GoogleTest needed then).
 function(roomfix_add_gtest name)
+  if(NOT BUILD_TESTING)
+    return()
+  endif()
   cmake_parse_arguments(ARG "" "" "SOURCES;LIBS" ${ARGN})
   add_executable(${name} ${ARG_SOURCES})
   target_link_libraries(${name} PRIVATE ${ARG_LIBS} roomfix_testing GTest::gtest_main)
@@ -27,6 +31,9 @@ endfunction()
 # a private network namespace (scripts/netns_run), so UDP multicast stays on
 # this host. Skipped (not failed) where user namespaces are not allowed.
 function(roomfix_add_netns_test name)
+  if(NOT BUILD_TESTING)
+    return()
+  endif()
   cmake_parse_arguments(ARG "" "" "COMMAND" ${ARGN})
   add_test(NAME ${name}
     COMMAND ${CMAKE_SOURCE_DIR}/scripts/netns_run ${ARG_COMMAND})

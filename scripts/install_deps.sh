@@ -7,6 +7,7 @@ set -euo pipefail
 
 packages=(
   build-essential cmake pkg-config git
+  dpkg-dev file
   liblcm-dev liblcm-bin liblcm-java libjchart2d-java default-jdk-headless
   libopencv-dev libjpeg62-turbo-dev zlib1g-dev libgsl-dev libeigen3-dev libserialport-dev
   libyaml-cpp-dev libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev libssl-dev

@@ -17,6 +17,7 @@
 #include "core/analysis/track_error.h"
 #include "core/vision/marker_detector.h"
 #include "msgio/bus.h"
+#include "msgio/install_paths.h"
 #include "sim/synthetic_camera.h"
 #include "tools/commands.h"
 
@@ -26,7 +27,7 @@ namespace {
 using json = nlohmann::ordered_json;
 
 struct BenchCameraOptions {
-  std::string site = "config/sites/demo_room.yaml";
+  std::string site = DataFile("config/sites/demo_room.yaml");
   std::string scenario = "clean";
   int frames = 120;
   int quality = 90;

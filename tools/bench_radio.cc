@@ -19,6 +19,7 @@
 #include "core/analysis/track_error.h"
 #include "core/radio/wall_payload.h"
 #include "core/radio/xbee_frame.h"
+#include "msgio/install_paths.h"
 #include "msgio/process.h"
 #include "roomfix/range_set_t.hpp"
 #include "sim/pseudo_terminal.h"
@@ -34,7 +35,7 @@ using json = nlohmann::ordered_json;
 using analysis::Percentile;
 
 struct BenchRadioOptions {
-  std::string site = "config/sites/demo_room.yaml";
+  std::string site = DataFile("config/sites/demo_room.yaml");
   double stream_mb = 32.0;
   int repeats = 5;
   int latency_firings = 400;

@@ -83,7 +83,9 @@ class TrilatNode {
   struct BeaconTrack {
     int64_t last_recv_utime = 0;
     int64_t last_fix_utime = 0;
-    Eigen::Vector3d last_position_m;
+    // Meaningful only when has_fix; zero rather than uninitialised, since a
+    // new track is moved into the map (GCC 12 -O3: -Wmaybe-uninitialized).
+    Eigen::Vector3d last_position_m = Eigen::Vector3d::Zero();
     bool has_fix = false;
     trilat::BeaconPrior prior;
   };

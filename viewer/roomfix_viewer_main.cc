@@ -9,7 +9,6 @@
 #include <cmath>
 #include <cstdlib>
 #include <iostream>
-#include <opencv2/highgui.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/videoio.hpp>
 #include <string>
@@ -21,6 +20,12 @@
 #include "msgio/site_message.h"
 #include "viewer/render.h"
 #include "viewer/viewer_node.h"
+
+// ROOMFIX_VIEWER_WINDOW (viewer/CMakeLists.txt): 1 when OpenCV's highgui is
+// linked. Without it only --headless runs, and says so.
+#if ROOMFIX_VIEWER_WINDOW
+#include <opencv2/highgui.hpp>
+#endif
 
 namespace {
 
@@ -138,6 +143,11 @@ int main(int argc, char** argv) {
     std::cerr << "roomfix_viewer: --headless needs --png or --video\n";
     return 1;
   }
+  if (!flags.headless && !ROOMFIX_VIEWER_WINDOW) {
+    std::cerr << "roomfix_viewer: built without a window (OpenCV highgui); use --headless "
+                 "--png FILE or --video FILE\n";
+    return 1;
+  }
   if (!flags.headless && std::getenv("DISPLAY") == nullptr) {
     std::cerr << "roomfix_viewer: no display (DISPLAY is not set); use --headless --png FILE\n";
     return 1;
@@ -188,6 +198,7 @@ int main(int argc, char** argv) {
   }
   const auto frame_us = static_cast<int64_t>(1e6 / flags.fps);
 
+#if ROOMFIX_VIEWER_WINDOW
   // Mouse: the wheel zooms, a drag pans (by the floor's own scale).
   struct Mouse {
     roomfix::viewer::RenderOptions* render;
@@ -223,6 +234,7 @@ int main(int argc, char** argv) {
         },
         &mouse);
   }
+#endif
   // Keys, the same for a live view and a replay: zoom, pan, toggles,
   // screenshot, quit.
   roomfix::viewer::ViewState* view = nullptr;
@@ -278,6 +290,7 @@ int main(int argc, char** argv) {
   // Shows a frame and serves the window for wait_ms; false once the user
   // quit (key, closed window) or a signal came.
   auto show = [&](int wait_ms) {
+#if ROOMFIX_VIEWER_WINDOW
     cv::imshow("roomfix_viewer", frame);
     const int key = cv::waitKey(std::max(1, wait_ms));
     if (key >= 0) handle_key(key);
@@ -285,6 +298,12 @@ int main(int argc, char** argv) {
       roomfix::RequestShutdown();
     }
     return !roomfix::ShutdownRequested();
+#else
+    // Unreachable: without a window the viewer runs --headless only.
+    (void)wait_ms;
+    (void)handle_key;
+    return false;
+#endif
   };
   bool video_failed = false;
   auto write_video = [&] {

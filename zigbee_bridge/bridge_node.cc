@@ -34,8 +34,7 @@ bool BridgeNodeOptions::IsValid(std::string* error) const {
 
 BridgeNode::BridgeNode(const Site& site, Bus* bus, const BridgeNodeOptions& options,
                        int64_t start_utime)
-    : site_(site),
-      bus_(bus),
+    : bus_(bus),
       options_(options),
       status_("zigbee_bridge", start_utime),
       decoder_(radio::FrameDecoderOptions{options.api_mode, kMaxFrameDataBytes}),

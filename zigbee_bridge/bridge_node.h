@@ -69,7 +69,6 @@ class BridgeNode : public radio::FrameSink {
   void PublishClosed(int64_t now_utime);
   void SyncCounters();
 
-  const Site& site_;
   Bus* bus_;
   BridgeNodeOptions options_;
   StatusReporter status_;

@@ -20,8 +20,6 @@
 namespace roomfix::calib {
 namespace {
 
-constexpr double kFloorWidthM = 4.0;
-constexpr double kFloorDepthM = 3.0;
 constexpr double kCalibrationHeightM = 0.2;
 constexpr double kPixelNoisePx = 0.3;
 // The target: every floor point to within 2 mm RMS.

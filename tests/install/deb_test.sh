@@ -1,0 +1,118 @@
+#!/usr/bin/env bash
+# The Debian package as a lab would get it, without installing anything on
+# this machine: unpacked with dpkg-deb -x into a temporary root, then
+#  - every program there links system libraries only (no RPATH/RUNPATH, ldd
+#    resolves everything with no LD_LIBRARY_PATH), answers --help, and finds
+#    roomfix's data under the unpacked prefix, not the current folder;
+#  - `roomfix check-config` accepts the packaged demo site;
+#  - the headers, .lcm files and CMake package build and run a small program
+#    of another lab (tests/install/consumer) through find_package(roomfix);
+#  - every package the .deb Depends on exists in Debian 12 at a version that
+#    satisfies it (this machine's dpkg database, then its apt lists).
+#   deb_test.sh PACKAGE_DIR VERSION SOURCE_DIR
+set -uo pipefail
+package_dir=$1 version=$2 source=$3
+failures=0
+fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
+
+arch=$(dpkg --print-architecture)
+deb=$package_dir/roomfix_${version}_${arch}.deb
+[[ -f "$deb" ]] || { echo "FAIL: $deb not built (install.package makes it)"; exit 1; }
+root=$(mktemp -d)
+trap 'rm -rf "$root"' EXIT
+dpkg-deb -x "$deb" "$root/tree" || { echo "FAIL: dpkg-deb -x $deb"; exit 1; }
+prefix=$root/tree/usr
+elsewhere=$root/cwd
+mkdir -p "$elsewhere"
+cd "$elsewhere" || exit 1
+
+programs=(camera_proc trilat_proc fusion_proc zigbee_bridge roomfix_logger roomfix_viewer
+  roomfix_sim roomfix)
+for p in "${programs[@]}"; do
+  bin=$prefix/bin/$p
+  if [[ ! -x "$bin" ]]; then fail "$p is not in the package"; continue; fi
+  if readelf -d "$bin" | grep -qE 'R(UN)?PATH'; then
+    fail "$p has an RPATH/RUNPATH: $(readelf -d "$bin" | grep -E 'R(UN)?PATH')"
+  fi
+  if ldd "$bin" | grep -q 'not found'; then
+    fail "$p: libraries not found: $(ldd "$bin" | grep 'not found' | tr -s ' \t' ' ')"
+  fi
+  if ! help=$(env -u LD_LIBRARY_PATH "$bin" --help 2>&1) || [[ "$help" != *"$p"* ]]; then
+    fail "$p --help: $help"
+  fi
+done
+extra=$(cd "$prefix/bin" && ls | grep -vxF -f <(printf '%s\n' "${programs[@]}"))
+[[ -z "$extra" ]] || fail "programs packaged but not checked here: $extra"
+
+site=$prefix/share/roomfix/config/sites/demo_room.yaml
+if ! out=$("$prefix/bin/roomfix" check-config "$site" 2>&1); then
+  fail "roomfix check-config on the packaged demo site: $out"
+fi
+# The default site of `roomfix bench camera` is the packaged one, whatever
+# the current folder (CLI11 prints the default in --help).
+if ! "$prefix/bin/roomfix" bench camera --help | grep -qF "$site"; then
+  fail "roomfix bench camera does not default to $site: $("$prefix/bin/roomfix" bench camera \
+    --help | grep -- --site)"
+fi
+
+for f in include/roomfix/pose2d_t.hpp share/roomfix/lcmtypes/pose2d_t.lcm \
+  share/roomfix/config/calibration/demo_room_camera.yaml share/doc/roomfix/README.md \
+  share/doc/roomfix/docs/install.md; do
+  [[ -f "$prefix/$f" ]] || fail "/usr/$f is not in the package"
+done
+
+# Another lab's program, built against the unpacked package only.
+consumer=$root/consumer
+if ! cmake -S "$source/tests/install/consumer" -B "$consumer" -DCMAKE_PREFIX_PATH="$prefix" \
+  -DCMAKE_FIND_PACKAGE_PREFER_CONFIG=ON >"$root/consumer.log" 2>&1 ||
+  ! cmake --build "$consumer" >>"$root/consumer.log" 2>&1; then
+  fail "find_package(roomfix) consumer did not build:"; cat "$root/consumer.log"
+elif ! grep -q "8 .lcm files in $prefix/share/roomfix/lcmtypes" "$root/consumer.log"; then
+  fail "consumer: ROOMFIX_LCMTYPES_DIR: $(grep roomfix_consumer: "$root/consumer.log")"
+elif ! out=$("$consumer/roomfix_consumer"); then
+  fail "consumer: $out"
+else
+  echo "consumer: $out"
+fi
+
+# Depends: "a (>= 1), b | c, d". Each clause needs one alternative that this
+# machine knows: installed (dpkg-query) or in its Debian 12 apt lists.
+satisfied() {  # name [op version]
+  local name=$1 op=${2:-} want=${3:-} have
+  have=$(dpkg-query -W -f='${Version}\n' "$name" 2>/dev/null | head -1)
+  [[ -n "$have" ]] || have=$(apt-cache show "$name" 2>/dev/null | sed -n 's/^Version: //p' | head -1)
+  if [[ -z "$have" ]]; then
+    # A virtual package (libspdlog1.10-fmt9 is provided by libspdlog1.10):
+    # an installed package or one in the apt lists must provide it.
+    dpkg-query -W -f='${Provides}\n' 2>/dev/null | tr ',' '\n' |
+      grep -qE "^ *$name( |\$)" && return 0
+    apt-cache showpkg "$name" 2>/dev/null | sed -n '/^Reverse Provides:/,$p' |
+      sed 1d | grep -q . && return 0
+    return 1
+  fi
+  [[ -z "$op" ]] && return 0
+  case $op in
+    '>=') op=ge ;; '<=') op=le ;; '>>') op=gt ;; '<<') op=lt ;; '=') op=eq ;;
+  esac
+  dpkg --compare-versions "$have" "$op" "$want"
+}
+depends=$(dpkg-deb -f "$deb" Depends)
+[[ -n "$depends" ]] || fail "the package declares no Depends (CPACK_DEBIAN_PACKAGE_SHLIBDEPS)"
+checked=0
+IFS=',' read -ra clauses <<<"$depends"
+for clause in "${clauses[@]}"; do
+  ok=0
+  IFS='|' read -ra alternatives <<<"$clause"
+  for alt in "${alternatives[@]}"; do
+    read -r name op want <<<"$(sed -E 's/[()]//g' <<<"$alt")"
+    if satisfied "$name" "$op" "$want"; then ok=1; break; fi
+  done
+  checked=$((checked + 1))
+  ((ok)) || fail "Depends: no Debian 12 package satisfies '$clause'"
+done
+echo "Depends: $checked clauses checked: $depends"
+
+if ((failures)); then
+  echo "$failures failures"; exit 1
+fi
+echo "roomfix_${version}_${arch}.deb: ${#programs[@]} programs, check-config, consumer: ok"
