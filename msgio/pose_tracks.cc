@@ -33,15 +33,6 @@ std::vector<analysis::TimedPosition> PoseTrack::Positions() const {
   return out;
 }
 
-std::vector<analysis::CovariantPosition> PoseTrack::CovariantPositions() const {
-  std::vector<analysis::CovariantPosition> out;
-  out.reserve(samples.size());
-  for (const PoseSample& s : samples) {
-    out.push_back({s.utime, s.x_m, s.y_m, s.cov_xx_m2, s.cov_xy_m2, s.cov_yy_m2, !s.degraded});
-  }
-  return out;
-}
-
 PoseLogs ReadPoseLogs(const std::vector<std::string>& paths,
                       const std::function<void(double)>& progress) {
   PoseLogs out;

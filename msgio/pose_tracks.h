@@ -41,8 +41,6 @@ struct PoseTrack {
   int lost = 0;
 
   std::vector<analysis::TimedPosition> Positions() const;
-  // With covariances and the ok flag, for analysis::CovarianceCoverage.
-  std::vector<analysis::CovariantPosition> CovariantPositions() const;
 };
 
 // What reading a log found besides poses.

@@ -61,34 +61,4 @@ ErrorSummary CompareToReference(const std::vector<TimedPosition>& estimates,
   return s;
 }
 
-CoverageSummary CovarianceCoverage(const std::vector<CovariantPosition>& estimates,
-                                   const std::vector<TimedPosition>& reference,
-                                   int64_t max_gap_us) {
-  constexpr double kChiSquare2Dof95 = 5.991;
-  CoverageSummary s;
-  std::vector<double> d2s;
-  for (const CovariantPosition& e : estimates) {
-    double x = 0.0, y = 0.0;
-    if (!std::isfinite(e.x_m) || !std::isfinite(e.y_m) ||
-        !InterpolateTrack(reference, e.utime, max_gap_us, &x, &y)) {
-      continue;
-    }
-    const double ex = e.x_m - x, ey = e.y_m - y;
-    const double det = e.cov_xx_m2 * e.cov_yy_m2 - e.cov_xy_m2 * e.cov_xy_m2;
-    double d2 = std::numeric_limits<double>::infinity();
-    if (det > 0.0 && e.cov_xx_m2 > 0.0 && std::isfinite(det)) {
-      d2 = (e.cov_yy_m2 * ex * ex - 2.0 * e.cov_xy_m2 * ex * ey + e.cov_xx_m2 * ey * ey) / det;
-    }
-    d2s.push_back(d2);
-    if (d2 <= kChiSquare2Dof95) ++s.inside_95;
-    if (e.ok) s.worst_ok_m = std::max(s.worst_ok_m, std::hypot(ex, ey));
-  }
-  s.compared = static_cast<int>(d2s.size());
-  if (s.compared > 0) {
-    s.share_inside_95 = static_cast<double>(s.inside_95) / s.compared;
-    s.median_squared_mahalanobis = Percentile(d2s, 0.5);
-  }
-  return s;
-}
-
 }  // namespace roomfix::analysis

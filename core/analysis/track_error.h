@@ -34,33 +34,6 @@ struct ErrorSummary {
 ErrorSummary CompareToReference(const std::vector<TimedPosition>& estimates,
                                 const std::vector<TimedPosition>& reference, int64_t max_gap_us);
 
-// An estimate with its (x, y) covariance, m^2, and whether it was flagged ok.
-struct CovariantPosition {
-  int64_t utime = 0;
-  double x_m = 0.0;
-  double y_m = 0.0;
-  double cov_xx_m2 = 0.0;
-  double cov_xy_m2 = 0.0;
-  double cov_yy_m2 = 0.0;
-  bool ok = false;
-};
-
-// Whether estimates' covariances are honest: the share of errors inside the
-// estimate's own 95% ellipse (squared Mahalanobis distance e^T C^-1 e at most
-// 5.991, chi-square with 2 degrees of freedom), which for a calibrated
-// covariance is 95% (the issue #16 target: 90-98%); the median of that
-// squared distance (1.386 when calibrated: below, variances too large; above,
-// too small); and the worst error of an estimate flagged ok. An estimate
-// whose covariance is not positive definite counts as outside.
-struct CoverageSummary {
-  int compared = 0;
-  int inside_95 = 0;
-  double share_inside_95 = 0.0;
-  double median_squared_mahalanobis = 0.0;
-  double worst_ok_m = 0.0;
-};
-CoverageSummary CovarianceCoverage(const std::vector<CovariantPosition>& estimates,
-                                   const std::vector<TimedPosition>& reference, int64_t max_gap_us);
 
 // The value below which a share q of `values` lies (nearest rank); 0 for none.
 double Percentile(std::vector<double> values, double q);

@@ -38,25 +38,6 @@ TEST(CompareToReference, MeasuresTheErrorAtEachEstimatesOwnTime) {
   EXPECT_NEAR(s.max_m, 0.03, 1e-12);
 }
 
-TEST(CovarianceCoverage, CountsErrorsInsideTheEstimatesOwn95PercentEllipse) {
-  const std::vector<TimedPosition> truth = {{0, 0.0, 0.0}, {1000000, 0.0, 0.0}};
-  // sigma 1 cm in x, 2 cm in y, uncorrelated: the 95% ellipse reaches
-  // 2.448 sigma along each axis.
-  const double xx = 1e-4, yy = 4e-4;
-  const std::vector<CovariantPosition> estimates = {
-      {100000, 0.024, 0.0, xx, 0.0, yy, true},    // 2.4 sigma in x: inside
-      {200000, 0.0, 0.048, xx, 0.0, yy, false},   // 2.4 sigma in y: inside
-      {300000, 0.026, 0.0, xx, 0.0, yy, true},    // 2.6 sigma: outside
-      {400000, 0.0, 0.01, 0.0, 0.0, 0.0, false},  // no covariance: outside
-      {5000000, 9.0, 9.0, xx, 0.0, yy, true},     // no reference then: skipped
-  };
-  const CoverageSummary s = CovarianceCoverage(estimates, truth, 2000000);
-  EXPECT_EQ(s.compared, 4);
-  EXPECT_EQ(s.inside_95, 2);
-  EXPECT_DOUBLE_EQ(s.share_inside_95, 0.5);
-  EXPECT_DOUBLE_EQ(s.worst_ok_m, 0.026);
-}
-
 TEST(Percentile, TakesTheNearestRank) {
   EXPECT_EQ(Percentile({5, 1, 4, 2, 3}, 0.5), 3);
   EXPECT_EQ(Percentile({5, 1, 4, 2, 3}, 0.95), 5);
