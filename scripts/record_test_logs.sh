@@ -3,10 +3,12 @@
 # Run it after a deliberate change to a process's output (the replay tests
 # then fail until the recording matches the new behaviour), and commit the
 # new logs with the change that explains them.
-#   scripts/record_test_logs.sh [BUILD_DIR]
+#   scripts/record_test_logs.sh [BUILD_DIR [LOG_NAME...]]
+# With LOG_NAMEs (e.g. pipeline_replay.lcm), only those logs are re-recorded.
 set -euo pipefail
 here=$(cd "$(dirname "$0")/.." && pwd)
 build=${1:-$here/build}
+only=("${@:2}")
 bin=$build/bin
 site=$here/config/sites/demo_room.yaml
 data=$here/tests/data
@@ -14,6 +16,7 @@ data=$here/tests/data
 record() {  # record OUT CHANNELS -- commands run in the namespace while lcm-logger records
   local out=$1 channels=$2
   shift 3
+  if ((${#only[@]})) && [[ " ${only[*]} " != *" $(basename "$out") "* ]]; then return 0; fi
   rm -f "$out"
   "$here/scripts/netns_run" bash -c "
     lcm-logger -f '$out' -c '$channels' >/dev/null 2>&1 & logger=\$!
