@@ -1,11 +1,15 @@
 # roomfix: `make demo` runs the pipeline on the simulator, `make test` builds
-# and runs every test. Both install missing Debian packages first.
+# and runs every test. Both install missing Debian packages first: `make demo`
+# only the demo's (scripts/install_deps.sh demo), the others all of them.
 #
 #   make demo [DEMO_SECONDS=N]   builds only the demo's programs, then runs the
-#                                simulated pipeline for N seconds (default 30)
+#                                simulated pipeline for N seconds (default 30);
+#                                a new build folder is configured without tests
+#                                and Java, an existing one keeps its settings
 #             [DEMO_CAMERA=0]    ... without the ceiling camera: ultrasound alone
 #   make test [SANITIZE=1]       the whole suite through ctest (ASan+UBSan build);
-#                                warnings are errors (ROOMFIX_WERROR)
+#                                warnings are errors (ROOMFIX_WERROR); turns
+#                                the tests and the Java jar on in the build folder
 #   make build                   configure and build everything into build/
 #   make package                 a Release build in build/release and its
 #                                Debian package build/release/roomfix_<version>_<arch>.deb
@@ -31,13 +35,15 @@ endif
 # Passed only when given, so that `make demo` after `make test` does not flip
 # the setting (and rebuild everything).
 WERROR_FLAG = $(if $(WERROR),-DROOMFIX_WERROR=$(if $(filter 1 ON on,$(WERROR)),ON,OFF))
+# The Debian packages to install (scripts/install_deps.sh): all, or demo.
+DEPS_SET = all
 
 .PHONY: all deps configure build test demo package spy format clean
 
 all: build
 
 deps:
-	@scripts/install_deps.sh
+	@scripts/install_deps.sh $(DEPS_SET)
 
 configure: deps
 	@mkdir -p $(dir $(BUILD_DIR))
@@ -48,10 +54,17 @@ build: configure
 	@cmake --build $(BUILD_DIR) -j $(JOBS) -- --no-print-directory
 
 test: WERROR = 1
+test: CMAKE_FLAGS += -DBUILD_TESTING=ON -DROOMFIX_JAVA=ON
 test: build
 	@cd $(BUILD_DIR) && ctest --output-on-failure -j $(JOBS) --timeout 600
 
-# Only what scripts/demo.sh runs: no test, no GoogleTest, no Java.
+# Only what scripts/demo.sh runs: no test, no GoogleTest, no Java. The
+# packages of the demo only; a build folder without a CMake cache yet is
+# configured with the tests and the jar off (their packages may be absent); one
+# that has a cache (after `make test`, say) keeps its settings, so nothing is
+# rebuilt.
+demo: DEPS_SET = demo
+demo: CMAKE_FLAGS += $(if $(wildcard $(BUILD_DIR)/CMakeCache.txt),,-DBUILD_TESTING=OFF -DROOMFIX_JAVA=OFF)
 demo: configure
 	@cmake --build $(BUILD_DIR) -j $(JOBS) --target demo -- --no-print-directory
 	@DEMO_CAMERA=$(DEMO_CAMERA) scripts/demo.sh $(BUILD_DIR) $(DEMO_SECONDS)

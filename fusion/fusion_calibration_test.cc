@@ -122,23 +122,25 @@ TEST(FusionCalibration, CameralessDemoUltrasoundFusesWithinTheIssuesTargets) {
   // The camera-less demo's POSE_ULTRASOUND as trilat_proc published it (radio
   // faults, 5 % NLOS ranges; tests/data/README.md), replayed in receive
   // order. The issue's targets for POSE_FUSED: RMSE at most 1.5 cm, 90-98 %
-  // inside. One 40 s run is about 40 independent samples of the share (the
-  // fused error decorrelates over about a second), a binomial standard
-  // deviation of 3.4 %: the upper bound gets one percent on top of the band.
-  // Measured on this recording: 1.31 cm, 98.2 % (the simulated streams
-  // above, pooled, carry the band itself).
+  // inside, asserted as the issue states them. Measured on this recording
+  // (re-recorded with the merged trilateration and fusion): 1.31 cm, 97.9 %
+  // inside (381 of 389), so one more estimate inside would cross 98 %: one
+  // 40 s run is about 40 independent samples of the share (the fused error
+  // decorrelates over about a second), a binomial standard deviation of
+  // 3.4 %, and a re-recording may land above the band by chance. Widen
+  // nothing then: find out why, as the pooled simulated streams above carry
+  // the band with thousands of estimates.
   constexpr double kTargetRmseM = 0.015;
-  constexpr double kSingleRunHigh = kCoverageHigh + 0.01;
   const PoseLogs logs =
       ReadPoseLogs({testing::SourceDir() + "/tests/data/ultrasound_demo_40s.lcm"});
   ASSERT_TRUE(logs.logs.front().error.empty()) << logs.logs.front().error;
   const analysis::FixQuality q = ReplayIntoFilter(logs, "ultrasound", fusion::PoseFilterOptions{});
-  std::printf("recorded ultrasound: %d estimates, RMSE %.2f cm, %.1f %% inside, median d2 %.2f\n",
+  std::printf("recorded ultrasound: %d estimates, RMSE %.2f cm, %.2f %% inside, median d2 %.2f\n",
               q.with_covariance, q.rmse_m * 1e2, q.share_inside_95 * 100, q.median_d2);
   EXPECT_GT(q.compared, 350);
   EXPECT_LE(q.rmse_m, kTargetRmseM);
   EXPECT_GE(q.share_inside_95, kCoverageLow);
-  EXPECT_LE(q.share_inside_95, kSingleRunHigh);
+  EXPECT_LE(q.share_inside_95, kCoverageHigh);
 }
 
 }  // namespace

@@ -1,19 +1,49 @@
 #!/usr/bin/env bash
-# Installs the Debian 12 packages roomfix needs to build, test and run.
-# Idempotent and silent when nothing is missing; uses apt-get as root or
-# through sudo. Usage: scripts/install_deps.sh [--check]  (--check only lists
-# what is missing and exits 1 if anything is).
+# Installs the Debian 12 packages roomfix needs. Idempotent and silent when
+# nothing is missing; uses apt-get as root or through sudo.
+#
+#   scripts/install_deps.sh [--check] [demo|all]
+#
+#   demo  only what `make demo`'s programs need to build and run: the compiler,
+#         CMake, the libraries the eight programs link, gnuplot for the
+#         report's figures, ip and unshare for the private network namespace.
+#         No GoogleTest, Google Benchmark, JDK or X server.
+#   all   (the default) everything for `make test` and `make package` too.
+#   --check  only lists what is missing and exits 1 if anything is.
 set -euo pipefail
 
-packages=(
-  build-essential cmake pkg-config git
-  dpkg-dev file
-  liblcm-dev liblcm-bin liblcm-java libjchart2d-java default-jdk-headless
-  libopencv-dev libjpeg62-turbo-dev zlib1g-dev libgsl-dev libeigen3-dev libserialport-dev
+set_name=all
+check=0
+for arg in "$@"; do
+  case "$arg" in
+    --check) check=1 ;;
+    demo | all) set_name=$arg ;;
+    *)
+      echo "usage: install_deps.sh [--check] [demo|all]" >&2
+      exit 2
+      ;;
+  esac
+done
+
+# The demo's programs (CMake target `demo`): every find_package they reach,
+# plus what scripts/demo.sh runs besides them.
+demo_packages=(
+  build-essential cmake pkg-config
+  liblcm-dev liblcm-bin
+  libopencv-dev libjpeg62-turbo-dev libgsl-dev libeigen3-dev libserialport-dev
   libyaml-cpp-dev libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev libssl-dev
-  libgtest-dev libgmock-dev libbenchmark-dev
-  gnuplot-nox iproute2 util-linux procps xvfb xauth x11-apps
+  gnuplot-nox iproute2 util-linux
 )
+# The rest of `make test`: the tests and benchmarks, the Java types jar, the
+# viewer's window tests under a virtual X server, the Debian package test.
+test_packages=(
+  git dpkg-dev file
+  liblcm-java libjchart2d-java default-jdk-headless
+  zlib1g-dev libgtest-dev libgmock-dev libbenchmark-dev
+  procps xvfb xauth x11-apps
+)
+packages=("${demo_packages[@]}")
+[[ "$set_name" == demo ]] || packages+=("${test_packages[@]}")
 
 missing=()
 for p in "${packages[@]}"; do
@@ -22,7 +52,7 @@ for p in "${packages[@]}"; do
 done
 ((${#missing[@]} == 0)) && exit 0
 
-if [[ "${1:-}" == "--check" ]]; then
+if ((check)); then
   echo "missing Debian packages: ${missing[*]}"
   exit 1
 fi

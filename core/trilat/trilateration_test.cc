@@ -499,7 +499,13 @@ TEST(RealData, LiasPlanarStaticMediansAgreeWithMotionCapture) {
   // per-anchor bias is removed are the tolerances its geometry supports.
   constexpr double kRawMax_m = 0.35;
   constexpr double kUnbiasedMax_m = 0.15;
+  // Issue 16: with the surveyed offsets removed, keep the published 5.3 cm
+  // (8.14) and 4.9 cm (8.20) mean or better. Those figures are rounded to the
+  // millimetre, so a mean that printed as them may be up to half a millimetre
+  // above; anything more is a regression.
+  constexpr double kPublishedRounding_m = 0.0005;
   for (const std::string session : {"8.14", "8.20"}) {
+    const double published_unbiased_mean_m = session == "8.14" ? 0.053 : 0.049;
     Site site;
     std::string error;
     const std::string name = session == "8.14" ? "lias_planar_814" : "lias_planar_820";
@@ -525,11 +531,13 @@ TEST(RealData, LiasPlanarStaticMediansAgreeWithMotionCapture) {
       const ErrorStats raw = SolveAll(cases, session, site, none, m);
       const ErrorStats unbiased = SolveAll(cases, session, site, bias, m);
       std::printf(
-          "[ RESULT   ] session %s %-11s raw: mean %.3f max %.3f m; bias removed: mean %.3f max "
-          "%.3f m (n=%d)\n",
+          "[ RESULT   ] session %s %-11s raw: mean %.4f max %.4f m; bias removed: mean %.4f max "
+          "%.4f m (n=%d)\n",
           session.c_str(), MethodName(m), raw.mean, raw.max, unbiased.mean, unbiased.max, raw.n);
       EXPECT_LT(unbiased.max, kUnbiasedMax_m) << session << " " << MethodName(m);
       EXPECT_LT(unbiased.mean, raw.mean);
+      EXPECT_LE(unbiased.mean, published_unbiased_mean_m + kPublishedRounding_m)
+          << session << " " << MethodName(m);
       // On raw ranges every anchor is biased differently by 4-27 cm:
       // consistent biases, not outliers. The robust solver excludes a range
       // only when it stands out from the kept ranges' common level by the
@@ -543,9 +551,7 @@ TEST(RealData, LiasPlanarStaticMediansAgreeWithMotionCapture) {
       const ErrorStats plain = SolveAll(cases, session, site, none, Method::kDefault);
       constexpr double kConvergence_m = 1e-6;
       EXPECT_LE(raw.mean, plain.mean + kConvergence_m) << session << " " << MethodName(m);
-      if (m != Method::kRobust) {
-        EXPECT_LT(raw.max, kRawMax_m) << session << " " << MethodName(m);
-      }
+      EXPECT_LT(raw.max, kRawMax_m) << session << " " << MethodName(m);
     }
   }
 }
