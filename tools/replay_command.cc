@@ -158,6 +158,8 @@ int RunReplayCommand(const ReplayCommandArgs& args) {
                         {"new_outputs", s.new_outputs},
                         {"ranges_restamped", s.ranges_restamped},
                         {"ranges_kept", s.ranges_kept},
+                        {"ticks", s.ticks},
+                        {"ticks_skipped", s.ticks_skipped},
                         {"refused", s.refused},
                         {"log_span_s", span_s},
                         {"wall_s", wall_s},
@@ -184,6 +186,9 @@ int RunReplayCommand(const ReplayCommandArgs& args) {
     for (const process_status_t& c : s.camera_status) {
       std::printf("  camera:   %s\n", StatusLine(c).c_str());
     }
+    std::printf("  ticks:    %lld run, %lld skipped in gaps over %.0f s\n",
+                static_cast<long long>(s.ticks), static_cast<long long>(s.ticks_skipped),
+                kMaxCatchUpUs * 1e-6);
     std::printf("  ran in %.3f s: %.0fx real time\n", wall_s, speedup);
   }
   std::fflush(stdout);
