@@ -60,7 +60,10 @@ bool RestampRanges(const Site& site, std::vector<uint8_t>* data, PipelineReplayS
   if (!DecodeChecked(data->data(), static_cast<int>(data->size()), &set, &reason)) return false;
   for (range_t& r : set.ranges) {
     const Receiver* receiver = site.FindReceiver(r.receiver_id);
-    if (receiver == nullptr) continue;  // trilat refuses it: unknown_receiver.
+    if (receiver == nullptr) {  // trilat refuses it: unknown_receiver.
+      ++summary->ranges_unknown_receiver;
+      continue;
+    }
     for (int k = 0; k < 3; ++k) r.receiver_position_m[k] = receiver->position_m[k];
     if (std::isfinite(r.time_of_flight_us) && r.time_of_flight_us > 0 &&
         std::isfinite(set.speed_of_sound_mps)) {

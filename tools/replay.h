@@ -79,6 +79,10 @@ struct PipelineReplaySummary {
   // Ranges whose time of flight or speed of sound was not a usable number:
   // their position was restamped, their range kept as recorded.
   int64_t ranges_kept = 0;
+  // Ranges from a receiver the site does not name: passed on as recorded,
+  // for trilat to refuse (unknown_receiver). restamped + kept + this is
+  // every range of every range set read.
+  int64_t ranges_unknown_receiver = 0;
   int64_t ticks = 0;
   // Grid ticks not run because they fell in a gap longer than kMaxCatchUpUs.
   int64_t ticks_skipped = 0;

@@ -158,6 +158,7 @@ int RunReplayCommand(const ReplayCommandArgs& args) {
                         {"new_outputs", s.new_outputs},
                         {"ranges_restamped", s.ranges_restamped},
                         {"ranges_kept", s.ranges_kept},
+                        {"ranges_unknown_receiver", s.ranges_unknown_receiver},
                         {"ticks", s.ticks},
                         {"ticks_skipped", s.ticks_skipped},
                         {"refused", s.refused},

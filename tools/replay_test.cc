@@ -13,6 +13,7 @@
 
 #include "msgio/wire_check.h"
 #include "roomfix/pose2d_t.hpp"
+#include "roomfix/range_set_t.hpp"
 #include "tests/testing/raw_log_event.h"
 #include "tests/testing/test_paths.h"
 
@@ -289,6 +290,38 @@ TEST(PipelineReplay, TheCameraNeedsACalibratedCamera) {
       ReplayPipelineFile(LivePath(), DemoSite(), options, dir.File("new.lcm"), false);
   EXPECT_FALSE(s.ok);
   EXPECT_NE(s.error.find("calibration"), std::string::npos) << s.error;
+}
+
+// A new site that drops a receiver: its ranges are neither re-derived nor
+// kept but counted apart, so the three counters add up to every recorded
+// range (and trilat refuses them as unknown_receiver).
+TEST(PipelineReplay, RangesOfAReceiverTheSiteDropsAreCountedApart) {
+  TempDir dir;
+  std::vector<LogEvent> events;
+  std::string error;
+  ASSERT_TRUE(ReadLogEvents(LivePath(), &events, &error)) << error;
+  Site fewer = DemoSite();
+  ASSERT_GE(fewer.receivers.size(), 4u);
+  const int dropped_id = fewer.receivers.back().id;
+  fewer.receivers.pop_back();
+  int64_t all_ranges = 0;
+  int64_t dropped_ranges = 0;
+  for (const LogEvent& e : events) {
+    if (e.channel != "RANGES") continue;
+    range_set_t set{};
+    std::string reason;
+    ASSERT_TRUE(DecodeChecked(e.data.data(), static_cast<int>(e.data.size()), &set, &reason));
+    for (const range_t& r : set.ranges) {
+      ++all_ranges;
+      if (r.receiver_id == dropped_id) ++dropped_ranges;
+    }
+  }
+  ASSERT_GT(dropped_ranges, 0);
+  PipelineReplayOptions options = LiveOptions();
+  options.restamp_ranges = true;
+  const PipelineReplaySummary s = Replay(LivePath(), dir.File("new.lcm"), options, fewer);
+  EXPECT_EQ(s.ranges_unknown_receiver, dropped_ranges);
+  EXPECT_EQ(s.ranges_restamped + s.ranges_kept + s.ranges_unknown_receiver, all_ranges);
 }
 
 // New receiver offsets (`roomfix survey`) re-derive the ranges from their
