@@ -4,14 +4,17 @@
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+#include <iterator>
 #include <mutex>
 #include <utility>
 
 #include "core/world/file_io.h"
 #include "core/world/yaml_reader.h"
 #include "msgio/log.h"
+#include "msgio/time_limits.h"
 #include "msgio/wire_check.h"
 
 #ifndef ROOMFIX_VERSION
@@ -367,48 +370,67 @@ std::string SiteMismatchWarning(const LoadedSite& a, const std::string& what_a, 
   return line;
 }
 
-void SiteHashTracker::Observe(const std::string& hash15, const std::string& who) {
-  // Bounded: anyone on the bus can invent hashes and names.
-  auto it = by_hash_.find(hash15);
-  if (it == by_hash_.end()) {
-    if (by_hash_.size() >= kMaxHashes) {
-      ++unlisted_;
+void SiteHashTracker::Expire() {
+  for (auto it = by_process_.begin(); it != by_process_.end();) {
+    it = SaturatingDifferenceUs(latest_utime_, it->second.last_utime) > kSiteExpiryUs
+             ? by_process_.erase(it)
+             : std::next(it);
+  }
+  if (SaturatingDifferenceUs(latest_utime_, last_unlisted_utime_) > kSiteExpiryUs) {
+    last_unlisted_utime_ = INT64_MIN;
+  }
+}
+
+void SiteHashTracker::Observe(const std::string& hash15, const std::string& who,
+                              int64_t recv_utime) {
+  latest_utime_ = std::max(latest_utime_, recv_utime);
+  Expire();
+  // Bounded: anyone on the bus can invent names.
+  auto it = by_process_.find(who);
+  if (it == by_process_.end()) {
+    if (by_process_.size() >= kMaxProcesses) {
+      last_unlisted_utime_ = std::max(last_unlisted_utime_, recv_utime);
       return;
     }
-    it = by_hash_.emplace(hash15, std::set<std::string>()).first;
+    it = by_process_.emplace(who, Stated{}).first;
   }
-  if (it->second.size() < kMaxNamesPerHash) it->second.insert(who);
+  it->second.hash15 = hash15;
+  it->second.last_utime = std::max(it->second.last_utime, recv_utime);
 }
 
-void SiteHashTracker::ObserveSite(const site_t& msg) {
+void SiteHashTracker::ObserveSite(const site_t& msg, int64_t recv_utime) {
   const int64_t value = SiteHashCounterValue(msg.content_hash);
   if (value < 0) return;
-  Observe(SiteHashCounterText(value), Who(msg.process, msg.host, 0));
+  Observe(SiteHashCounterText(value), Who(msg.process, msg.host, 0), recv_utime);
 }
 
-void SiteHashTracker::ObserveStatus(const process_status_t& msg) {
+void SiteHashTracker::ObserveStatus(const process_status_t& msg, int64_t recv_utime) {
   for (const auto& c : msg.counters) {
     if (c.name == kSiteHashCounter && c.count >= 0) {
-      Observe(SiteHashCounterText(c.count), Who(msg.process, msg.host, 0));
+      Observe(SiteHashCounterText(c.count), Who(msg.process, msg.host, 0), recv_utime);
     }
   }
+}
+
+size_t SiteHashTracker::distinct_hashes() const {
+  std::set<std::string> hashes;
+  for (const auto& [who, stated] : by_process_) hashes.insert(stated.hash15);
+  return hashes.size() + (last_unlisted_utime_ != INT64_MIN ? 1 : 0);
 }
 
 std::string SiteHashTracker::Disagreement() const {
-  if (by_hash_.size() < 2) return "";
+  std::map<std::string, std::vector<std::string>> by_hash;
+  for (const auto& [who, stated] : by_process_) by_hash[stated.hash15].push_back(who);
+  if (by_hash.size() < 2) return "";
   std::string line = "processes disagree on the site:";
   bool first = true;
-  for (const auto& [hash, who] : by_hash_) {
+  for (const auto& [hash, who] : by_hash) {
     line += first ? " " : "; ";
     first = false;
     line += hash.substr(0, 12) + " by ";
-    bool first_who = true;
-    for (const auto& w : who) {
-      line += (first_who ? "" : ", ") + w;
-      first_who = false;
-    }
+    for (size_t i = 0; i < who.size(); ++i) line += (i ? ", " : "") + who[i];
   }
-  if (unlisted_ > 0) line += "; and further hashes not listed";
+  if (last_unlisted_utime_ != INT64_MIN) line += "; and further processes not listed";
   return line;
 }
 
@@ -424,7 +446,9 @@ bool ReadSiteFromLog(const std::string& log_path, SiteFromLog* out, std::string*
     const int size = static_cast<int>(event.data.size());
     if (!is_site) {
       process_status_t status;
-      if (DecodeChecked(event.data.data(), size, &status, nullptr)) tracker.ObserveStatus(status);
+      if (DecodeChecked(event.data.data(), size, &status, nullptr)) {
+        tracker.ObserveStatus(status, event.utime);
+      }
       continue;
     }
     const auto refuse = [&](const std::string& reason, const std::string& detail) {
@@ -448,7 +472,7 @@ bool ReadSiteFromLog(const std::string& log_path, SiteFromLog* out, std::string*
       refuse(reason, why);
       continue;
     }
-    tracker.ObserveSite(msg);
+    tracker.ObserveSite(msg, event.utime);
     if (result.accepted++ == 0) {
       result.site = std::move(loaded);
       result.event_utime = event.utime;

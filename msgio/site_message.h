@@ -120,26 +120,42 @@ std::string SiteMismatchWarning(const LoadedSite& a, const std::string& what_a, 
 
 // Which site each process states, from SITE messages and STATUS `site_hash`
 // counters: processes disagree when two of them state different hashes
-// (compared on the 15 hex digits STATUS carries).
+// (compared on the 15 hex digits STATUS carries). Each process (name and
+// host) counts with the latest hash it stated, so a process restarted with a
+// corrected site stops the disagreement at its next SITE or STATUS; one not
+// heard from for kSiteExpiryUs (stopped, or gone with its old site) is
+// forgotten. Time is the caller's: the receive time of the message (the log
+// event's time in a log), never the wall clock, so log tools stay
+// deterministic; time that goes backwards does not expire anything.
 class SiteHashTracker {
  public:
-  void ObserveSite(const site_t& msg);
-  void ObserveStatus(const process_status_t& msg);
-  // "" when at most one hash was seen; otherwise one line naming each hash
-  // and who stated it: "processes disagree on the site: 1a2b3c4d5e6f by
-  // trilat_proc@lab-pc; 9f8e7d6c5b4a by fusion_proc@lab-pc2".
+  void ObserveSite(const site_t& msg, int64_t recv_utime);
+  void ObserveStatus(const process_status_t& msg, int64_t recv_utime);
+  // "" when the processes heard within kSiteExpiryUs state at most one
+  // hash; otherwise one line naming each hash and who stated it:
+  // "processes disagree on the site: 1a2b3c4d5e6f by trilat_proc@lab-pc;
+  // 9f8e7d6c5b4a by fusion_proc@lab-pc2".
   std::string Disagreement() const;
-  size_t distinct_hashes() const { return by_hash_.size() + (unlisted_ > 0 ? 1 : 0); }
+  size_t distinct_hashes() const;
 
-  // At most this many hashes and names per hash are kept (a flood of
-  // invented ones must not grow memory); further ones are counted.
-  static constexpr size_t kMaxHashes = 16;
-  static constexpr size_t kMaxNamesPerHash = 16;
+  // Three SITE periods: a live process publishes its site every
+  // kSitePeriodUs and its STATUS every second, so one missing for three
+  // periods has stopped.
+  static constexpr int64_t kSiteExpiryUs = 3 * kSitePeriodUs;
+  // At most this many processes are tracked (a flood of invented names must
+  // not grow memory); further ones are counted as unlisted until they expire.
+  static constexpr size_t kMaxProcesses = 64;
 
  private:
-  void Observe(const std::string& hash15, const std::string& who);
-  std::map<std::string, std::set<std::string>> by_hash_;
-  int64_t unlisted_ = 0;
+  struct Stated {
+    std::string hash15;
+    int64_t last_utime = 0;
+  };
+  void Observe(const std::string& hash15, const std::string& who, int64_t recv_utime);
+  void Expire();
+  std::map<std::string, Stated> by_process_;
+  int64_t latest_utime_ = INT64_MIN;
+  int64_t last_unlisted_utime_ = INT64_MIN;
 };
 
 // What a log says about its site.

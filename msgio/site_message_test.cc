@@ -316,6 +316,46 @@ TEST(SiteFromLog, ProcessesStatingDifferentSitesAreNamed) {
       << from_log.disagreement;
 }
 
+process_status_t StatusWithHash(const std::string& process, const std::string& host, int64_t hash) {
+  process_status_t s = testing::MakeTestStatus();
+  s.process = process;
+  s.host = host;
+  s.counters = {testing::MakeTestCounter(kSiteHashCounter, hash)};
+  s.num_counters = 1;
+  return s;
+}
+
+// fusion_proc started with a stale site, is restarted with the corrected
+// one: its next STATUS ends the disagreement (each process counts with its
+// latest hash), where before the old hash stayed listed forever.
+TEST(SiteHashTracker, AProcessRestartedWithTheRightSiteEndsTheDisagreement) {
+  constexpr int64_t kT0 = 1700000000000000;
+  SiteHashTracker tracker;
+  tracker.ObserveStatus(StatusWithHash("trilat_proc", "lab-pc", 0x0123456789abcdeLL), kT0);
+  tracker.ObserveStatus(StatusWithHash("fusion_proc", "lab-pc2", 0x0fedcba98765432LL), kT0);
+  EXPECT_EQ(tracker.Disagreement(),
+            "processes disagree on the site: 0123456789ab by trilat_proc@lab-pc; "
+            "0fedcba98765 by fusion_proc@lab-pc2");
+  tracker.ObserveStatus(StatusWithHash("fusion_proc", "lab-pc2", 0x0123456789abcdeLL),
+                        kT0 + 1'000'000);
+  EXPECT_EQ(tracker.Disagreement(), "");
+  EXPECT_EQ(tracker.distinct_hashes(), 1u);
+}
+
+// A process that stopped (its host gone with the old site) is forgotten
+// once it has been silent for kSiteExpiryUs of message time, not before.
+TEST(SiteHashTracker, AProcessSilentForThreeSitePeriodsIsForgotten) {
+  constexpr int64_t kT0 = 1700000000000000;
+  SiteHashTracker tracker;
+  const process_status_t trilat = StatusWithHash("trilat_proc", "lab-pc", 0x0123456789abcdeLL);
+  tracker.ObserveStatus(StatusWithHash("old_proc", "lab-pc2", 0x0fedcba98765432LL), kT0);
+  tracker.ObserveStatus(trilat, kT0);
+  tracker.ObserveStatus(trilat, kT0 + SiteHashTracker::kSiteExpiryUs);
+  EXPECT_NE(tracker.Disagreement(), "") << "silent for exactly the expiry: still counted";
+  tracker.ObserveStatus(trilat, kT0 + SiteHashTracker::kSiteExpiryUs + 1);
+  EXPECT_EQ(tracker.Disagreement(), "");
+}
+
 TEST(SiteFromLog, ConfigBesideALogWarnsWithTheDifferingKeys) {
   LoadedSite logged = LoadDemo();
   logged.texts.site_text = Replace(logged.texts.site_text, "range_offset_m: 0.0}\n  - {id: 2",

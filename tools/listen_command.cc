@@ -64,11 +64,11 @@ class LiveSiteWatch {
           has_config_ ? SiteMismatchWarning(config_, "--config", site, "SITE from " + msg.process)
                       : "";
       if (!mismatch.empty()) std::cerr << "roomfix listen: warning: " << mismatch << "\n";
-      tracker_.ObserveSite(msg);
+      tracker_.ObserveSite(msg, info.recv_utime);
     } else if (info.channel == kStatusChannel) {
       process_status_t status;
       if (!DecodeChecked(data, size, &status, nullptr)) return;
-      tracker_.ObserveStatus(status);
+      tracker_.ObserveStatus(status, info.recv_utime);
     }
     Disagreement();
   }
