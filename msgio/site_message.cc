@@ -434,6 +434,51 @@ std::string SiteHashTracker::Disagreement() const {
   return line;
 }
 
+void SiteListing::ObserveSite(const site_t& msg, int64_t recv_utime,
+                              std::vector<std::string>* lines) {
+  if (listed_.count(msg.content_hash) == 0) {
+    if (listed_.size() >= kMaxListed) {
+      // A flood of invented hashes: said once, then only counted.
+      if (not_listed_++ == 0) {
+        lines->push_back("warning: " + std::to_string(kMaxListed) +
+                         " sites listed; further sites on SITE are counted, not described");
+      }
+      Disagreement(lines);
+      return;
+    }
+    LoadedSite site;
+    std::string detail;
+    if (!LoadSiteFromMessage(msg, "SITE from " + msg.process, &site, &detail)) {
+      // Not listed: the real site with this hash is still described when
+      // it comes. A flood is counted; the first few are said.
+      if (refused_++ < 8) lines->push_back("warning: site refused: " + detail);
+      return;
+    }
+    listed_.insert(msg.content_hash);
+    lines->push_back("site on SITE: " + DescribeSite(site));
+    if (config_ != nullptr) {
+      const std::string mismatch =
+          SiteMismatchWarning(*config_, "--config", site, "SITE from " + msg.process);
+      if (!mismatch.empty()) lines->push_back("warning: " + mismatch);
+    }
+  }
+  tracker_.ObserveSite(msg, recv_utime);
+  Disagreement(lines);
+}
+
+void SiteListing::ObserveStatus(const process_status_t& msg, int64_t recv_utime,
+                                std::vector<std::string>* lines) {
+  tracker_.ObserveStatus(msg, recv_utime);
+  Disagreement(lines);
+}
+
+void SiteListing::Disagreement(std::vector<std::string>* lines) {
+  const std::string line = tracker_.Disagreement();
+  if (line == last_warning_) return;
+  last_warning_ = line;
+  if (!line.empty()) lines->push_back("warning: " + line);
+}
+
 bool ReadSiteFromLog(const std::string& log_path, SiteFromLog* out, std::string* error) {
   auto reader = LogReader::Open(log_path, error);
   if (reader == nullptr) return false;

@@ -158,6 +158,36 @@ class SiteHashTracker {
   int64_t last_unlisted_utime_ = INT64_MIN;
 };
 
+// `roomfix listen`'s view of the SITE channel: describes each verified site
+// once, compares it with --config, and follows which process states which
+// hash. A hash is listed only after LoadSiteFromMessage verified the message
+// (its texts hash to it and form a valid site), so a forged SITE carrying
+// the real hash with other texts is refused and counted and does not hide
+// the real one when it comes. At most kMaxListed sites are described; the
+// first one over says so once, the rest are counted. Lines to print go to
+// *lines (without the "roomfix listen: " prefix).
+class SiteListing {
+ public:
+  static constexpr size_t kMaxListed = 64;
+  // `config` may be null (no --config).
+  explicit SiteListing(const LoadedSite* config) : config_(config) {}
+  void ObserveSite(const site_t& msg, int64_t recv_utime, std::vector<std::string>* lines);
+  void ObserveStatus(const process_status_t& msg, int64_t recv_utime,
+                     std::vector<std::string>* lines);
+  int64_t refused() const { return refused_; }
+  int64_t not_listed() const { return not_listed_; }
+  size_t listed() const { return listed_.size(); }
+
+ private:
+  void Disagreement(std::vector<std::string>* lines);
+  const LoadedSite* config_;
+  std::set<std::string> listed_;
+  int64_t refused_ = 0;
+  int64_t not_listed_ = 0;
+  SiteHashTracker tracker_;
+  std::string last_warning_;
+};
+
 // What a log says about its site.
 struct SiteFromLog {
   // The site of the first SITE message that passed every check.

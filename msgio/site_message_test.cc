@@ -356,6 +356,71 @@ TEST(SiteHashTracker, AProcessSilentForThreeSitePeriodsIsForgotten) {
   EXPECT_EQ(tracker.Disagreement(), "");
 }
 
+// The demo site with a comment line of its own: a distinct valid site.
+site_t VariantMessage(const LoadedSite& original, int n) {
+  LoadedSite variant = original;
+  variant.texts.site_text += "\n# variant " + std::to_string(n) + "\n";
+  variant.content_hash = SiteContentHash(variant.texts);
+  return DemoMessage(variant);
+}
+
+bool Contains(const std::vector<std::string>& lines, const std::string& part) {
+  for (const std::string& line : lines) {
+    if (line.find(part) != std::string::npos) return true;
+  }
+  return false;
+}
+
+// A forged SITE carrying the real hash with other texts came first: it is
+// refused and counted, and the real site is still described when it comes
+// (before, the hash was marked seen before the check and the real one was
+// never shown).
+TEST(SiteListing, AForgedSiteWithTheRealHashDoesNotHideTheRealOne) {
+  const LoadedSite original = LoadDemo();
+  site_t forged = DemoMessage(original);
+  forged.site_text = Replace(forged.site_text, "demo_room", "forged_room");
+  SiteListing listing(nullptr);
+  std::vector<std::string> lines;
+  listing.ObserveSite(forged, 1, &lines);
+  EXPECT_EQ(listing.refused(), 1);
+  EXPECT_EQ(listing.listed(), 0u);
+  EXPECT_TRUE(Contains(lines, "warning: site refused")) << ::testing::PrintToString(lines);
+  lines.clear();
+  listing.ObserveSite(DemoMessage(original), 2, &lines);
+  EXPECT_EQ(listing.listed(), 1u);
+  EXPECT_TRUE(Contains(lines, "site on SITE: " + original.site.name))
+      << ::testing::PrintToString(lines);
+}
+
+// Invented hashes (texts that do not match) are refused, so they no longer
+// fill the list; 64 valid sites do, and the first one over is said once.
+TEST(SiteListing, InventedHashesDoNotFillTheListAndTheCapIsSaidOnce) {
+  const LoadedSite original = LoadDemo();
+  SiteListing listing(nullptr);
+  std::vector<std::string> lines;
+  for (int i = 0; i < 64; ++i) {
+    site_t invented = DemoMessage(original);
+    invented.content_hash = std::string(63, '0') + "123456789abcdef"[i % 15];
+    invented.content_hash[0] = static_cast<char>('a' + i % 6);
+    listing.ObserveSite(invented, i, &lines);
+  }
+  EXPECT_EQ(listing.refused(), 64);
+  EXPECT_EQ(listing.listed(), 0u);
+  listing.ObserveSite(DemoMessage(original), 100, &lines);
+  EXPECT_EQ(listing.listed(), 1u);
+  for (int i = 1; i < static_cast<int>(SiteListing::kMaxListed); ++i) {
+    listing.ObserveSite(VariantMessage(original, i), 100 + i, &lines);
+  }
+  ASSERT_EQ(listing.listed(), SiteListing::kMaxListed);
+  lines.clear();
+  listing.ObserveSite(VariantMessage(original, 1000), 300, &lines);
+  listing.ObserveSite(VariantMessage(original, 1001), 301, &lines);
+  EXPECT_EQ(listing.not_listed(), 2);
+  int said = 0;
+  for (const std::string& line : lines) said += line.find("64 sites listed") != std::string::npos;
+  EXPECT_EQ(said, 1) << ::testing::PrintToString(lines);
+}
+
 TEST(SiteFromLog, ConfigBesideALogWarnsWithTheDifferingKeys) {
   LoadedSite logged = LoadDemo();
   logged.texts.site_text = Replace(logged.texts.site_text, "range_offset_m: 0.0}\n  - {id: 2",
