@@ -479,11 +479,26 @@ void SiteListing::Disagreement(std::vector<std::string>* lines) {
   if (!line.empty()) lines->push_back("warning: " + line);
 }
 
+namespace {
+
+// Whether two SITE messages carry the same texts (what the hash covers).
+bool SameTexts(const site_t& a, const site_t& b) {
+  if (a.site_text != b.site_text || a.files.size() != b.files.size()) return false;
+  for (size_t i = 0; i < a.files.size(); ++i) {
+    if (a.files[i].name != b.files[i].name || a.files[i].text != b.files[i].text) return false;
+  }
+  return a.site_path == b.site_path && a.missing == b.missing;
+}
+
+}  // namespace
+
 bool ReadSiteFromLog(const std::string& log_path, SiteFromLog* out, std::string* error) {
   auto reader = LogReader::Open(log_path, error);
   if (reader == nullptr) return false;
   SiteFromLog result;
   SiteHashTracker tracker;
+  // By content hash: the first verified message, for skipping repeats.
+  std::map<std::string, site_t> verified;
   LogEvent event;
   while (reader->Next(&event)) {
     const bool is_site = event.channel == kSiteChannel;
@@ -510,17 +525,35 @@ bool ReadSiteFromLog(const std::string& log_path, SiteFromLog* out, std::string*
       refuse(reason, detail);
       continue;
     }
-    const std::string origin = log_path + ": SITE from " + Who(msg.process, msg.host, msg.pid);
-    LoadedSite loaded;
-    std::string why;
-    if (!LoadFromMessage(msg, origin, &loaded, &why, &reason)) {
-      refuse(reason, why);
-      continue;
+    const std::string who = Who(msg.process, msg.host, 0);
+    // A repeat of a verified message (same hash, same texts) is valid as
+    // that one was: no YAML parse and no hash again.
+    const auto verified_it = verified.find(msg.content_hash);
+    if (verified_it != verified.end() && SameTexts(msg, verified_it->second)) {
+      ++result.repeats_not_reparsed;
+    } else {
+      const std::string origin = log_path + ": SITE from " + Who(msg.process, msg.host, msg.pid);
+      LoadedSite loaded;
+      std::string why;
+      if (!LoadFromMessage(msg, origin, &loaded, &why, &reason)) {
+        refuse(reason, why);
+        continue;
+      }
+      if (verified.size() < SiteFromLog::kMaxSiteHashes) verified.emplace(msg.content_hash, msg);
+      if (result.accepted == 0) {
+        result.site = std::move(loaded);
+        result.event_utime = event.utime;
+      }
     }
+    ++result.accepted;
     tracker.ObserveSite(msg, event.utime);
-    if (result.accepted++ == 0) {
-      result.site = std::move(loaded);
-      result.event_utime = event.utime;
+    auto hash_it = result.publishers_by_hash.find(msg.content_hash);
+    if (hash_it == result.publishers_by_hash.end() &&
+        result.publishers_by_hash.size() < SiteFromLog::kMaxSiteHashes) {
+      hash_it = result.publishers_by_hash.emplace(msg.content_hash, std::set<std::string>()).first;
+    }
+    if (hash_it != result.publishers_by_hash.end() && hash_it->second.size() < 16) {
+      hash_it->second.insert(who);
     }
   }
   result.disagreement = tracker.Disagreement();
@@ -575,6 +608,22 @@ bool ResolveToolSite(const std::string& config_path, const std::string& log_path
   if (config_path.empty()) {
     if (!log_has_site) {
       *error = log_path.empty() ? "no site: give --config" : log_error;
+      return false;
+    }
+    if (from_log.publishers_by_hash.size() > 1) {
+      *error = log_path + " holds SITE messages of " +
+               std::to_string(from_log.publishers_by_hash.size()) + " different sites:";
+      bool first = true;
+      for (const auto& [hash, who] : from_log.publishers_by_hash) {
+        *error += (first ? " " : "; ") + ShortSiteHash(hash) + " by ";
+        first = false;
+        bool first_who = true;
+        for (const std::string& w : who) {
+          *error += (first_who ? "" : ", ") + w;
+          first_who = false;
+        }
+      }
+      *error += "; give the site file with --config";
       return false;
     }
     *out = std::move(from_log.site);

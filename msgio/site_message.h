@@ -203,9 +203,19 @@ struct SiteFromLog {
   std::string first_refusal;
   // "" or the disagreement line (SiteHashTracker) over the whole log.
   std::string disagreement;
+  // Every content hash the log's valid SITE messages carry (the first
+  // kMaxSiteHashes), each with its publishers ("trilat_proc@lab-pc"). More
+  // than one: the log holds several sites, and a tool must be told which
+  // (ResolveToolSite refuses to pick one without --config).
+  std::map<std::string, std::set<std::string>> publishers_by_hash;
+  // Valid SITE events whose texts equal an already verified message's, so
+  // they were not parsed again (a live process repeats its site every 5 s).
+  int64_t repeats_not_reparsed = 0;
+  static constexpr size_t kMaxSiteHashes = 16;
 };
 
-// Reads every SITE (and STATUS) event of a log. False with a one-line error
+// Reads every SITE (and STATUS) event of a log. A SITE whose texts equal
+// those of one already verified is counted, not parsed again. False with a one-line error
 // when the log cannot be read or holds no SITE that passes ("LOG holds no
 // SITE message: give --config" or "... N SITE messages refused (reasons):
 // first: ...").
@@ -218,7 +228,10 @@ std::string DescribeSite(const LoadedSite& loaded);
 // What a tool uses: the site of --config when given (warning on stderr
 // lines in *warnings when the log's differs, naming the keys), otherwise the
 // log's. *used_line says which ("site from LOG: ..." or "site from --config
-// PATH: ..."). A log with neither SITE nor --config is an error saying so.
+// PATH: ..."). A log with neither SITE nor --config is an error saying so,
+// and so is a log whose valid SITE messages carry different hashes when
+// --config is not given: the error lists each hash with its publishers and
+// asks for --config, rather than silently taking the first.
 bool ResolveToolSite(const std::string& config_path, const std::string& log_path, LoadedSite* out,
                      std::string* used_line, std::vector<std::string>* warnings,
                      std::string* error);

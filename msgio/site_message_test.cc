@@ -421,6 +421,56 @@ TEST(SiteListing, InventedHashesDoNotFillTheListAndTheCapIsSaidOnce) {
   EXPECT_EQ(said, 1) << ::testing::PrintToString(lines);
 }
 
+// Two publishers with different valid sites in one log: without --config a
+// tool must not pick one; the error lists both hashes with their publishers
+// and asks for --config. With --config the disagreement stays a warning.
+TEST(SiteFromLog, ALogOfTwoSitesNeedsConfigAndNamesBoth) {
+  const LoadedSite original = LoadDemo();
+  site_t other = VariantMessage(original, 1);
+  other.process = "fusion_proc";
+  other.host = "lab-pc2";
+  TempDir dir;
+  const std::string path = WriteLog(dir, {Encode(DemoMessage(original)), Encode(other)});
+  LoadedSite site;
+  std::string used;
+  std::vector<std::string> warnings;
+  std::string error;
+  EXPECT_FALSE(ResolveToolSite("", path, &site, &used, &warnings, &error));
+  EXPECT_NE(error.find("holds SITE messages of 2 different sites"), std::string::npos) << error;
+  EXPECT_NE(error.find(ShortSiteHash(original.content_hash) + " by trilat_proc@"),
+            std::string::npos)
+      << error;
+  EXPECT_NE(error.find(ShortSiteHash(other.content_hash) + " by fusion_proc@lab-pc2"),
+            std::string::npos)
+      << error;
+  EXPECT_NE(error.find("--config"), std::string::npos) << error;
+
+  warnings.clear();
+  ASSERT_TRUE(ResolveToolSite(DemoSitePath(), path, &site, &used, &warnings, &error)) << error;
+  EXPECT_TRUE(Contains(warnings, "processes disagree on the site"))
+      << ::testing::PrintToString(warnings);
+}
+
+// A process repeats its site every 5 s: a repeat with the same texts is not
+// parsed again, a message with the same hash but other texts still is (and
+// is refused).
+TEST(SiteFromLog, RepeatsOfAVerifiedSiteAreNotParsedAgain) {
+  const LoadedSite original = LoadDemo();
+  site_t forged = DemoMessage(original);
+  forged.site_text = Replace(forged.site_text, "demo_room", "forged_room");
+  TempDir dir;
+  const std::string path =
+      WriteLog(dir, {Encode(DemoMessage(original)), Encode(DemoMessage(original)), Encode(forged),
+                     Encode(DemoMessage(original))});
+  SiteFromLog from_log;
+  std::string error;
+  ASSERT_TRUE(ReadSiteFromLog(path, &from_log, &error)) << error;
+  EXPECT_EQ(from_log.accepted, 3);
+  EXPECT_EQ(from_log.repeats_not_reparsed, 2);
+  EXPECT_EQ(from_log.refused_by_reason.at("hash_mismatch"), 1);
+  EXPECT_EQ(from_log.publishers_by_hash.size(), 1u);
+}
+
 TEST(SiteFromLog, ConfigBesideALogWarnsWithTheDifferingKeys) {
   LoadedSite logged = LoadDemo();
   logged.texts.site_text = Replace(logged.texts.site_text, "range_offset_m: 0.0}\n  - {id: 2",
