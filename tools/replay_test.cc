@@ -660,6 +660,27 @@ TEST(ReplayCommand, ReplaysRefusesToOverwriteAndComparesOldWithNew) {
   EXPECT_NE(json.find("\"new_minus_old_max_m\""), std::string::npos) << json;
 }
 
+// trilat_proc's and fusion_proc's own flags reach the replay's nodes: the
+// command with --no-prior, --prior-reset-after and --fusion-rate writes the
+// same bytes as the library given those options, and not the default run's.
+TEST(ReplayCommand, TakesTheLiveProcessesFlags) {
+  TempDir dir;
+  ASSERT_EQ(RunRoomfix({"replay", LivePath(), "--out", dir.File("cli.lcm"), "--no-prior",
+                        "--prior-reset-after", "7", "--fusion-rate", "5"},
+                       dir.File("cli.txt")),
+            0)
+      << ReadFile(dir.File("cli.txt"));
+  PipelineReplayOptions options = LiveOptions();
+  options.trilat_options.use_prior = false;
+  options.trilat_options.prior.reset_after = 7;
+  options.fusion_options.rate_hz = 5.0;
+  Replay(LivePath(), dir.File("lib.lcm"), options);
+  Replay(LivePath(), dir.File("default.lcm"));
+  const std::string cli = ReadFile(dir.File("cli.lcm"));
+  EXPECT_TRUE(cli == ReadFile(dir.File("lib.lcm")));
+  EXPECT_FALSE(cli == ReadFile(dir.File("default.lcm")));
+}
+
 TEST(PipelineReplay, AMissingLogIsAOneLineError) {
   TempDir dir;
   const PipelineReplaySummary s = ReplayPipelineFile(dir.File("none.lcm"), DemoSite(),
