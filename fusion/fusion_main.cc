@@ -5,6 +5,7 @@
 #include <CLI/CLI.hpp>
 #include <iostream>
 
+#include "fusion/fusion_flags.h"
 #include "fusion/fusion_node.h"
 #include "msgio/process.h"
 
@@ -16,44 +17,7 @@ int main(int argc, char** argv) {
       "fusion_proc: fuses POSE_CAMERA and POSE_ULTRASOUND into POSE_FUSED (an extended Kalman "
       "filter per robot)"};
   roomfix::AddProcessFlags(&app, &process, /*config_required=*/true);
-  app.add_option("--camera-channel", options.camera_channel, "Camera poses")->capture_default_str();
-  app.add_option("--ultrasound-channel", options.ultrasound_channel, "Ultrasonic poses")
-      ->capture_default_str();
-  app.add_option("--fused-channel", options.fused_channel, "Fused poses")->capture_default_str();
-  app.add_option("--rate", options.rate_hz,
-                 "Also publish each robot's prediction to now at this rate, Hz (0: only at "
-                 "measurements)")
-      ->capture_default_str();
-  app.add_option("--forget-after", options.forget_after_s,
-                 "Drop a robot's track after this long without a measurement, s")
-      ->capture_default_str();
-  app.add_option("--lost-after", filter.lost_after_s,
-                 "A robot is lost when no measurement was accepted for this long, s")
-      ->capture_default_str();
-  app.add_option("--q-accel", filter.q_accel_mps2,
-                 "Process noise: white acceleration density, m/s^2/sqrt(Hz)")
-      ->capture_default_str();
-  app.add_option("--q-turn", filter.q_turn_radps2,
-                 "Process noise: white angular acceleration density, rad/s^2/sqrt(Hz)")
-      ->capture_default_str();
-  app.add_option("--ultrasound-sigma-floor", filter.ultrasound_sigma_floor_m,
-                 "Smallest standard deviation granted to an ultrasonic position, m")
-      ->capture_default_str();
-  app.add_option("--ultrasound-inflation", filter.ultrasound_inflation,
-                 "Factor on the ultrasonic covariances")
-      ->capture_default_str();
-  app.add_option("--camera-sigma-floor", filter.camera_sigma_floor_m,
-                 "Smallest standard deviation granted to a camera position, m")
-      ->capture_default_str();
-  app.add_option("--gate", filter.gate_chi2_2dof,
-                 "Gate on the squared Mahalanobis distance of a position (chi-square, 2 dof)")
-      ->capture_default_str();
-  app.add_option("--reopen-after", filter.reopen_after_rejections,
-                 "Consecutive rejections after which the gate reopens")
-      ->capture_default_str();
-  app.add_option("--history", filter.history_s,
-                 "How far back a late measurement is still applied at its time, s")
-      ->capture_default_str();
+  roomfix::AddFusionFlags(&app, "", &options);
   CLI11_PARSE(app, argc, argv);
 
   std::string error;

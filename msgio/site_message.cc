@@ -4,14 +4,17 @@
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+#include <iterator>
 #include <mutex>
 #include <utility>
 
 #include "core/world/file_io.h"
 #include "core/world/yaml_reader.h"
 #include "msgio/log.h"
+#include "msgio/time_limits.h"
 #include "msgio/wire_check.h"
 
 #ifndef ROOMFIX_VERSION
@@ -367,56 +370,135 @@ std::string SiteMismatchWarning(const LoadedSite& a, const std::string& what_a, 
   return line;
 }
 
-void SiteHashTracker::Observe(const std::string& hash15, const std::string& who) {
-  // Bounded: anyone on the bus can invent hashes and names.
-  auto it = by_hash_.find(hash15);
-  if (it == by_hash_.end()) {
-    if (by_hash_.size() >= kMaxHashes) {
-      ++unlisted_;
+void SiteHashTracker::Expire() {
+  for (auto it = by_process_.begin(); it != by_process_.end();) {
+    it = SaturatingDifferenceUs(latest_utime_, it->second.last_utime) > kSiteExpiryUs
+             ? by_process_.erase(it)
+             : std::next(it);
+  }
+  if (SaturatingDifferenceUs(latest_utime_, last_unlisted_utime_) > kSiteExpiryUs) {
+    last_unlisted_utime_ = INT64_MIN;
+  }
+}
+
+void SiteHashTracker::Observe(const std::string& hash15, const std::string& who,
+                              int64_t recv_utime) {
+  latest_utime_ = std::max(latest_utime_, recv_utime);
+  Expire();
+  // Bounded: anyone on the bus can invent names.
+  auto it = by_process_.find(who);
+  if (it == by_process_.end()) {
+    if (by_process_.size() >= kMaxProcesses) {
+      last_unlisted_utime_ = std::max(last_unlisted_utime_, recv_utime);
       return;
     }
-    it = by_hash_.emplace(hash15, std::set<std::string>()).first;
+    it = by_process_.emplace(who, Stated{}).first;
   }
-  if (it->second.size() < kMaxNamesPerHash) it->second.insert(who);
+  it->second.hash15 = hash15;
+  it->second.last_utime = std::max(it->second.last_utime, recv_utime);
 }
 
-void SiteHashTracker::ObserveSite(const site_t& msg) {
+void SiteHashTracker::ObserveSite(const site_t& msg, int64_t recv_utime) {
   const int64_t value = SiteHashCounterValue(msg.content_hash);
   if (value < 0) return;
-  Observe(SiteHashCounterText(value), Who(msg.process, msg.host, 0));
+  Observe(SiteHashCounterText(value), Who(msg.process, msg.host, 0), recv_utime);
 }
 
-void SiteHashTracker::ObserveStatus(const process_status_t& msg) {
+void SiteHashTracker::ObserveStatus(const process_status_t& msg, int64_t recv_utime) {
   for (const auto& c : msg.counters) {
     if (c.name == kSiteHashCounter && c.count >= 0) {
-      Observe(SiteHashCounterText(c.count), Who(msg.process, msg.host, 0));
+      Observe(SiteHashCounterText(c.count), Who(msg.process, msg.host, 0), recv_utime);
     }
   }
+}
+
+size_t SiteHashTracker::distinct_hashes() const {
+  std::set<std::string> hashes;
+  for (const auto& [who, stated] : by_process_) hashes.insert(stated.hash15);
+  return hashes.size() + (last_unlisted_utime_ != INT64_MIN ? 1 : 0);
 }
 
 std::string SiteHashTracker::Disagreement() const {
-  if (by_hash_.size() < 2) return "";
+  std::map<std::string, std::vector<std::string>> by_hash;
+  for (const auto& [who, stated] : by_process_) by_hash[stated.hash15].push_back(who);
+  if (by_hash.size() < 2) return "";
   std::string line = "processes disagree on the site:";
   bool first = true;
-  for (const auto& [hash, who] : by_hash_) {
+  for (const auto& [hash, who] : by_hash) {
     line += first ? " " : "; ";
     first = false;
     line += hash.substr(0, 12) + " by ";
-    bool first_who = true;
-    for (const auto& w : who) {
-      line += (first_who ? "" : ", ") + w;
-      first_who = false;
-    }
+    for (size_t i = 0; i < who.size(); ++i) line += (i ? ", " : "") + who[i];
   }
-  if (unlisted_ > 0) line += "; and further hashes not listed";
+  if (last_unlisted_utime_ != INT64_MIN) line += "; and further processes not listed";
   return line;
 }
+
+void SiteListing::ObserveSite(const site_t& msg, int64_t recv_utime,
+                              std::vector<std::string>* lines) {
+  if (listed_.count(msg.content_hash) == 0) {
+    if (listed_.size() >= kMaxListed) {
+      // A flood of invented hashes: said once, then only counted.
+      if (not_listed_++ == 0) {
+        lines->push_back("warning: " + std::to_string(kMaxListed) +
+                         " sites listed; further sites on SITE are counted, not described");
+      }
+      Disagreement(lines);
+      return;
+    }
+    LoadedSite site;
+    std::string detail;
+    if (!LoadSiteFromMessage(msg, "SITE from " + msg.process, &site, &detail)) {
+      // Not listed: the real site with this hash is still described when
+      // it comes. A flood is counted; the first few are said.
+      if (refused_++ < 8) lines->push_back("warning: site refused: " + detail);
+      return;
+    }
+    listed_.insert(msg.content_hash);
+    lines->push_back("site on SITE: " + DescribeSite(site));
+    if (config_ != nullptr) {
+      const std::string mismatch =
+          SiteMismatchWarning(*config_, "--config", site, "SITE from " + msg.process);
+      if (!mismatch.empty()) lines->push_back("warning: " + mismatch);
+    }
+  }
+  tracker_.ObserveSite(msg, recv_utime);
+  Disagreement(lines);
+}
+
+void SiteListing::ObserveStatus(const process_status_t& msg, int64_t recv_utime,
+                                std::vector<std::string>* lines) {
+  tracker_.ObserveStatus(msg, recv_utime);
+  Disagreement(lines);
+}
+
+void SiteListing::Disagreement(std::vector<std::string>* lines) {
+  const std::string line = tracker_.Disagreement();
+  if (line == last_warning_) return;
+  last_warning_ = line;
+  if (!line.empty()) lines->push_back("warning: " + line);
+}
+
+namespace {
+
+// Whether two SITE messages carry the same texts (what the hash covers).
+bool SameTexts(const site_t& a, const site_t& b) {
+  if (a.site_text != b.site_text || a.files.size() != b.files.size()) return false;
+  for (size_t i = 0; i < a.files.size(); ++i) {
+    if (a.files[i].name != b.files[i].name || a.files[i].text != b.files[i].text) return false;
+  }
+  return a.site_path == b.site_path && a.missing == b.missing;
+}
+
+}  // namespace
 
 bool ReadSiteFromLog(const std::string& log_path, SiteFromLog* out, std::string* error) {
   auto reader = LogReader::Open(log_path, error);
   if (reader == nullptr) return false;
   SiteFromLog result;
   SiteHashTracker tracker;
+  // By content hash: the first verified message, for skipping repeats.
+  std::map<std::string, site_t> verified;
   LogEvent event;
   while (reader->Next(&event)) {
     const bool is_site = event.channel == kSiteChannel;
@@ -424,7 +506,9 @@ bool ReadSiteFromLog(const std::string& log_path, SiteFromLog* out, std::string*
     const int size = static_cast<int>(event.data.size());
     if (!is_site) {
       process_status_t status;
-      if (DecodeChecked(event.data.data(), size, &status, nullptr)) tracker.ObserveStatus(status);
+      if (DecodeChecked(event.data.data(), size, &status, nullptr)) {
+        tracker.ObserveStatus(status, event.utime);
+      }
       continue;
     }
     const auto refuse = [&](const std::string& reason, const std::string& detail) {
@@ -441,17 +525,35 @@ bool ReadSiteFromLog(const std::string& log_path, SiteFromLog* out, std::string*
       refuse(reason, detail);
       continue;
     }
-    const std::string origin = log_path + ": SITE from " + Who(msg.process, msg.host, msg.pid);
-    LoadedSite loaded;
-    std::string why;
-    if (!LoadFromMessage(msg, origin, &loaded, &why, &reason)) {
-      refuse(reason, why);
-      continue;
+    const std::string who = Who(msg.process, msg.host, 0);
+    // A repeat of a verified message (same hash, same texts) is valid as
+    // that one was: no YAML parse and no hash again.
+    const auto verified_it = verified.find(msg.content_hash);
+    if (verified_it != verified.end() && SameTexts(msg, verified_it->second)) {
+      ++result.repeats_not_reparsed;
+    } else {
+      const std::string origin = log_path + ": SITE from " + Who(msg.process, msg.host, msg.pid);
+      LoadedSite loaded;
+      std::string why;
+      if (!LoadFromMessage(msg, origin, &loaded, &why, &reason)) {
+        refuse(reason, why);
+        continue;
+      }
+      if (verified.size() < SiteFromLog::kMaxSiteHashes) verified.emplace(msg.content_hash, msg);
+      if (result.accepted == 0) {
+        result.site = std::move(loaded);
+        result.event_utime = event.utime;
+      }
     }
-    tracker.ObserveSite(msg);
-    if (result.accepted++ == 0) {
-      result.site = std::move(loaded);
-      result.event_utime = event.utime;
+    ++result.accepted;
+    tracker.ObserveSite(msg, event.utime);
+    auto hash_it = result.publishers_by_hash.find(msg.content_hash);
+    if (hash_it == result.publishers_by_hash.end() &&
+        result.publishers_by_hash.size() < SiteFromLog::kMaxSiteHashes) {
+      hash_it = result.publishers_by_hash.emplace(msg.content_hash, std::set<std::string>()).first;
+    }
+    if (hash_it != result.publishers_by_hash.end() && hash_it->second.size() < 16) {
+      hash_it->second.insert(who);
     }
   }
   result.disagreement = tracker.Disagreement();
@@ -506,6 +608,22 @@ bool ResolveToolSite(const std::string& config_path, const std::string& log_path
   if (config_path.empty()) {
     if (!log_has_site) {
       *error = log_path.empty() ? "no site: give --config" : log_error;
+      return false;
+    }
+    if (from_log.publishers_by_hash.size() > 1) {
+      *error = log_path + " holds SITE messages of " +
+               std::to_string(from_log.publishers_by_hash.size()) + " different sites:";
+      bool first = true;
+      for (const auto& [hash, who] : from_log.publishers_by_hash) {
+        *error += (first ? " " : "; ") + ShortSiteHash(hash) + " by ";
+        first = false;
+        bool first_who = true;
+        for (const std::string& w : who) {
+          *error += (first_who ? "" : ", ") + w;
+          first_who = false;
+        }
+      }
+      *error += "; give the site file with --config";
       return false;
     }
     *out = std::move(from_log.site);

@@ -120,26 +120,72 @@ std::string SiteMismatchWarning(const LoadedSite& a, const std::string& what_a, 
 
 // Which site each process states, from SITE messages and STATUS `site_hash`
 // counters: processes disagree when two of them state different hashes
-// (compared on the 15 hex digits STATUS carries).
+// (compared on the 15 hex digits STATUS carries). Each process (name and
+// host) counts with the latest hash it stated, so a process restarted with a
+// corrected site stops the disagreement at its next SITE or STATUS; one not
+// heard from for kSiteExpiryUs (stopped, or gone with its old site) is
+// forgotten. Time is the caller's: the receive time of the message (the log
+// event's time in a log), never the wall clock, so log tools stay
+// deterministic; time that goes backwards does not expire anything.
 class SiteHashTracker {
  public:
-  void ObserveSite(const site_t& msg);
-  void ObserveStatus(const process_status_t& msg);
-  // "" when at most one hash was seen; otherwise one line naming each hash
-  // and who stated it: "processes disagree on the site: 1a2b3c4d5e6f by
-  // trilat_proc@lab-pc; 9f8e7d6c5b4a by fusion_proc@lab-pc2".
+  void ObserveSite(const site_t& msg, int64_t recv_utime);
+  void ObserveStatus(const process_status_t& msg, int64_t recv_utime);
+  // "" when the processes heard within kSiteExpiryUs state at most one
+  // hash; otherwise one line naming each hash and who stated it:
+  // "processes disagree on the site: 1a2b3c4d5e6f by trilat_proc@lab-pc;
+  // 9f8e7d6c5b4a by fusion_proc@lab-pc2".
   std::string Disagreement() const;
-  size_t distinct_hashes() const { return by_hash_.size() + (unlisted_ > 0 ? 1 : 0); }
+  size_t distinct_hashes() const;
 
-  // At most this many hashes and names per hash are kept (a flood of
-  // invented ones must not grow memory); further ones are counted.
-  static constexpr size_t kMaxHashes = 16;
-  static constexpr size_t kMaxNamesPerHash = 16;
+  // Three SITE periods: a live process publishes its site every
+  // kSitePeriodUs and its STATUS every second, so one missing for three
+  // periods has stopped.
+  static constexpr int64_t kSiteExpiryUs = 3 * kSitePeriodUs;
+  // At most this many processes are tracked (a flood of invented names must
+  // not grow memory); further ones are counted as unlisted until they expire.
+  static constexpr size_t kMaxProcesses = 64;
 
  private:
-  void Observe(const std::string& hash15, const std::string& who);
-  std::map<std::string, std::set<std::string>> by_hash_;
-  int64_t unlisted_ = 0;
+  struct Stated {
+    std::string hash15;
+    int64_t last_utime = 0;
+  };
+  void Observe(const std::string& hash15, const std::string& who, int64_t recv_utime);
+  void Expire();
+  std::map<std::string, Stated> by_process_;
+  int64_t latest_utime_ = INT64_MIN;
+  int64_t last_unlisted_utime_ = INT64_MIN;
+};
+
+// `roomfix listen`'s view of the SITE channel: describes each verified site
+// once, compares it with --config, and follows which process states which
+// hash. A hash is listed only after LoadSiteFromMessage verified the message
+// (its texts hash to it and form a valid site), so a forged SITE carrying
+// the real hash with other texts is refused and counted and does not hide
+// the real one when it comes. At most kMaxListed sites are described; the
+// first one over says so once, the rest are counted. Lines to print go to
+// *lines (without the "roomfix listen: " prefix).
+class SiteListing {
+ public:
+  static constexpr size_t kMaxListed = 64;
+  // `config` may be null (no --config).
+  explicit SiteListing(const LoadedSite* config) : config_(config) {}
+  void ObserveSite(const site_t& msg, int64_t recv_utime, std::vector<std::string>* lines);
+  void ObserveStatus(const process_status_t& msg, int64_t recv_utime,
+                     std::vector<std::string>* lines);
+  int64_t refused() const { return refused_; }
+  int64_t not_listed() const { return not_listed_; }
+  size_t listed() const { return listed_.size(); }
+
+ private:
+  void Disagreement(std::vector<std::string>* lines);
+  const LoadedSite* config_;
+  std::set<std::string> listed_;
+  int64_t refused_ = 0;
+  int64_t not_listed_ = 0;
+  SiteHashTracker tracker_;
+  std::string last_warning_;
 };
 
 // What a log says about its site.
@@ -157,9 +203,19 @@ struct SiteFromLog {
   std::string first_refusal;
   // "" or the disagreement line (SiteHashTracker) over the whole log.
   std::string disagreement;
+  // Every content hash the log's valid SITE messages carry (the first
+  // kMaxSiteHashes), each with its publishers ("trilat_proc@lab-pc"). More
+  // than one: the log holds several sites, and a tool must be told which
+  // (ResolveToolSite refuses to pick one without --config).
+  std::map<std::string, std::set<std::string>> publishers_by_hash;
+  // Valid SITE events whose texts equal an already verified message's, so
+  // they were not parsed again (a live process repeats its site every 5 s).
+  int64_t repeats_not_reparsed = 0;
+  static constexpr size_t kMaxSiteHashes = 16;
 };
 
-// Reads every SITE (and STATUS) event of a log. False with a one-line error
+// Reads every SITE (and STATUS) event of a log. A SITE whose texts equal
+// those of one already verified is counted, not parsed again. False with a one-line error
 // when the log cannot be read or holds no SITE that passes ("LOG holds no
 // SITE message: give --config" or "... N SITE messages refused (reasons):
 // first: ...").
@@ -172,7 +228,10 @@ std::string DescribeSite(const LoadedSite& loaded);
 // What a tool uses: the site of --config when given (warning on stderr
 // lines in *warnings when the log's differs, naming the keys), otherwise the
 // log's. *used_line says which ("site from LOG: ..." or "site from --config
-// PATH: ..."). A log with neither SITE nor --config is an error saying so.
+// PATH: ..."). A log with neither SITE nor --config is an error saying so,
+// and so is a log whose valid SITE messages carry different hashes when
+// --config is not given: the error lists each hash with its publishers and
+// asks for --config, rather than silently taking the first.
 bool ResolveToolSite(const std::string& config_path, const std::string& log_path, LoadedSite* out,
                      std::string* used_line, std::vector<std::string>* warnings,
                      std::string* error);

@@ -316,6 +316,161 @@ TEST(SiteFromLog, ProcessesStatingDifferentSitesAreNamed) {
       << from_log.disagreement;
 }
 
+process_status_t StatusWithHash(const std::string& process, const std::string& host, int64_t hash) {
+  process_status_t s = testing::MakeTestStatus();
+  s.process = process;
+  s.host = host;
+  s.counters = {testing::MakeTestCounter(kSiteHashCounter, hash)};
+  s.num_counters = 1;
+  return s;
+}
+
+// fusion_proc started with a stale site, is restarted with the corrected
+// one: its next STATUS ends the disagreement (each process counts with its
+// latest hash), where before the old hash stayed listed forever.
+TEST(SiteHashTracker, AProcessRestartedWithTheRightSiteEndsTheDisagreement) {
+  constexpr int64_t kT0 = 1700000000000000;
+  SiteHashTracker tracker;
+  tracker.ObserveStatus(StatusWithHash("trilat_proc", "lab-pc", 0x0123456789abcdeLL), kT0);
+  tracker.ObserveStatus(StatusWithHash("fusion_proc", "lab-pc2", 0x0fedcba98765432LL), kT0);
+  EXPECT_EQ(tracker.Disagreement(),
+            "processes disagree on the site: 0123456789ab by trilat_proc@lab-pc; "
+            "0fedcba98765 by fusion_proc@lab-pc2");
+  tracker.ObserveStatus(StatusWithHash("fusion_proc", "lab-pc2", 0x0123456789abcdeLL),
+                        kT0 + 1'000'000);
+  EXPECT_EQ(tracker.Disagreement(), "");
+  EXPECT_EQ(tracker.distinct_hashes(), 1u);
+}
+
+// A process that stopped (its host gone with the old site) is forgotten
+// once it has been silent for kSiteExpiryUs of message time, not before.
+TEST(SiteHashTracker, AProcessSilentForThreeSitePeriodsIsForgotten) {
+  constexpr int64_t kT0 = 1700000000000000;
+  SiteHashTracker tracker;
+  const process_status_t trilat = StatusWithHash("trilat_proc", "lab-pc", 0x0123456789abcdeLL);
+  tracker.ObserveStatus(StatusWithHash("old_proc", "lab-pc2", 0x0fedcba98765432LL), kT0);
+  tracker.ObserveStatus(trilat, kT0);
+  tracker.ObserveStatus(trilat, kT0 + SiteHashTracker::kSiteExpiryUs);
+  EXPECT_NE(tracker.Disagreement(), "") << "silent for exactly the expiry: still counted";
+  tracker.ObserveStatus(trilat, kT0 + SiteHashTracker::kSiteExpiryUs + 1);
+  EXPECT_EQ(tracker.Disagreement(), "");
+}
+
+// The demo site with a comment line of its own: a distinct valid site.
+site_t VariantMessage(const LoadedSite& original, int n) {
+  LoadedSite variant = original;
+  variant.texts.site_text += "\n# variant " + std::to_string(n) + "\n";
+  variant.content_hash = SiteContentHash(variant.texts);
+  return DemoMessage(variant);
+}
+
+bool Contains(const std::vector<std::string>& lines, const std::string& part) {
+  for (const std::string& line : lines) {
+    if (line.find(part) != std::string::npos) return true;
+  }
+  return false;
+}
+
+// A forged SITE carrying the real hash with other texts came first: it is
+// refused and counted, and the real site is still described when it comes
+// (before, the hash was marked seen before the check and the real one was
+// never shown).
+TEST(SiteListing, AForgedSiteWithTheRealHashDoesNotHideTheRealOne) {
+  const LoadedSite original = LoadDemo();
+  site_t forged = DemoMessage(original);
+  forged.site_text = Replace(forged.site_text, "demo_room", "forged_room");
+  SiteListing listing(nullptr);
+  std::vector<std::string> lines;
+  listing.ObserveSite(forged, 1, &lines);
+  EXPECT_EQ(listing.refused(), 1);
+  EXPECT_EQ(listing.listed(), 0u);
+  EXPECT_TRUE(Contains(lines, "warning: site refused")) << ::testing::PrintToString(lines);
+  lines.clear();
+  listing.ObserveSite(DemoMessage(original), 2, &lines);
+  EXPECT_EQ(listing.listed(), 1u);
+  EXPECT_TRUE(Contains(lines, "site on SITE: " + original.site.name))
+      << ::testing::PrintToString(lines);
+}
+
+// Invented hashes (texts that do not match) are refused, so they no longer
+// fill the list; 64 valid sites do, and the first one over is said once.
+TEST(SiteListing, InventedHashesDoNotFillTheListAndTheCapIsSaidOnce) {
+  const LoadedSite original = LoadDemo();
+  SiteListing listing(nullptr);
+  std::vector<std::string> lines;
+  for (int i = 0; i < 64; ++i) {
+    site_t invented = DemoMessage(original);
+    invented.content_hash = std::string(63, '0') + "123456789abcdef"[i % 15];
+    invented.content_hash[0] = static_cast<char>('a' + i % 6);
+    listing.ObserveSite(invented, i, &lines);
+  }
+  EXPECT_EQ(listing.refused(), 64);
+  EXPECT_EQ(listing.listed(), 0u);
+  listing.ObserveSite(DemoMessage(original), 100, &lines);
+  EXPECT_EQ(listing.listed(), 1u);
+  for (int i = 1; i < static_cast<int>(SiteListing::kMaxListed); ++i) {
+    listing.ObserveSite(VariantMessage(original, i), 100 + i, &lines);
+  }
+  ASSERT_EQ(listing.listed(), SiteListing::kMaxListed);
+  lines.clear();
+  listing.ObserveSite(VariantMessage(original, 1000), 300, &lines);
+  listing.ObserveSite(VariantMessage(original, 1001), 301, &lines);
+  EXPECT_EQ(listing.not_listed(), 2);
+  int said = 0;
+  for (const std::string& line : lines) said += line.find("64 sites listed") != std::string::npos;
+  EXPECT_EQ(said, 1) << ::testing::PrintToString(lines);
+}
+
+// Two publishers with different valid sites in one log: without --config a
+// tool must not pick one; the error lists both hashes with their publishers
+// and asks for --config. With --config the disagreement stays a warning.
+TEST(SiteFromLog, ALogOfTwoSitesNeedsConfigAndNamesBoth) {
+  const LoadedSite original = LoadDemo();
+  site_t other = VariantMessage(original, 1);
+  other.process = "fusion_proc";
+  other.host = "lab-pc2";
+  TempDir dir;
+  const std::string path = WriteLog(dir, {Encode(DemoMessage(original)), Encode(other)});
+  LoadedSite site;
+  std::string used;
+  std::vector<std::string> warnings;
+  std::string error;
+  EXPECT_FALSE(ResolveToolSite("", path, &site, &used, &warnings, &error));
+  EXPECT_NE(error.find("holds SITE messages of 2 different sites"), std::string::npos) << error;
+  EXPECT_NE(error.find(ShortSiteHash(original.content_hash) + " by trilat_proc@"),
+            std::string::npos)
+      << error;
+  EXPECT_NE(error.find(ShortSiteHash(other.content_hash) + " by fusion_proc@lab-pc2"),
+            std::string::npos)
+      << error;
+  EXPECT_NE(error.find("--config"), std::string::npos) << error;
+
+  warnings.clear();
+  ASSERT_TRUE(ResolveToolSite(DemoSitePath(), path, &site, &used, &warnings, &error)) << error;
+  EXPECT_TRUE(Contains(warnings, "processes disagree on the site"))
+      << ::testing::PrintToString(warnings);
+}
+
+// A process repeats its site every 5 s: a repeat with the same texts is not
+// parsed again, a message with the same hash but other texts still is (and
+// is refused).
+TEST(SiteFromLog, RepeatsOfAVerifiedSiteAreNotParsedAgain) {
+  const LoadedSite original = LoadDemo();
+  site_t forged = DemoMessage(original);
+  forged.site_text = Replace(forged.site_text, "demo_room", "forged_room");
+  TempDir dir;
+  const std::string path =
+      WriteLog(dir, {Encode(DemoMessage(original)), Encode(DemoMessage(original)), Encode(forged),
+                     Encode(DemoMessage(original))});
+  SiteFromLog from_log;
+  std::string error;
+  ASSERT_TRUE(ReadSiteFromLog(path, &from_log, &error)) << error;
+  EXPECT_EQ(from_log.accepted, 3);
+  EXPECT_EQ(from_log.repeats_not_reparsed, 2);
+  EXPECT_EQ(from_log.refused_by_reason.at("hash_mismatch"), 1);
+  EXPECT_EQ(from_log.publishers_by_hash.size(), 1u);
+}
+
 TEST(SiteFromLog, ConfigBesideALogWarnsWithTheDifferingKeys) {
   LoadedSite logged = LoadDemo();
   logged.texts.site_text = Replace(logged.texts.site_text, "range_offset_m: 0.0}\n  - {id: 2",

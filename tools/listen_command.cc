@@ -37,54 +37,43 @@ class LiveSiteWatch {
  public:
   bool Init(const std::string& config_path, std::string* error) {
     if (config_path.empty()) return true;
-    has_config_ = true;
     if (!LoadSiteWithTexts(config_path, &config_, error)) return false;
+    listing_ = SiteListing(&config_);
     std::cerr << "roomfix listen: site from --config " << config_path << ": "
               << DescribeSite(config_) << "\n";
     return true;
   }
   void Observe(const MessageInfo& info, const void* data, int size) {
+    std::vector<std::string> lines;
     if (info.channel == kSiteChannel) {
       site_t msg;
       std::string reason;
-      std::string detail;
-      if (!DecodeChecked(data, size, &msg, &reason, &detail)) return;  // counted by PrintMessage
-      // At most 64 sites are described; a flood of invented ones is not.
-      if (seen_.size() >= 64 || !seen_.insert(msg.content_hash).second) {
-        Disagreement();
-        return;
-      }
-      LoadedSite site;
-      if (!LoadSiteFromMessage(msg, "SITE from " + msg.process, &site, &detail)) {
-        std::cerr << "roomfix listen: warning: site refused: " << detail << "\n";
-        return;
-      }
-      std::cerr << "roomfix listen: site on SITE: " << DescribeSite(site) << "\n";
-      const std::string mismatch =
-          has_config_ ? SiteMismatchWarning(config_, "--config", site, "SITE from " + msg.process)
-                      : "";
-      if (!mismatch.empty()) std::cerr << "roomfix listen: warning: " << mismatch << "\n";
-      tracker_.ObserveSite(msg);
+      if (!DecodeChecked(data, size, &msg, &reason)) return;  // counted by PrintMessage
+      listing_.ObserveSite(msg, info.recv_utime, &lines);
     } else if (info.channel == kStatusChannel) {
       process_status_t status;
       if (!DecodeChecked(data, size, &status, nullptr)) return;
-      tracker_.ObserveStatus(status);
+      listing_.ObserveStatus(status, info.recv_utime, &lines);
     }
-    Disagreement();
+    for (const std::string& line : lines) std::cerr << "roomfix listen: " << line << "\n";
+  }
+  // At exit: the SITE messages refused or not described.
+  void Summary() const {
+    if (listing_.refused() > 0) {
+      std::cerr << "roomfix listen: warning: " << listing_.refused()
+                << " SITE messages refused (their texts do not match their hash or are no "
+                   "valid site)\n";
+    }
+    if (listing_.not_listed() > 0) {
+      std::cerr << "roomfix listen: warning: " << listing_.not_listed()
+                << " SITE messages of sites over the first " << SiteListing::kMaxListed
+                << " not described\n";
+    }
   }
 
  private:
-  void Disagreement() {
-    const std::string line = tracker_.Disagreement();
-    if (line.empty() || line == last_warning_) return;
-    last_warning_ = line;
-    std::cerr << "roomfix listen: warning: " << line << "\n";
-  }
-  bool has_config_ = false;
   LoadedSite config_;
-  std::set<std::string> seen_;
-  SiteHashTracker tracker_;
-  std::string last_warning_;
+  SiteListing listing_{nullptr};
 };
 
 // A channel name is whatever a publisher chose (quotes, control bytes,
@@ -232,6 +221,7 @@ void AddListenCommand(CLI::App* app, int* exit_code) {
     *exit_code = RunLoop(
         bus.get(), [](int64_t) {}, loop);
     WarnRefused(refused);
+    sites.Summary();
     if (*exit_code == 0 && o->count > 0 && received < o->count) {
       std::cerr << "roomfix listen: timed out after " << received << " of " << o->count
                 << " messages\n";

@@ -11,6 +11,7 @@
 
 #include "core/radio/range_assembler.h"
 #include "msgio/process.h"
+#include "msgio/time_limits.h"
 #include "msgio/wire_check.h"
 #include "roomfix/marker_pixels_t.hpp"
 #include "roomfix/range_set_t.hpp"
@@ -59,7 +60,10 @@ bool RestampRanges(const Site& site, std::vector<uint8_t>* data, PipelineReplayS
   if (!DecodeChecked(data->data(), static_cast<int>(data->size()), &set, &reason)) return false;
   for (range_t& r : set.ranges) {
     const Receiver* receiver = site.FindReceiver(r.receiver_id);
-    if (receiver == nullptr) continue;  // trilat refuses it: unknown_receiver.
+    if (receiver == nullptr) {  // trilat refuses it: unknown_receiver.
+      ++summary->ranges_unknown_receiver;
+      continue;
+    }
     for (int k = 0; k < 3; ++k) r.receiver_position_m[k] = receiver->position_m[k];
     if (std::isfinite(r.time_of_flight_us) && r.time_of_flight_us > 0 &&
         std::isfinite(set.speed_of_sound_mps)) {
@@ -207,6 +211,7 @@ PipelineReplaySummary ReplayPipeline(LogReader* in, const Site& site,
   if (options.site_message) replaced.push_back(kSiteChannel);
   std::vector<uint8_t> site_bytes;
   int64_t next_site_utime = 0;
+  int64_t input_bytes_since_site = 0;
 
   // The nodes start at the log's first event, as the live ones started
   // before it; their uptime in REPLAY_STATUS is log time.
@@ -259,17 +264,23 @@ PipelineReplaySummary ReplayPipeline(LogReader* in, const Site& site,
     ++summary.events_read;
     summary.last_utime = event.utime;
     // The ticks a live node would have had before this event arrived. A gap
-    // of more than kMaxCatchUpTicks periods (a pause, or a timestamp that
-    // jumps) is crossed in one step after that many.
-    for (int64_t n = 0; next_tick <= event.utime; ++n) {
-      if (n == kMaxCatchUpTicks) {
-        next_tick = event.utime;
-        break;
-      }
+    // longer than kMaxCatchUpUs (a pause, a sparse log, a timestamp that
+    // jumps) is crossed with one tick at the event's time; the grid ticks
+    // in it are counted, not run.
+    const int64_t gap_us = SaturatingDifferenceUs(event.utime, next_tick);
+    if (gap_us > kMaxCatchUpUs) {
+      summary.ticks_skipped += gap_us / tick_us;
+      next_tick = event.utime;
+    }
+    while (next_tick <= event.utime) {
       tick(next_tick);
+      if (next_tick == INT64_MAX) break;
       next_tick = SaturatingAddUs(next_tick, tick_us);
     }
-    if (options.site_message && event.utime >= next_site_utime) {
+    if (options.site_message && event.utime >= next_site_utime &&
+        (site_bytes.empty() ||
+         input_bytes_since_site >=
+             kSiteRepeatInputRatio * static_cast<int64_t>(site_bytes.size()))) {
       site_t site_msg = *options.site_message;
       site_msg.utime = event.utime;
       site_bytes.assign(static_cast<size_t>(site_msg.getEncodedSize()), 0);
@@ -277,6 +288,7 @@ PipelineReplaySummary ReplayPipeline(LogReader* in, const Site& site,
       write(event.utime, kSiteChannel, site_bytes.data(), static_cast<int>(site_bytes.size()));
       ++summary.new_outputs[kSiteChannel];
       next_site_utime = SaturatingAddUs(event.utime, kSitePeriodUs);
+      input_bytes_since_site = 0;
     }
     bool is_replaced = false;
     for (const std::string& channel : replaced)
@@ -298,6 +310,7 @@ PipelineReplaySummary ReplayPipeline(LogReader* in, const Site& site,
     }
     write(event.utime, event.channel, event.data.data(), size);
     ++summary.inputs_written;
+    input_bytes_since_site += size;
     bus->set_now_utime(event.utime);
     bus->Inject(event.channel, event.data.data(), size);
   }

@@ -79,7 +79,13 @@ struct PipelineReplaySummary {
   // Ranges whose time of flight or speed of sound was not a usable number:
   // their position was restamped, their range kept as recorded.
   int64_t ranges_kept = 0;
+  // Ranges from a receiver the site does not name: passed on as recorded,
+  // for trilat to refuse (unknown_receiver). restamped + kept + this is
+  // every range of every range set read.
+  int64_t ranges_unknown_receiver = 0;
   int64_t ticks = 0;
+  // Grid ticks not run because they fell in a gap longer than kMaxCatchUpUs.
+  int64_t ticks_skipped = 0;
   int64_t first_utime = 0;
   int64_t last_utime = 0;
   // The log's damage as LogReader counts it: every good event around it was
@@ -105,9 +111,10 @@ struct PipelineReplaySummary {
 //
 // Time: every node's "now" is the log's. A recorded event is delivered with
 // its log timestamp as receive time, and the nodes are ticked on a
-// tick_period_ms grid of log time before each event (at most
-// kMaxCatchUpTicks per gap, so a timestamp that jumps by a year costs no
-// more than a minute's ticks). A new output is written with the log time at
+// tick_period_ms grid of log time before each event; a gap longer than
+// kMaxCatchUpUs is crossed with one tick at the new time (the rest counted
+// in ticks_skipped), so neither a timestamp that jumps by a year nor a
+// sparse log costs more than one tick per event. A new output is written with the log time at
 // which it was published, after the event that caused it. Nothing reads the
 // wall clock, so the output is a function of the input log and the options
 // only: two runs give byte-identical logs.
@@ -158,8 +165,21 @@ bool ReplayCameraCalibrations(const LoadedSite& loaded, std::map<int, calib::Cal
 bool LogHoldsChannel(const std::string& path, const std::string& channel, bool* holds,
                      std::string* error);
 
-// Twenty seconds of 10 ms ticks.
-inline constexpr int64_t kMaxCatchUpTicks = 2000;
+// The longest gap of log time the replay ticks through on its grid: three
+// heartbeat periods (ProcessStatus::MaybePublish publishes every second), so
+// a short pause is replayed as a live node lived it. Over a longer gap the
+// nodes are ticked once, at the new event's time, and the grid ticks between
+// are counted as skipped: a live node would only have repeated its heartbeat
+// there, and replaying those heartbeats made a sparse log (events 20 s
+// apart) grow some 300-fold.
+inline constexpr int64_t kMaxCatchUpUs = 3'000'000;
+
+// A repeat of the new SITE (PipelineReplayOptions::site_message) is written
+// once kSitePeriodUs of log time has passed AND the input copied since the
+// last one is at least this many times its size, so the site (kilobytes of
+// text) never outweighs a sparse log: SITE bytes stay below 1/4 of the input
+// plus the first copy.
+inline constexpr int64_t kSiteRepeatInputRatio = 4;
 
 // The same run for a path: refuses `out_path` equal to `in_path` (the same
 // file, also through a link) and an existing `out_path` unless overwrite.

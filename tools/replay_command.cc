@@ -11,8 +11,10 @@
 #include <string>
 
 #include "core/world/site.h"
+#include "fusion/fusion_flags.h"
 #include "tools/commands.h"
 #include "tools/replay.h"
+#include "trilat_proc/trilat_flags.h"
 
 namespace roomfix {
 namespace {
@@ -25,7 +27,12 @@ struct ReplayCommandArgs {
   // --config: the site the log was recorded in, used as it is.
   std::string site_path;
   std::string config_path;
-  std::string method = "robust";
+  // trilat_proc's flags under their own names (--method, --no-prior ...),
+  // fusion_proc's prefixed with "fusion-" (both have --forget-after).
+  // --method defaults to robust, which every shipped configuration runs.
+  TrilatNodeOptions trilat_options;
+  TrilatFlags trilat_flags{"robust"};
+  FusionNodeOptions fusion_options;
   bool force = false;
   bool json = false;
 };
@@ -83,8 +90,10 @@ int RunReplayCommand(const ReplayCommandArgs& args) {
     std::cerr << "roomfix replay: " << error << "\n";
     return 1;
   }
-  if (!trilat::ParseMethod(args.method, &options.trilat_options.solver.method)) {
-    std::cerr << "roomfix replay: --method: unknown method '" << args.method << "'\n";
+  options.trilat_options = args.trilat_options;
+  options.fusion_options = args.fusion_options;
+  if (!ApplyTrilatFlags(args.trilat_flags, &options.trilat_options, &error)) {
+    std::cerr << "roomfix replay: " << error << "\n";
     return 1;
   }
   ReplaySite replay_site;
@@ -158,6 +167,9 @@ int RunReplayCommand(const ReplayCommandArgs& args) {
                         {"new_outputs", s.new_outputs},
                         {"ranges_restamped", s.ranges_restamped},
                         {"ranges_kept", s.ranges_kept},
+                        {"ranges_unknown_receiver", s.ranges_unknown_receiver},
+                        {"ticks", s.ticks},
+                        {"ticks_skipped", s.ticks_skipped},
                         {"refused", s.refused},
                         {"log_span_s", span_s},
                         {"wall_s", wall_s},
@@ -184,6 +196,9 @@ int RunReplayCommand(const ReplayCommandArgs& args) {
     for (const process_status_t& c : s.camera_status) {
       std::printf("  camera:   %s\n", StatusLine(c).c_str());
     }
+    std::printf("  ticks:    %lld run, %lld skipped in gaps over %.0f s\n",
+                static_cast<long long>(s.ticks), static_cast<long long>(s.ticks_skipped),
+                kMaxCatchUpUs * 1e-6);
     std::printf("  ran in %.3f s: %.0fx real time\n", wall_s, speedup);
   }
   std::fflush(stdout);
@@ -226,10 +241,10 @@ void AddReplayCommand(CLI::App* app, int* exit_code) {
                   "A new site file (YAML), e.g. with receiver offsets from `roomfix survey`: "
                   "the recorded ranges are re-derived from its receivers")
       ->excludes(config);
-  cmd->add_option("--method", args->method,
-                  "trilat_proc's --method (the shipped configurations run robust)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"nelder-mead", "default", "robust", "cauchy"}));
+  // The live processes' own flags, so a log recorded with non-default
+  // settings is re-run with the same ones.
+  AddTrilatFlags(cmd, "", &args->trilat_options, &args->trilat_flags);
+  AddFusionFlags(cmd, "fusion-", &args->fusion_options);
   cmd->add_flag("--force", args->force, "Replace --out if it exists");
   cmd->add_flag("--json", args->json, "Print the summary as JSON");
   cmd->callback([args, exit_code] { *exit_code = RunReplayCommand(*args); });

@@ -13,6 +13,7 @@
 
 #include "msgio/wire_check.h"
 #include "roomfix/pose2d_t.hpp"
+#include "roomfix/range_set_t.hpp"
 #include "tests/testing/raw_log_event.h"
 #include "tests/testing/test_paths.h"
 
@@ -291,6 +292,38 @@ TEST(PipelineReplay, TheCameraNeedsACalibratedCamera) {
   EXPECT_NE(s.error.find("calibration"), std::string::npos) << s.error;
 }
 
+// A new site that drops a receiver: its ranges are neither re-derived nor
+// kept but counted apart, so the three counters add up to every recorded
+// range (and trilat refuses them as unknown_receiver).
+TEST(PipelineReplay, RangesOfAReceiverTheSiteDropsAreCountedApart) {
+  TempDir dir;
+  std::vector<LogEvent> events;
+  std::string error;
+  ASSERT_TRUE(ReadLogEvents(LivePath(), &events, &error)) << error;
+  Site fewer = DemoSite();
+  ASSERT_GE(fewer.receivers.size(), 4u);
+  const int dropped_id = fewer.receivers.back().id;
+  fewer.receivers.pop_back();
+  int64_t all_ranges = 0;
+  int64_t dropped_ranges = 0;
+  for (const LogEvent& e : events) {
+    if (e.channel != "RANGES") continue;
+    range_set_t set{};
+    std::string reason;
+    ASSERT_TRUE(DecodeChecked(e.data.data(), static_cast<int>(e.data.size()), &set, &reason));
+    for (const range_t& r : set.ranges) {
+      ++all_ranges;
+      if (r.receiver_id == dropped_id) ++dropped_ranges;
+    }
+  }
+  ASSERT_GT(dropped_ranges, 0);
+  PipelineReplayOptions options = LiveOptions();
+  options.restamp_ranges = true;
+  const PipelineReplaySummary s = Replay(LivePath(), dir.File("new.lcm"), options, fewer);
+  EXPECT_EQ(s.ranges_unknown_receiver, dropped_ranges);
+  EXPECT_EQ(s.ranges_restamped + s.ranges_kept + s.ranges_unknown_receiver, all_ranges);
+}
+
 // New receiver offsets (`roomfix survey`) re-derive the ranges from their
 // recorded times of flight: a receiver whose offset grows by 5 cm moves the
 // fixes; the same site re-derives the recorded ranges to rounding.
@@ -362,7 +395,7 @@ TEST(PipelineReplay, ADamagedLogIsReplayedAroundTheDamageAndCounted) {
 }
 
 // A hostile log's timestamps jump by a century, to the end of int64 and
-// back to 0: the replay ticks at most kMaxCatchUpTicks per jump, never
+// back to 0: the replay ticks once per jump, never
 // overflows, and every message is still delivered (and judged by the node:
 // a range set far from its receive time is refused as utime_out_of_range).
 TEST(PipelineReplay, TimestampsThatJumpCostBoundedTicks) {
@@ -387,9 +420,60 @@ TEST(PipelineReplay, TimestampsThatJumpCostBoundedTicks) {
   }
   const PipelineReplaySummary s = Replay(dir.File("jumps.lcm"), dir.File("new.lcm"));
   EXPECT_EQ(s.inputs_written, 4);
-  EXPECT_LE(s.ticks, 2 * kMaxCatchUpTicks + 2);
+  EXPECT_LE(s.ticks, 5);  // One per event and the final one.
   EXPECT_EQ(s.trilat_status.inputs, 4);
   EXPECT_EQ(s.new_outputs.at("POSE_ULTRASOUND"), 1);  // Only the first is on time.
+}
+
+// A sparse log: 300 range sets 20 s apart (a robot seen now and then over
+// 100 minutes), replayed with a site from a file as --config does. A live
+// node would have sent 20 heartbeats per gap; the replay ticks once per gap,
+// so each event adds at most one heartbeat per node, and the site is
+// repeated only when 4 times its size of input has passed. Before the fix
+// this log grew to over 100 times its size.
+TEST(PipelineReplay, ASparseLogStaysSmall) {
+  TempDir dir;
+  std::vector<LogEvent> events;
+  std::string error;
+  ASSERT_TRUE(ReadLogEvents(LivePath(), &events, &error)) << error;
+  std::vector<LogEvent> ranges;
+  for (const LogEvent& e : events) {
+    if (e.channel == "RANGES") ranges.push_back(e);
+  }
+  ASSERT_FALSE(ranges.empty());
+  constexpr int kEvents = 300;
+  constexpr int64_t kGapUs = 20'000'000;
+  {
+    auto writer = LogWriter::Create(dir.File("sparse.lcm"), false, &error);
+    ASSERT_NE(writer, nullptr) << error;
+    for (int i = 0; i < kEvents; ++i) {
+      const LogEvent& r = ranges[static_cast<size_t>(i) % ranges.size()];
+      ASSERT_TRUE(writer->Write(ranges[0].utime + i * kGapUs, "RANGES", r.data.data(),
+                                static_cast<int>(r.data.size()), &error));
+    }
+  }
+  LoadedSite loaded;
+  ASSERT_TRUE(LoadSiteWithTexts(SourceDir() + "/config/sites/demo_room.yaml", &loaded, &error))
+      << error;
+  PipelineReplayOptions options = LiveOptions();
+  site_t msg{};
+  ASSERT_TRUE(MakeReplaySiteMessage(loaded, &msg, &error)) << error;
+  options.site_message = msg;
+  const PipelineReplaySummary s = Replay(dir.File("sparse.lcm"), dir.File("new.lcm"), options);
+  EXPECT_EQ(s.inputs_written, kEvents);
+  // One tick per gap (and the final one), the rest of each gap skipped.
+  EXPECT_EQ(s.ticks, kEvents + 1);
+  EXPECT_EQ(s.ticks_skipped, (kEvents - 1) * (kGapUs / 10'000 - 1));
+  // Each node heartbeats at most once per event (plus start and stop).
+  EXPECT_LE(s.new_outputs.at("REPLAY_STATUS"), 2 * (kEvents + 2));
+  // Per event: the range set copied, at most a pose and a fused pose, and a
+  // heartbeat from each node, each about the size of a range set; the site
+  // adds at most a quarter of the input. So the new log is at most about 6
+  // times the old; before the fix it was over 100 times.
+  constexpr double kMaxGrowth = 6.0;
+  const double in_bytes = static_cast<double>(ReadFile(dir.File("sparse.lcm")).size());
+  const double out_bytes = static_cast<double>(ReadFile(dir.File("new.lcm")).size());
+  EXPECT_LE(out_bytes, kMaxGrowth * in_bytes) << out_bytes << " from " << in_bytes;
 }
 
 TEST(PipelineReplay, RefusesToWriteOverItsInputOrAnExistingLog) {
@@ -574,6 +658,27 @@ TEST(ReplayCommand, ReplaysRefusesToOverwriteAndComparesOldWithNew) {
   const std::string json = ReadFile(dir.File("compare.json"));
   // The fused and ultrasonic poses of the replay, each against the live one.
   EXPECT_NE(json.find("\"new_minus_old_max_m\""), std::string::npos) << json;
+}
+
+// trilat_proc's and fusion_proc's own flags reach the replay's nodes: the
+// command with --no-prior, --prior-reset-after and --fusion-rate writes the
+// same bytes as the library given those options, and not the default run's.
+TEST(ReplayCommand, TakesTheLiveProcessesFlags) {
+  TempDir dir;
+  ASSERT_EQ(RunRoomfix({"replay", LivePath(), "--out", dir.File("cli.lcm"), "--no-prior",
+                        "--prior-reset-after", "7", "--fusion-rate", "5"},
+                       dir.File("cli.txt")),
+            0)
+      << ReadFile(dir.File("cli.txt"));
+  PipelineReplayOptions options = LiveOptions();
+  options.trilat_options.use_prior = false;
+  options.trilat_options.prior.reset_after = 7;
+  options.fusion_options.rate_hz = 5.0;
+  Replay(LivePath(), dir.File("lib.lcm"), options);
+  Replay(LivePath(), dir.File("default.lcm"));
+  const std::string cli = ReadFile(dir.File("cli.lcm"));
+  EXPECT_TRUE(cli == ReadFile(dir.File("lib.lcm")));
+  EXPECT_FALSE(cli == ReadFile(dir.File("default.lcm")));
 }
 
 TEST(PipelineReplay, AMissingLogIsAOneLineError) {

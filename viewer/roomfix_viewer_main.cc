@@ -110,6 +110,12 @@ int main(int argc, char** argv) {
       "without a display"};
   // --config is required live; a replayed log brings its own site (SITE).
   roomfix::AddProcessFlags(&app, &process, /*config_required=*/false);
+  // The shared help says only "Site file"; the viewer's differs in when it
+  // is needed.
+  app.get_option("--config")
+      ->description(
+          "Site file (YAML). Required live; with --log the log's own site (SITE) is used when "
+          "--config is absent, and a difference from it is a warning");
   app.add_flag("--headless", flags.headless, "No window: render to --png and/or --video");
   app.add_option("--png", flags.png, "Write the picture at the end (of the log, or --duration)");
   app.add_option("--video", flags.video,

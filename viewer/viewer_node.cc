@@ -232,11 +232,11 @@ ViewerNode::ViewerNode(const Site& site, Bus* bus, const ViewerNodeOptions& opti
                   [](const auto& a, const auto& b) { return a.second > b.second; });
         it->last_error = s.last_error;
         it->recv_utime = info.recv_utime;
-        NoteSites(s.utime, [&] { site_hashes_.ObserveStatus(s); });
+        NoteSites(s.utime, [&] { site_hashes_.ObserveStatus(s, info.recv_utime); });
       });
-  bus_->Subscribe<site_t>(kSiteChannel, [this](const site_t& m, const MessageInfo&) {
+  bus_->Subscribe<site_t>(kSiteChannel, [this](const site_t& m, const MessageInfo& info) {
     ++messages_;
-    NoteSites(m.utime, [&] { site_hashes_.ObserveSite(m); });
+    NoteSites(m.utime, [&] { site_hashes_.ObserveSite(m, info.recv_utime); });
   });
   bus_->Subscribe<image_t>(kCameraPreviewChannel, [this](const image_t& m, const MessageInfo&) {
     ++messages_;
@@ -370,10 +370,12 @@ const viewer::ViewState& ViewerNode::StateAt(int64_t now_utime) {
 }
 
 void ViewerNode::NoteSites(int64_t utime, const std::function<void()>& observe) {
-  const size_t before = site_hashes_.distinct_hashes();
   observe();
-  if (site_hashes_.distinct_hashes() == before) return;
-  state_.site_warning = site_hashes_.Disagreement();
+  // The line changes when a process states another hash or one expires
+  // (SiteHashTracker): a disagreement that ended clears the warning.
+  const std::string line = site_hashes_.Disagreement();
+  if (line == state_.site_warning) return;
+  state_.site_warning = line;
   if (state_.site_warning.empty()) return;
   status_.Count("site_disagreements");
   status_.SetError(state_.site_warning, utime);

@@ -120,6 +120,19 @@ TEST(ToolSiteFromLog, CompareSurveyListenAndTheViewerUseTheLogsSite) {
   EXPECT_NE(run.err.find("roomfix_viewer: " + SampleSiteLine()), std::string::npos) << run.err;
 }
 
+// The viewer's help says when --config may be left out; the other
+// processes keep the shared "Site file (YAML)".
+TEST(ToolSiteFromLog, TheViewersHelpSaysALogBringsItsSite) {
+  TempDir dir;
+  const ToolRun viewer = RunTool(dir, "roomfix_viewer", "--help");
+  EXPECT_EQ(viewer.exit_code, 0);
+  EXPECT_NE(viewer.out.find("with --log the log's own site (SITE) is used when"), std::string::npos)
+      << viewer.out;
+  const ToolRun trilat = RunTool(dir, "trilat_proc", "--help");
+  EXPECT_EQ(trilat.out.find("with --log the log's own site"), std::string::npos) << trilat.out;
+  EXPECT_NE(trilat.out.find("Site file (YAML)"), std::string::npos) << trilat.out;
+}
+
 TEST(ToolSiteFromLog, AConfigThatDiffersIsAWarningNamingTheKey) {
   TempDir dir;
   const std::string shifted = ShiftedSite(dir);
