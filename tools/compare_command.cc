@@ -92,7 +92,8 @@ void AddCompareCommand(CLI::App* app, int* exit_code) {
   auto report_path = std::make_shared<std::string>();
   cmd->add_option("--report", *report_path,
                   "Name this analysis report in the JSON (the demo's summary points to it)");
-  cmd->callback([log_path, new_log_path, json_path, report_path, fit_circle, config_path, exit_code] {
+  cmd->callback([log_path, new_log_path, json_path, report_path, fit_circle, config_path,
+                 exit_code] {
     PoseLogs logs = ReadPoseLogs({*log_path});
     const LogReadReport& report = logs.logs.front();
     if (!report.error.empty()) {

@@ -34,7 +34,6 @@ struct ErrorSummary {
 ErrorSummary CompareToReference(const std::vector<TimedPosition>& estimates,
                                 const std::vector<TimedPosition>& reference, int64_t max_gap_us);
 
-
 // The value below which a share q of `values` lies (nearest rank); 0 for none.
 double Percentile(std::vector<double> values, double q);
 
