@@ -331,7 +331,8 @@ void ParseCameras(const Reader& r, const YAML::Node& root, const std::string& ba
     r.ExpectMap(node, key);
     r.OnlyKeys(node, key,
                {"id", "device", "resolution", "fps", "pixel_format", "mount_position_m",
-                "field_of_view_deg", "properties", "calibration", "marker_classes", "robots"});
+                "field_of_view_deg", "properties", "calibration", "marker_classes", "robots",
+                "readout_s", "exposure_s", "timestamp_latency_s"});
     Camera cam;
     cam.id = r.UniqueId(node, key, "id", "camera", &ids);
     cam.device = r.String(r.Required(node, key, "device"), key + ".device");
@@ -355,6 +356,23 @@ void ParseCameras(const Reader& r, const YAML::Node& root, const std::string& ba
       cam.field_of_view_deg = r.Positive(fov, key + ".field_of_view_deg");
       if (cam.field_of_view_deg >= 200.0) {
         r.Fail(fov, key + ".field_of_view_deg", "must be below 200 degrees");
+      }
+    }
+    // Timing: a rolling shutter reads its rows within one frame period, and
+    // exposes each for at most a frame period; a latency is at most a second
+    // (a longer one is a clock problem, not a camera's).
+    const double period_s = 1.0 / cam.fps;
+    for (auto [field, out, max_s, what] :
+         {std::make_tuple("readout_s", &cam.readout_s, period_s, "the frame period"),
+          std::make_tuple("exposure_s", &cam.exposure_s, period_s, "the frame period"),
+          std::make_tuple("timestamp_latency_s", &cam.timestamp_latency_s, 1.0, "1 s")}) {
+      if (const YAML::Node t = node[field]) {
+        *out = r.Double(t, key + "." + field);
+        if (*out < 0.0) r.Fail(t, key + "." + field, "must not be negative");
+        if (*out > max_s + 1e-12) {
+          r.Fail(t, key + "." + field,
+                 std::string("must be at most ") + what + " (" + std::to_string(max_s) + " s)");
+        }
       }
     }
     if (const YAML::Node props = node["properties"]) {
@@ -401,7 +419,9 @@ void ParseCameras(const Reader& r, const YAML::Node& root, const std::string& ba
       const YAML::Node rn = robots[k];
       const std::string rkey = K::Index(key + ".robots", k);
       r.ExpectMap(rn, rkey);
-      r.OnlyKeys(rn, rkey, {"robot_id", "position_marker", "heading_marker", "marker_height_m"});
+      r.OnlyKeys(
+          rn, rkey,
+          {"robot_id", "position_marker", "heading_marker", "marker_height_m", "tilt_sigma_deg"});
       CameraRobot cr;
       const YAML::Node rid = r.Required(rn, rkey, "robot_id");
       cr.robot_id = r.Int(rid, rkey + ".robot_id");
@@ -426,6 +446,12 @@ void ParseCameras(const Reader& r, const YAML::Node& root, const std::string& ba
       cr.marker_height_m = r.Double(h, rkey + ".marker_height_m");
       if (cr.marker_height_m < 0.0 || cr.marker_height_m >= site->room.height_m) {
         r.Fail(h, rkey + ".marker_height_m", "must be between the floor and the ceiling");
+      }
+      if (const YAML::Node tilt = rn["tilt_sigma_deg"]) {
+        cr.tilt_sigma_deg = r.Double(tilt, rkey + ".tilt_sigma_deg");
+        if (cr.tilt_sigma_deg < 0.0 || cr.tilt_sigma_deg > 30.0) {
+          r.Fail(tilt, rkey + ".tilt_sigma_deg", "must be between 0 and 30 degrees");
+        }
       }
       cam.robots.push_back(cr);
     }

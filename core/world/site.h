@@ -76,6 +76,10 @@ struct CameraRobot {
   std::string heading_marker;
   // Height of the marker tops above the floor.
   double marker_height_m = 0.0;
+  // One sigma of the robot's pitch and of its roll while it drives (a bumpy
+  // floor, a caster), degrees: the markers move marker_height_m x tilt over
+  // the floor, which the camera cannot see and the pose covariance includes.
+  double tilt_sigma_deg = 0.0;
 };
 
 struct Camera {
@@ -95,6 +99,14 @@ struct Camera {
   // Properties preset at start-up (brightness, contrast, saturation, hue,
   // gamma, sharpness, exposure), by name.
   std::map<std::string, double> properties;
+  // How the camera exposes and stamps a frame (docs/camera.md, "Time of a
+  // marker"): row r of H is read at t_frame_start + r * readout_s / H after
+  // integrating light for exposure_s, and the frame's capture time is the
+  // last row's read time plus timestamp_latency_s. readout_s 0 is a global
+  // shutter; all three 0 stamp every marker with the capture time.
+  double readout_s = 0.0;
+  double exposure_s = 0.0;
+  double timestamp_latency_s = 0.0;
   // Path of a calibration YAML file, resolved against the site file's folder;
   // empty when the camera is not calibrated yet.
   std::string calibration_file;

@@ -146,6 +146,50 @@ TEST(Site, ResolvesCalibrationRelativeToTheSiteFile) {
   EXPECT_EQ(site.cameras[0].calibration_file, "/etc/roomfix/cal/cam0.yaml");
 }
 
+// The camera's timing (docs/camera.md, "Time of a marker") is optional and
+// 0 by default, which stamps every marker with the frame's capture time.
+TEST(Site, ReadsCameraTimingAndRobotTiltWithZeroDefaults) {
+  const std::string head = std::string(kTwoReceivers) +
+                           "  - {id: 3, address: '0x0000000000000003', position_m: [4, 3, 2]}\n"
+                           "robots: [{id: 1}]\n"
+                           "cameras:\n"
+                           "  - {id: 0, device: /dev/video0, resolution: [640, 480], fps: 30,\n"
+                           "     mount_position_m: [2, 1.5, 2.9],\n";
+  const std::string tail =
+      "     marker_classes: [{name: o, hsv_min: [5, 120, 120], hsv_max: [22, 255, 255],\n"
+      "                       diameter_m: 0.1},\n"
+      "                      {name: g, hsv_min: [40, 80, 60], hsv_max: [85, 255, 255],\n"
+      "                       diameter_m: 0.05}],\n"
+      "     robots: [{robot_id: 1, position_marker: o, heading_marker: g, marker_height_m: 0.2";
+  Site site;
+  std::string error;
+  ASSERT_TRUE(ParseSite(head + tail + "}]}\n", "inline.yaml", "", &site, &error)) << error;
+  EXPECT_EQ(site.cameras[0].readout_s, 0.0);
+  EXPECT_EQ(site.cameras[0].exposure_s, 0.0);
+  EXPECT_EQ(site.cameras[0].timestamp_latency_s, 0.0);
+  EXPECT_EQ(site.cameras[0].robots[0].tilt_sigma_deg, 0.0);
+  ASSERT_TRUE(
+      ParseSite(head + "     readout_s: 0.03, exposure_s: 0.016, timestamp_latency_s: 0.08,\n" +
+                    tail + ", tilt_sigma_deg: 1.5}]}\n",
+                "inline.yaml", "", &site, &error))
+      << error;
+  EXPECT_DOUBLE_EQ(site.cameras[0].readout_s, 0.03);
+  EXPECT_DOUBLE_EQ(site.cameras[0].exposure_s, 0.016);
+  EXPECT_DOUBLE_EQ(site.cameras[0].timestamp_latency_s, 0.08);
+  EXPECT_DOUBLE_EQ(site.cameras[0].robots[0].tilt_sigma_deg, 1.5);
+  // A readout longer than the 33.3 ms frame period cannot be a rolling shutter.
+  EXPECT_FALSE(ParseSite(head + "     readout_s: 0.04,\n" + tail + "}]}\n", "inline.yaml", "",
+                         &site, &error));
+  EXPECT_NE(error.find("inline.yaml:11: cameras[0].readout_s: must be at most the frame period"),
+            std::string::npos)
+      << error;
+  EXPECT_FALSE(
+      ParseSite(head + tail + ", tilt_sigma_deg: -1}]}\n", "inline.yaml", "", &site, &error));
+  EXPECT_NE(error.find("cameras[0].robots[0].tilt_sigma_deg: must be between 0 and 30"),
+            std::string::npos)
+      << error;
+}
+
 // The shipped LIAS-CUHKSZ site files must carry the dataset's surveyed anchor
 // positions exactly, so solving its real ranges against them is meaningful.
 TEST(Site, LiasPlanarSitesMatchTheDatasetAnchors) {
