@@ -10,6 +10,7 @@
 #include <utility>
 
 #include "core/calib/marker_projection.h"
+#include "core/calib/pose_covariance.h"
 #include "msgio/time_limits.h"
 #include "msgio/wire_check.h"
 
@@ -75,6 +76,14 @@ bool CameraNodeOptions::IsValid(std::string* error) const {
   }
   if (!(centroid_sigma_px > 0.0) || !std::isfinite(centroid_sigma_px)) {
     *error = "centroid sigma must be positive";
+    return false;
+  }
+  if (!(blur_sigma_fraction >= 0.0) || !std::isfinite(blur_sigma_fraction)) {
+    *error = "blur sigma fraction must not be negative";
+    return false;
+  }
+  if (!(velocity_span_s > 0.0) || !std::isfinite(velocity_span_s)) {
+    *error = "velocity span must be positive";
     return false;
   }
   if (!(blur_sigma_px >= 0.0)) {
@@ -165,6 +174,10 @@ CameraNode::CameraNode(const Site& site, const Camera& camera,
       status_("camera_proc", start_utime) {
   for (const Robot& robot : site.robots) site_robots_.insert(robot.id);
   if (!options_.steady_clock) options_.steady_clock = SteadyMicros;
+  timing_.readout_s = camera.readout_s;
+  timing_.exposure_s = camera.exposure_s;
+  timing_.latency_s = camera.timestamp_latency_s;
+  timing_.height_px = camera.height_px;
   // The lens that sizes windows and blobs: the calibrated one when there is
   // a full model, else the nominal lens at the mount position.
   calib::CameraModel lens = calib::NominalCamera(camera.mount_position_m, camera.field_of_view_deg,
@@ -555,7 +568,48 @@ bool CameraNode::MapMarker(const vision::Blob& blob, double radius_m, double hei
   return calibration_->PixelToFloor(blob.u_px, blob.v_px, height_m, x_m, y_m, &error);
 }
 
+void CameraNode::ObserveCaptureTime(int64_t capture_utime, int64_t frame_seq) {
+  if (last_capture_seq_ >= 0 && frame_seq == last_capture_seq_ + 1 &&
+      capture_utime > last_capture_utime_) {
+    // Exponential averages over about 100 frames: long enough to make the
+    // spread stable, short enough to follow a camera that changes its rate.
+    const double d = static_cast<double>(capture_utime - last_capture_utime_);
+    const double alpha = intervals_ < 100 ? 1.0 / static_cast<double>(intervals_ + 1) : 0.01;
+    const double delta = d - interval_mean_us_;
+    interval_mean_us_ += alpha * delta;
+    interval_var_us2_ = (1.0 - alpha) * (interval_var_us2_ + alpha * delta * delta);
+    ++intervals_;
+  }
+  last_capture_seq_ = frame_seq;
+  last_capture_utime_ = capture_utime;
+}
+
+double CameraNode::TimingSigmaS() const {
+  if (intervals_ < 10) return 0.0;
+  // An interval is the difference of two independent jitters: var / 2 each.
+  // Rounded to 0.1 ms, finer than 100 intervals resolve: the stamps' own
+  // microsecond rounding (a fraction of a microsecond) is then no jitter,
+  // and an ideal camera's covariance stays exactly sigma_px^2 J J^T.
+  const double sigma_us = std::sqrt(interval_var_us2_ / 2.0);
+  return std::round(sigma_us / 100.0) * 100.0 * 1e-6;
+}
+
+Eigen::Vector2d CameraNode::Velocity(size_t robot) const {
+  if (robot >= recent_poses_.size() || recent_poses_[robot].size() < 2) {
+    return Eigen::Vector2d::Zero();
+  }
+  const PoseSample& a = recent_poses_[robot].front();
+  const PoseSample& b = recent_poses_[robot].back();
+  const double dt_s = static_cast<double>(b.utime - a.utime) * 1e-6;
+  // Over less than a third of the span the centroid noise dominates.
+  if (!(dt_s >= options_.velocity_span_s / 3.0)) return Eigen::Vector2d::Zero();
+  return Eigen::Vector2d((b.x_m - a.x_m) / dt_s, (b.y_m - a.y_m) / dt_s);
+}
+
 void CameraNode::PublishPoses(int64_t capture_utime, int64_t frame_seq, int64_t latency_us) {
+  ObserveCaptureTime(capture_utime, frame_seq);
+  recent_poses_.resize(observations_.size());
+  const double timing_sigma_s = TimingSigmaS();
   for (size_t i = 0; i < observations_.size(); ++i) {
     const vision::RobotObservation& o = observations_[i];
     const double height_m = setup_.marker_height_m[i];
@@ -573,14 +627,19 @@ void CameraNode::PublishPoses(int64_t capture_utime, int64_t frame_seq, int64_t 
     double x = 0, y = 0;
     std::string error;
     if (o.found && MapMarker(o.position, setup_.position_radius_m[i], height_m, &x, &y)) {
+      // The pose's time is the position marker's own: the middle of the
+      // exposure of its centroid's row (calib/camera_timing.h).
+      p.utime = calib::RowMidExposureUtime(timing_, capture_utime, o.position.v_px);
       p.x_m = x;
       p.y_m = y;
       p.num_measurements = 1;
-      // Covariance of the position: the pixel error through the mapping's
-      // Jacobian, J = d(x, y)/d(u, v) by central differences,
-      // Sigma = sigma_px^2 J J^T. sigma_px is the calibration's measured
-      // pixel_sigma_px (its fit's centroid noise plus its own model error,
-      // calibration_file.h), else the assumed centroid_sigma_px.
+      const Eigen::Vector2d velocity = Velocity(i);
+      // Covariance (calib/pose_covariance.h): the calibration's measured
+      // pixel noise through the mapping's Jacobian J = d(x, y)/d(u, v) (by
+      // central differences), plus the streak, the timestamp jitter and the
+      // robot's tilt. sigma_px is the calibration's pixel_sigma_px (its
+      // fit's centroid noise plus its own model error, calibration_file.h),
+      // else the assumed centroid_sigma_px.
       const double h_px = 0.5;
       double xu0, yu0, xu1, yu1, xv0, yv0, xv1, yv1;
       const bool jac = calibration_->PixelToFloor(o.position.u_px - h_px, o.position.v_px, height_m,
@@ -591,21 +650,36 @@ void CameraNode::PublishPoses(int64_t capture_utime, int64_t frame_seq, int64_t 
                                                   &xv0, &yv0, &error) &&
                        calibration_->PixelToFloor(o.position.u_px, o.position.v_px + h_px, height_m,
                                                   &xv1, &yv1, &error);
-      Eigen::Matrix2d J = Eigen::Matrix2d::Zero();
+      calib::PoseNoiseInputs noise;
       if (jac) {
-        J << (xu1 - xu0) / (2 * h_px), (xv1 - xv0) / (2 * h_px), (yu1 - yu0) / (2 * h_px),
-            (yv1 - yv0) / (2 * h_px);
+        noise.floor_per_px << (xu1 - xu0) / (2 * h_px), (xv1 - xv0) / (2 * h_px),
+            (yu1 - yu0) / (2 * h_px), (yv1 - yv0) / (2 * h_px);
       }
-      const double sigma_px = calibration_->pixel_sigma_px > 0.0 ? calibration_->pixel_sigma_px
-                                                                 : options_.centroid_sigma_px;
-      const double s2 = sigma_px * sigma_px;
-      const Eigen::Matrix2d cov = s2 * J * J.transpose();
+      noise.pixel_sigma_px = calibration_->pixel_sigma_px > 0.0 ? calibration_->pixel_sigma_px
+                                                                : options_.centroid_sigma_px;
+      noise.velocity_mps = velocity;
+      noise.exposure_s = timing_.exposure_s;
+      noise.blur_sigma_fraction = options_.blur_sigma_fraction;
+      noise.timing_sigma_s = timing_sigma_s;
+      noise.marker_height_m = height_m;
+      noise.tilt_sigma_rad = camera_.robots[i].tilt_sigma_deg * M_PI / 180.0;
+      const Eigen::Matrix2d cov = calib::PositionCovariance(noise);
       for (int r = 0; r < 2; ++r) {
         for (int c = 0; c < 2; ++c) p.covariance[r][c] = cov(r, c);
       }
       p.status = pose2d_t::STATUS_DEGRADED;
       double hx = 0, hy = 0;
       if (o.has_heading && MapMarker(o.heading, setup_.heading_radius_m[i], height_m, &hx, &hy)) {
+        // Under a rolling shutter the heading marker was seen at its own
+        // row's time: moved to the position marker's time along the
+        // velocity (1.4 ms for 50 rows of a 30 ms readout, 0.3 mm at 20 cm/s).
+        const int64_t head_utime =
+            calib::RowMidExposureUtime(timing_, capture_utime, o.heading.v_px);
+        if (head_utime != p.utime) {
+          const double shift_s = static_cast<double>(p.utime - head_utime) * 1e-6;
+          hx += velocity.x() * shift_s;
+          hy += velocity.y() * shift_s;
+        }
         const double dx = hx - x, dy = hy - y;
         const double d2 = dx * dx + dy * dy;
         if (d2 > 1e-6) {
@@ -613,14 +687,23 @@ void CameraNode::PublishPoses(int64_t capture_utime, int64_t frame_seq, int64_t 
           p.num_measurements = 2;
           p.status = pose2d_t::STATUS_OK;
           // Both centroids move by about sigma * |J| each, perpendicular to
-          // the baseline: var(heading) = 2 sigma_m^2 / d^2.
-          const double sigma_m2 = cov.trace() / 2.0;
+          // the baseline: var(heading) = 2 sigma_m^2 / d^2, from the errors
+          // that differ between the two markers (not the tilt, not the time).
+          const double sigma_m2 = calib::MarkerRelativeCovariance(noise).trace() / 2.0;
           p.covariance[2][2] = 2.0 * sigma_m2 / d2;
           p.covariance[0][2] = p.covariance[2][0] = 0.0;
           p.covariance[1][2] = p.covariance[2][1] = 0.0;
         }
       }
       p.residual_m = 0.0;
+      std::deque<PoseSample>& recent = recent_poses_[i];
+      recent.push_back({p.utime, x, y});
+      while (recent.size() > 2 && static_cast<double>(p.utime - recent.front().utime) * 1e-6 >
+                                      options_.velocity_span_s) {
+        recent.pop_front();
+      }
+    } else {
+      recent_poses_[i].clear();
     }
     p.latency_us = latency_us;
     if (bus_->Publish(kCameraPoseChannel, p)) status_.Count("poses");

@@ -2,6 +2,7 @@
 #define ROOMFIX_CAMERA_PROC_CAMERA_NODE_H_
 
 #include <cstdint>
+#include <deque>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -11,6 +12,7 @@
 
 #include "camera_proc/frame_source.h"
 #include "core/calib/calibration_file.h"
+#include "core/calib/camera_timing.h"
 #include "core/vision/marker_detector.h"
 #include "core/vision/robot_tracker.h"
 #include "core/world/site.h"
@@ -40,6 +42,13 @@ struct CameraNodeOptions {
   // calibration does not state its measured pixel_sigma_px (older files,
   // the 9-region model): an assumption, pixels.
   double centroid_sigma_px = 0.1;
+  // The centroid's extra sigma along a motion streak, as a fraction of the
+  // streak's length (calib/pose_covariance.h); only with the site camera's
+  // exposure_s above 0. Fitted on the simulated webcam (docs/camera.md).
+  double blur_sigma_fraction = 0.1;
+  // The robot's floor velocity for the covariance's motion terms and the
+  // heading marker's time shift: from its own poses over this span (s).
+  double velocity_span_s = 0.3;
   // Blur of the class masks, full-resolution pixels.
   double blur_sigma_px = 1.0;
   // Remove the centroid's perspective bias (calib/marker_projection.h);
@@ -139,6 +148,12 @@ class CameraNode {
   void MaybePublishPreview(const camera::Frame& frame);
   bool MapMarker(const vision::Blob& blob, double radius_m, double height_m, double* x_m,
                  double* y_m) const;
+  // Frame timestamps: the spread of the intervals between consecutive
+  // frames estimates the USB jitter no camera reports.
+  void ObserveCaptureTime(int64_t capture_utime, int64_t frame_seq);
+  double TimingSigmaS() const;
+  // A robot's floor velocity from its recent poses (zero when unknown).
+  Eigen::Vector2d Velocity(size_t robot) const;
 
   const Camera& camera_;
   // The site's robot ids: a hint for any other is refused (unknown_robot).
@@ -158,6 +173,18 @@ class CameraNode {
   int64_t bad_since_last_ = 0;
   int64_t last_preview_utime_ = 0;
   int64_t frames_processed_ = 0;
+  calib::CameraTiming timing_;
+  // Running mean and variance of the interval between consecutive frames, us.
+  int64_t last_capture_utime_ = 0;
+  int64_t last_capture_seq_ = -1;
+  int64_t intervals_ = 0;
+  double interval_mean_us_ = 0.0;
+  double interval_var_us2_ = 0.0;
+  struct PoseSample {
+    int64_t utime;
+    double x_m, y_m;
+  };
+  std::vector<std::deque<PoseSample>> recent_poses_;
 };
 
 }  // namespace roomfix
