@@ -522,7 +522,7 @@ TEST_F(CameraNodeTest, RollingShutterPoseIsWhereTheRobotWasAtItsStatedUtime) {
   ASSERT_TRUE(node.ok(&error)) << error;
   // 1 ms sub-steps: a row's exposure is known to 0.5 ms, 0.1 mm at 18 cm/s.
   constexpr double kStepS = 0.001;
-  constexpr int kFrames = 40;
+  constexpr int kFrames = 24;
   for (int k = 0; k < kFrames; ++k) {
     camera::Frame frame = RollingShutterFrame(cam, k, 2.0 + k / camera_.fps, timing, kStepS);
     node.OnFrame(&frame, frame.capture_utime + 1000);

@@ -1,11 +1,15 @@
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cstdio>
 #include <iostream>
 #include <map>
 #include <string>
+#include <vector>
 
 #include "msgio/log.h"
 #include "msgio/message_json.h"
+#include "msgio/wire_check.h"
+#include "roomfix/marker_pixels_t.hpp"
 #include "tools/commands.h"
 
 namespace roomfix {
@@ -18,6 +22,22 @@ struct ChannelSummary {
   int64_t last_utime = 0;
   std::map<std::string, int64_t> types;
 };
+
+// A camera's frames as camera_proc published them on MARKER_PIXELS: how
+// many, at what rate, and the gaps in the camera's numbering (frames the
+// camera or camera_proc dropped: it publishes every frame it processes).
+struct CameraFrames {
+  int64_t frames = 0;
+  int64_t first_seq = 0;
+  int64_t last_seq = 0;
+  int64_t dropped = 0;
+  int64_t out_of_order = 0;
+  int64_t first_utime = 0;
+  int64_t last_utime = 0;
+  std::vector<int32_t> processing_us;
+};
+// Cameras beyond this many share no row: a log's camera ids are outside input.
+constexpr size_t kMaxCameras = 64;
 
 // bot-procman's own traffic (libbot2's bot2-procman): the deputy and the
 // sheriff use these fixed channel names, each for one type of package
@@ -69,6 +89,7 @@ void AddLogInfoCommand(CLI::App* app, int* exit_code) {
     // names: past kMaxListedChannels distinct names the rest share one row,
     // so the table (and memory) stays bounded however many there are.
     std::map<std::string, ChannelSummary> channels;
+    std::map<int, CameraFrames> cameras;
     int64_t unlisted_channel_events = 0;
     LogEvent event;
     while (reader->Next(&event)) {
@@ -85,6 +106,25 @@ void AddLogInfoCommand(CLI::App* app, int* exit_code) {
       c.bytes += static_cast<int64_t>(event.data.size());
       const char* type = RoomfixTypeName(event.data.data(), static_cast<int>(event.data.size()));
       ++c.types[type != nullptr ? type : ForeignTypeName(event.channel)];
+      marker_pixels_t pixels;
+      std::string reason;
+      if (event.channel == "MARKER_PIXELS" &&
+          DecodeChecked(event.data.data(), static_cast<int>(event.data.size()), &pixels, &reason)) {
+        if (cameras.size() >= kMaxCameras && cameras.count(pixels.camera_id) == 0) continue;
+        CameraFrames& f = cameras[pixels.camera_id];
+        if (f.frames == 0) {
+          f.first_seq = pixels.frame_seq;
+          f.first_utime = pixels.utime;
+        } else if (pixels.frame_seq > f.last_seq) {
+          f.dropped += pixels.frame_seq - f.last_seq - 1;
+        } else {
+          ++f.out_of_order;
+        }
+        f.last_seq = std::max(f.last_seq, pixels.frame_seq);
+        f.last_utime = std::max(f.last_utime, pixels.utime);
+        ++f.frames;
+        f.processing_us.push_back(pixels.processing_time_us);
+      }
     }
     std::printf("%s: %lld events, %lld bytes\n", path->c_str(),
                 static_cast<long long>(reader->events_read()),
@@ -97,6 +137,21 @@ void AddLogInfoCommand(CLI::App* app, int* exit_code) {
         std::printf("%-24s %8lld %10lld %9.2f  %s\n", name.c_str(), static_cast<long long>(count),
                     static_cast<long long>(c.bytes), rate, type.c_str());
       }
+    }
+    for (auto& [id, f] : cameras) {
+      const double span_s = (f.last_utime - f.first_utime) * 1e-6;
+      auto mid = f.processing_us.begin() + static_cast<std::ptrdiff_t>(f.processing_us.size() / 2);
+      std::nth_element(f.processing_us.begin(), mid, f.processing_us.end());
+      std::printf(
+          "camera %d: %lld frames (seq %lld..%lld) at %.2f fps, %lld dropped (gaps in "
+          "frame_seq)%s, "
+          "capture to detection median %.1f ms\n",
+          id, static_cast<long long>(f.frames), static_cast<long long>(f.first_seq),
+          static_cast<long long>(f.last_seq), span_s > 0 ? (f.frames - 1) / span_s : 0.0,
+          static_cast<long long>(f.dropped),
+          f.out_of_order > 0 ? (", " + std::to_string(f.out_of_order) + " out of order").c_str()
+                             : "",
+          *mid * 1e-3);
     }
     if (unlisted_channel_events > 0) {
       std::cerr << "roomfix log-info: warning: more than " << kMaxListedChannels

@@ -12,6 +12,7 @@
 #include "core/radio/wall_payload.h"
 #include "core/radio/xbee_frame.h"
 #include "msgio/log.h"
+#include "roomfix/marker_pixels_t.hpp"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -155,6 +156,48 @@ TEST(RoomfixBenchTrilat, PrintsEveryMethodForEveryScenarioAsJson) {
 // The circle fits on the recorded simulator log give back the reference
 // drive the simulator followed (exact data: only conditioning limits it).
 // Anyone on the bus can invent channel names, and a log keeps them all:
+// The camera's frame rate and the frames it dropped (gaps in frame_seq),
+// which `make demo` prints: 30 frames at 30 fps, frames 10 and 20..21
+// missing, two of camera 1 in order.
+TEST(RoomfixLogInfo, CountsEachCamerasFramesAndTheGapsInItsNumbering) {
+  TempDir dir;
+  const std::string path = dir.File("frames.lcm");
+  {
+    std::string error;
+    auto writer = LogWriter::Create(path, false, &error);
+    ASSERT_NE(writer, nullptr) << error;
+    auto write = [&](int camera, int64_t seq) {
+      marker_pixels_t m{};
+      m.utime = 1'000'000 + seq * 1'000'000 / 30;
+      m.camera_id = camera;
+      m.frame_seq = seq;
+      m.width_px = 1920;
+      m.height_px = 1080;
+      m.processing_time_us = 2000 + static_cast<int32_t>(seq % 3) * 1000;
+      std::vector<uint8_t> bytes(static_cast<size_t>(m.getEncodedSize()));
+      m.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+      ASSERT_TRUE(writer->Write(m.utime, "MARKER_PIXELS", bytes.data(),
+                                static_cast<int>(bytes.size()), &error))
+          << error;
+    };
+    for (int64_t seq = 0; seq < 33; ++seq) {
+      if (seq == 10 || seq == 20 || seq == 21) continue;
+      write(0, seq);
+    }
+    write(1, 5);
+    write(1, 6);
+  }
+  int rc = 0;
+  const std::string out = RunRoomfix({"log-info", path}, &rc);
+  EXPECT_EQ(rc, 0);
+  EXPECT_NE(out.find("camera 0: 30 frames (seq 0..32) at 27.19 fps, 3 dropped (gaps in "
+                     "frame_seq), capture to detection median 3.0 ms"),
+            std::string::npos)
+      << out;
+  EXPECT_NE(out.find("camera 1: 2 frames (seq 5..6) at 30.00 fps, 0 dropped"), std::string::npos)
+      << out;
+}
+
 // log-info lists the first 1024 and sums the rest in one row, so its memory
 // does not grow with their number (2 million names took 605 MB before).
 TEST(RoomfixLogInfo, SumsChannelsPastTheListedLimitInOneRow) {
