@@ -175,7 +175,7 @@ int main(int argc, char** argv) {
   std::unique_ptr<roomfix::camera::FrameSource> source;
   if (device.rfind("sim:", 0) == 0) {
     roomfix::sim::SimScenario scenario;
-    if (!roomfix::sim::ParseSimScenario(device, &scenario, &error)) {
+    if (!roomfix::sim::ParseSimScenario(device, ctx->site, &scenario, &error)) {
       std::cerr << "camera_proc: " << error << "\n";
       return 1;
     }
