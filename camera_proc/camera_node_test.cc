@@ -51,6 +51,11 @@ class CameraNodeTest : public ::testing::Test {
     ASSERT_TRUE(LoadSite(testing::SourceDir() + "/config/sites/demo_room.yaml", &site_, &error))
         << error;
     camera_ = site_.cameras.front();
+    // The demo site's camera is a webcam (rolling shutter, exposure,
+    // latency, a rocking robot); these tests render the ideal `clean`
+    // camera, whose frames are exposed at once and stamped exactly.
+    camera_.readout_s = camera_.exposure_s = camera_.timestamp_latency_s = 0.0;
+    for (CameraRobot& r : camera_.robots) r.tilt_sigma_deg = 0.0;
     lens_ = calib::NominalCamera(camera_.mount_position_m, camera_.field_of_view_deg,
                                  camera_.width_px, camera_.height_px);
     // A real lens is not the ideal equidistant one, nor mounted perfectly.
