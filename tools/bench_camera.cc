@@ -130,9 +130,12 @@ BudgetFigures RunBudget(const Site& site, const WebcamSimulation& w, int frames,
   cam.readout_s = w.readout_s;
   cam.exposure_s = w.exposure_s;
   cam.timestamp_latency_s = w.timestamp_latency_s;
+  // The tilt a lab would state, per axis: the lean in an unknown direction
+  // (1/sqrt 2 of it per axis), the rocking's RMS per axis at the circle's
+  // 18 cm/s (0.44 of its amplitude), the circle's 0.08 m/s^2 (half per axis).
   const double tilt_deg =
-      std::sqrt(std::pow(w.tilt_static_deg, 2) + 0.5 * std::pow(w.tilt_rocking_deg, 2) +
-                std::pow(w.tilt_per_acceleration_deg_per_mps2 * 0.1, 2));
+      std::sqrt(std::pow(w.tilt_static_deg, 2) / 2.0 + std::pow(0.44 * w.tilt_rocking_deg, 2) +
+                std::pow(w.tilt_per_acceleration_deg_per_mps2 * 0.08, 2) / 2.0);
   for (CameraRobot& r : cam.robots) r.tilt_sigma_deg = tilt_deg;
   sim::SimScenario scenario;
   std::string error;
