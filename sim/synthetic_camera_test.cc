@@ -481,7 +481,10 @@ TEST(WriteSequence, WritesFramesAndTruthIntoAFolder) {
   EXPECT_EQ(CountLines(out + "/truth.csv"), 1 + 5 * 2);
   const std::string csv = testing::ReadFile(out + "/truth.csv");
   EXPECT_EQ(csv.rfind("frame,t_s,utime,robot_id,colour_class,role,x_m,y_m,z_m,u_px,v_px,"
-                      "centroid_u_px,centroid_v_px,visible,heading_rad\n",
+                      "centroid_u_px,centroid_v_px,visible,heading_rad,capture_utime,"
+                      "exposure_mid_t_s,exposure_mid_x_m,exposure_mid_y_m,exposure_mid_z_m,"
+                      "robot_x_m,robot_y_m,robot_heading_rad,robot_tilt_forward_rad,"
+                      "robot_tilt_left_rad\n",
                       0),
             0u);
   EXPECT_NE(csv.find(",position,"), std::string::npos);
