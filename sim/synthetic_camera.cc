@@ -604,17 +604,37 @@ void SyntheticCamera::Impl::Sensor(const cv::Mat& scene, double t_s, int64_t fra
     return encode[static_cast<size_t>(index)];
   };
   if (wc.bayer) {
-    // RGGB: R at even rows and columns, B at odd rows and columns.
+    // RGGB: R at even rows and columns, B at odd rows and columns. Row by
+    // row in passes the compiler and OpenCV vectorise (the square root by
+    // cv::sqrt); only the two table look-ups are gathers.
     cv::Mat mosaic(h, w, CV_8UC1);
+    cv::Mat e_row(1, w, CV_32F), sd_row(1, w, CV_32F);
+    float* e = e_row.ptr<float>(0);
+    float* sd = sd_row.ptr<float>(0);
+    const float top = static_cast<float>(kEncodeSteps);
     for (int j = 0; j < h; ++j) {
       const uchar* in = scene.ptr<uchar>(j);
       uchar* out = mosaic.ptr<uchar>(j);
       const size_t row = static_cast<size_t>(j) * w;
       const int even = (j & 1) == 0 ? 2 : 1;  // channel at even columns
       const int odd = (j & 1) == 0 ? 1 : 0;   // at odd columns
+      for (int i = 0; i < w; i += 2) {
+        e[i] = decode[in[3 * i + even]] * gain[even];
+        if (i + 1 < w) e[i + 1] = decode[in[3 * i + 3 + odd]] * gain[odd];
+      }
+      if (vig != nullptr) {
+        const float* v = vig + row;
+        for (int i = 0; i < w; ++i) e[i] *= v[i];
+      }
+      if (nz != nullptr) {
+        for (int i = 0; i < w; ++i) sd[i] = shot * std::max(e[i], 0.0f) + read_var;
+        cv::sqrt(sd_row, sd_row);
+        const int8_t* n = nz + row;
+        for (int i = 0; i < w; ++i) e[i] += sd[i] * (static_cast<float>(n[i]) * noise_scale);
+      }
       for (int i = 0; i < w; ++i) {
-        const int c = (i & 1) == 0 ? even : odd;
-        out[i] = expose(in[3 * i + c], c, row + i, row + i);
+        const float index = std::min(std::max(e[i] * to_index + 0.5f, 0.0f), top);
+        out[i] = encode[static_cast<size_t>(index)];
       }
     }
     cv::cvtColor(mosaic, *bgr, cv::COLOR_BayerBG2BGR);

@@ -400,12 +400,18 @@ TEST(SyntheticCamera, PrintsTheFrameCost) {
     }
     const auto t2 = std::chrono::steady_clock::now();
     const std::clock_t c2 = std::clock();
+    // The camera's own JPEG (quality 90 as SimFrameSource's default; the
+    // webcam's 80).
+    std::vector<uint8_t> bytes;
+    for (int f = 0; f < kFrames; ++f) ASSERT_TRUE(camera.Encode(image, 90, &bytes));
+    const std::clock_t c3 = std::clock();
     std::printf(
         "%s: construction %.0f ms, frame %.2f ms wall, %.2f ms CPU (1920 x 1080, one "
-        "robot)\n",
+        "robot); JPEG q%d %.2f ms CPU, %.0f kB\n",
         name, std::chrono::duration<double, std::milli>(t1 - t0).count(),
         std::chrono::duration<double, std::milli>(t2 - t1).count() / kFrames,
-        1000.0 * static_cast<double>(c2 - c1) / CLOCKS_PER_SEC / kFrames);
+        1000.0 * static_cast<double>(c2 - c1) / CLOCKS_PER_SEC / kFrames, camera.JpegQuality(90),
+        1000.0 * static_cast<double>(c3 - c2) / CLOCKS_PER_SEC / kFrames, bytes.size() / 1024.0);
   }
 }
 
@@ -481,7 +487,10 @@ TEST(WriteSequence, WritesFramesAndTruthIntoAFolder) {
   EXPECT_EQ(CountLines(out + "/truth.csv"), 1 + 5 * 2);
   const std::string csv = testing::ReadFile(out + "/truth.csv");
   EXPECT_EQ(csv.rfind("frame,t_s,utime,robot_id,colour_class,role,x_m,y_m,z_m,u_px,v_px,"
-                      "centroid_u_px,centroid_v_px,visible,heading_rad\n",
+                      "centroid_u_px,centroid_v_px,visible,heading_rad,capture_utime,"
+                      "exposure_mid_t_s,exposure_mid_x_m,exposure_mid_y_m,exposure_mid_z_m,"
+                      "robot_x_m,robot_y_m,robot_heading_rad,robot_tilt_forward_rad,"
+                      "robot_tilt_left_rad\n",
                       0),
             0u);
   EXPECT_NE(csv.find(",position,"), std::string::npos);
@@ -939,6 +948,64 @@ TEST(Webcam, BayerMosaicKeepsFlatColoursAndFringesEdges) {
   }
   // At edges the interpolation differs from the ideal image.
   EXPECT_GT(cv::norm(a, b, cv::NORM_INF), 20.0);
+}
+
+TEST(Webcam, AutoExposureAndWhiteBalanceDriftSlowly) {
+  // Linear floor brightness over one period: max / min = (1 + a) / (1 - a)
+  // (20 samples catch the extremes to cos(pi / 20), 1 %), and the red gain
+  // against green likewise for the white balance. Tolerance: 8-bit codes
+  // near 160 are 1 % apart in linear light.
+  constexpr double kRatioTolerance = 0.04;
+  const Demo& d = DemoRoom();
+  SimScenario s = WebcamAllOff();
+  s.webcam.auto_exposure_drift = 0.2;
+  s.webcam.auto_exposure_period_s = 2.0;
+  s.webcam.white_balance_drift = 0.1;
+  s.webcam.white_balance_period_s = 2.0;
+  const SyntheticCamera camera(d.site, d.camera, d.model, s);
+  const cv::Point p = Pixel(d.model, 1.75, 1.25, 0.0);
+  auto lin = [](double v) {
+    const double x = v / 255.0;
+    return x <= 0.04045 ? x / 12.92 : std::pow((x + 0.055) / 1.055, 2.4);
+  };
+  cv::Mat clean;
+  CleanCamera().Render(0.0, 0, {}, &clean);
+  const cv::Vec3b c = clean.at<cv::Vec3b>(p);
+  double g_lo = 1e9, g_hi = 0, r_lo = 1e9, r_hi = 0;
+  for (int k = 0; k < 20; ++k) {
+    cv::Mat image;
+    camera.Render(k * 0.1, k, {}, &image);
+    const cv::Vec3b v = image.at<cv::Vec3b>(p);
+    const double g = lin(v[1]) / lin(c[1]);
+    const double r = (lin(v[2]) / lin(c[2])) / g;
+    g_lo = std::min(g_lo, g), g_hi = std::max(g_hi, g);
+    r_lo = std::min(r_lo, r), r_hi = std::max(r_hi, r);
+  }
+  EXPECT_NEAR(g_hi / g_lo, 1.2 / 0.8, kRatioTolerance * 1.5);
+  EXPECT_NEAR(r_hi / r_lo, 1.1 / 0.9, kRatioTolerance * 1.2);
+}
+
+TEST(Webcam, SheenWhitensMarkersSeenObliquely) {
+  const Demo& d = DemoRoom();
+  SimScenario s = WebcamAllOff();
+  s.webcam.marker_sheen = 0.5;
+  const SyntheticCamera camera(d.site, d.camera, d.model, s);
+  for (const auto& [x, y] : {std::pair{2.0, 1.5}, std::pair{0.5, 0.5}}) {
+    std::vector<MarkerTruth> truth;
+    cv::Mat a, b;
+    camera.Render(0.0, 0, {Robot(x, y)}, &a, &truth);
+    CleanCamera().Render(0.0, 0, {Robot(x, y)}, &b);
+    const cv::Point c(static_cast<int>(std::lround(Position(truth).centroid_u_px)),
+                      static_cast<int>(std::lround(Position(truth).centroid_v_px)));
+    // colour = (1 - s) class + s white, s = 0.5 min(1, (1 - cos view) / 0.5).
+    const Eigen::Vector3d to_camera = d.model.pose.position_m - Eigen::Vector3d(x, y, 0.2);
+    const double cos_view = to_camera.z() / to_camera.norm();
+    const double sheen = 0.5 * std::min(1.0, (1 - cos_view) / 0.5);
+    const cv::Vec3b pa = a.at<cv::Vec3b>(c), pb = b.at<cv::Vec3b>(c);
+    for (int ch = 0; ch < 3; ++ch) {
+      EXPECT_NEAR(pa[ch], (1 - sheen) * pb[ch] + sheen * 255.0, 1.0) << x << " " << ch;
+    }
+  }
 }
 
 TEST(Webcam, SameSequenceNumberGivesTheSameBytes) {

@@ -208,7 +208,7 @@ void AddRenderCameraCommand(CLI::App* app, int* exit_code) {
   cmd->add_option("--site", f->site, "Site file")->required();
   cmd->add_option("--camera", f->camera_id, "Camera id in the site file (default: the first)");
   cmd->add_option("--scenario", f->scenario,
-                  "clean, reference_circle, lighting, distractors or harsh (default: the "
+                  "clean, reference_circle, lighting, distractors, harsh or webcam (default: the "
                   "camera's sim: device, else clean)");
   cmd->add_option("--duration", f->duration_s, "Sequence length, seconds")->capture_default_str();
   cmd->add_option("--fps", f->fps, "Frames per second (default: the camera's)");
