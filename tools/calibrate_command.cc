@@ -778,7 +778,9 @@ void AddCalibrateCommand(CLI::App* app, int* exit_code) {
   auto* cmd = app->add_subcommand(
       "calibrate",
       "Fit the camera model to marker points (CSV u,v,x_m,y_m,height_m) and/or chessboards on "
-      "the floor; print residuals; write the calibration YAML and a PNG of the fit");
+      "the floor, from the points and the image size alone (the start is found from them; a "
+      "measured mount is an optional prior); print residuals; write the calibration YAML and a "
+      "PNG of the fit");
   auto f = std::make_shared<Flags>();
   cmd->add_option("--points", f->points, "CSV with header u,v,x_m,y_m,height_m");
   cmd->add_option("--chessboard", f->chessboards,
@@ -807,7 +809,9 @@ void AddCalibrateCommand(CLI::App* app, int* exit_code) {
   cmd->add_option("--out", f->out, "Calibration YAML to write (required unless only detecting)");
   cmd->add_option("--model", f->model, "full (the fisheye model) or regions (the reference's 9)")
       ->capture_default_str();
-  cmd->add_option("--site", f->site, "Site file: camera size, field of view, mount and room");
+  cmd->add_option("--site", f->site,
+                  "Site file: camera size, field of view, mount (a prior) and room; optional "
+                  "with --size");
   cmd->add_option("--camera", f->camera_id, "Camera id in the site file (default: the first)");
   cmd->add_option("--mount", f->mount,
                   "Measured lens position X,Y,Z in metres (over the site's); optional: the fit "
@@ -819,8 +823,7 @@ void AddCalibrateCommand(CLI::App* app, int* exit_code) {
                   "Nominal field of view across the width, degrees (default: the site's, else "
                   "120); only the fit's start, which searches 0.6-1.67 times its focal length");
   cmd->add_option("--distortion-terms", f->distortion_terms,
-                  "Fisheye distortion terms fitted, k1..kN (1 to 4; 3-4 for a lens seen beyond "
-                  "about 60 degrees off axis)")
+                  "Fisheye distortion terms fitted, k1..kN (1 to 4)")
       ->check(CLI::Range(1, 4))
       ->capture_default_str();
   cmd->add_option("--size", f->size, "Image size WIDTHxHEIGHT in pixels");

@@ -847,7 +847,12 @@ TEST(RoomfixCalibrate, GoProChessboardCalibratesWithoutAMountAndRefusesAMirrored
   std::vector<std::string> good = args;
   good.push_back("+x-y");
   const RunResult r = Roomfix(good);
-  std::cout << r.out.substr(r.out.find("start from")) << "\n";
+  std::string line;
+  for (std::istringstream out(r.out); std::getline(out, line);) {
+    if (line.rfind("start from", 0) == 0 || line.rfind("full model:", 0) == 0) {
+      std::cout << line << "\n";
+    }
+  }
   ASSERT_EQ(r.exit_code, 0) << r.out;
   // All 135 corners fitted: the reprojection RMS is the corner noise
   // (about 0.1-0.3 px on these images, camera_fit_test).
@@ -856,6 +861,18 @@ TEST(RoomfixCalibrate, GoProChessboardCalibratesWithoutAMountAndRefusesAMirrored
   std::string error;
   ASSERT_TRUE(calib::LoadCalibration(tmp.File("cal.yaml"), &cal, &error)) << error;
   EXPECT_LT(cal.fit_rms_px, kCornerNoisePx);
+  // k3 and k4 freed as well (--distortion-terms 4): a larger model over the
+  // same corners fits them more closely.
+  std::vector<std::string> four = good;
+  *std::find(four.begin(), four.end(), tmp.File("cal.yaml")) = tmp.File("cal4.yaml");
+  four.insert(four.end(), {"--distortion-terms", "4"});
+  const RunResult r4 = Roomfix(four);
+  ASSERT_EQ(r4.exit_code, 0) << r4.out;
+  Calibration cal4;
+  ASSERT_TRUE(calib::LoadCalibration(tmp.File("cal4.yaml"), &cal4, &error)) << error;
+  std::cout << "k1, k2: " << cal.fit_rms_px << " px; k1..k4: " << cal4.fit_rms_px << " px\n";
+  EXPECT_LT(cal4.fit_rms_px, cal.fit_rms_px);
+  EXPECT_NE(cal4.camera.intrinsics.k[3], 0.0);
 
   std::vector<std::string> mirrored = args;
   mirrored.push_back("x");
