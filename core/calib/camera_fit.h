@@ -86,8 +86,9 @@ constexpr int kMinPoints = 10;
 //
 // over fx, fy (or one f), cx, cy, k1..k4 (when fit_distortion), the camera
 // orientation (a rotation-vector perturbation w: R = R_initial exp([w]x))
-// and position c, starting from `initial` (NominalCamera for a ceiling
-// camera). GSL's trust-region Levenberg-Marquardt with a central-difference
+// and position c, starting from `initial`: FindCameraStart's camera
+// (camera_start.h: from the points alone), or NominalCamera at a measured
+// mount. GSL's trust-region Levenberg-Marquardt with a central-difference
 // Jacobian.
 //
 // Identifiability. From one view of points on ONE plane the mapping of that
