@@ -26,6 +26,7 @@
 #include "camera_proc/image_file.h"
 #include "core/calib/calibration_file.h"
 #include "core/calib/camera_fit.h"
+#include "core/calib/camera_start.h"
 #include "core/calib/region_model.h"
 #include "core/vision/marker_detector.h"
 #include "core/world/file_io.h"
@@ -58,6 +59,7 @@ struct Flags {
   std::string mount;
   double mount_sigma_m = 0.005;
   double fov_deg = 0.0;
+  int distortion_terms = 2;
   std::string size;
   std::string image;
   std::string png;
@@ -605,25 +607,38 @@ void Run(const Flags& f) {
     }
   }
 
-  // The full model. Points at one height do not fix the camera's height
-  // (camera_fit.h): the mount measured on site enters as a prior.
+  // The full model, started from the points alone (camera_start.h: the
+  // nominal lens's undistorted pixels through a planar pose solver); a
+  // measured mount, when given, enters as a prior, because points at one
+  // height do not fix the camera's height (camera_fit.h). Points that cannot
+  // give a start (too small a patch of the image) still fit from the
+  // nominal camera at the mount, as before; mirrored axes never do.
   CameraFitSummary full;
   std::string full_why;
-  if (!mount) {
-    full_why =
-        "the camera's mount is unknown: give --mount X,Y,Z (metres) or --site FILE [--camera ID]";
+  const calib::CameraModel nominal = calib::NominalCamera(
+      mount.value_or(std::array<double, 3>{0.0, 0.0, 1.0}), fov_deg, width_px, height_px);
+  const calib::CameraStart start = calib::FindCameraStart(points, nominal);
+  if (start.usable) {
+    std::cout << start.message << "\n";
+  } else if (mount && !start.mirrored) {
+    std::cout << "start from the mount (not from the points: " << start.message << ")\n";
   } else {
+    full_why = start.message;
+  }
+  if (full_why.empty()) {
     calib::CameraFitOptions options;
     options.equal_focal_lengths = true;
-    options.distortion_terms = 2;
-    options.position_prior_sigma_m = f.mount_sigma_m;
+    options.distortion_terms = f.distortion_terms;
+    if (mount) {
+      options.position_prior_sigma_m = f.mount_sigma_m;
+      options.prior_position_m = *mount;
+    }
     options.pixel_sigma_px = f.pixel_sigma_px;
     options.outlier_px = f.outlier_px;
     options.max_iterations = f.max_iterations;
     options.max_outliers = std::min(
         kMaxOutliers, static_cast<int>(kMaxOutlierFraction * static_cast<double>(points.size())));
-    full = calib::FitCamera(points, calib::NominalCamera(*mount, fov_deg, width_px, height_px),
-                            options);
+    full = calib::FitCamera(points, start.usable ? start.model : nominal, options);
     if (!full.usable) full_why = full.message;
   }
   const RegionFitSummary regions =
@@ -726,8 +741,8 @@ void Run(const Flags& f) {
   }
   full_cal.fit_rms_px = want_full ? rms_px : -1.0;
   // The full fit's parameters: one focal length, the principal point, k1
-  // and k2, the rotation and the position (the options above).
-  constexpr int kFullModelParameters = 1 + 2 + 2 + 3 + 3;
+  // to k_n, the rotation and the position (the options above).
+  const int kFullModelParameters = 1 + 2 + f.distortion_terms + 3 + 3;
   full_cal.pixel_sigma_px =
       want_full ? calib::PixelSigmaFromFit(rms_px, n_full, kFullModelParameters) : -1.0;
   region_cal.fit_rms_px = want_full ? -1.0 : rms_px;
@@ -763,7 +778,9 @@ void AddCalibrateCommand(CLI::App* app, int* exit_code) {
   auto* cmd = app->add_subcommand(
       "calibrate",
       "Fit the camera model to marker points (CSV u,v,x_m,y_m,height_m) and/or chessboards on "
-      "the floor; print residuals; write the calibration YAML and a PNG of the fit");
+      "the floor, from the points and the image size alone (the start is found from them; a "
+      "measured mount is an optional prior); print residuals; write the calibration YAML and a "
+      "PNG of the fit");
   auto f = std::make_shared<Flags>();
   cmd->add_option("--points", f->points, "CSV with header u,v,x_m,y_m,height_m");
   cmd->add_option("--chessboard", f->chessboards,
@@ -792,13 +809,23 @@ void AddCalibrateCommand(CLI::App* app, int* exit_code) {
   cmd->add_option("--out", f->out, "Calibration YAML to write (required unless only detecting)");
   cmd->add_option("--model", f->model, "full (the fisheye model) or regions (the reference's 9)")
       ->capture_default_str();
-  cmd->add_option("--site", f->site, "Site file: camera size, field of view, mount and room");
+  cmd->add_option("--site", f->site,
+                  "Site file: camera size, field of view, mount (a prior) and room; optional "
+                  "with --size");
   cmd->add_option("--camera", f->camera_id, "Camera id in the site file (default: the first)");
-  cmd->add_option("--mount", f->mount, "Measured lens position X,Y,Z in metres (over the site's)");
+  cmd->add_option("--mount", f->mount,
+                  "Measured lens position X,Y,Z in metres (over the site's); optional: the fit "
+                  "starts from the points alone, the mount is a prior on the camera's position");
   cmd->add_option("--mount-sigma", f->mount_sigma_m,
                   "How well the mount is known (m): the prior's standard deviation")
       ->capture_default_str();
-  cmd->add_option("--fov", f->fov_deg, "Field of view across the width, degrees (default 120)");
+  cmd->add_option("--fov", f->fov_deg,
+                  "Nominal field of view across the width, degrees (default: the site's, else "
+                  "120); only the fit's start, which searches 0.6-1.67 times its focal length");
+  cmd->add_option("--distortion-terms", f->distortion_terms,
+                  "Fisheye distortion terms fitted, k1..kN (1 to 4)")
+      ->check(CLI::Range(1, 4))
+      ->capture_default_str();
   cmd->add_option("--size", f->size, "Image size WIDTHxHEIGHT in pixels");
   cmd->add_option("--image", f->image, "Camera image to draw the fit on");
   cmd->add_option("--png", f->png, "PNG to write (default: --out with .png)");

@@ -82,7 +82,10 @@ int ResidualF(const gsl_vector* x, void* params, gsl_vector* f) {
   }
   if (problem->options.position_prior_sigma_m > 0) {
     const double w = problem->options.pixel_sigma_px / problem->options.position_prior_sigma_m;
-    const Eigen::Vector3d d = m.pose.position_m - problem->initial.pose.position_m;
+    const auto& prior = problem->options.prior_position_m;
+    const Eigen::Vector3d centre = prior ? Eigen::Vector3d((*prior)[0], (*prior)[1], (*prior)[2])
+                                         : problem->initial.pose.position_m;
+    const Eigen::Vector3d d = m.pose.position_m - centre;
     for (int a = 0; a < 3; ++a) gsl_vector_set(f, 2 * problem->used.size() + a, w * d[a]);
   }
   return GSL_SUCCESS;
@@ -160,6 +163,11 @@ bool CameraFitOptions::IsValid(std::string* error) const {
   if (!(pixel_sigma_px > 0) || !std::isfinite(pixel_sigma_px)) {
     e = "pixel_sigma_px must be finite and positive";
   }
+  if (prior_position_m &&
+      !(std::isfinite((*prior_position_m)[0]) && std::isfinite((*prior_position_m)[1]) &&
+        std::isfinite((*prior_position_m)[2]))) {
+    e = "prior_position_m must be finite";
+  }
   if (error != nullptr) *error = e;
   return e.empty();
 }
@@ -187,6 +195,12 @@ CameraFitSummary FitCamera(const std::vector<Correspondence>& points, const Came
     return s;
   }
   const double margin = CameraModel::kPixelMarginPx;
+  // Markers lie below the camera: the initial one and, when the mount was
+  // measured, the mount.
+  const double camera_z_m =
+      options.prior_position_m && options.position_prior_sigma_m > 0
+          ? std::min(initial.pose.position_m.z(), (*options.prior_position_m)[2])
+          : initial.pose.position_m.z();
   Eigen::Vector2d mean = Eigen::Vector2d::Zero();
   for (int i = 0; i < n; ++i) {
     const Correspondence& c = points[i];
@@ -204,10 +218,10 @@ CameraFitSummary FitCamera(const std::vector<Correspondence>& points, const Came
       Reject(os.str(), initial, &s);
       return s;
     }
-    if (!std::isfinite(c.height_m) || c.height_m < 0 || c.height_m >= initial.pose.position_m.z()) {
+    if (!std::isfinite(c.height_m) || c.height_m < 0 || c.height_m >= camera_z_m) {
       std::ostringstream os;
       os << where << "height " << c.height_m << " m is inconsistent: must be >= 0 and below the "
-         << "camera at " << initial.pose.position_m.z() << " m";
+         << "camera at " << camera_z_m << " m";
       Reject(os.str(), initial, &s);
       return s;
     }

@@ -1,6 +1,8 @@
 #ifndef ROOMFIX_CORE_CALIB_CAMERA_FIT_H_
 #define ROOMFIX_CORE_CALIB_CAMERA_FIT_H_
 
+#include <array>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -46,6 +48,11 @@ struct CameraFitOptions {
   // how a site's measured mount height enters; see FitCamera on why it
   // matters.
   double position_prior_sigma_m = 0.0;
+  // Where the prior pulls the camera: the measured mount. Unset: the
+  // initial model's position (NominalCamera at the mount). Set when the fit
+  // starts from FindCameraStart's camera (camera_start.h), whose position
+  // comes from the points, while the prior still states the mount.
+  std::optional<std::array<double, 3>> prior_position_m;
   // The expected pixel noise; only weights the position prior.
   double pixel_sigma_px = 0.5;
 
@@ -79,8 +86,9 @@ constexpr int kMinPoints = 10;
 //
 // over fx, fy (or one f), cx, cy, k1..k4 (when fit_distortion), the camera
 // orientation (a rotation-vector perturbation w: R = R_initial exp([w]x))
-// and position c, starting from `initial` (NominalCamera for a ceiling
-// camera). GSL's trust-region Levenberg-Marquardt with a central-difference
+// and position c, starting from `initial`: FindCameraStart's camera
+// (camera_start.h: from the points alone), or NominalCamera at a measured
+// mount. GSL's trust-region Levenberg-Marquardt with a central-difference
 // Jacobian.
 //
 // Identifiability. From one view of points on ONE plane the mapping of that
@@ -110,7 +118,8 @@ constexpr int kMinPoints = 10;
 // kMinPoints points; non-finite values; all points on a line (the smaller
 // principal standard deviation of their (x, y) below 1 cm); a pixel outside
 // the image (more than CameraModel::kPixelMarginPx); a height that is
-// negative, not finite, or not below the initial camera; a point at or
+// negative, not finite, or not below the initial camera (nor below the
+// prior's mount, when one is given); a point at or
 // behind the initial camera; GSL's solver failing or reaching
 // max_iterations; a non-finite result; more than max_outliers points over
 // outlier_px.

@@ -8,13 +8,12 @@
 #include <fstream>
 #include <iostream>
 #include <map>
-#include <opencv2/calib3d.hpp>
-#include <opencv2/core.hpp>
 #include <random>
 #include <sstream>
 #include <string>
 #include <vector>
 
+#include "core/calib/camera_start.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix::calib {
@@ -320,37 +319,6 @@ Eigen::Vector3d BoardPoint(const BoardCorner& c) {
   return Eigen::Vector3d(c.row * kSquareM, c.col * kSquareM, 0.0);
 }
 
-// A starting pose for a camera at an unknown pose over the board: undistort
-// the corners with the nominal (equidistant, k = 0) lens and solve PnP on
-// the result. OpenCV only here, in the test; the library takes the start.
-CameraModel InitialBoardCamera(const std::vector<BoardCorner>& corners, const CameraModel& lens) {
-  std::vector<cv::Point2d> pixels;
-  std::vector<cv::Point3d> board;
-  for (const BoardCorner& c : corners) {
-    pixels.emplace_back(c.u_px, c.v_px);
-    const Eigen::Vector3d p = BoardPoint(c);
-    board.emplace_back(p.x(), p.y(), p.z());
-  }
-  const cv::Matx33d K(lens.intrinsics.fx_px, 0, lens.intrinsics.cx_px, 0, lens.intrinsics.fy_px,
-                      lens.intrinsics.cy_px, 0, 0, 1);
-  std::vector<cv::Point2d> normalised;
-  cv::fisheye::undistortPoints(pixels, normalised, K, cv::Vec4d(0, 0, 0, 0));
-  cv::Vec3d rvec, tvec;
-  // IPPE: the planar-target solver, which needs no starting pose.
-  cv::solvePnP(board, normalised, cv::Matx33d::eye(), cv::noArray(), rvec, tvec, false,
-               cv::SOLVEPNP_IPPE);
-  cv::Matx33d R;
-  cv::Rodrigues(rvec, R);
-  CameraModel m = lens;
-  Eigen::Matrix3d R_camera_from_board;
-  for (int i = 0; i < 3; ++i) {
-    for (int j = 0; j < 3; ++j) R_camera_from_board(i, j) = R(i, j);
-  }
-  m.pose.R_room_from_camera = R_camera_from_board.transpose();
-  m.pose.position_m = -R_camera_from_board.transpose() * Eigen::Vector3d(tvec[0], tvec[1], tvec[2]);
-  return m;
-}
-
 TEST(CameraFit, MapsHeldOutChessboardCornersOfARealFisheyeLens) {
   const std::string data = roomfix::testing::SharedDataDir();
   if (data.empty())
@@ -358,12 +326,10 @@ TEST(CameraFit, MapsHeldOutChessboardCornersOfARealFisheyeLens) {
   const std::string path = data + "/fisheye_gopro/derived_corners_opencv.csv";
   const auto images = ReadCorners(path);
   if (images.empty()) GTEST_SKIP() << "cannot read " << path;
-  // 1000 x 750 px. The starting lens: 130 degrees across the width
-  // (f = 220 px), about what a GoPro's wide mode covers. OpenCV's own guess
-  // for these images, 180 degrees (f = 318 px), overstates the angles so far
-  // that corners near the border undistort to beyond 80 degrees and the
-  // planar pose start breaks on 3D_L0497.
-  const CameraModel lens = NominalCamera({0, 0, 1}, 130.0, 1000, 750);
+  // 1000 x 750 px. The nominal lens: 120 degrees across the width
+  // (f = 477 px; a Hero3 Black measures 121 degrees); FindCameraStart
+  // searches 0.6-1.67 times that focal length (the fits land at 404-509 px).
+  const CameraModel lens = NominalCamera({0, 0, 1}, 120.0, 1000, 750);
   // The held-out corners lie between the fitted ones on the same board, so
   // the error is the model's interpolation error plus corner noise (OpenCV's
   // subpixel corners: about 0.1-0.3 px, which is 0.1-0.5 mm on a board
@@ -384,8 +350,10 @@ TEST(CameraFit, MapsHeldOutChessboardCornersOfARealFisheyeLens) {
         held_out.push_back(corners[i]);
       }
     }
-    const CameraModel initial = InitialBoardCamera(corners, lens);
-    const CameraFitSummary fit = FitCamera(fit_points, initial, CameraFitOptions());
+    // The start from the fitted corners alone (camera_start.h).
+    const CameraStart start = FindCameraStart(fit_points, lens);
+    ASSERT_TRUE(start.usable) << image << ": " << start.message;
+    const CameraFitSummary fit = FitCamera(fit_points, start.model, CameraFitOptions());
     ASSERT_TRUE(fit.usable) << image << ": " << fit.message;
     double sum2 = 0, worst = 0;
     for (const BoardCorner& c : held_out) {

@@ -385,6 +385,24 @@ TEST(RoomfixCalibrate, RefusesBadPointSetsWithOneClearLine) {
   }
   std::string mixed = good;
   mixed.replace(mixed.rfind(",0.2\n"), 5, ",0.5\n");
+  std::string mirrored = "u,v,x_m,y_m,height_m\n";
+  for (size_t i = 1; i < rows.size(); ++i) {
+    std::vector<std::string> f;
+    std::stringstream fields(rows[i]);
+    std::string field;
+    while (std::getline(fields, field, ',')) f.push_back(field);
+    mirrored += f[0] + "," + f[1] + "," + f[2] + ",-" + f[3] + "," + f[4] + "\n";
+  }
+  std::string patch = "u,v,x_m,y_m,height_m\n";
+  for (int i = 0; i < 4; ++i) {
+    for (int j = 0; j < 4; ++j) {
+      const double x = 2.3 + 0.04 * i, y = 1.4 + 0.04 * j;
+      double u, v;
+      ASSERT_TRUE(TrueCamera().ProjectToPixel(Eigen::Vector3d(x, y, 0.0), &u, &v));
+      patch += std::to_string(u) + "," + std::to_string(v) + "," + std::to_string(x) + "," +
+               std::to_string(y) + ",0\n";
+    }
+  }
   std::string above = good;
   above.replace(above.rfind(",0.2\n"), 5, ",3.5\n");
   const std::vector<Case> cases = {
@@ -407,10 +425,20 @@ TEST(RoomfixCalibrate, RefusesBadPointSetsWithOneClearLine) {
        good,
        {"--max-iterations", "1"},
        "roomfix calibrate: full model: the fit did not converge"},
-      {"no mount",
-       good,
+      // The floor's y negated: only a camera under the floor sees that
+      // (camera_start.h), with or without a mount.
+      {"mirrored, no mount",
+       mirrored,
        {"--size", "1920x1080"},
-       "roomfix calibrate: full model: the camera's mount is unknown"},
+       "roomfix calibrate: full model: the points put the camera below them (at z = -"},
+      {"mirrored", mirrored, {}, "roomfix calibrate: full model: the points put the camera below"},
+      // 16 markers in a 12 cm square: 0.8 deg of view, no start without a
+      // mount (with one, the fit starts from the nominal camera there).
+      {"small patch, no mount",
+       patch,
+       {"--size", "1920x1080"},
+       "roomfix calibrate: full model: all points lie in one small patch of the image: they span "
+       "0.8"},
       {"bad csv",
        "u,v,x_m,y_m,height_m\n1,2,3,four,5\n",
        {},
@@ -420,7 +448,7 @@ TEST(RoomfixCalibrate, RefusesBadPointSetsWithOneClearLine) {
     ASSERT_TRUE(WriteFile(dir.File("p.csv"), c.points));
     std::vector<std::string> args = {"calibrate", "--points", dir.File("p.csv"), "--out",
                                      dir.File("cal.yaml")};
-    if (c.name != "no mount") {
+    if (c.name.find("no mount") == std::string::npos) {
       args.insert(args.end(), {"--site", SourceDir() + "/config/sites/demo_room.yaml"});
     }
     args.insert(args.end(), c.extra.begin(), c.extra.end());
@@ -674,6 +702,186 @@ TEST(RoomfixCalibrate, RefusesAMarkerImageWithTwoMarkersNamingIt) {
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.out.find("busy.png: expected one orange marker, found 3"), std::string::npos)
       << r.out;
+}
+
+}  // namespace
+}  // namespace roomfix
+
+namespace roomfix {
+namespace {
+
+// Issue 17, part 5: calibration from the pictures, the points and the image
+// size alone, on a real lens. For every GoPro Hero3+ image in
+// ../shared/data/fisheye_gopro (1000 x 750 px; a 15 x 9-corner board of
+// 26 mm squares, the data README and config-fisheye.xml's Square_Size), the
+// board is the floor: `roomfix calibrate --corners-csv` detects the
+// corners, half of them are fitted with `roomfix calibrate --points`
+// (--size 1000x750 --fov 120: a nominal field of view -- a Hero3 Black
+// measures 121 deg across, Ross Cunniff 2012 -- and no mount), and
+// `roomfix map` maps the other half back onto the board.
+//
+// The hold-out is the chessboard's own colouring: corners with i + j even
+// are fitted, odd ones held out. Every held-out corner then has fitted
+// neighbours on all sides and the two halves cover the same angles of view,
+// which is what a ceiling calibration is for: markers between the
+// calibration points. Holding out one side of the board instead measures
+// extrapolation to angles the fit never saw, which camera_fit.h already
+// warns against (centimetres; the docs say to cover the floor).
+constexpr double kGoProSquareM = 0.026;
+// The issue's target: 1 mm RMS on every image. The board is 0.15-0.55 m
+// from the lens (f about 430 px), so 1 mm is 0.8-3 px: a fit that reaches
+// it follows the lens to a fraction of a pixel.
+constexpr double kGoProHeldOutRmsM = 0.001;
+
+TEST(RoomfixCalibrate, GoProHeldOutCornersMapWithinAMillimetreWithoutAMount) {
+  const std::string data = SharedDataDir();
+  if (data.empty()) GTEST_SKIP() << "no shared data dir (../shared/data): GoPro images missing";
+  const std::string dir = data + "/fisheye_gopro";
+  if (!std::filesystem::is_directory(dir)) GTEST_SKIP() << dir << " missing: GoPro test skipped";
+  std::vector<std::string> images;
+  for (const auto& entry : std::filesystem::directory_iterator(dir)) {
+    if (entry.path().extension() == ".JPG") images.push_back(entry.path().string());
+  }
+  std::sort(images.begin(), images.end());
+  ASSERT_EQ(images.size(), 24u);
+  TempDir tmp;
+  int calibrated = 0;
+  std::vector<std::string> no_board;
+  double worst_rms = 0.0;
+  std::string worst_image;
+  for (const std::string& image : images) {
+    const std::string name = image.substr(image.rfind('/') + 1);
+    const RunResult detect = Roomfix({"calibrate", "--chessboard", image, "--board", "15x9",
+                                      "--corners-csv", tmp.File("corners.csv")},
+                                     /*stderr_only=*/true);
+    if (detect.exit_code != 0) {
+      // The board is cut by the image border: no full 15 x 9 pattern.
+      EXPECT_NE(detect.out.find("no 15x9 chessboard found"), std::string::npos) << detect.out;
+      no_board.push_back(name);
+      continue;
+    }
+    std::string fit_csv = "u,v,x_m,y_m,height_m\n", held_csv = "u,v,height_m\n";
+    std::vector<std::pair<double, double>> held_truth;
+    std::istringstream lines(ReadFile(tmp.File("corners.csv")));
+    std::string line;
+    std::getline(lines, line);
+    ASSERT_EQ(line, "image,i,j,u_px,v_px");
+    while (std::getline(lines, line)) {
+      const auto f = SplitFields(line);
+      ASSERT_EQ(f.size(), 5u) << line;
+      const int i = std::stoi(f[1]), j = std::stoi(f[2]);
+      // First corner at the image's top-left; i runs right (+x), j down
+      // the image (-y): the board seen from above, right-handed.
+      const double x = i * kGoProSquareM, y = -j * kGoProSquareM;
+      if ((i + j) % 2 == 0) {
+        fit_csv += f[3] + "," + f[4] + "," + std::to_string(x) + "," + std::to_string(y) + ",0\n";
+      } else {
+        held_csv += f[3] + "," + f[4] + ",0\n";
+        held_truth.emplace_back(x, y);
+      }
+    }
+    ASSERT_EQ(held_truth.size(), 67u) << name;
+    ASSERT_TRUE(WriteFile(tmp.File("fit.csv"), fit_csv));
+    ASSERT_TRUE(WriteFile(tmp.File("held.csv"), held_csv));
+    const RunResult fit = Roomfix({"calibrate", "--points", tmp.File("fit.csv"), "--size",
+                                   "1000x750", "--fov", "120", "--out", tmp.File("cal.yaml")});
+    ASSERT_EQ(fit.exit_code, 0) << name << "\n" << fit.out;
+    const RunResult mapped =
+        Roomfix({"map", "--calibration", tmp.File("cal.yaml"), tmp.File("held.csv")});
+    ASSERT_EQ(mapped.exit_code, 0) << name << "\n" << mapped.out;
+    const auto rows = ParseCsv(mapped.out);
+    ASSERT_EQ(rows.size(), held_truth.size()) << name;
+    double sum2 = 0.0, worst = 0.0;
+    for (size_t k = 0; k < rows.size(); ++k) {
+      const double d =
+          std::hypot(rows[k][0] - held_truth[k].first, rows[k][1] - held_truth[k].second);
+      sum2 += d * d;
+      worst = std::max(worst, d);
+    }
+    const double rms = std::sqrt(sum2 / static_cast<double>(rows.size()));
+    std::string summary;
+    for (std::istringstream out(fit.out); std::getline(out, line);) {
+      if (line.rfind("start from", 0) == 0 || line.rfind("full model:", 0) == 0) {
+        summary += "\n    " + line;
+      }
+    }
+    std::printf("%s: held-out 67 corners: RMS %.3f mm, max %.3f mm%s\n", name.c_str(), rms * 1e3,
+                worst * 1e3, summary.c_str());
+    ++calibrated;
+    if (rms > worst_rms) {
+      worst_rms = rms;
+      worst_image = name;
+    }
+    EXPECT_LE(rms, kGoProHeldOutRmsM) << name;
+  }
+  std::string missing;
+  for (const auto& n : no_board) missing += " " + n;
+  std::printf("%d images calibrated, worst held-out RMS %.3f mm (%s); no full board in:%s\n",
+              calibrated, worst_rms * 1e3, worst_image.c_str(), missing.c_str());
+  // The dataset's own corner file has 22 of the 24 images for the same
+  // reason: 3D_L0486 and 3D_L0496 show the board cut by the border.
+  EXPECT_EQ(calibrated, 22);
+}
+
+// The whole --chessboard path without a mount on a real image, and the
+// mirrored board refused with the reason.
+TEST(RoomfixCalibrate, GoProChessboardCalibratesWithoutAMountAndRefusesAMirroredBoard) {
+  const std::string data = SharedDataDir();
+  if (data.empty()) GTEST_SKIP() << "no shared data dir (../shared/data): GoPro images missing";
+  const std::string image = data + "/fisheye_gopro/3D_L0490.JPG";
+  TempDir tmp;
+  const std::vector<std::string> args = {"calibrate",
+                                         "--chessboard",
+                                         image,
+                                         "--board",
+                                         "15x9",
+                                         "--square",
+                                         "0.026",
+                                         "--board-origin",
+                                         "0,0",
+                                         "--size",
+                                         "1000x750",
+                                         "--out",
+                                         tmp.File("cal.yaml"),
+                                         "--board-axes"};
+  std::vector<std::string> good = args;
+  good.push_back("+x-y");
+  const RunResult r = Roomfix(good);
+  std::string line;
+  for (std::istringstream out(r.out); std::getline(out, line);) {
+    if (line.rfind("start from", 0) == 0 || line.rfind("full model:", 0) == 0) {
+      std::cout << line << "\n";
+    }
+  }
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  // All 135 corners fitted: the reprojection RMS is the corner noise
+  // (about 0.1-0.3 px on these images, camera_fit_test).
+  constexpr double kCornerNoisePx = 0.5;
+  Calibration cal;
+  std::string error;
+  ASSERT_TRUE(calib::LoadCalibration(tmp.File("cal.yaml"), &cal, &error)) << error;
+  EXPECT_LT(cal.fit_rms_px, kCornerNoisePx);
+  // k3 and k4 freed as well (--distortion-terms 4): a larger model over the
+  // same corners fits them more closely.
+  std::vector<std::string> four = good;
+  *std::find(four.begin(), four.end(), tmp.File("cal.yaml")) = tmp.File("cal4.yaml");
+  four.insert(four.end(), {"--distortion-terms", "4"});
+  const RunResult r4 = Roomfix(four);
+  ASSERT_EQ(r4.exit_code, 0) << r4.out;
+  Calibration cal4;
+  ASSERT_TRUE(calib::LoadCalibration(tmp.File("cal4.yaml"), &cal4, &error)) << error;
+  std::cout << "k1, k2: " << cal.fit_rms_px << " px; k1..k4: " << cal4.fit_rms_px << " px\n";
+  EXPECT_LT(cal4.fit_rms_px, cal.fit_rms_px);
+  EXPECT_NE(cal4.camera.intrinsics.k[3], 0.0);
+
+  std::vector<std::string> mirrored = args;
+  mirrored.push_back("x");
+  const RunResult m = Roomfix(mirrored, /*stderr_only=*/true);
+  EXPECT_EQ(m.exit_code, 1);
+  EXPECT_NE(m.out.find("roomfix calibrate: full model: the points put the camera below them"),
+            std::string::npos)
+      << m.out;
+  EXPECT_EQ(std::count(m.out.begin(), m.out.end(), '\n'), 1) << m.out;
 }
 
 }  // namespace
