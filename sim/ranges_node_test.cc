@@ -20,6 +20,7 @@ TEST(SimRangesNode, FiresOnScheduleWithRangesThatPutTheBeaconOnItsTrajectory) {
                              [&](const range_set_t& s, const MessageInfo&) { sets.push_back(s); });
   SimRangesNodeOptions options;
   options.noise.sigma_m = 0.0;
+  options.clock_ppm = 0.0;  // the beacon's crystal exact: firings on the 10 Hz grid
   options.start_utime = 1000000;
   SimRangesNode node(site, &bus, options);
   for (int64_t t = 1000000; t <= 2000000; t += 7000) node.Tick(t);
