@@ -42,11 +42,18 @@ std::vector<int> TdmaSlots(const Site& site, const std::vector<int>& beacon_ids)
 
 namespace {
 
-FiringPlanOptions PlanOptions(const SharedAirOptions& options, const RoomDecay& decay) {
+FiringPlanOptions PlanOptions(const SharedAirOptions& options, const RoomDecay& decay,
+                              size_t site_beacons) {
   FiringPlanOptions plan;
   plan.mode = options.mode;
   plan.rate_hz = options.rate_hz;
-  plan.slot_s = decay.slot_s;
+  // Without collisions (an ideal air, for load tests at many times the real
+  // rate) the beacons only take turns within the period, as before the
+  // model: the slot no longer bounds the rate.
+  plan.slot_s =
+      options.collisions
+          ? decay.slot_s
+          : 1.0 / (options.rate_hz * static_cast<double>(std::max<size_t>(1, site_beacons)));
   plan.clock_ppm = options.clock_ppm;
   plan.sync_jitter_s = options.sync_jitter_s;
   // The planner's generator is its own, so that the schedule does not move
@@ -66,7 +73,7 @@ SharedAir::SharedAir(const Site& site, const std::vector<int>& beacon_ids, Posit
       decay_(ComputeRoomDecay(site, site.simulation.temperature_c)),
       beacon_ids_(beacon_ids),
       planner_(TdmaSlots(site, beacon_ids), static_cast<int>(site.beacons.size()),
-               PlanOptions(options, decay_)),
+               PlanOptions(options, decay_, site.beacons.size())),
       channel_(decay_.decay_s, decay_.listen_s),
       rng_(options.seed ^ 0x5A17A11ull),
       skipped_(beacon_ids.size(), 0) {}

@@ -28,7 +28,8 @@ struct SharedAirOptions {
   // keep their own time until the next).
   double sync_loss_probability = 0.0;
   // Pulses overlap as the room says (false: every receiver hears only its
-  // own beacon, as before the collision model).
+  // own beacon, and the TDMA frame is the period shared out among the
+  // beacons whatever the room's decay, as before the collision model).
   bool collisions = true;
   uint64_t seed = 1;
   int64_t start_utime = 0;
