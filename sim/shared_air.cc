@@ -90,7 +90,9 @@ void SharedAir::PlanUntil(int64_t utime, const std::function<bool(size_t, int64_
     f.silent = silent && silent(f.firer, f.fire_utime);
     f.pulse.fire_utime = f.fire_utime;
     f.pulse.beacon_id = beacon_ids_[f.firer];
-    f.pulse.seq = counters_.firings + static_cast<int64_t>(planned_.size());
+    // Identifies the pulse in the channel (a firing is not its own
+    // interferer); unique over the run.
+    f.pulse.seq = next_pulse_seq_++;
     const std::array<double, 3> at = position_(f.firer, f.fire_utime);
     for (const Receiver& r : site_.receivers) {
       f.pulse.arrival_s.push_back(

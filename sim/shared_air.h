@@ -92,6 +92,7 @@ class SharedAir {
   std::mt19937_64 rng_;
   std::deque<Firing> planned_;
   std::vector<int64_t> skipped_;
+  int64_t next_pulse_seq_ = 0;
   AirCounters counters_;
 };
 
