@@ -124,12 +124,6 @@ SharedAirOptions AirOptions(const WallDevicesOptions& o) {
   return air;
 }
 
-std::vector<int> BeaconIds(const std::vector<const Beacon*>& beacons) {
-  std::vector<int> ids;
-  for (const Beacon* b : beacons) ids.push_back(b->id);
-  return ids;
-}
-
 }  // namespace
 
 VirtualWallDevices::VirtualWallDevices(const Site& site, const WallDevicesOptions& options)
@@ -138,11 +132,12 @@ VirtualWallDevices::VirtualWallDevices(const Site& site, const WallDevicesOption
       rng_(options.seed),
       firers_(MakeFirers(site, options.first_seq)),
       air_(
-          site, BeaconIds([&] {
-            std::vector<const Beacon*> b;
-            for (const Firer& f : firers_) b.push_back(f.beacon);
-            return b;
-          }()),
+          site,
+          [&] {
+            std::vector<int> ids;
+            for (const Firer& f : firers_) ids.push_back(f.beacon->id);
+            return ids;
+          }(),
           [this](size_t firer, int64_t utime) -> std::array<double, 3> {
             const Firer& f = firers_[firer];
             const GroundTruthPose p = f.trajectory->PoseAt((utime - options_.start_utime) * 1e-6);
