@@ -53,6 +53,8 @@ TEST(RadioLoad, TenTimesTheNominalRateForAMinuteLosesNoRangeSetBetweenBridgeAndL
 
   ChildProcess logger({BinDir() + "/roomfix_logger", log, "--log-level", "warn"});
   std::this_thread::sleep_for(std::chrono::milliseconds(500));  // joins before anything publishes
+  // The load, not the air: --no-collisions, or the demo room's echo decay
+  // (a 61.5 ms slot, docs/trilateration.md) would cap the beacon at 16 Hz.
   ChildProcess sim({BinDir() + "/roomfix_sim", "--config", DemoSite(), "--radio-pty", "--pty-link",
                     link, "--radio-rate-hz", std::to_string(rate_hz), "--faults", "none",
                     "--no-collisions", "--log-level", "warn"},
