@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <map>
 
 #include "core/trilat/trilateration.h"
 #include "msgio/trilat_conversions.h"
@@ -49,6 +50,12 @@ TEST(SimRangesNode, CollidingBeaconsGiveWrongRangesAndTheTdmaTableNone) {
   ASSERT_TRUE(LoadSite(testing::SourceDir() + "/config/sites/two_radios.yaml", &site, &error))
       << error;
   const double c = SpeedOfSound(site.simulation.temperature_c);
+  // Each beacon's trajectory, by beacon id.
+  std::map<int, const Trajectory*> trajectories;
+  for (const SimulatedRobot& sr : site.simulation.robots) {
+    const Robot* robot = site.FindRobot(sr.robot_id);
+    if (robot != nullptr && robot->beacon_id) trajectories[*robot->beacon_id] = sr.trajectory.get();
+  }
   for (auto mode : {FiringPlanOptions::Mode::kTdma, FiringPlanOptions::Mode::kFreeRunning}) {
     LoopbackBus bus;
     int64_t ranges = 0, wrong = 0;
@@ -58,15 +65,12 @@ TEST(SimRangesNode, CollidingBeaconsGiveWrongRangesAndTheTdmaTableNone) {
     options.start_utime = 1'000'000;
     SimRangesNode node(site, &bus, options);
     bus.Subscribe<range_set_t>("RANGES", [&](const range_set_t& s, const MessageInfo&) {
-      const Robot* robot = nullptr;
-      for (const Robot& r : site.robots) {
-        if (r.beacon_id && *r.beacon_id == s.beacon_id) robot = &r;
+      const auto it = trajectories.find(s.beacon_id);
+      if (it == trajectories.end()) {
+        ADD_FAILURE() << "a set from beacon " << s.beacon_id << ", which no robot carries";
+        return;
       }
-      const SimulatedRobot* sr = nullptr;
-      for (const SimulatedRobot& x : site.simulation.robots) {
-        if (x.robot_id == robot->id) sr = &x;
-      }
-      const GroundTruthPose p = sr->trajectory->PoseAt((s.utime - options.start_utime) * 1e-6);
+      const GroundTruthPose p = it->second->PoseAt((s.utime - options.start_utime) * 1e-6);
       for (const range_t& r : s.ranges) {
         const Receiver& rc = *site.FindReceiver(r.receiver_id);
         const double truth_m =

@@ -134,6 +134,7 @@ TEST(TwoRadios, EveryFiringIsSolvedFromTheRangesOfBothCoordinators) {
     for (const SimulatedRobot& s : site.simulation.robots) {
       if (s.robot_id == robot->id) sr = &s;
     }
+    ASSERT_NE(sr, nullptr);
     const GroundTruthPose truth = sr->trajectory->PoseAt((p.utime - start_utime) * 1e-6);
     // The set's time is the announcement's arrival, a few ms after the
     // firing: at 0.5 m/s under 5 mm, inside the tolerance.
