@@ -18,54 +18,94 @@ bool SimRangesNodeOptions::IsValid(std::string* error) const {
   return noise.IsValid(error);
 }
 
-SimRangesNode::SimRangesNode(const Site& site, Bus* bus, const SimRangesNodeOptions& options)
-    : site_(site), bus_(bus), options_(options), rng_(options.seed) {
+std::vector<SimRangesNode::Firer> SimRangesNode::MakeFirers(const Site& site) {
+  std::vector<Firer> firers;
   for (const SimulatedRobot& sr : site.simulation.robots) {
     const Robot* robot = site.FindRobot(sr.robot_id);
     if (robot == nullptr || !robot->beacon_id) continue;
-    firers_.push_back({sr.robot_id, site.FindBeacon(*robot->beacon_id), sr.trajectory.get(), 0});
+    firers.push_back({sr.robot_id, site.FindBeacon(*robot->beacon_id), sr.trajectory.get()});
   }
-  const double period_us = 1e6 / options_.rate_hz;
-  for (size_t k = 0; k < firers_.size(); ++k) {
-    firers_[k].offset_us = static_cast<int64_t>(period_us * k / firers_.size());
-  }
+  return firers;
 }
 
+namespace {
+
+SharedAirOptions AirOptions(const SimRangesNodeOptions& o) {
+  SharedAirOptions air;
+  air.mode = o.schedule;
+  air.rate_hz = o.rate_hz;
+  air.clock_ppm = o.clock_ppm;
+  air.collisions = o.collisions;
+  air.seed = o.seed;
+  air.start_utime = o.start_utime;
+  return air;
+}
+
+}  // namespace
+
+SimRangesNode::SimRangesNode(const Site& site, Bus* bus, const SimRangesNodeOptions& options)
+    : site_(site),
+      bus_(bus),
+      options_(options),
+      firers_(MakeFirers(site)),
+      air_(
+          site,
+          [&] {
+            std::vector<int> ids;
+            for (const Firer& f : firers_) ids.push_back(f.beacon->id);
+            return ids;
+          }(),
+          [this](size_t firer, int64_t utime) -> std::array<double, 3> {
+            const Firer& f = firers_[firer];
+            const GroundTruthPose p = f.trajectory->PoseAt((utime - options_.start_utime) * 1e-6);
+            return {p.x_m, p.y_m, f.beacon->height_m};
+          },
+          AirOptions(options)),
+      rng_(options.seed) {}
+
 void SimRangesNode::Tick(int64_t now_utime) {
-  const double period_us = 1e6 / options_.rate_hz;
   const int64_t delay_us = static_cast<int64_t>(options_.publish_delay_s * 1e6);
   const double c = SpeedOfSound(site_.simulation.temperature_c);
-  for (Firer& f : firers_) {
-    while (true) {
-      const int64_t fire_utime = options_.start_utime + f.offset_us +
-                                 static_cast<int64_t>(std::llround(f.next_seq * period_us));
-      if (fire_utime + delay_us > now_utime) break;
-      const double t_s = (fire_utime - options_.start_utime) * 1e-6;
-      const GroundTruthPose truth = f.trajectory->PoseAt(t_s);
-      const auto ranges = SimulateRanges(site_, {truth.x_m, truth.y_m, f.beacon->height_m},
-                                         site_.simulation.temperature_c, options_.noise, &rng_);
-      range_set_t set{};
-      set.utime = fire_utime;
-      set.beacon_id = f.beacon->id;
-      set.firing_seq = f.next_seq;
-      set.speed_of_sound_mps = c;
-      set.temperature_c = site_.simulation.temperature_c;
-      set.num_expected = static_cast<int32_t>(site_.receivers.size());
-      for (const SimulatedRange& s : ranges) {
-        const Receiver* r = site_.FindReceiver(s.receiver_id);
-        range_t out{};
-        out.receiver_id = s.receiver_id;
-        for (int k = 0; k < 3; ++k) out.receiver_position_m[k] = r->position_m[k];
-        out.time_of_flight_us = s.measured_m / c * 1e6;
-        out.range_m = s.measured_m - r->range_offset_m;
-        out.arrival_utime = fire_utime + static_cast<int64_t>(out.time_of_flight_us) + 5000;
-        set.ranges.push_back(out);
-      }
-      set.num_ranges = static_cast<int32_t>(set.ranges.size());
-      bus_->Publish("RANGES", set);
-      ++f.next_seq;
-      ++firings_;
+  for (const SharedAir::Firing& firing : air_.TakeDue(now_utime - delay_us)) {
+    Firer& f = firers_[firing.firer];
+    f.next_seq += firing.skipped_before;
+    const int64_t fire_utime = firing.fire_utime;
+    const double t_s = (fire_utime - options_.start_utime) * 1e-6;
+    const GroundTruthPose truth = f.trajectory->PoseAt(t_s);
+    const auto ranges = SimulateRanges(site_, {truth.x_m, truth.y_m, f.beacon->height_m},
+                                       site_.simulation.temperature_c, options_.noise, &rng_);
+    // Site receiver order; a receiver that dropped out hears nothing.
+    std::vector<double> own_tof_s(site_.receivers.size(), std::nan(""));
+    for (const SimulatedRange& s : ranges) {
+      const Receiver* r = site_.FindReceiver(s.receiver_id);
+      own_tof_s[static_cast<size_t>(r - site_.receivers.data())] = s.time_of_flight_s;
     }
+    const std::vector<Detection> detections = air_.Detect(firing, own_tof_s);
+    range_set_t set{};
+    set.utime = fire_utime;
+    set.beacon_id = f.beacon->id;
+    set.firing_seq = f.next_seq;
+    set.speed_of_sound_mps = c;
+    set.temperature_c = site_.simulation.temperature_c;
+    set.num_expected = static_cast<int32_t>(site_.receivers.size());
+    for (size_t i = 0; i < site_.receivers.size(); ++i) {
+      const Detection& d = detections[i];
+      if (d.kind != Detection::Kind::kOwn && d.kind != Detection::Kind::kEarly) continue;
+      const Receiver& r = site_.receivers[i];
+      // The timer reads the flight plus the receiver's own offset.
+      const double measured_m = d.time_of_flight_s * c + r.range_offset_m;
+      range_t out{};
+      out.receiver_id = r.id;
+      for (int k = 0; k < 3; ++k) out.receiver_position_m[k] = r.position_m[k];
+      out.time_of_flight_us = measured_m / c * 1e6;
+      out.range_m = measured_m - r.range_offset_m;
+      out.arrival_utime = fire_utime + static_cast<int64_t>(out.time_of_flight_us) + 5000;
+      set.ranges.push_back(out);
+    }
+    set.num_ranges = static_cast<int32_t>(set.ranges.size());
+    bus_->Publish("RANGES", set);
+    ++f.next_seq;
+    ++firings_;
   }
 }
 

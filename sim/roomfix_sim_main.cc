@@ -5,13 +5,71 @@
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
+#include <cstdio>
 #include <iostream>
 
 #include "msgio/process.h"
 #include "sim/ground_truth_node.h"
 #include "sim/pseudo_terminal.h"
 #include "sim/ranges_node.h"
+#include "sim/shared_air.h"
 #include "sim/wall_devices.h"
+
+namespace {
+
+// `--air-bench`: the room's decay and slot, then, for 1 to 12 beacons, the
+// rate each gets and the share of ranges corrupted, with the TDMA table and
+// with free-running beacons (docs/trilateration.md, "Sharing the air").
+int RunAirBench(const roomfix::Site& site, double duration_s, int seeds, double rate_hz,
+                double clock_ppm) {
+  const roomfix::RoomDecay d = roomfix::ComputeRoomDecay(site, site.simulation.temperature_c);
+  std::printf("Air of %s: %.1f x %.1f x %.1f m, %.1f degC, %.0f%% RH, walls absorb %.2f\n",
+              site.name.c_str(), site.room.size_x_m, site.room.size_y_m, site.room.height_m,
+              site.simulation.temperature_c, site.acoustics.humidity_percent,
+              site.acoustics.wall_absorption);
+  std::printf(
+      "  air absorption %.2f dB/m at %.0f kHz, T60 %.3f s, longest path %.2f m (%.1f ms)\n"
+      "  pulse at 1 m %.1f dB over threshold, tail starts %.1f dB over, decay %.1f ms%s\n"
+      "  slot = flight %.1f ms + decay %.1f ms + clock %.1f ms = %.1f ms\n",
+      d.air_absorption_db_per_m, site.acoustics.frequency_hz / 1000.0, d.reverberation_time_s,
+      d.max_range_m, d.max_time_of_flight_s * 1e3, d.level_at_1m_db, d.tail_start_db,
+      d.decay_s * 1e3, d.decay_from_site ? " (site's acoustics.decay_s)" : "",
+      d.max_time_of_flight_s * 1e3, d.decay_s * 1e3, site.acoustics.clock_uncertainty_s * 1e3,
+      d.slot_s * 1e3);
+  std::printf("%d s x %d seeds per row, beacons at random places, crystals +-%.0f ppm\n",
+              static_cast<int>(duration_s), seeds, clock_ppm);
+  std::printf("%8s | %-13s | %12s | %18s | %16s | %14s\n", "beacons", "schedule", "Hz/beacon",
+              "corrupted ranges", "corrupted sets", "clean Hz/beacon");
+  for (int n : {1, 2, 4, 8, 12}) {
+    for (auto mode : {roomfix::FiringPlanOptions::Mode::kTdma,
+                      roomfix::FiringPlanOptions::Mode::kFreeRunning}) {
+      int64_t corrupted = 0, pairs = 0, bad_sets = 0, firings = 0;
+      double rate = 0.0, clean = 0.0;
+      for (int s = 1; s <= seeds; ++s) {
+        roomfix::SharedAirOptions o;
+        o.mode = mode;
+        o.rate_hz = rate_hz;
+        o.clock_ppm = clock_ppm;
+        o.seed = static_cast<uint64_t>(s);
+        const roomfix::AirBenchRow row = roomfix::MeasureAir(site, n, o, duration_s);
+        corrupted += row.counters.corrupted();
+        pairs += row.counters.pairs;
+        bad_sets += row.corrupted_firings;
+        firings += row.counters.firings;
+        rate = row.rate_per_beacon_hz;
+        clean += row.clean_rate_per_beacon_hz / seeds;
+      }
+      std::printf("%8d | %-13s | %12.2f | %9.1f%% %7lld | %7.1f%% %7lld | %14.2f\n", n,
+                  mode == roomfix::FiringPlanOptions::Mode::kTdma ? "tdma" : "free-running", rate,
+                  pairs ? 100.0 * corrupted / pairs : 0.0, static_cast<long long>(corrupted),
+                  firings ? 100.0 * bad_sets / firings : 0.0, static_cast<long long>(bad_sets),
+                  clean);
+    }
+  }
+  return 0;
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   roomfix::ProcessOptions process;
@@ -111,7 +169,36 @@ int main(int argc, char** argv) {
                    "Switch the beacon off for 1 s every this many seconds; it comes back "
                    "counting from 0 (0: never)")
       ->capture_default_str();
+  auto* air = app.add_option_group("The beacons' shared air (both range paths)");
+  std::string schedule = "tdma";
+  double clock_ppm = 50.0;
+  bool no_collisions = false;
+  bool air_bench = false;
+  int bench_seeds = 10;
+  air->add_option("--schedule", schedule,
+                  "tdma (the site's firing table, docs/radio_protocol.md) or free (each beacon "
+                  "at the rate on its own clock)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"tdma", "free"}));
+  air->add_option("--beacon-clock-ppm", clock_ppm, "Beacon crystal error, +- ppm")
+      ->capture_default_str();
+  air->add_flag("--no-collisions", no_collisions,
+                "Each receiver hears only the beacon it times (no overlap of pulses)");
+  air->add_flag("--air-bench", air_bench,
+                "Print the room's decay, slot and, for 1-12 beacons, the rate per beacon and "
+                "the corrupted-range share with and without the TDMA table; then exit "
+                "(--duration: seconds per run, default 60)");
+  air->add_option("--bench-seeds", bench_seeds, "Runs per row of --air-bench")
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
+  const auto mode = schedule == "tdma" ? roomfix::FiringPlanOptions::Mode::kTdma
+                                       : roomfix::FiringPlanOptions::Mode::kFreeRunning;
+  ranges.schedule = mode;
+  wall.schedule = mode;
+  ranges.clock_ppm = clock_ppm;
+  wall.clock_ppm = clock_ppm;
+  ranges.collisions = !no_collisions;
+  wall.collisions = !no_collisions;
 
   if (faults_preset == "all") {
     const double hold_s = wall.faults.buffer_hold_max_s;
@@ -160,6 +247,19 @@ int main(int argc, char** argv) {
     std::cerr << "roomfix_sim: wall devices: " << error << "\n";
     return 1;
   }
+  if (air_bench) {
+    roomfix::Site site;
+    if (!roomfix::LoadSite(process.config_path, &site, &error)) {
+      std::cerr << "roomfix_sim: " << error << "\n";
+      return 1;
+    }
+    if (bench_seeds < 1 || bench_seeds > 1000) {
+      std::cerr << "roomfix_sim: --bench-seeds must be in [1, 1000]\n";
+      return 1;
+    }
+    return RunAirBench(site, duration_s > 0.0 ? duration_s : 60.0, bench_seeds, ranges.rate_hz,
+                       clock_ppm);
+  }
   auto ctx = roomfix::StartProcess("roomfix_sim", process, &error);
   if (ctx == nullptr) {
     std::cerr << "roomfix_sim: " << error << "\n";
@@ -182,17 +282,27 @@ int main(int argc, char** argv) {
     return 0;
   }
 
-  std::unique_ptr<roomfix::PseudoTerminal> pty;
+  // One pseudo-terminal per coordinator: the site's radios, or one for all.
+  std::vector<int> radio_ids;
+  for (const auto& r : ctx->site.radios) radio_ids.push_back(r.id);
+  if (radio_ids.empty()) radio_ids.push_back(0);
+  std::vector<std::unique_ptr<roomfix::PseudoTerminal>> ptys;
   if (radio_pty) {
-    pty = roomfix::PseudoTerminal::Open(pty_link, &error);
-    if (pty == nullptr) {
-      std::cerr << "roomfix_sim: " << error << "\n";
-      return 1;
+    for (int id : radio_ids) {
+      // Several radios: --pty-link L makes L-<radio id> for each.
+      const std::string link =
+          pty_link.empty() || id == 0 ? pty_link : pty_link + "-" + std::to_string(id);
+      ptys.push_back(roomfix::PseudoTerminal::Open(link, &error));
+      if (ptys.back() == nullptr) {
+        std::cerr << "roomfix_sim: " << error << "\n";
+        return 1;
+      }
+      // The line a script reads to find the device for zigbee_bridge (one per
+      // radio, in the site's order).
+      std::cout << (link.empty() ? ptys.back()->device_path() : link) << std::endl;
+      spdlog::info("wall devices{} on {}{}", id == 0 ? "" : " of radio " + std::to_string(id),
+                   ptys.back()->device_path(), link.empty() ? "" : " (link " + link + ")");
     }
-    // The one line a script reads to find the device for zigbee_bridge.
-    std::cout << (pty_link.empty() ? pty->device_path() : pty_link) << std::endl;
-    spdlog::info("wall devices on {}{}", pty->device_path(),
-                 pty_link.empty() ? "" : " (link " + pty_link + ")");
   }
 
   options.start_utime = start_utime > 0 ? start_utime : roomfix::NowUtime();
@@ -200,7 +310,14 @@ int main(int argc, char** argv) {
   ranges.start_utime = options.start_utime;
   roomfix::SimRangesNode ranges_node(ctx->site, ctx->bus.get(), ranges);
   wall.start_utime = options.start_utime;
-  roomfix::VirtualWallDevices devices(ctx->site, wall);
+  // Each coordinator's devices run the same schedule (same seed) and hear
+  // the same announcements; each writes its own receivers' reports.
+  std::vector<std::unique_ptr<roomfix::VirtualWallDevices>> devices;
+  for (size_t k = 0; k < ptys.size(); ++k) {
+    roomfix::WallDevicesOptions w = wall;
+    w.radio_id = radio_ids[k];
+    devices.push_back(std::make_unique<roomfix::VirtualWallDevices>(ctx->site, w));
+  }
   std::vector<uint8_t> bytes;
   int64_t write_failures = 0;
   roomfix::RunLoopOptions loop;
@@ -208,23 +325,34 @@ int main(int argc, char** argv) {
   // The radio's timing (bursts, latencies of a few ms) needs a finer tick
   // than the ground truth does.
   if (radio_pty) loop.tick_period_ms = 1;
+  if (!ptys.empty() && ptys.size() != devices.size()) return 1;
   const int rc = roomfix::RunLoop(
       ctx->bus.get(),
       [&](int64_t now) {
         node.Tick(now);
         if (publish_ranges) ranges_node.Tick(now);
-        if (pty != nullptr) {
+        for (size_t k = 0; k < ptys.size(); ++k) {
           bytes.clear();
-          devices.Advance(now, &bytes);
-          if (!bytes.empty() && !pty->Write(bytes.data(), bytes.size(), &error)) {
+          devices[k]->Advance(now, &bytes);
+          if (!bytes.empty() && !ptys[k]->Write(bytes.data(), bytes.size(), &error)) {
             if (write_failures++ % 100 == 0) spdlog::warn("{}", error);
           }
         }
       },
       loop);
-  if (pty != nullptr) {
-    spdlog::info("wall devices: {} firings, {} frames, {} writes failed", devices.firings(),
-                 devices.frames_written(), write_failures);
+  for (size_t k = 0; k < devices.size(); ++k) {
+    const roomfix::AirCounters& a = devices[k]->air().counters();
+    spdlog::info(
+        "wall devices{}: {} firings, {} frames, {} writes failed; air: {} ranges, {} corrupted "
+        "({} early, {} armed in a tail)",
+        radio_ids[k] == 0 ? "" : " of radio " + std::to_string(radio_ids[k]), devices[k]->firings(),
+        devices[k]->frames_written(), write_failures, a.pairs, a.corrupted(), a.early,
+        a.armed_in_tail);
+  }
+  if (publish_ranges) {
+    const roomfix::AirCounters& a = ranges_node.air().counters();
+    spdlog::info("ranges: {} firings at {:.2f} Hz per beacon; air: {} ranges, {} corrupted",
+                 a.firings, ranges_node.air().rate_hz(), a.pairs, a.corrupted());
   }
   node.Stop(roomfix::NowUtime());
   spdlog::info("stopped after {} samples", node.samples_published());

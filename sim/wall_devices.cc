@@ -85,23 +85,65 @@ bool WallDevicesOptions::IsValid(std::string* error) const {
     *error = "processing time must be in [0, 1] s";
     return false;
   }
+  if (!(clock_ppm >= 0.0 && clock_ppm <= 10000.0)) {
+    *error = "beacon clock error must be in [0, 10000] ppm";
+    return false;
+  }
+  if (radio_id < 0) {
+    *error = "radio id must not be negative";
+    return false;
+  }
   return faults.IsValid(error);
 }
 
-VirtualWallDevices::VirtualWallDevices(const Site& site, const WallDevicesOptions& options)
-    : site_(site), options_(options), rng_(options.seed) {
+std::vector<VirtualWallDevices::Firer> VirtualWallDevices::MakeFirers(const Site& site,
+                                                                      uint16_t first_seq) {
+  std::vector<Firer> firers;
   for (const SimulatedRobot& sr : site.simulation.robots) {
     const Robot* robot = site.FindRobot(sr.robot_id);
     if (robot == nullptr || !robot->beacon_id) continue;
-    Firer f{site.FindBeacon(*robot->beacon_id), sr.trajectory.get(), 0};
-    f.radio_seq = options.first_seq;
-    firers_.push_back(f);
+    Firer f{site.FindBeacon(*robot->beacon_id), sr.trajectory.get()};
+    f.radio_seq = first_seq;
+    firers.push_back(f);
   }
-  // Beacons take turns so that their sound never overlaps.
-  const double period_us = 1e6 / options_.rate_hz;
-  for (size_t k = 0; k < firers_.size(); ++k) {
-    firers_[k].offset_us = static_cast<int64_t>(period_us * k / firers_.size());
-  }
+  return firers;
+}
+
+namespace {
+
+SharedAirOptions AirOptions(const WallDevicesOptions& o) {
+  SharedAirOptions air;
+  air.mode = o.schedule;
+  air.rate_hz = o.rate_hz;
+  air.clock_ppm = o.clock_ppm;
+  air.collisions = o.collisions;
+  // A beacon that misses an announcement on the radio keeps its own time.
+  air.sync_loss_probability = o.faults.lost_announcement_probability;
+  air.seed = o.seed;
+  air.start_utime = o.start_utime;
+  return air;
+}
+
+}  // namespace
+
+VirtualWallDevices::VirtualWallDevices(const Site& site, const WallDevicesOptions& options)
+    : site_(site),
+      options_(options),
+      rng_(options.seed),
+      firers_(MakeFirers(site, options.first_seq)),
+      air_(
+          site,
+          [&] {
+            std::vector<int> ids;
+            for (const Firer& f : firers_) ids.push_back(f.beacon->id);
+            return ids;
+          }(),
+          [this](size_t firer, int64_t utime) -> std::array<double, 3> {
+            const Firer& f = firers_[firer];
+            const GroundTruthPose p = f.trajectory->PoseAt((utime - options_.start_utime) * 1e-6);
+            return {p.x_m, p.y_m, f.beacon->height_m};
+          },
+          AirOptions(options)) {
   hold_until_utime_.assign(site.receivers.size(), INT64_MIN);
 }
 
@@ -155,7 +197,8 @@ bool VirtualWallDevices::Schedule(int64_t utime, uint64_t source_address, uint16
   return intact;
 }
 
-void VirtualWallDevices::Fire(Firer* firer, int64_t fire_utime) {
+void VirtualWallDevices::Fire(Firer* firer, const SharedAir::Firing& firing) {
+  const int64_t fire_utime = firing.fire_utime;
   const RadioFaults& faults = options_.faults;
   FiringRecord record;
   record.beacon_id = firer->beacon->id;
@@ -192,15 +235,31 @@ void VirtualWallDevices::Fire(Firer* firer, int64_t fire_utime) {
   noise.dropout_probability = 0.0;
   const std::vector<SimulatedRange> ranges = SimulateRanges(
       site_, {truth.x_m, truth.y_m, firer->beacon->height_m}, temperature_c, noise, &rng_);
-  const double period_us = 1e6 / options_.rate_hz;
+  // What each receiver's detector times among the other beacons' pulses
+  // (ranges come in site receiver order, dropouts being off above).
+  std::vector<double> own_tof_s;
+  for (const SimulatedRange& r : ranges) own_tof_s.push_back(r.time_of_flight_s);
+  const std::vector<Detection> detections = air_.Detect(firing, own_tof_s);
+  const double period_us = air_.frame_s() * 1e6;
   for (size_t i = 0; i < ranges.size(); ++i) {
     const Receiver& receiver = *site_.FindReceiver(ranges[i].receiver_id);
     const size_t receiver_index = static_cast<size_t>(&receiver - site_.receivers.data());
+    // A receiver on another coordinator's network: another pty carries it.
+    const bool on_this_radio = options_.radio_id == 0 ||
+                               site_.RadioOfReceiver(receiver.id) == nullptr ||
+                               site_.RadioOfReceiver(receiver.id)->id == options_.radio_id;
     FiringRecord::Report report;
     report.receiver_id = ranges[i].receiver_id;
-    report.no_echo = Chance(faults.ultrasound.dropout_probability);
+    report.air = detections[i].kind;
+    // A dropout (the receiver missed its own pulse) turns an own detection
+    // into no echo; a detector already set off by another pulse stays so.
+    const bool dropout = Chance(faults.ultrasound.dropout_probability);
+    report.no_echo = detections[i].kind == Detection::Kind::kNone ||
+                     (dropout && detections[i].kind == Detection::Kind::kOwn);
+    if (report.no_echo) report.air = Detection::Kind::kNone;
     report.time_of_flight_ns =
-        report.no_echo ? 0 : radio::TimeOfFlightToNs(ranges[i].time_of_flight_s);
+        report.no_echo ? 0 : radio::TimeOfFlightToNs(detections[i].time_of_flight_s);
+    if (!on_this_radio) continue;
 
     radio::WallMessage m;
     m.type = radio::PayloadType::kRangeReport;
@@ -212,7 +271,8 @@ void VirtualWallDevices::Fire(Firer* firer, int64_t fire_utime) {
     const std::vector<uint8_t> payload = radio::EncodeWallMessage(m);
 
     // A receiver that heard nothing reports when its listening window ends.
-    const double heard_after_s = report.no_echo ? 0.03 : ranges[i].time_of_flight_s;
+    const double heard_after_s =
+        report.no_echo ? air_.decay().listen_s : detections[i].time_of_flight_s;
     int64_t utime =
         fire_utime +
         static_cast<int64_t>(std::llround((heard_after_s + options_.processing_s) * 1e6)) +
@@ -258,41 +318,27 @@ void VirtualWallDevices::Fire(Firer* firer, int64_t fire_utime) {
 }
 
 void VirtualWallDevices::AdvanceChunks(int64_t now_utime, std::vector<Chunk>* chunks) {
-  const double period_us = 1e6 / options_.rate_hz;
   const RadioFaults& faults = options_.faults;
-  // A beacon that was not running (a start time in the past, a process
-  // stopped and continued) does not replay every firing it missed in one
-  // burst: it resumes at the current slot, its firing counter advanced as if
-  // it had fired all along.
-  constexpr int64_t kMaxCatchUpUs = 500'000;
-  for (Firer& f : firers_) {
-    const int64_t due_utime = options_.start_utime + f.offset_us +
-                              static_cast<int64_t>(std::llround(f.next_slot * period_us));
-    if (now_utime - due_utime > kMaxCatchUpUs) {
-      const int64_t skip =
-          static_cast<int64_t>(std::floor((now_utime - kMaxCatchUpUs - due_utime) / period_us)) + 1;
-      f.next_slot += skip;
-      f.next_seq += skip;
-      f.radio_seq = static_cast<uint16_t>(f.radio_seq + static_cast<uint16_t>(skip & 0xFFFF));
+  // Within each restart period the beacon is off for the last
+  // restart_pause_s; it comes back counting from 0.
+  auto off = [&](size_t, int64_t utime) {
+    if (faults.restart_every_s <= 0.0) return false;
+    const double t_s = (utime - options_.start_utime) * 1e-6;
+    return std::fmod(t_s, faults.restart_every_s) >=
+           faults.restart_every_s - faults.restart_pause_s;
+  };
+  for (const SharedAir::Firing& firing : air_.TakeDue(now_utime, off)) {
+    Firer& f = firers_[firing.firer];
+    // Firings skipped while the process was not running still count.
+    f.next_seq += firing.skipped_before;
+    f.radio_seq =
+        static_cast<uint16_t>(f.radio_seq + static_cast<uint16_t>(firing.skipped_before & 0xFFFF));
+    if (firing.silent) {
+      f.radio_seq = 0;
+      f.restarted = true;
+      continue;
     }
-    while (true) {
-      const int64_t fire_utime = options_.start_utime + f.offset_us +
-                                 static_cast<int64_t>(std::llround(f.next_slot * period_us));
-      if (fire_utime > now_utime) break;
-      ++f.next_slot;
-      if (faults.restart_every_s > 0.0) {
-        // Within each restart period the beacon is off for the last
-        // restart_pause_s; it comes back counting from 0.
-        const double t_s = (fire_utime - options_.start_utime) * 1e-6;
-        if (std::fmod(t_s, faults.restart_every_s) >=
-            faults.restart_every_s - faults.restart_pause_s) {
-          f.radio_seq = 0;
-          f.restarted = true;
-          continue;
-        }
-      }
-      Fire(&f, fire_utime);
-    }
+    Fire(&f, firing);
   }
   while (!queue_.empty() && queue_.top().utime <= now_utime) {
     // priority_queue::top is const; the bytes are copied out before pop.

@@ -11,6 +11,7 @@
 #include "core/radio/xbee_frame.h"
 #include "core/world/site.h"
 #include "core/world/ultrasound_model.h"
+#include "sim/shared_air.h"
 
 namespace roomfix {
 
@@ -56,8 +57,18 @@ struct RadioFaults {
 };
 
 struct WallDevicesOptions {
-  // Firings per second of each beacon; beacons take turns within a period.
+  // Firings per second of each beacon: under the TDMA schedule at most one
+  // per frame of (site beacons x slot), docs/radio_protocol.md.
   double rate_hz = 10.0;
+  // When the beacons fire (site-file TDMA table or free-running), their
+  // crystals, and whether their pulses collide (core/world/air_model.h).
+  FiringPlanOptions::Mode schedule = FiringPlanOptions::Mode::kTdma;
+  double clock_ppm = 50.0;
+  bool collisions = true;
+  // The coordinator played (site `radios[].id`): only its receivers' reports
+  // are written; every beacon's announcement is (it is a broadcast each
+  // coordinator hears). 0: every receiver.
+  int radio_id = 0;
   radio::ApiMode api_mode = radio::ApiMode::kEscaped;
   // 0x90 (ZigBee receive packet) or 0x80 (802.15.4, 64-bit source).
   uint8_t frame_type = radio::kZigbeeRxFrameType;
@@ -105,6 +116,9 @@ struct FiringRecord {
     int64_t delivery_utime = -1;
     // False when a byte of its frame was corrupted on the serial line.
     bool intact = true;
+    // What the receiver's detector made of the air (kEarly, kArmedInTail:
+    // another pulse's sound was timed, the time of flight is wrong).
+    Detection::Kind air = Detection::Kind::kOwn;
   };
   std::vector<Report> reports;
   // Payload time of flight of reports sent from foreign addresses.
@@ -145,6 +159,8 @@ class VirtualWallDevices {
   // (a corrupted length makes the decoder wait for bytes that belong to the
   // next frames).
   const std::vector<int64_t>& disturbance_utimes() const { return disturbance_utimes_; }
+  // The shared air: schedule, decay, collision counters.
+  const SharedAir& air() const { return air_; }
   // The foreign module's address used for foreign reports.
   static constexpr uint64_t kForeignAddress = 0x0013A200F0F0F0F0ull;
 
@@ -152,10 +168,8 @@ class VirtualWallDevices {
   struct Firer {
     const Beacon* beacon;
     const Trajectory* trajectory;
-    int64_t offset_us;
-    // Firing slots on the time grid (including those of restart pauses),
-    // firings made, and the number on the radio.
-    int64_t next_slot = 0;
+    // Firings made (including those of restart pauses), and the number on
+    // the radio.
     int64_t next_seq = 0;
     uint16_t radio_seq = 0;
     bool restarted = false;
@@ -169,7 +183,8 @@ class VirtualWallDevices {
     }
   };
 
-  void Fire(Firer* firer, int64_t fire_utime);
+  void Fire(Firer* firer, const SharedAir::Firing& firing);
+  static std::vector<Firer> MakeFirers(const Site& site, uint16_t first_seq);
   // Frames a payload from a source and queues it for utime; returns false
   // when a byte of it was corrupted on the way.
   bool Schedule(int64_t utime, uint64_t source_address, uint16_t source16,
@@ -182,6 +197,7 @@ class VirtualWallDevices {
   WallDevicesOptions options_;
   std::mt19937_64 rng_;
   std::vector<Firer> firers_;
+  SharedAir air_;
   // Per receiver (site order): until when its module holds reports back.
   std::vector<int64_t> hold_until_utime_;
   std::priority_queue<Pending, std::vector<Pending>, std::greater<Pending>> queue_;

@@ -31,6 +31,10 @@ void AddTrilatFlags(CLI::App* app, const std::string& prefix, TrilatNodeOptions*
   app->add_flag(name("no-prior"), flags->no_prior,
                 "Solve each range set alone, without the beacon's temporal prior "
                 "(docs/trilateration.md, \"Temporal prior\")");
+  app->add_option(name("merge-deadline"), options->merge_deadline_s,
+                  "Solve a firing's parts from several radios' bridges with what came this "
+                  "long after the first part, s")
+      ->capture_default_str();
   app->add_option(name("prior-reset-after"), options->prior.reset_after,
                   "Replace a beacon's prior after this many consistent fixes that disagree with it")
       ->capture_default_str();

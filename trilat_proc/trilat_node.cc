@@ -37,6 +37,10 @@ bool TrilatNodeOptions::IsValid(std::string* error) const {
     return false;
   }
   if (use_prior && !prior.IsValid(error)) return false;
+  if (!(merge_deadline_s > 0.0 && merge_deadline_s <= 10.0)) {
+    *error = "merge_deadline_s must be in (0, 10]";
+    return false;
+  }
   trilat::SolverOptions probe = solver;
   probe.fixed_height_m = 0.0;  // Set per beacon.
   return probe.IsValid(error);
@@ -44,7 +48,12 @@ bool TrilatNodeOptions::IsValid(std::string* error) const {
 
 TrilatNode::TrilatNode(const Site& site, Bus* bus, const TrilatNodeOptions& options,
                        int64_t start_utime)
-    : site_(site), bus_(bus), options_(options), status_("trilat_proc", start_utime) {
+    : site_(site),
+      bus_(bus),
+      options_(options),
+      status_("trilat_proc", start_utime),
+      merger_(RangeSetMergerOptions{options.merge_deadline_s, 0.5,
+                                    static_cast<int>(site.receivers.size())}) {
   const Room& room = site.room;
   max_range_m_ = std::sqrt(room.size_x_m * room.size_x_m + room.size_y_m * room.size_y_m +
                            room.height_m * room.height_m) +
@@ -73,6 +82,27 @@ bool TrilatNode::OutsideRoom(const Eigen::Vector3d& p) const {
 void TrilatNode::OnRangeSet(const range_set_t& set, const MessageInfo& info) {
   status_.AddInputs();
   ranges_watch_.Seen(info.recv_utime, &status_);
+  ready_.clear();
+  merger_.Add(set, info.recv_utime, &ready_);
+  SolveReady();
+}
+
+void TrilatNode::SolveReady() {
+  for (const RangeSetMerger::Ready& r : ready_) {
+    MessageInfo info;
+    info.channel = kRangesChannel;
+    info.recv_utime = r.recv_utime;
+    Solve(r.set, info);
+  }
+  ready_.clear();
+  // Only a site fed by several bridges has parts; one bridge's STATUS (and
+  // a replayed log's) stays as it was.
+  if (merger_.counters().at("parts") == 0) return;
+  for (const auto& [name, value] : merger_.counters()) status_.SetCounter("merge_" + name, value);
+  status_.SetCounter("merge_open", static_cast<int64_t>(merger_.open()));
+}
+
+void TrilatNode::Solve(const range_set_t& set, const MessageInfo& info) {
   auto refuse = [&](const char* reason, const std::string& why) {
     status_.Reject(reason);
     status_.SetError("range set from beacon " + std::to_string(set.beacon_id) + ": " + why,
@@ -234,6 +264,9 @@ void TrilatNode::OnRangeSet(const range_set_t& set, const MessageInfo& info) {
 }
 
 void TrilatNode::Tick(int64_t now_utime) {
+  ready_.clear();
+  merger_.Expire(now_utime, &ready_);
+  if (!ready_.empty()) SolveReady();
   const auto forget_us = static_cast<int64_t>(options_.forget_after_s * 1e6);
   for (auto it = tracks_.begin(); it != tracks_.end();) {
     it = SaturatingDifferenceUs(now_utime, it->second.last_recv_utime) > forget_us
@@ -250,6 +283,9 @@ void TrilatNode::Tick(int64_t now_utime) {
 }
 
 void TrilatNode::Stop(int64_t now_utime) {
+  ready_.clear();
+  merger_.Flush(now_utime, &ready_);
+  SolveReady();
   status_.SetState(process_status_t::STATE_STOPPING);
   status_.Publish(bus_, now_utime);
 }

@@ -13,6 +13,7 @@
 #include "msgio/bus.h"
 #include "msgio/process.h"
 #include "roomfix/range_set_t.hpp"
+#include "trilat_proc/range_set_merger.h"
 
 namespace roomfix {
 
@@ -37,6 +38,12 @@ struct TrilatNodeOptions {
   // robot carrying the beacon. use_prior false solves each set alone.
   trilat::BeaconPriorOptions prior;
   bool use_prior = true;
+  // A firing's parts from several coordinators' bridges (zigbee_bridge
+  // --radio) are joined before solving; a part whose siblings have not all
+  // come this long after it is solved with what came.
+  // The default covers a bridge that publishes at its own 50 ms deadline
+  // while the other part came at once, plus the network.
+  double merge_deadline_s = 0.1;
 
   bool IsValid(std::string* error) const;
 };
@@ -69,6 +76,12 @@ struct TrilatNodeOptions {
 // robust solver uses to identify long ranges; which ranges were excluded is
 // counted per receiver (outlier_receiver_<id>), and the prior's resets are
 // counted (prior_resets).
+//
+// Range sets from bridges that each read one of several coordinators
+// (num_expected below the site's receiver count) are parts: RangeSetMerger
+// joins a firing's parts by (beacon, firing number, time) before solving,
+// counted as merge_parts, merge_complete, merge_deadline,
+// merge_duplicate_receiver, with merge_open the parts waiting.
 class TrilatNode {
  public:
   TrilatNode(const Site& site, Bus* bus, const TrilatNodeOptions& options, int64_t start_utime);
@@ -91,6 +104,8 @@ class TrilatNode {
   };
 
   void OnRangeSet(const range_set_t& set, const MessageInfo& info);
+  void Solve(const range_set_t& set, const MessageInfo& info);
+  void SolveReady();
   // True when the fix is outside the room by more than the margin.
   bool OutsideRoom(const Eigen::Vector3d& position_m) const;
 
@@ -102,6 +117,8 @@ class TrilatNode {
   InputWatch ranges_watch_{"range sets on RANGES", 1.0};
   double max_range_m_ = 0.0;
   std::unordered_map<int, BeaconTrack> tracks_;
+  RangeSetMerger merger_;
+  std::vector<RangeSetMerger::Ready> ready_;
   std::vector<trilat::RangeMeasurement> ranges_;
   trilat::Fix fix_;
 };

@@ -135,6 +135,7 @@ TEST(BridgeNode, PublishesEveryFiringCompleteOnACleanRadio) {
   const Site site = LoadDemoSite();
   WallDevicesOptions wall;
   wall.start_utime = kStartUtime;
+  wall.clock_ppm = 0.0;  // the beacon's crystal exact: firings on the 100 ms grid
   SimulatedRadio radio(site, wall, {});
   radio.Run(10.0);
   ASSERT_GE(radio.sets.size(), 99u);

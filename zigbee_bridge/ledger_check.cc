@@ -114,7 +114,11 @@ LedgerCheck CheckAgainstLedger(const std::vector<range_set_t>& sets,
     ++check.expected_complete;
     const auto it = published.find({key.first, key.second + options.first_seq});
     size_t with_echo = 0;
-    for (const FiringRecord::Report& rep : record.reports) with_echo += rep.no_echo ? 0 : 1;
+    // A receiver armed inside another pulse's tail reads a time of flight
+    // near 0, which the bridge drops as a range the room cannot hold.
+    for (const FiringRecord::Report& rep : record.reports) {
+      with_echo += rep.no_echo || rep.air == Detection::Kind::kArmedInTail ? 0 : 1;
+    }
     if (it == published.end() || it->second->ranges.size() != with_echo) {
       ++check.incomplete;
       Fail(&check, "firing " + std::to_string(key.second) + " arrived complete but was " +

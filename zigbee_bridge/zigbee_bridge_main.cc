@@ -42,6 +42,12 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--duration", duration_s, "Stop after this many seconds (0: until a signal)")
       ->capture_default_str();
+  int radio_id = 0;
+  app.add_option("--radio", radio_id,
+                 "The coordinator this bridge reads (site radios[].id): its range sets hold and "
+                 "expect only that radio's receivers, and trilat_proc merges the parts "
+                 "(0: the site has one coordinator for every receiver)")
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
   options.api_mode =
@@ -57,16 +63,27 @@ int main(int argc, char** argv) {
     std::cerr << "zigbee_bridge: " << error << "\n";
     return 1;
   }
+  // With --radio, the bridge sees only its coordinator's receivers.
+  roomfix::Site radio_site;
+  if (radio_id != 0 && !roomfix::SiteForRadio(ctx->site, radio_id, &radio_site, &error)) {
+    std::cerr << "zigbee_bridge: --radio: " << error << "\n";
+    return 1;
+  }
+  const roomfix::Site& site = radio_id != 0 ? radio_site : ctx->site;
+  if (radio_id == 0 && ctx->site.radios.size() > 1) {
+    spdlog::warn("the site names {} radios; without --radio this bridge expects every receiver",
+                 ctx->site.radios.size());
+  }
   if (process.check) {
     std::cout << "zigbee_bridge: ok: " << link_options.port << " at " << link_options.baud
-              << " baud, API mode " << api_mode << ", " << ctx->site.receivers.size()
-              << " receivers, " << ctx->site.beacons.size() << " beacons, deadline " << deadline_ms
-              << " ms, on " << process.lcm_url << "\n";
+              << " baud, API mode " << api_mode << ", " << site.receivers.size() << " receivers, "
+              << ctx->site.beacons.size() << " beacons, deadline " << deadline_ms << " ms, on "
+              << process.lcm_url << "\n";
     return 0;
   }
 
   const int64_t start = roomfix::NowUtime();
-  roomfix::BridgeNode node(ctx->site, ctx->bus.get(), options, start);
+  roomfix::BridgeNode node(site, ctx->bus.get(), options, start);
   roomfix::SerialLink link(link_options);
   std::vector<uint8_t> buffer(64 * 1024);
   int64_t last_failures = 0;

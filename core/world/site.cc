@@ -653,6 +653,82 @@ void ParseSimulation(const Reader& r, const YAML::Node& root, Site* site) {
   }
 }
 
+// `acoustics:` (optional): every key optional, each checked against the
+// bounds in which the decay model of core/world/air_model.h means something.
+void ParseAcoustics(const Reader& r, const YAML::Node& root, Site* site) {
+  const YAML::Node node = root["acoustics"];
+  if (!node) return;
+  r.ExpectMap(node, "acoustics");
+  r.OnlyKeys(node, "acoustics",
+             {"frequency_hz", "humidity_percent", "wall_absorption", "pulse_s",
+              "detection_margin_db", "decay_s", "clock_uncertainty_s"});
+  Acoustics& a = site->acoustics;
+  auto read = [&](const char* name, double lo, double hi, double* out) {
+    const YAML::Node v = node[name];
+    if (!v) return;
+    const std::string key = std::string("acoustics.") + name;
+    *out = r.Double(v, key);
+    if (!(*out >= lo && *out <= hi)) {
+      std::ostringstream what;
+      what << "must be in [" << lo << ", " << hi << "]";
+      r.Fail(v, key, what.str());
+    }
+  };
+  read("frequency_hz", 20000.0, 200000.0, &a.frequency_hz);
+  read("humidity_percent", 0.0, 100.0, &a.humidity_percent);
+  read("wall_absorption", 0.01, 1.0, &a.wall_absorption);
+  read("pulse_s", 1e-5, 0.01, &a.pulse_s);
+  read("detection_margin_db", 0.0, 60.0, &a.detection_margin_db);
+  read("clock_uncertainty_s", 0.0, 0.1, &a.clock_uncertainty_s);
+  if (node["decay_s"]) {
+    double decay_s = 0.0;
+    read("decay_s", 0.0, 2.0, &decay_s);
+    a.decay_s = decay_s;
+  }
+}
+
+// `radios:` (optional): coordinators, each listing the receivers its network
+// carries. Every receiver belongs to exactly one radio once any is named, so
+// that each report has one way to the PC.
+void ParseRadioNetworks(const Reader& r, const YAML::Node& root, Site* site) {
+  const YAML::Node radios = root["radios"];
+  if (!radios) return;
+  r.ExpectSequence(radios, "radios");
+  std::set<int> ids;
+  std::map<int, std::string> owner;
+  for (size_t i = 0; i < radios.size(); ++i) {
+    const YAML::Node node = radios[i];
+    const std::string key = K::Index("radios", i);
+    r.ExpectMap(node, key);
+    r.OnlyKeys(node, key, {"id", "device", "receivers"});
+    RadioNetwork radio;
+    radio.id = r.UniqueId(node, key, "id", "radio", &ids);
+    if (node["device"]) radio.device = r.String(node["device"], key + ".device");
+    const YAML::Node receivers = r.Required(node, key, "receivers");
+    r.ExpectSequence(receivers, key + ".receivers");
+    for (size_t j = 0; j < receivers.size(); ++j) {
+      const std::string rkey = K::Index(key + ".receivers", j);
+      const int id = r.Int(receivers[j], rkey);
+      if (site->FindReceiver(id) == nullptr) {
+        r.Fail(receivers[j], rkey, "no receiver with id " + std::to_string(id));
+      }
+      auto [it, fresh] = owner.emplace(id, key);
+      if (!fresh) {
+        r.Fail(receivers[j], rkey,
+               "receiver " + std::to_string(id) + " is already on " + it->second);
+      }
+      radio.receiver_ids.push_back(id);
+    }
+    site->radios.push_back(radio);
+  }
+  for (const Receiver& rc : site->receivers) {
+    if (owner.count(rc.id) == 0) {
+      r.Fail(radios, "radios",
+             "receiver " + std::to_string(rc.id) + " is on no radio (list it under one)");
+    }
+  }
+}
+
 std::string DirName(const std::string& path) {
   const size_t slash = path.find_last_of('/');
   if (slash == std::string::npos) return ".";
@@ -689,6 +765,15 @@ const Beacon* Site::FindBeacon(int id) const {
 const Beacon* Site::FindBeaconByAddress(uint64_t address) const {
   return FindIf(beacons, [address](const Beacon& b) { return b.address == address; });
 }
+const RadioNetwork* Site::RadioOfReceiver(int receiver_id) const {
+  for (const RadioNetwork& radio : radios) {
+    for (int id : radio.receiver_ids) {
+      if (id == receiver_id) return &radio;
+    }
+  }
+  return nullptr;
+}
+
 const Robot* Site::FindRobot(int id) const {
   return FindIf(robots, [id](const Robot& r) { return r.id == id; });
 }
@@ -698,6 +783,28 @@ bool HsvRangesOverlap(const MarkerClass& a, const MarkerClass& b) {
     if (std::max(a.hsv_min[c], b.hsv_min[c]) > std::min(a.hsv_max[c], b.hsv_max[c])) return false;
   }
   return !HueIntersection(a, b).empty();
+}
+
+bool SiteForRadio(const Site& site, int radio_id, Site* out, std::string* error) {
+  const RadioNetwork* radio = nullptr;
+  for (const RadioNetwork& r : site.radios) {
+    if (r.id == radio_id) radio = &r;
+  }
+  if (radio == nullptr) {
+    *error = "the site names no radio " + std::to_string(radio_id) +
+             (site.radios.empty() ? " (it has no radios: section)" : "");
+    return false;
+  }
+  Site filtered = site;
+  filtered.receivers.clear();
+  for (const Receiver& rc : site.receivers) {
+    if (std::find(radio->receiver_ids.begin(), radio->receiver_ids.end(), rc.id) !=
+        radio->receiver_ids.end()) {
+      filtered.receivers.push_back(rc);
+    }
+  }
+  *out = std::move(filtered);
+  return true;
 }
 
 bool ParseRadioAddress(const std::string& text, uint64_t* address) {
@@ -729,12 +836,15 @@ bool ParseSite(const std::string& yaml_text, const std::string& name, const std:
       [&](const YamlReader& base, const YAML::Node& root) {
         const Reader r(base);
         r.OnlyKeys(root, "",
-                   {"name", "room", "receivers", "beacons", "robots", "cameras", "simulation"});
+                   {"name", "room", "receivers", "beacons", "robots", "cameras", "acoustics",
+                    "radios", "simulation"});
         parsed.name = r.String(r.Required(root, "", "name"), "name");
         parsed.room = ParseRoom(r, r.Required(root, "", "room"));
         ParseRadios(r, root, &parsed);
         ParseRobots(r, root, &parsed);
         ParseCameras(r, root, base_dir, &parsed);
+        ParseAcoustics(r, root, &parsed);
+        ParseRadioNetworks(r, root, &parsed);
         ParseSimulation(r, root, &parsed);
       },
       error);

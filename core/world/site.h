@@ -187,6 +187,41 @@ struct WebcamSimulation {
   double timestamp_jitter_s = 0.0005;
 };
 
+// How ultrasound decays in the room: what sizes the beacons' firing slots
+// (core/world/air_model.h; docs/trilateration.md, "Sharing the air").
+struct Acoustics {
+  // The transducers' frequency, Hz.
+  double frequency_hz = 40000.0;
+  // Relative humidity of the room's air, %: with the temperature it sets the
+  // air's absorption (ISO 9613-1), about 1.1 to 1.3 dB/m at 40 kHz indoors.
+  double humidity_percent = 50.0;
+  // Mean absorption coefficient of the room's surfaces at frequency_hz
+  // (0: a perfect mirror, 1: open air). Painted walls, glass and concrete
+  // floors reflect ultrasound almost completely; 0.1 counts furniture.
+  double wall_absorption = 0.1;
+  // Length of the ultrasonic burst, s (40 cycles at 40 kHz).
+  double pulse_s = 0.001;
+  // The detection threshold lies this far below the weakest direct arrival
+  // the room can produce (the farthest receiver): dB.
+  double detection_margin_db = 10.0;
+  // How long a pulse keeps a receiver above its threshold after the pulse
+  // has arrived, s; nullopt: computed from the room (ComputeRoomDecay).
+  std::optional<double> decay_s;
+  // How far a beacon's slot may be off from where the TDMA table puts it:
+  // synchronisation jitter and crystal drift between announcements, s.
+  double clock_uncertainty_s = 0.001;
+};
+
+// A coordinator (XBee on a host's serial port) and the receivers whose
+// reports reach the PC through it; each has its own zigbee_bridge (--radio).
+struct RadioNetwork {
+  int id = 0;
+  // The coordinator's serial device on its host (informative: the bridge's
+  // --port says where it is).
+  std::string device;
+  std::vector<int> receiver_ids;
+};
+
 struct Simulation {
   double temperature_c = 20.0;
   std::vector<SimulatedRobot> robots;
@@ -203,6 +238,9 @@ struct Site {
   std::vector<Beacon> beacons;
   std::vector<Robot> robots;
   std::vector<Camera> cameras;
+  Acoustics acoustics;
+  // Empty: one coordinator carries every receiver.
+  std::vector<RadioNetwork> radios;
   Simulation simulation;
 
   const Receiver* FindReceiver(int id) const;
@@ -212,6 +250,9 @@ struct Site {
   const Receiver* FindReceiverByShortAddress(uint16_t address) const;
   const Beacon* FindBeaconByShortAddress(uint16_t address) const;
   const Robot* FindRobot(int id) const;
+  // The coordinator whose network carries this receiver; nullptr when the
+  // site names no radios (or, after validation, never otherwise).
+  const RadioNetwork* RadioOfReceiver(int receiver_id) const;
 };
 
 // Reads and validates a site file. On failure returns false and sets *error
@@ -237,6 +278,12 @@ bool ParseSite(const std::string& yaml_text, const std::string& name, const std:
 // LoadSite rejects two such classes on one camera: a pixel in both could not
 // be classified.
 bool HsvRangesOverlap(const MarkerClass& a, const MarkerClass& b);
+
+// The site as one coordinator's bridge sees it: only the receivers of radio
+// `radio_id` (site `radios:`), so that its range sets expect those and its
+// allowlist holds those; beacons (whose announcements every coordinator
+// hears) stay. False with *error when the site names no such radio.
+bool SiteForRadio(const Site& site, int radio_id, Site* out, std::string* error);
 
 // Parses "0x0013A20040A1B2C3", "0013A200 40A1B2C3" or "00:13:a2:...":
 // 16 hex digits with optional 0x prefix and space, colon or dash separators.

@@ -1,0 +1,115 @@
+#include "trilat_proc/range_set_merger.h"
+
+#include <algorithm>
+#include <cstdlib>
+
+namespace roomfix {
+
+bool RangeSetMergerOptions::IsValid(std::string* error) const {
+  if (!(deadline_s > 0.0 && deadline_s <= 10.0)) {
+    *error = "merge deadline must be in (0, 10] s";
+    return false;
+  }
+  if (!(same_firing_s > 0.0 && same_firing_s <= 60.0)) {
+    *error = "same-firing window must be in (0, 60] s";
+    return false;
+  }
+  if (site_receivers < 1) {
+    *error = "the site must have receivers";
+    return false;
+  }
+  return true;
+}
+
+RangeSetMerger::RangeSetMerger(const RangeSetMergerOptions& options) : options_(options) {
+  for (const char* name : {"parts", "complete", "deadline", "duplicate_receiver", "late_part"}) {
+    counters_[name] = 0;
+  }
+}
+
+void RangeSetMerger::Release(std::map<std::pair<int32_t, int32_t>, Open>::iterator it,
+                             int64_t recv_utime, const char* why, std::vector<Ready>* ready) {
+  ++counters_[why];
+  released_.push_back({it->first, it->second.set.utime});
+  if (released_.size() > kMaxReleased) released_.pop_front();
+  it->second.set.num_ranges = static_cast<int32_t>(it->second.set.ranges.size());
+  ready->push_back({std::move(it->second.set), recv_utime});
+  open_.erase(it);
+}
+
+void RangeSetMerger::Add(const range_set_t& set, int64_t recv_utime, std::vector<Ready>* ready) {
+  if (set.num_expected >= options_.site_receivers) {
+    ready->push_back({set, recv_utime});
+    return;
+  }
+  ++counters_["parts"];
+  const std::pair<int32_t, int32_t> key{set.beacon_id,
+                                        static_cast<int32_t>(set.firing_seq & 0xFFFF)};
+  auto it = open_.find(key);
+  const int64_t same_us = static_cast<int64_t>(options_.same_firing_s * 1e6);
+  if (it == open_.end()) {
+    // A part of a firing already solved (its sibling came after the
+    // deadline): a second pose for one firing would repeat its number with
+    // fewer ranges. Counted and dropped; a rising count says the deadline is
+    // short for the bridges' hosts.
+    for (const auto& [k, utime] : released_) {
+      if (k == key && std::llabs(utime - set.utime) <= same_us) {
+        ++counters_["late_part"];
+        return;
+      }
+    }
+  }
+  if (it != open_.end() && std::llabs(it->second.set.utime - set.utime) > same_us) {
+    // The same 16-bit number an hour apart, or a restarted beacon: another
+    // firing. What was open is released as it is.
+    Release(it, recv_utime, "deadline", ready);
+    it = open_.end();
+  }
+  if (it == open_.end()) {
+    // Bounded: a flood of parts that never complete (a bridge with a wrong
+    // --radio, invented firing numbers) releases the oldest.
+    constexpr size_t kMaxOpen = 1024;
+    if (open_.size() >= kMaxOpen) {
+      auto oldest = std::min_element(open_.begin(), open_.end(), [](const auto& a, const auto& b) {
+        return a.second.first_recv_utime < b.second.first_recv_utime;
+      });
+      Release(oldest, recv_utime, "deadline", ready);
+    }
+    it = open_.emplace(key, Open{set, recv_utime}).first;
+  } else {
+    range_set_t& merged = it->second.set;
+    for (const range_t& r : set.ranges) {
+      const bool seen =
+          std::any_of(merged.ranges.begin(), merged.ranges.end(),
+                      [&](const range_t& m) { return m.receiver_id == r.receiver_id; });
+      if (seen) {
+        ++counters_["duplicate_receiver"];
+      } else {
+        merged.ranges.push_back(r);
+      }
+    }
+    merged.num_expected += set.num_expected;
+    // The firing time is the earliest arrival of its announcement.
+    merged.utime = std::min(merged.utime, set.utime);
+  }
+  if (it->second.set.num_expected >= options_.site_receivers) {
+    Release(it, recv_utime, "complete", ready);
+  }
+}
+
+void RangeSetMerger::Expire(int64_t now_utime, std::vector<Ready>* ready) {
+  const int64_t deadline_us = static_cast<int64_t>(options_.deadline_s * 1e6);
+  for (auto it = open_.begin(); it != open_.end();) {
+    auto next = std::next(it);
+    if (now_utime - it->second.first_recv_utime >= deadline_us) {
+      Release(it, it->second.first_recv_utime + deadline_us, "deadline", ready);
+    }
+    it = next;
+  }
+}
+
+void RangeSetMerger::Flush(int64_t now_utime, std::vector<Ready>* ready) {
+  while (!open_.empty()) Release(open_.begin(), now_utime, "deadline", ready);
+}
+
+}  // namespace roomfix

@@ -1,0 +1,81 @@
+#ifndef ROOMFIX_TRILAT_PROC_RANGE_SET_MERGER_H_
+#define ROOMFIX_TRILAT_PROC_RANGE_SET_MERGER_H_
+
+#include <cstdint>
+#include <deque>
+#include <map>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "roomfix/range_set_t.hpp"
+
+namespace roomfix {
+
+// Joins the parts of one firing's range set that several coordinators'
+// bridges publish (docs/trilateration.md, "Several radios").
+//
+// A bridge run with --radio publishes sets that expect only its radio's
+// receivers: num_expected below the site's receiver count marks a part. A
+// part waits until the parts of the same firing together expect every
+// receiver of the site (merged: complete), or until deadline_s after the
+// first part arrived (merged with what came: deadline). A whole set
+// (num_expected at or above the site's count) passes at once, untouched:
+// one bridge for the whole site behaves as before.
+//
+// The same firing: same beacon, same firing number modulo 2^16 (what the
+// radio carries; each bridge unwraps it on its own, and a bridge started
+// later unwraps from a different base), and firing times within
+// same_firing_s of each other (the announcement's arrival on two hosts:
+// radio latency and the hosts' clock offset, a few ms under NTP; one beacon
+// fires at most every slot, 2^16 firings apart is an hour).
+struct RangeSetMergerOptions {
+  double deadline_s = 0.05;
+  double same_firing_s = 0.5;
+  // The site's receivers: what a merged set expects in all.
+  int site_receivers = 0;
+
+  bool IsValid(std::string* error) const;
+};
+
+class RangeSetMerger {
+ public:
+  explicit RangeSetMerger(const RangeSetMergerOptions& options);
+
+  struct Ready {
+    range_set_t set;
+    // The receive time of the part that completed it, or the deadline.
+    int64_t recv_utime = 0;
+  };
+  // Takes a set received at recv_utime; appends what is ready to solve.
+  void Add(const range_set_t& set, int64_t recv_utime, std::vector<Ready>* ready);
+  // Releases merges whose deadline has passed by now_utime.
+  void Expire(int64_t now_utime, std::vector<Ready>* ready);
+  // Releases everything (shutdown).
+  void Flush(int64_t now_utime, std::vector<Ready>* ready);
+  size_t open() const { return open_.size(); }
+
+  // parts (sets that were parts), complete, deadline (released with what
+  // came), duplicate_receiver (a receiver in two parts: the first kept),
+  // late_part (a part of a firing already released: dropped).
+  const std::map<std::string, int64_t>& counters() const { return counters_; }
+
+ private:
+  struct Open {
+    range_set_t set;
+    int64_t first_recv_utime = 0;
+  };
+  void Release(std::map<std::pair<int32_t, int32_t>, Open>::iterator it, int64_t recv_utime,
+               const char* why, std::vector<Ready>* ready);
+
+  RangeSetMergerOptions options_;
+  std::map<std::pair<int32_t, int32_t>, Open> open_;
+  // The firings released last (key, firing time), to recognise late parts.
+  static constexpr size_t kMaxReleased = 256;
+  std::deque<std::pair<std::pair<int32_t, int32_t>, int64_t>> released_;
+  std::map<std::string, int64_t> counters_;
+};
+
+}  // namespace roomfix
+
+#endif  // ROOMFIX_TRILAT_PROC_RANGE_SET_MERGER_H_
