@@ -78,6 +78,10 @@ struct CameraRobot {
   double marker_height_m = 0.0;
 };
 
+// pose2d_t.camera_id of a pose no camera measured (ultrasound, fused,
+// ground truth); a site's camera ids are 0 or more.
+inline constexpr int kNoCameraId = -1;
+
 struct Camera {
   int id = 0;
   // "/dev/video0", a video file, an image glob or "sim:<scenario>".
@@ -143,6 +147,8 @@ struct Site {
   const Receiver* FindReceiverByShortAddress(uint16_t address) const;
   const Beacon* FindBeaconByShortAddress(uint16_t address) const;
   const Robot* FindRobot(int id) const;
+  // The camera with this id (cameras[].id), nullptr when there is none.
+  const Camera* FindCamera(int id) const;
 };
 
 // Reads and validates a site file. On failure returns false and sets *error
