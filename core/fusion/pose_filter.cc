@@ -162,10 +162,11 @@ Outcome PoseFilter::Add(const Measurement& measurement, int64_t now_utime, Estim
   }
 
   // Insert after every entry that sorts before or equal to it, by (time,
-  // source): equal keys keep their arrival order.
+  // source, camera): equal keys keep their arrival order.
   auto key_less = [](const Measurement& a, const Measurement& b) {
     if (a.utime != b.utime) return a.utime < b.utime;
-    return static_cast<int>(a.source) < static_cast<int>(b.source);
+    if (a.source != b.source) return static_cast<int>(a.source) < static_cast<int>(b.source);
+    return a.camera_id < b.camera_id;
   };
   size_t index = history_.size();
   while (index > 0 && key_less(m, history_[index - 1].measurement)) --index;

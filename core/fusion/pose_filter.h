@@ -23,6 +23,11 @@ struct Measurement {
   // When the measurement is valid (frame capture, beacon firing), microseconds.
   int64_t utime = 0;
   Source source = Source::kCamera;
+  // Which camera measured it (the site's camera id; -1 for ultrasound).
+  // Several cameras each count as their own measurement; when two see the
+  // robot at the same instant (synchronised frames) the id orders them, so
+  // any arrival order still gives one result.
+  int camera_id = -1;
   // Passed through to the estimate (frame or firing number, -1 for none).
   int64_t seq = -1;
   // Position in the room frame, m.
