@@ -70,7 +70,7 @@ void FusionNode::OnPose(const pose2d_t& pose, const MessageInfo& info, fusion::S
   status_.Count("inputs_" + name);
   // Per-camera counters, for the site's cameras only (a sender can invent
   // ids; the counter list must stay bounded): camera_<id>_inputs,
-  // camera_<id>_accepted, camera_<id>_gated.
+  // camera_<id>_accepted (initialisations included), camera_<id>_gated.
   std::string per_camera;
   if (source == fusion::Source::kCamera) {
     if (site_cameras_.count(pose.camera_id) != 0) {

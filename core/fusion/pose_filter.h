@@ -60,6 +60,15 @@ struct PoseFilterOptions {
   // 0.12 mm, ultrasound 1-2 cm in the demo; docs/fusion.md).
   double camera_inflation = 1.0;
   double camera_sigma_floor_m = 0.00005;
+  // Several cameras: the error of each camera's calibration, m, added in
+  // quadrature to every camera position's covariance (before inflation and
+  // floor). A camera's covariance is its pixel noise through the mapping
+  // only; the calibration's own error is the same for every frame, so two
+  // cameras seeing a robot in their overlap disagree by it (about 1 mm for
+  // config/sites/two_cameras.yaml, 0.35 to 0.56 mm each from the truth), and
+  // without it the second camera's poses are gated while the first holds
+  // the track. 0 (the default) leaves one camera's covariance as it is.
+  double camera_calibration_sigma_m = 0.0;
   double ultrasound_inflation = 1.0;
   double ultrasound_sigma_floor_m = 0.005;
   double heading_sigma_floor_rad = 0.001;
