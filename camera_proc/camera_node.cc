@@ -616,6 +616,7 @@ void CameraNode::PublishPoses(int64_t capture_utime, int64_t frame_seq, int64_t 
     pose2d_t p{};
     p.utime = capture_utime;
     p.source = pose2d_t::SOURCE_CAMERA;
+    p.camera_id = camera_.id;
     p.robot_id = o.robot_id;
     p.measurement_seq = frame_seq;
     p.z_m = height_m;

@@ -20,11 +20,11 @@ namespace {
 
 constexpr int64_t kHintDrainBudgetUs = 10000;
 
+// --camera ID picks the site's camera with that id (one camera_proc per
+// camera, docs/operations.md); without it, the first camera.
 const roomfix::Camera* FindCamera(const roomfix::Site& site, int id) {
-  for (const roomfix::Camera& c : site.cameras) {
-    if (id < 0 || c.id == id) return &c;
-  }
-  return nullptr;
+  if (id < 0) return site.cameras.empty() ? nullptr : &site.cameras.front();
+  return site.FindCamera(id);
 }
 
 // The STATUS counter for a frame the source could not hand over.

@@ -36,6 +36,10 @@ void AddFusionFlags(CLI::App* app, const std::string& prefix, FusionNodeOptions*
   app->add_option(name("camera-sigma-floor"), filter.camera_sigma_floor_m,
                   "Smallest standard deviation granted to a camera position, m")
       ->capture_default_str();
+  app->add_option(name("camera-calibration-sigma"), filter.camera_calibration_sigma_m,
+                  "Several cameras: each camera calibration's error, m, added to its poses' "
+                  "covariance (docs/fusion.md, \"Several cameras\")")
+      ->capture_default_str();
   app->add_option(name("gate"), filter.gate_chi2_2dof,
                   "Gate on the squared Mahalanobis distance of a position (chi-square, 2 dof)")
       ->capture_default_str();

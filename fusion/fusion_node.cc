@@ -47,6 +47,7 @@ FusionNode::FusionNode(const Site& site, Bus* bus, const FusionNodeOptions& opti
                        int64_t start_utime)
     : bus_(bus), options_(options), status_("fusion_proc", start_utime) {
   for (const Robot& robot : site.robots) site_robots_.insert(robot.id);
+  for (const Camera& camera : site.cameras) site_cameras_.insert(camera.id);
   bus_->Subscribe<pose2d_t>(options_.camera_channel,
                             [this](const pose2d_t& pose, const MessageInfo& info) {
                               OnPose(pose, info, fusion::Source::kCamera);
@@ -67,6 +68,18 @@ void FusionNode::OnPose(const pose2d_t& pose, const MessageInfo& info, fusion::S
   const std::string name = fusion::SourceName(source);
   status_.AddInputs();
   status_.Count("inputs_" + name);
+  // Per-camera counters, for the site's cameras only (a sender can invent
+  // ids; the counter list must stay bounded): camera_<id>_inputs,
+  // camera_<id>_accepted (initialisations included), camera_<id>_gated.
+  std::string per_camera;
+  if (source == fusion::Source::kCamera) {
+    if (site_cameras_.count(pose.camera_id) != 0) {
+      per_camera = "camera_" + std::to_string(pose.camera_id) + "_";
+      status_.Count(per_camera + "inputs");
+    } else {
+      status_.Count("camera_unlisted_inputs");
+    }
+  }
   auto refuse = [&](const char* reason, const std::string& why) {
     status_.Reject(reason);
     status_.SetError(name + " pose of robot " + std::to_string(pose.robot_id) + ": " + why,
@@ -102,6 +115,7 @@ void FusionNode::OnPose(const pose2d_t& pose, const MessageInfo& info, fusion::S
   fusion::Measurement m;
   m.utime = pose.utime;
   m.source = source;
+  m.camera_id = source == fusion::Source::kCamera ? pose.camera_id : kNoCameraId;
   m.seq = pose.measurement_seq;
   m.position_m = {pose.x_m, pose.y_m};
   m.position_cov_m2 << pose.covariance[0][0], pose.covariance[0][1], pose.covariance[1][0],
@@ -144,6 +158,9 @@ void FusionNode::OnPose(const pose2d_t& pose, const MessageInfo& info, fusion::S
       status_.Reject("invalid_" + name);
       return;
   }
+  if (!per_camera.empty()) {
+    status_.Count(per_camera + (outcome == fusion::Outcome::kGated ? "gated" : "accepted"));
+  }
   if (outcome != fusion::Outcome::kGated) {
     track.lost_reported = false;
     if (std::isfinite(pose.z_m)) track.z_m = pose.z_m;
@@ -156,6 +173,7 @@ void FusionNode::Publish(int32_t robot_id, const fusion::Estimate& e, double z_m
   pose2d_t p{};
   p.utime = e.utime;
   p.source = pose2d_t::SOURCE_FUSED;
+  p.camera_id = kNoCameraId;
   p.robot_id = robot_id;
   p.measurement_seq = e.seq;
   p.z_m = z_m;

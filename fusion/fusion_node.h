@@ -83,6 +83,7 @@ class FusionNode {
   FusionNodeOptions options_;
   StatusReporter status_;
   std::set<int32_t> site_robots_;
+  std::set<int32_t> site_cameras_;
   std::map<int32_t, Track> tracks_;
   int64_t next_rate_utime_ = 0;
 };

@@ -2,9 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -35,6 +37,7 @@ pose2d_t PoseOf(const StreamItem& item) {
   p.utime = m.utime;
   const bool camera = m.source == fusion::Source::kCamera;
   p.source = camera ? pose2d_t::SOURCE_CAMERA : pose2d_t::SOURCE_ULTRASOUND;
+  p.camera_id = camera ? m.camera_id : kNoCameraId;
   p.robot_id = item.robot_id;
   p.measurement_seq = m.seq;
   p.x_m = m.position_m.x();
@@ -384,6 +387,202 @@ TEST_F(FusionNodeTest, RefusesNonFiniteValuesAndNeverPublishesThem) {
   ASSERT_EQ(fused_.size(), 1u);
   EXPECT_TRUE(std::isfinite(fused_[0].x_m) && std::isfinite(fused_[0].y_m));
   EXPECT_TRUE(std::isfinite(fused_[0].covariance[0][0]));
+}
+
+// Two ceiling cameras whose footprints overlap in x 3.5 .. 4.5 m, as
+// config/sites/two_cameras.yaml; robot 1 drives along y = 1.5 m from x = 1 m
+// to 7 m at 0.3 m/s, so camera 0 sees it until t = 11.67 s and camera 1 from
+// t = 8.33 s: 3.3 s in both views.
+constexpr char kTwoCameraSite[] =
+    "name: two_cameras\n"
+    "room: {size_m: [8, 3], height_m: 3.3}\n"
+    "receivers:\n"
+    "  - {id: 1, address: '0x0000000000000001', position_m: [0, 0, 2.5]}\n"
+    "  - {id: 2, address: '0x0000000000000002', position_m: [8, 0, 2.5]}\n"
+    "  - {id: 3, address: '0x0000000000000003', position_m: [8, 3, 2.5]}\n"
+    "robots:\n"
+    "  - {id: 1}\n"
+    "cameras:\n"
+    "  - id: 0\n"
+    "    device: 'sim:clean'\n"
+    "    resolution: [1280, 960]\n"
+    "    fps: 30\n"
+    "    mount_position_m: [2, 1.5, 3.1]\n"
+    "    marker_classes:\n"
+    "      - {name: orange, hsv_min: [5, 120, 120], hsv_max: [22, 255, 255], diameter_m: 0.1}\n"
+    "      - {name: green, hsv_min: [40, 80, 60], hsv_max: [85, 255, 255], diameter_m: 0.05}\n"
+    "    robots:\n"
+    "      - {robot_id: 1, position_marker: orange, heading_marker: green, marker_height_m: 0.2}\n"
+    "  - id: 1\n"
+    "    device: 'sim:clean'\n"
+    "    resolution: [1280, 960]\n"
+    "    fps: 30\n"
+    "    mount_position_m: [6, 1.5, 3.1]\n"
+    "    marker_classes:\n"
+    "      - {name: orange, hsv_min: [5, 120, 120], hsv_max: [22, 255, 255], diameter_m: 0.1}\n"
+    "      - {name: green, hsv_min: [40, 80, 60], hsv_max: [85, 255, 255], diameter_m: 0.05}\n"
+    "    robots:\n"
+    "      - {robot_id: 1, position_marker: orange, heading_marker: green, marker_height_m: 0.2}\n";
+
+constexpr double kOverlapStart_s = (3.5 - 1.0) / 0.3;
+constexpr double kOverlapEnd_s = (4.5 - 1.0) / 0.3;
+// The requirement for a handover: the fused pose jumps less than 1 cm.
+constexpr double kMaxHandoverJump_m = 0.01;
+// How far camera 1's poses sit from camera 0's for the same robot: the
+// disagreement of config/sites/two_cameras.yaml's calibrations in the
+// overlap, measured by CameraOverlap.TwoCalibratedCamerasAgreeOnTheSameRobot
+// (camera_proc): 0.79 to 1.02 mm, each camera 0.35 to 0.56 mm from the
+// truth. The worst, rounded up.
+constexpr double kCameraDisagreement_m = 0.0011;
+// fusion_proc --camera-calibration-sigma for that site: each calibration's
+// error from the truth, rounded up.
+constexpr double kCalibrationSigma_m = 0.0006;
+
+struct HandoverRun {
+  std::vector<pose2d_t> fused;
+  std::vector<StreamItem> stream;
+  int64_t counter_too_late = 0;
+  std::map<std::string, int64_t> counters;
+  fusion::Estimate last;
+};
+
+// Camera 0's and camera 1's frames of the same instants (synchronised), each
+// camera only while the robot is in its view, camera 1 offset by the
+// calibration disagreement and arriving `camera1_latency_s` after capture;
+// ultrasound throughout.
+HandoverRun RunHandover(double camera1_latency_s,
+                        double calibration_sigma_m = kCalibrationSigma_m) {
+  HandoverRun run;
+  Site site;
+  std::string error;
+  EXPECT_TRUE(ParseSite(kTwoCameraSite, "two_cameras.yaml", "", &site, &error)) << error;
+  WaypointTrajectoryOptions line;
+  line.points_m = {{1.0, 1.5}, {7.0, 1.5}};
+  line.speed_mps = 0.3;
+  line.loop = false;
+  auto trajectory = MakeWaypointTrajectory(line, &error);
+  EXPECT_NE(trajectory, nullptr) << error;
+  StreamOptions cam0;
+  cam0.duration_s = 18.0;
+  cam0.camera_sigma_m = 0.00015;  // the demo camera's calibrated 0.12 mm, rounded up
+  cam0.camera_heading_sigma_rad = 0.002;
+  cam0.camera_outage_start_s = kOverlapEnd_s;
+  cam0.camera_outage_end_s = 1e9;
+  StreamOptions cam1 = cam0;
+  cam1.seed = 2;
+  cam1.camera_latency_s = camera1_latency_s;
+  cam1.camera_outage_start_s = 0.0;
+  cam1.camera_outage_end_s = kOverlapStart_s;
+  cam1.radio_outage_start_s = 0.0;  // one ultrasound stream is enough
+  cam1.radio_outage_end_s = 1e9;
+  std::vector<StreamItem> one = MakeStream(*trajectory, cam1);
+  for (StreamItem& item : one) {
+    item.measurement.camera_id = 1;
+    item.measurement.position_m.x() += kCameraDisagreement_m;
+  }
+  std::vector<StreamItem> zero = MakeStream(*trajectory, cam0);
+  for (StreamItem& item : zero) {
+    if (item.measurement.source == fusion::Source::kCamera) item.measurement.camera_id = 0;
+  }
+  run.stream = Merge(zero, one);
+
+  LoopbackBus bus;
+  bus.Subscribe<pose2d_t>(kFusedPoseChannel,
+                          [&](const pose2d_t& p, const MessageInfo&) { run.fused.push_back(p); });
+  FusionNodeOptions options;
+  options.filter.camera_calibration_sigma_m = calibration_sigma_m;
+  FusionNode node(site, &bus, options, fusion::synthetic::kStartUtime);
+  for (const StreamItem& item : run.stream) {
+    const pose2d_t p = PoseOf(item);
+    std::vector<uint8_t> bytes(p.getEncodedSize());
+    p.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+    bus.Inject(
+        item.measurement.source == fusion::Source::kCamera ? "POSE_CAMERA" : "POSE_ULTRASOUND",
+        bytes.data(), static_cast<int>(bytes.size()), item.recv_utime);
+    node.Tick(item.recv_utime);
+  }
+  for (const char* name :
+       {"camera_0_inputs", "camera_0_accepted", "camera_0_gated", "camera_1_inputs",
+        "camera_1_accepted", "camera_1_gated", "initialised", "reinitialised", "lost"}) {
+    run.counters[name] = node.status().counter(name);
+  }
+  run.counter_too_late = node.status().rejected("too_late");
+  run.last = node.filter(1)->Latest();
+  return run;
+}
+
+TEST(FusionNodeCameras, HandsARobotFromOneCameraToTheNextWithoutLosingItOrJumping) {
+  // Camera 1's frames arrive 30 ms after camera 0's of the same instant: its
+  // frames are then always older than camera 0's newest, and must count all
+  // the same (no staleness judged across cameras).
+  const HandoverRun run = RunHandover(0.070);
+  int64_t frames[2] = {0, 0};
+  for (const StreamItem& item : run.stream) {
+    if (item.measurement.source == fusion::Source::kCamera) ++frames[item.measurement.camera_id];
+  }
+  EXPECT_EQ(run.counters.at("camera_0_inputs"), frames[0]);
+  EXPECT_EQ(run.counters.at("camera_1_inputs"), frames[1]);
+  // Every frame of both cameras is used (accepted or, the first one,
+  // initialising the track), in the overlap too: both count.
+  EXPECT_EQ(run.counters.at("camera_0_accepted"), frames[0]);
+  EXPECT_EQ(run.counters.at("camera_1_accepted"), frames[1]);
+  EXPECT_EQ(run.counters.at("camera_0_gated"), 0);
+  EXPECT_EQ(run.counters.at("camera_1_gated"), 0);
+  EXPECT_EQ(run.counter_too_late, 0);
+  EXPECT_EQ(run.counters.at("initialised"), 1);
+  EXPECT_EQ(run.counters.at("reinitialised"), 0);
+  EXPECT_EQ(run.counters.at("lost"), 0);
+
+  // No fix lost, and the fused error (pose - truth) changes by less than
+  // kMaxHandoverJump_m from one fused pose to the next around the handovers.
+  double max_step_m = 0.0, max_error_m = 0.0;
+  bool have_previous = false;
+  double previous_ex = 0.0, previous_ey = 0.0;
+  for (const pose2d_t& p : run.fused) {
+    const double t = SecondsSinceStart(p.utime);
+    ASSERT_EQ(p.status, pose2d_t::STATUS_OK) << "at t " << t << " s";
+    const double x_true = std::min(1.0 + 0.3 * t, 7.0);
+    const double ex = p.x_m - x_true, ey = p.y_m - 1.5;
+    if (t > kOverlapStart_s - 1.0 && t < kOverlapEnd_s + 1.0) {
+      if (have_previous) {
+        max_step_m = std::max(max_step_m, std::hypot(ex - previous_ex, ey - previous_ey));
+      }
+      max_error_m = std::max(max_error_m, std::hypot(ex, ey));
+    }
+    previous_ex = ex;
+    previous_ey = ey;
+    have_previous = true;
+  }
+  std::printf(
+      "handover: %lld + %lld frames, largest step of the fused error %.3f mm, largest error "
+      "%.3f mm (cameras %.1f mm apart)\n",
+      static_cast<long long>(frames[0]), static_cast<long long>(frames[1]), max_step_m * 1e3,
+      max_error_m * 1e3, kCameraDisagreement_m * 1e3);
+  EXPECT_LT(max_step_m, kMaxHandoverJump_m);
+  EXPECT_LT(max_error_m, kMaxHandoverJump_m);
+}
+
+TEST(FusionNodeCameras, WithoutTheCalibrationErrorTheSecondCameraIsGatedInTheOverlap) {
+  // Each camera's covariance (0.15 mm) says nothing of its calibration's
+  // error: 1.1 mm apart, the two cannot both be right, so the camera that
+  // came second is gated while the first holds the track; the track still
+  // goes on, with camera 1 alone after the overlap.
+  const HandoverRun run = RunHandover(0.070, 0.0);
+  std::printf("without --camera-calibration-sigma: camera 1 gated %lld times, accepted %lld\n",
+              static_cast<long long>(run.counters.at("camera_1_gated")),
+              static_cast<long long>(run.counters.at("camera_1_accepted")));
+  EXPECT_GT(run.counters.at("camera_1_gated"), 50);
+  EXPECT_EQ(run.counters.at("reinitialised"), 0);
+  EXPECT_EQ(run.counters.at("lost"), 0);
+}
+
+TEST(FusionNodeCameras, TwoCamerasAtTheSameInstantGiveOneResultInEitherArrivalOrder) {
+  // Camera 1 arriving before camera 0 (30 ms) or after it (70 ms): the
+  // filter orders equal times by camera id, so the track is the same.
+  const HandoverRun early = RunHandover(0.030);
+  const HandoverRun late = RunHandover(0.070);
+  EXPECT_EQ(early.last.utime, late.last.utime);
+  for (int i = 0; i < 6; ++i) EXPECT_EQ(early.last.state[i], late.last.state[i]) << i;
 }
 
 TEST(FusionNodeOptions, RefusesANegativeRate) {

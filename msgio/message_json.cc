@@ -99,8 +99,8 @@ void Counters(Json* j, const char* key, const std::vector<counter_t>& counters) 
 std::string ToJson(const pose2d_t& m) {
   Json j;
   j.Open('{').Key("type").Str("roomfix.pose2d_t").Key("utime").Int(m.utime);
-  j.Key("source").Int(m.source).Key("robot_id").Int(m.robot_id);
-  j.Key("measurement_seq").Int(m.measurement_seq);
+  j.Key("source").Int(m.source).Key("camera_id").Int(m.camera_id);
+  j.Key("robot_id").Int(m.robot_id).Key("measurement_seq").Int(m.measurement_seq);
   j.Key("x_m").Num(m.x_m).Key("y_m").Num(m.y_m).Key("z_m").Num(m.z_m);
   j.Key("heading_rad").Num(m.heading_rad).Key("covariance").Open('[');
   for (const auto& row : m.covariance) {

@@ -12,6 +12,7 @@ inline pose2d_t MakeTestPose(int64_t utime, int32_t robot_id, double x_m, double
   pose2d_t p{};
   p.utime = utime;
   p.source = pose2d_t::SOURCE_ULTRASOUND;
+  p.camera_id = -1;  // kNoCameraId (core/world/site.h): not a camera pose
   p.robot_id = robot_id;
   p.measurement_seq = utime / 100000;
   p.x_m = x_m;

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <limits>
 
+#include "core/world/site.h"
 #include "msgio/time_limits.h"
 
 namespace roomfix {
@@ -24,6 +25,7 @@ pose2d_t PoseFromFix(const trilat::Fix& fix, const range_set_t& set, int32_t rob
   pose2d_t p{};
   p.utime = set.utime;
   p.source = pose2d_t::SOURCE_ULTRASOUND;
+  p.camera_id = kNoCameraId;
   p.robot_id = robot_id;
   p.measurement_seq = set.firing_seq;
   p.x_m = fix.position_m.x();

@@ -47,10 +47,10 @@ constexpr Field kRangeFields[] = {
 constexpr Layout kRange{"range_t", kRangeFields, 3};
 
 constexpr Field kPoseFields[] = {
-    // utime 8, source 1, robot_id 4, measurement_seq 8, x_m y_m z_m
-    // heading_rad 4*8, covariance 9*8, residual_m 8, num_measurements 4,
-    // status 1, latency_us 8.
-    {"utime..latency_us", kFixed, 8 + 1 + 4 + 8 + 4 * 8 + 9 * 8 + 8 + 4 + 1 + 8, nullptr},
+    // utime 8, source 1, camera_id 4, robot_id 4, measurement_seq 8, x_m
+    // y_m z_m heading_rad 4*8, covariance 9*8, residual_m 8,
+    // num_measurements 4, status 1, latency_us 8.
+    {"utime..latency_us", kFixed, 8 + 1 + 4 + 4 + 8 + 4 * 8 + 9 * 8 + 8 + 4 + 1 + 8, nullptr},
 };
 constexpr Layout kPose{"pose2d_t", kPoseFields, 1};
 

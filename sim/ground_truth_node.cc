@@ -38,6 +38,7 @@ void GroundTruthNode::Tick(int64_t now_utime) {
       pose2d_t msg{};
       msg.utime = utime;
       msg.source = pose2d_t::SOURCE_GROUND_TRUTH;
+      msg.camera_id = kNoCameraId;
       msg.robot_id = robot.robot_id;
       msg.measurement_seq = k;
       msg.x_m = truth.x_m;

@@ -31,6 +31,7 @@
 #include "core/vision/marker_detector.h"
 #include "core/world/file_io.h"
 #include "core/world/site.h"
+#include "tools/calibrate_neighbour.h"
 #include "tools/commands.h"
 
 namespace roomfix {
@@ -43,6 +44,9 @@ using calib::RegionFitSummary;
 
 struct Flags {
   std::string points;
+  // --shared-images, --neighbour: tools/calibrate_neighbour.h.
+  std::string shared_images;
+  std::string neighbour;
   std::vector<std::string> chessboards;
   std::string board;
   double square_m = 0.0;
@@ -424,6 +428,34 @@ void AddMarkerImages(const Flags& f, std::vector<Correspondence>* points, std::v
   if (used == 0) throw Refusal(f.marker_images + ": no images listed");
 }
 
+// Marker images shared with an already calibrated neighbour camera
+// (tools/calibrate_neighbour.h); the marker class as for --marker-images.
+void AddNeighbourPoints(const Flags& f, std::vector<Correspondence>* points,
+                        std::vector<int>* lines) {
+  if (f.shared_images.empty() != f.neighbour.empty()) {
+    throw Refusal("--shared-images and --neighbour go together");
+  }
+  if (f.shared_images.empty()) return;
+  if (f.site.empty()) throw Refusal("--shared-images needs --site (the marker's colour class)");
+  Site site;
+  Calibration neighbour;
+  std::string error;
+  if (!LoadSite(f.site, &site, &error)) throw Refusal(error);
+  const roomfix::Camera* camera = f.camera_id < 0
+                                      ? (site.cameras.empty() ? nullptr : &site.cameras.front())
+                                      : site.FindCamera(f.camera_id);
+  if (camera == nullptr) throw Refusal(f.site + ": no such camera");
+  std::string class_name = f.marker_class;
+  if (class_name.empty() && !camera->robots.empty()) {
+    class_name = camera->robots.front().position_marker;
+  }
+  if (!calib::LoadCalibration(f.neighbour, &neighbour, &error) ||
+      !AddSharedImagePoints(f.shared_images, neighbour, *camera, class_name, points, lines,
+                            &error)) {
+    throw Refusal(error);
+  }
+}
+
 // The reprojection of room point `p` at its height under the chosen model.
 bool Reproject(const Calibration& c, const Correspondence& p, double* u, double* v) {
   std::string ignored;
@@ -532,7 +564,8 @@ void Run(const Flags& f) {
   if (!(f.max_rms_px > 0.0) || !std::isfinite(f.max_rms_px)) {
     throw Refusal("--max-rms-px: expected a positive number of pixels");
   }
-  if (f.points.empty() && f.chessboards.empty() && f.marker_images.empty()) {
+  if (f.points.empty() && f.chessboards.empty() && f.marker_images.empty() &&
+      f.shared_images.empty()) {
     throw Refusal("no points: give --points CSV, --chessboard IMAGE and/or --marker-images CSV");
   }
   if (!f.chessboards.empty() && f.board.empty()) {
@@ -550,6 +583,7 @@ void Run(const Flags& f) {
   }
   AddChessboards(f, &points, &lines);
   AddMarkerImages(f, &points, &lines);
+  AddNeighbourPoints(f, &points, &lines);
   if (f.out.empty()) return;
 
   // Camera size, field of view and mount: flags over the site's camera.
@@ -803,6 +837,10 @@ void AddCalibrateCommand(CLI::App* app, int* exit_code) {
   cmd->add_option("--marker-images", f->marker_images,
                   "CSV image,x_m,y_m,height_m: images of one marker placed at surveyed points "
                   "(the reference's tripod procedure); the marker is detected in each");
+  cmd->add_option("--shared-images", f->shared_images,
+                  "CSV image,neighbour_image,height_m: one marker seen by this camera and by a "
+                  "calibrated neighbour (--neighbour), its floor position from the neighbour");
+  cmd->add_option("--neighbour", f->neighbour, "The neighbour camera's calibration YAML");
   cmd->add_option("--marker-class", f->marker_class,
                   "Colour class of that marker in --site (default: the first robot's position "
                   "marker)");

@@ -425,9 +425,35 @@ void DrawAxes(Canvas* c) {
   HaloText(c->image, "y", io + cv::Point(-4, -46), kFontScale, kAxisColour);
 }
 
-void DrawCameras(Canvas* c, const Site& site) {
+void DrawCameras(Canvas* c, const Site& site, const std::vector<CameraFootprint>& footprints) {
   const cv::Scalar colour = Blend(FloorColour(), SourceColour(Source::kCamera), 0.55);
   for (const Camera& camera : site.cameras) {
+    const CameraFootprint* footprint = nullptr;
+    for (const CameraFootprint& f : footprints) {
+      if (f.camera_id == camera.id && f.floor_m.size() >= 3) footprint = &f;
+    }
+    if (footprint != nullptr) {
+      // The floor its image covers: solid when calibrated, thin for the
+      // nominal model.
+      std::vector<cv::Point> polygon;
+      bool finite = true;
+      for (const auto& q : footprint->floor_m) {
+        const cv::Point2d px = c->map.ToPixel(q[0], q[1]);
+        finite = finite && Finite(px.x, px.y) && std::fabs(px.x) < 1e6 && std::fabs(px.y) < 1e6;
+        polygon.push_back(Canvas::ToInt(px));
+      }
+      if (finite) {
+        cv::polylines(c->image, polygon, true, colour, footprint->calibrated ? 2 : 1, cv::LINE_AA);
+      }
+      const cv::Point2d centre = c->map.ToPixel(footprint->lens_m[0], footprint->lens_m[1]);
+      if (c->Inside(centre)) {
+        const cv::Point ic = Canvas::ToInt(centre);
+        cv::rectangle(c->image, ic - cv::Point(5, 4), ic + cv::Point(5, 4), colour, 2, cv::LINE_AA);
+        HaloText(c->image, Format("cam %d", camera.id), ic + cv::Point(9, 15), kSmallFontScale,
+                 Blend(kTextColour, SourceColour(Source::kCamera), 0.5));
+      }
+      continue;
+    }
     const auto& p = camera.mount_position_m;
     const double half_fov_rad = camera.field_of_view_deg * CV_PI / 360.0;
     if (!Finite(p[0], p[1]) || !std::isfinite(p[2]) || p[2] <= 0 || !std::isfinite(half_fov_rad) ||
@@ -496,7 +522,8 @@ constexpr int kLegendTopPx = 56;
 constexpr int kPanelBodyTopPx = kLegendTopPx + 2 * kLinePx + 8;
 
 // Everything that does not change between frames of one site and one view.
-std::vector<double> BackgroundKey(const Site& site, const RenderOptions& o) {
+std::vector<double> BackgroundKey(const Site& site, const std::vector<CameraFootprint>& footprints,
+                                  const RenderOptions& o) {
   const Room& r = site.room;
   std::vector<double> key = {static_cast<double>(o.width_px),
                              static_cast<double>(o.height_px),
@@ -519,6 +546,11 @@ std::vector<double> BackgroundKey(const Site& site, const RenderOptions& o) {
                {static_cast<double>(cam.id), cam.mount_position_m[0], cam.mount_position_m[1],
                 cam.mount_position_m[2], cam.field_of_view_deg});
   }
+  for (const CameraFootprint& f : footprints) {
+    key.insert(key.end(), {static_cast<double>(f.camera_id), f.calibrated ? 1.0 : 0.0, f.lens_m[0],
+                           f.lens_m[1], static_cast<double>(f.floor_m.size())});
+    for (const auto& q : f.floor_m) key.insert(key.end(), {q[0], q[1]});
+  }
   return key;
 }
 
@@ -528,15 +560,15 @@ bool SameKey(const std::vector<double>& a, const std::vector<double>& b) {
          (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(double)) == 0);
 }
 
-void DrawBackground(const Site& site, const RenderOptions& o, const FloorMapping& mapping,
-                    cv::Mat* background) {
+void DrawBackground(const Site& site, const std::vector<CameraFootprint>& footprints,
+                    const RenderOptions& o, const FloorMapping& mapping, cv::Mat* background) {
   background->create(o.height_px, o.width_px, CV_8UC3);
   const int floor_w = o.width_px - o.panel_px;
   cv::Mat floor = (*background)(cv::Rect(0, 0, floor_w, o.height_px));
   floor.setTo(kOutsideColour);
   Canvas canvas(floor, mapping);
   DrawRoom(&canvas, site.room);
-  DrawCameras(&canvas, site);
+  DrawCameras(&canvas, site, footprints);
   DrawAxes(&canvas);
   DrawReceivers(&canvas, site);
   if (o.panel_px > 0) {
@@ -687,6 +719,30 @@ void DrawTracks(Canvas* c, const ViewState& state) {
       }
     }
   }
+  // Which camera sees which robot: a thin line from each camera whose pose
+  // of the robot is fresh to the camera track's position, and the cameras'
+  // ids under the robot's name.
+  std::map<int, std::string> seen_by;
+  if (visible(Source::kCamera)) {
+    for (const TrackView& t : state.tracks) {
+      if (t.source != Source::kCamera || t.lost) continue;
+      const cv::Point2d robot = c->map.ToPixel(t.x_m, t.y_m);
+      if (!Finite(robot.x, robot.y) || !c->Inside(robot)) continue;
+      for (const auto& [camera_id, recv_utime] : t.camera_seen_recv_utime) {
+        if (IsStale(state, recv_utime)) continue;
+        for (const CameraFootprint& f : state.footprints) {
+          if (f.camera_id != camera_id) continue;
+          const cv::Point2d lens = c->map.ToPixel(f.lens_m[0], f.lens_m[1]);
+          if (Finite(lens.x, lens.y) && c->Inside(lens)) {
+            cv::line(c->image, Canvas::ToInt(lens), Canvas::ToInt(robot),
+                     Blend(FloorColour(), SourceColour(Source::kCamera), 0.7), 1, cv::LINE_AA);
+          }
+        }
+        std::string& text = seen_by[t.robot_id];
+        if (text.size() < 40) text += (text.empty() ? "cam " : ",") + std::to_string(camera_id);
+      }
+    }
+  }
   // One name per robot, next to the source drawn on top.
   std::map<int, cv::Point2d> label_at;
   for (Source s : kOrder) {
@@ -701,6 +757,12 @@ void DrawTracks(Canvas* c, const ViewState& state) {
     HaloText(c->image, RobotName(state.site, robot_id),
              Canvas::ToInt(p + cv::Point2d(kDiscRadiusPx + 4, -kDiscRadiusPx - 4)), kFontScale,
              kTextColour);
+    auto seen = seen_by.find(robot_id);
+    if (seen != seen_by.end()) {
+      HaloText(c->image, seen->second,
+               Canvas::ToInt(p + cv::Point2d(kDiscRadiusPx + 4, kDiscRadiusPx + 10)),
+               kSmallFontScale, Blend(kTextColour, SourceColour(Source::kCamera), 0.5));
+    }
   }
 }
 
@@ -1116,9 +1178,9 @@ void Render(const ViewState& state, const RenderOptions& options, cv::Mat* image
   thread_local RenderCache cache;
   const RenderOptions o = Sanitized(options);
   const FloorMapping mapping = MakeFloorMapping(state.site, o);
-  std::vector<double> key = BackgroundKey(state.site, o);
+  std::vector<double> key = BackgroundKey(state.site, state.footprints, o);
   if (!SameKey(key, cache.key) || cache.background.empty()) {
-    DrawBackground(state.site, o, mapping, &cache.background);
+    DrawBackground(state.site, state.footprints, o, mapping, &cache.background);
     cache.key = std::move(key);
   }
   // copyTo reallocates only when the size or type differs.

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <deque>
 #include <limits>
+#include <map>
 #include <string>
 #include <utility>
 #include <vector>
@@ -54,6 +55,20 @@ struct TrackView {
   // to publish), ms.
   double rate_hz = 0.0;
   double latency_ms = kNaN;
+  // Camera tracks: which of the site's cameras saw the robot, by camera id,
+  // with the receive time of that camera's latest pose with a position
+  // (several cameras see a robot in their overlap).
+  std::map<int, int64_t> camera_seen_recv_utime;
+};
+
+// The floor polygon one camera's image covers (viewer/footprint.h), and the
+// lens's floor position.
+struct CameraFootprint {
+  int camera_id = 0;
+  // From the camera's calibration; false: its nominal model.
+  bool calibrated = false;
+  std::array<double, 2> lens_m{};
+  std::vector<std::array<double, 2>> floor_m;
 };
 
 // One range of a beacon's latest range set, drawn as the circle where the
@@ -115,6 +130,9 @@ struct PreviewView {
 struct ViewState {
   // Room outline, grid, receivers and camera footprints come from here.
   Site site;
+  // Each camera's footprint, drawn instead of the nominal view circle when
+  // there (the viewer node computes them from the site).
+  std::vector<CameraFootprint> footprints;
   int64_t now_utime = 0;
   std::vector<TrackView> tracks;
   std::vector<RangeSetView> range_sets;

@@ -12,6 +12,7 @@
 #include "roomfix/pose2d_t.hpp"
 #include "roomfix/process_status_t.hpp"
 #include "roomfix/range_set_t.hpp"
+#include "viewer/footprint.h"
 
 namespace roomfix {
 namespace {
@@ -80,6 +81,7 @@ ViewerNode::ViewerNode(const Site& site, Bus* bus, const ViewerNodeOptions& opti
                        int64_t start_utime)
     : bus_(bus), options_(options), status_("roomfix_viewer", start_utime) {
   state_.site = site;
+  state_.footprints = viewer::CameraFootprints(site, viewer::FootprintHeight(site));
   state_.trail_s = options.trail_s;
   state_.stale_after_s = options.stale_after_s;
   state_.now_utime = start_utime;
@@ -131,6 +133,10 @@ ViewerNode::ViewerNode(const Site& site, Bus* bus, const ViewerNodeOptions& opti
     t->cov_xy_m2 = p.covariance[0][1];
     t->cov_yy_m2 = p.covariance[1][1];
     t->degraded = p.status == pose2d_t::STATUS_DEGRADED;
+    // Which camera: only the site's ids (a sender can invent them).
+    if (source == viewer::Source::kCamera && state_.site.FindCamera(p.camera_id) != nullptr) {
+      t->camera_seen_recv_utime[p.camera_id] = info.recv_utime;
+    }
     t->trail.push_back({p.utime, p.x_m, p.y_m});
     if (t->trail.size() > kMaxTrailPoints) t->trail.pop_front();
   });

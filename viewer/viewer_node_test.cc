@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <time.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -367,6 +368,60 @@ TEST(ViewerNode, RendersARecordedSessionReplayedThroughTheSameNode) {
   viewer::Render(s, viewer::RenderOptions{}, &image);
   EXPECT_EQ(image.cols, 1280);
   EXPECT_EQ(image.rows, 800);
+}
+
+}  // namespace
+}  // namespace roomfix
+
+namespace roomfix {
+namespace {
+
+// Several cameras (issue 19): each camera's footprint from its calibration,
+// and which camera sees which robot.
+TEST(ViewerNode, DrawsEachCamerasFootprintAndWhichCameraSeesARobot) {
+  Site site;
+  std::string error;
+  ASSERT_TRUE(LoadSite(testing::SourceDir() + "/config/sites/two_cameras.yaml", &site, &error))
+      << error;
+  LoopbackBus bus;
+  ViewerNode node(site, &bus, {}, kT0);
+  const viewer::ViewState& empty = node.StateAt(kT0);
+  ASSERT_EQ(empty.footprints.size(), 2u);
+  // At the marker height (0.2 m) the middle of each 82-degree image's left
+  // and right edges lies 2.52 m from its lens (2.9 m tan 41 deg; the site
+  // file's comment): camera 0's right edge at x 4.52 m, camera 1's left edge
+  // at 3.48 m, the 1 m overlap; the corners reach further (the fisheye's
+  // diagonal: 2.9 m tan(800 px / 894 px) x 0.8 = 2.89 m in x). The border is
+  // walked clockwise from the top-left corner, 32 points a side: index 32 is
+  // the top-right corner, 48 the right edge's middle, 112 the left edge's.
+  // 2 cm: the fitted lens is not exactly the nominal one.
+  ASSERT_EQ(empty.footprints[0].floor_m.size(), 128u);
+  ASSERT_EQ(empty.footprints[1].floor_m.size(), 128u);
+  EXPECT_TRUE(empty.footprints[0].calibrated);
+  EXPECT_TRUE(empty.footprints[1].calibrated);
+  EXPECT_NEAR(empty.footprints[0].floor_m[48][0], 4.52, 0.02);
+  EXPECT_NEAR(empty.footprints[0].floor_m[48][1], 1.5, 0.02);
+  EXPECT_NEAR(empty.footprints[1].floor_m[112][0], 3.48, 0.02);
+  EXPECT_NEAR(empty.footprints[0].floor_m[32][0], 4.89, 0.02);
+  EXPECT_NEAR(empty.footprints[1].lens_m[0], 6.0, 0.001);
+
+  // Robot 1 in the overlap, seen by both cameras; an id the site does not
+  // list is not remembered.
+  for (int camera_id : {0, 1, 7}) {
+    pose2d_t p = Pose(pose2d_t::SOURCE_CAMERA, kT0 + 10'000, 4.0, 1.5);
+    p.camera_id = camera_id;
+    bus.set_now_utime(kT0 + 20'000);
+    bus.Publish("POSE_CAMERA", p);
+  }
+  const viewer::ViewState& s = node.StateAt(kT0 + 30'000);
+  ASSERT_EQ(s.tracks.size(), 1u);
+  ASSERT_EQ(s.tracks[0].camera_seen_recv_utime.size(), 2u);
+  EXPECT_EQ(s.tracks[0].camera_seen_recv_utime.count(0), 1u);
+  EXPECT_EQ(s.tracks[0].camera_seen_recv_utime.count(1), 1u);
+  // The picture renders with both footprints and the lines.
+  cv::Mat image;
+  viewer::Render(s, viewer::RenderOptions{}, &image);
+  EXPECT_EQ(image.rows, viewer::RenderOptions{}.height_px);
 }
 
 }  // namespace

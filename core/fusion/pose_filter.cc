@@ -94,6 +94,7 @@ bool PoseFilterOptions::IsValid(std::string* error) const {
       {q_turn_radps2, "q_turn_radps2", false},
       {camera_inflation, "camera_inflation", false},
       {camera_sigma_floor_m, "camera_sigma_floor_m", false},
+      {camera_calibration_sigma_m, "camera_calibration_sigma_m", true},
       {ultrasound_inflation, "ultrasound_inflation", false},
       {ultrasound_sigma_floor_m, "ultrasound_sigma_floor_m", false},
       {heading_sigma_floor_rad, "heading_sigma_floor_rad", false},
@@ -148,6 +149,10 @@ Outcome PoseFilter::Add(const Measurement& measurement, int64_t now_utime, Estim
   // Condition the measurement once; the history keeps it conditioned.
   Measurement m = measurement;
   const bool camera = m.source == Source::kCamera;
+  if (camera) {
+    m.position_cov_m2 += Eigen::Matrix2d::Identity() * options_.camera_calibration_sigma_m *
+                         options_.camera_calibration_sigma_m;
+  }
   m.position_cov_m2 = ConditionCovariance(
       m.position_cov_m2, camera ? options_.camera_inflation : options_.ultrasound_inflation,
       camera ? options_.camera_sigma_floor_m : options_.ultrasound_sigma_floor_m);
@@ -162,10 +167,11 @@ Outcome PoseFilter::Add(const Measurement& measurement, int64_t now_utime, Estim
   }
 
   // Insert after every entry that sorts before or equal to it, by (time,
-  // source): equal keys keep their arrival order.
+  // source, camera): equal keys keep their arrival order.
   auto key_less = [](const Measurement& a, const Measurement& b) {
     if (a.utime != b.utime) return a.utime < b.utime;
-    return static_cast<int>(a.source) < static_cast<int>(b.source);
+    if (a.source != b.source) return static_cast<int>(a.source) < static_cast<int>(b.source);
+    return a.camera_id < b.camera_id;
   };
   size_t index = history_.size();
   while (index > 0 && key_less(m, history_[index - 1].measurement)) --index;

@@ -335,6 +335,8 @@ void ParseCameras(const Reader& r, const YAML::Node& root, const std::string& ba
                 "readout_s", "exposure_s", "timestamp_latency_s"});
     Camera cam;
     cam.id = r.UniqueId(node, key, "id", "camera", &ids);
+    // pose2d_t.camera_id is -1 (NO_CAMERA) for poses no camera measured.
+    if (cam.id < 0) r.Fail(node["id"], key + ".id", "must be 0 or more");
     cam.device = r.String(r.Required(node, key, "device"), key + ".device");
     const YAML::Node resolution = r.Required(node, key, "resolution");
     const auto wh = r.Ints<2>(resolution, key + ".resolution");
@@ -776,6 +778,10 @@ const RadioNetwork* Site::RadioOfReceiver(int receiver_id) const {
 
 const Robot* Site::FindRobot(int id) const {
   return FindIf(robots, [id](const Robot& r) { return r.id == id; });
+}
+
+const Camera* Site::FindCamera(int id) const {
+  return FindIf(cameras, [id](const Camera& c) { return c.id == id; });
 }
 
 bool HsvRangesOverlap(const MarkerClass& a, const MarkerClass& b) {

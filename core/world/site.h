@@ -82,6 +82,10 @@ struct CameraRobot {
   double tilt_sigma_deg = 0.0;
 };
 
+// pose2d_t.camera_id of a pose no camera measured (ultrasound, fused,
+// ground truth); a site's camera ids are 0 or more.
+inline constexpr int kNoCameraId = -1;
+
 struct Camera {
   int id = 0;
   // "/dev/video0", a video file, an image glob or "sim:<scenario>".
@@ -253,6 +257,8 @@ struct Site {
   // The coordinator whose network carries this receiver; nullptr when the
   // site names no radios (or, after validation, never otherwise).
   const RadioNetwork* RadioOfReceiver(int receiver_id) const;
+  // The camera with this id (cameras[].id), nullptr when there is none.
+  const Camera* FindCamera(int id) const;
 };
 
 // Reads and validates a site file. On failure returns false and sets *error

@@ -207,6 +207,7 @@ pose2d_t GoodPose(int8_t source, int64_t measurement_seq, int64_t utime) {
   pose2d_t p{};
   p.utime = utime;
   p.source = source;
+  p.camera_id = source == pose2d_t::SOURCE_CAMERA ? 0 : -1;  // demo_room's camera; kNoCameraId
   p.robot_id = 1;
   p.measurement_seq = measurement_seq;
   p.x_m = kGoodX_m;

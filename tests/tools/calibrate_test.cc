@@ -704,6 +704,40 @@ TEST(RoomfixCalibrate, RefusesAMarkerImageWithTwoMarkersNamingIt) {
       << r.out;
 }
 
+// A camera fitted against a calibrated neighbour (docs/calibration.md, "A
+// camera beside a calibrated one"): the two options go together, and every
+// listed image must show exactly one marker. The fit itself made
+// config/calibration/two_cameras_cam1.yaml (its header), which
+// CameraOverlap.TwoCalibratedCamerasAgreeOnTheSameRobot measures.
+TEST(RoomfixCalibrate, SharedImagesNeedTheNeighbourAndOneMarkerInEachImage) {
+  TempDir dir;
+  const std::string site = SourceDir() + "/config/sites/two_cameras.yaml";
+  ASSERT_TRUE(
+      WriteFile(dir.File("shared.csv"), "image,neighbour_image,height_m\ncam1.png,cam0.png,0.2\n"));
+  const RunResult alone = Roomfix({"calibrate", "--site", site, "--camera", "1", "--shared-images",
+                                   dir.File("shared.csv"), "--out", dir.File("cam.yaml")},
+                                  /*stderr_only=*/true);
+  EXPECT_NE(alone.exit_code, 0);
+  EXPECT_NE(alone.out.find("--shared-images and --neighbour go together"), std::string::npos)
+      << alone.out;
+  // At t = 0 robot 1 is at x = 1 m and robot 2 circles about x = 1.8 m:
+  // camera 1 (x 3.5 .. 8.5 m) sees no orange marker.
+  for (const char* camera : {"0", "1"}) {
+    ASSERT_EQ(Roomfix({"render-camera", "--site", site, "--camera", camera, "--png",
+                       dir.File(std::string("cam") + camera + ".png")})
+                  .exit_code,
+              0);
+  }
+  const RunResult empty = Roomfix(
+      {"calibrate", "--site", site, "--camera", "1", "--shared-images", dir.File("shared.csv"),
+       "--neighbour", SourceDir() + "/config/calibration/two_cameras_cam0.yaml", "--out",
+       dir.File("cam.yaml")},
+      /*stderr_only=*/true);
+  EXPECT_NE(empty.exit_code, 0);
+  EXPECT_NE(empty.out.find("cam1.png: expected one orange marker, found 0"), std::string::npos)
+      << empty.out;
+}
+
 }  // namespace
 }  // namespace roomfix
 
