@@ -159,7 +159,9 @@ class CalibratedPipelineTest : public ::testing::Test {
       node.OnFrame(&frame, frame.capture_utime);
       EXPECT_EQ(poses.size(), 1u);
       if (poses.empty() || poses[0].status == pose2d_t::STATUS_LOST) continue;
-      if (!scenario.webcam_effects) EXPECT_EQ(poses[0].utime, frame.capture_utime);
+      if (!scenario.webcam_effects) {
+        EXPECT_EQ(poses[0].utime, frame.capture_utime);
+      }
       const pose2d_t& p = poses[0];
       const sim::RobotState truth = render->SimulatedRobots((p.utime - kStartUtime) * 1e-6).front();
       sum2 += std::pow(p.x_m - truth.x_m, 2) + std::pow(p.y_m - truth.y_m, 2);
