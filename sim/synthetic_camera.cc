@@ -71,6 +71,7 @@ struct Disc {
 struct SyntheticCamera::Impl {
   Room room;
   std::vector<CameraRobot> camera_robots;
+  MarkerCode marker_code;
   std::map<std::string, std::pair<double, cv::Vec3f>> classes;  // diameter, colour
   std::vector<SimulatedRobot> sim_robots;
   SimScenario scenario;
@@ -390,6 +391,7 @@ SyntheticCamera::SyntheticCamera(const Site& site, const Camera& camera,
   auto impl = std::make_shared<Impl>();
   impl->room = site.room;
   impl->camera_robots = camera.robots;
+  impl->marker_code = camera.marker_code;
   for (const auto& c : camera.marker_classes) {
     impl->classes[c.name] = {c.diameter_m, ClassColour(c)};
   }
@@ -463,10 +465,13 @@ void SyntheticCamera::Render(double t_s, int64_t frame_seq, const std::vector<Ro
       discs.push_back({r.x_m, r.y_m, z - m.options.body_height_m, 0.5 * m.options.body_diameter_m,
                        ToVec(m.options.body_bgr), -1});
     }
-    add_marker(cam->position_marker, r.robot_id, false, r.x_m, r.y_m, z, 0.0);
-    const double off = m.options.heading_marker_offset_m;
+    // A site's marker code sizes and spaces the markers by role (0: the
+    // class's diameter and the options' offset).
+    const MarkerCode& code = m.marker_code;
+    add_marker(cam->position_marker, r.robot_id, false, r.x_m, r.y_m, z, code.position_diameter_m);
+    const double off = code.enabled() ? code.heading_offset_m : m.options.heading_marker_offset_m;
     add_marker(cam->heading_marker, r.robot_id, true, r.x_m + off * std::cos(r.heading_rad),
-               r.y_m + off * std::sin(r.heading_rad), z, 0.0);
+               r.y_m + off * std::sin(r.heading_rad), z, code.heading_diameter_m);
   }
   for (const auto& d : discs) {
     m.DrawDisc(d, bgr, d.truth_index >= 0 ? &marks[static_cast<size_t>(d.truth_index)] : nullptr);
