@@ -448,14 +448,21 @@ std::vector<RobotObservation> RobotTracker::UpdateByCode(
     const std::vector<std::vector<Blob>>& window_blobs) {
   const size_t n = robots_.size();
   std::vector<RobotObservation> obs(n);
-  // Every blob searched, once (a marker may be in several windows).
+  // Every blob searched, once. Windows are searched for every class, so a
+  // neighbour's marker that a window's edge cuts shows there as a smaller
+  // blob a few pixels off the whole one (measured in its own window or the
+  // full frame): two blobs of one class whose centres lie within the larger
+  // one's radius are one marker, and the larger measurement is kept.
   std::vector<Blob> pool;
   auto add = [&pool](const Blob& b) {
-    const bool seen = std::any_of(pool.begin(), pool.end(), [&](const Blob& p) {
-      return p.class_index == b.class_index &&
-             Distance(p.u_px, p.v_px, b.u_px, b.v_px) < kSameBlobPx;
-    });
-    if (!seen) pool.push_back(b);
+    for (Blob& p : pool) {
+      if (p.class_index == b.class_index && Distance(p.u_px, p.v_px, b.u_px, b.v_px) <
+                                                std::max({p.radius_px, b.radius_px, kSameBlobPx})) {
+        if (b.area_px > p.area_px) p = b;
+        return;
+      }
+    }
+    pool.push_back(b);
   };
   for (const auto& list : window_blobs) {
     for (const Blob& b : list) add(b);
