@@ -667,6 +667,20 @@ TEST(RobotTrackerCode, ALonePositionMarkerInsideTheGateIsTakenWithoutHeading) {
   EXPECT_FALSE(g.obs[3].found);
 }
 
+TEST(RobotTrackerCode, AMarkerCutByAWindowEdgeIsOneMarkerNotTwo) {
+  RobotTracker tracker(SwappedPairRobots(), CodeOptions(), kWidthPx, kHeightPx);
+  // Robot 3's heading marker measured whole (full frame) and, cut by a
+  // neighbour's window edge, as a smaller blob 3 px off: were they two
+  // blobs, two pairs would share robot 3's position marker.
+  std::vector<Blob> scene = Coded(kYellow, kBlue, 700, 350, 0.0);
+  scene.push_back(MakeBlob(kBlue, 700 + kOffsetPx - 3.0, 350, 5.5));
+  const Frame f = Step(&tracker, kStartUs, scene);
+  ASSERT_TRUE(f.obs[2].found);
+  EXPECT_TRUE(f.obs[2].has_heading);
+  EXPECT_NEAR(f.obs[2].heading.u_px, 700 + kOffsetPx, kTolPx);  // the whole one
+  EXPECT_TRUE(f.obs[2].identity_problem.empty()) << f.obs[2].identity_problem;
+}
+
 }  // namespace code
 
 }  // namespace
