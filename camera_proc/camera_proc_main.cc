@@ -62,7 +62,7 @@ int main(int argc, char** argv) {
   app.add_option("--camera", camera_id, "Camera id in the site file (default: the first)");
   app.add_option("--device", device,
                  "Override the site's device: /dev/videoN, a video file, an image folder or glob, "
-                 "or sim:SCENARIO (clean, lighting, distractors, harsh)");
+                 "or sim:SCENARIO (clean, lighting, distractors, harsh, webcam)");
   app.add_option("--calibration", calibration_path,
                  "Calibration YAML (default: the site camera's calibration; none: pixels only)");
   app.add_option("--lighting", lighting,
@@ -175,7 +175,7 @@ int main(int argc, char** argv) {
   std::unique_ptr<roomfix::camera::FrameSource> source;
   if (device.rfind("sim:", 0) == 0) {
     roomfix::sim::SimScenario scenario;
-    if (!roomfix::sim::ParseSimScenario(device, &scenario, &error)) {
+    if (!roomfix::sim::ParseSimScenario(device, ctx->site, &scenario, &error)) {
       std::cerr << "camera_proc: " << error << "\n";
       return 1;
     }

@@ -53,16 +53,27 @@ ReadStatus SimFrameSource::Read(Frame* frame, std::string* error) {
     if (wait > 0) std::this_thread::sleep_for(std::chrono::microseconds(wait));
   }
   const int64_t seq = next_seq_++;
+  // The frame starts (row 0 is read) at start + seq / fps; its timestamp is
+  // the last row's read time plus the latency and jitter (the webcam
+  // scenario; 0 otherwise), and the frame is not handed over before it.
   const int64_t capture = capture_of(seq);
   const double t_s = (capture - options_.start_utime) * 1e-6;
   if (options_.duration_s > 0.0 && t_s > options_.duration_s) return ReadStatus::kEndOfStream;
+  const int64_t stamp = capture + std::llround(camera_->TimestampDelayS(seq) * 1e6);
   cv::Mat bgr;
   camera_->Render(t_s, seq, camera_->SimulatedRobots(t_s), &bgr, &truth_);
-  frame->capture_utime = capture;
+  if (options_.realtime && stamp > capture) {
+    const int64_t wait = stamp - options_.clock();
+    if (wait > 0) std::this_thread::sleep_for(std::chrono::microseconds(wait));
+  }
+  frame->capture_utime = stamp;
   frame->seq = seq;
-  if (options_.jpeg_quality > 0) {
+  if (camera_->JpegQuality(options_.jpeg_quality) > 0) {
     std::vector<uint8_t> bytes;
-    cv::imencode(".jpg", bgr, bytes, {cv::IMWRITE_JPEG_QUALITY, options_.jpeg_quality});
+    if (!camera_->Encode(bgr, options_.jpeg_quality, &bytes)) {
+      *error = "cannot encode synthetic frame " + std::to_string(seq);
+      return ReadStatus::kBadFrame;
+    }
     frame->image = MakeJpegImage(std::move(bytes), error);
     if (frame->image == nullptr) return ReadStatus::kBadFrame;
   } else {
@@ -74,8 +85,10 @@ ReadStatus SimFrameSource::Read(Frame* frame, std::string* error) {
 std::string SimFrameSource::Describe() const {
   return "synthetic camera " + std::to_string(camera_->width_px()) + "x" +
          std::to_string(camera_->height_px()) + " at " + std::to_string(options_.fps) + " fps" +
-         (options_.jpeg_quality > 0 ? " (JPEG " + std::to_string(options_.jpeg_quality) + ")"
-                                    : " (raw)");
+         (camera_->JpegQuality(options_.jpeg_quality) > 0
+              ? " (JPEG " + std::to_string(camera_->JpegQuality(options_.jpeg_quality)) + ")"
+              : " (raw)") +
+         (camera_->scenario().webcam_effects ? ", webcam effects" : "");
 }
 
 }  // namespace roomfix::camera

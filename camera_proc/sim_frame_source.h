@@ -23,7 +23,8 @@ struct SimSourceOptions {
   // rendered back to back on a virtual clock, start + seq / fps.
   bool realtime = true;
   // 1..100: frames are handed over as JPEG, as a webcam's MJPEG stream is,
-  // so the same decoding runs; 0: as BGR pixels.
+  // so the same decoding runs; 0: as BGR pixels. The webcam scenario's own
+  // jpeg_quality overrides it (SyntheticCamera::JpegQuality).
   int jpeg_quality = 90;
   // Stop after this many seconds of simulated time (<= 0: never).
   double duration_s = 0.0;

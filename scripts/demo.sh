@@ -54,10 +54,14 @@ if [[ "${3:-}" == "--inner" ]]; then
   # One t = 0 for the simulator and the synthetic camera, a moment ahead so
   # both are up when the robot starts.
   start_utime=$(( $(date +%s%6N) + 1000000 ))
-  # The ceiling camera: the synthetic camera renders the robot at 1920 x 1080
-  # and 30 fps and hands camera_proc JPEG frames, as a webcam's MJPEG stream.
+  # The ceiling camera: the synthetic webcam (the site's sim:webcam: blur,
+  # rolling shutter, sensor noise, Bayer, MJPEG at quality 80, timestamp
+  # latency and jitter; docs/synthetic_camera.md) renders the robot at
+  # 1920 x 1080 and 30 fps through its own lens, whose calibration
+  # demo_room_webcam.yaml is (the site's names the nominal lens).
   if ((camera)); then
     "$bin/camera_proc" --config "$site" --start-utime "$start_utime" --log-level info \
+      --calibration "$here/config/calibration/demo_room_webcam.yaml" \
       2>"$out/camera_proc.txt" &
     pids+=($!)
   fi

@@ -69,7 +69,7 @@ record "$data/pipeline_replay.lcm" 'RANGES|POSE_.*|STATUS|SITE|MARKER_PIXELS' --
   "'$bin/trilat_proc' --config '$site' --method robust --log-level warn & solver=\$!;
    '$bin/fusion_proc' --config '$site' --log-level warn & fusion=\$!;
    start=\$(( \$(date +%s%6N) + 1000000 ));
-   '$bin/camera_proc' --config '$site' --start-utime \$start --log-level warn & camera=\$!;
+   '$bin/camera_proc' --config '$site' --device sim:reference_circle --start-utime \$start --log-level warn & camera=\$!;
    sleep 0.3;
    '$bin/roomfix_sim' --config '$site' --start-utime \$start --ranges --range-noise 0.02 \
      --nlos-probability 0.05 --dropout-probability 0.02 --seed 11 --duration 5 --log-level warn;

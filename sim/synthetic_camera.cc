@@ -66,6 +66,43 @@ struct Disc {
   int truth_index = -1;
 };
 
+// A uniform draw in [0, 1) from a seed and two keys.
+double Uniform(uint64_t seed, uint64_t a, uint64_t b) {
+  const uint64_t x = SplitMix64(seed ^ SplitMix64(a ^ SplitMix64(b + 0x51ED2701ull)));
+  return static_cast<double>(x >> 11) * (1.0 / 9007199254740992.0);
+}
+
+// sRGB transfer (IEC 61966-2-1): linear light in [0, 1] to the encoded value
+// in [0, 1], and back.
+double SrgbEncode(double x) {
+  return x <= 0.0031308 ? 12.92 * x : 1.055 * std::pow(x, 1.0 / 2.4) - 0.055;
+}
+double SrgbDecode(double c) {
+  return c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4);
+}
+
+// Steps of the linear-light to 8-bit table: at the sRGB toe (slope 12.92 x
+// 255 codes per unit) one step is 0.2 of a code, so a noiseless value goes
+// through decode, table and rounding unchanged.
+constexpr int kEncodeSteps = 16384;
+// Where worn paint fades to (BGR): a dusty grey.
+constexpr float kWearGrey = 150.0f;
+// Rocking while driving: three sinusoids per axis (Hz, weights summing to 1,
+// so the peak is the amplitude) at the robot speed that gives the full
+// tilt_rocking_deg; faster robots rock more, up to twice.
+constexpr double kRockHz[3] = {0.9, 1.7, 2.9};
+constexpr double kRockWeight[3] = {0.6, 0.3, 0.1};
+constexpr double kRockReferenceSpeed_mps = 0.2;
+constexpr double kRockMaxScale = 2.0;
+// Motion blur: time samples per exposure so that consecutive samples are at
+// most this far apart in the image (the supersampled coverage smooths the
+// rest), at most kMaxTimeSamples.
+constexpr double kTimeSampleSpacingPx = 0.25;
+constexpr int kMaxTimeSamples = 16;
+// SimulatedRobots: central-difference step and acceleration cap.
+constexpr double kDifferenceStep_s = 0.005;
+constexpr double kMaxAcceleration_mps2 = 3.0;
+
 }  // namespace
 
 struct SyntheticCamera::Impl {
@@ -152,6 +189,42 @@ struct SyntheticCamera::Impl {
   void RenderFloor();
   void BuildLighting();
   double GainAt(double t_s) const;
+
+  // The webcam scenario (webcam_effects).
+  cv::Mat base_blurred;           // base through the point spread; empty when sharp
+  std::vector<float> vignetting;  // w * h relative illumination; empty when none
+  std::array<float, 256> decode{};
+  std::vector<uint8_t> encode;       // kEncodeSteps + 1 entries over [0, 1]
+  std::vector<int8_t> sensor_noise;  // standard normal, units 1/kNoiseUnits
+  size_t sensor_values = 0;          // noise values one frame reads
+  void BuildWebcam();
+  // A disc that may move over the frame: on a robot (a point `forward_m`
+  // ahead of its centre at `height_m` on the mast, moved by its motion and
+  // tilt) or fixed (a distractor at x, y, z).
+  struct MovingDisc {
+    bool on_robot = false;
+    RobotState robot;
+    double forward_m = 0.0, height_m = 0.0;
+    double x = 0.0, y = 0.0, z = 0.0;
+    double r = 0.0;
+    cv::Vec3f bgr;
+    int truth_index = -1;
+    int supersample = 8;
+  };
+  // The robot's lean (forward, left; radians) at t_s + tau.
+  void Tilt(const RobotState& r, double t_s, double tau, double* forward, double* left) const;
+  Eigen::Vector3d CentreAt(const MovingDisc& d, double t_s, double tau) const;
+  // Draws a disc whose every row r integrates its coverage over
+  // [t_read(r) - exposure, t_read(r)], t_read(r) = t_s + r readout / H;
+  // returns the pixels touched (empty when none).
+  cv::Rect DrawMovingDisc(const MovingDisc& disc, double t_s, cv::Mat* image,
+                          MarkerTruth* truth) const;
+  void RenderWebcam(double t_s, int64_t frame_seq, const std::vector<RobotState>& robots,
+                    cv::Mat* bgr, std::vector<MarkerTruth>* marks) const;
+  // Linear light, gains, shot and read noise, the sRGB curve and the Bayer
+  // mosaic with its demosaicing: `scene` (8-bit, as an ideal camera would
+  // output) into `bgr`.
+  void Sensor(const cv::Mat& scene, double t_s, int64_t frame_seq, cv::Mat* bgr) const;
   // Composites a disc into `image` (CV_8UC3) by supersampled coverage and
   // fills the truth's centroid, area and visibility.
   void DrawDisc(const Disc& disc, cv::Mat* image, MarkerTruth* truth) const;
@@ -279,6 +352,394 @@ double SyntheticCamera::Impl::GainAt(double t_s) const {
   return previous + (current - previous) * tau / scenario.gain_ramp_s;
 }
 
+void SyntheticCamera::Impl::BuildWebcam() {
+  const WebcamSimulation& wc = scenario.webcam;
+  if (wc.psf_sigma_px > 0) {
+    cv::GaussianBlur(base, base_blurred, cv::Size(0, 0), wc.psf_sigma_px, wc.psf_sigma_px,
+                     cv::BORDER_REFLECT_101);
+  }
+  if (wc.vignetting_corner_gain < 1.0) {
+    // g(rho) = 1 / (1 + T rho^2)^2: cos^4 of the field angle of a
+    // rectilinear lens with tan^2 = T rho^2, T chosen so that g = corner gain
+    // at rho = 1 (the farthest image corner from the principal point).
+    const double cx = model.intrinsics.cx_px, cy = model.intrinsics.cy_px;
+    double r_corner = 0.0;
+    for (const double u : {-0.5, w - 0.5}) {
+      for (const double v : {-0.5, h - 0.5})
+        r_corner = std::max(r_corner, std::hypot(u - cx, v - cy));
+    }
+    const double T = 1.0 / std::sqrt(wc.vignetting_corner_gain) - 1.0;
+    vignetting.resize(static_cast<size_t>(w) * h);
+    for (int j = 0; j < h; ++j) {
+      for (int i = 0; i < w; ++i) {
+        const double rho2 = (std::pow(i - cx, 2) + std::pow(j - cy, 2)) / (r_corner * r_corner);
+        const double d = 1.0 + T * rho2;
+        vignetting[static_cast<size_t>(j) * w + i] = static_cast<float>(1.0 / (d * d));
+      }
+    }
+  }
+  encode.resize(kEncodeSteps + 1);
+  for (int k = 0; k <= kEncodeSteps; ++k) {
+    const double x = static_cast<double>(k) / kEncodeSteps;
+    encode[k] = static_cast<uint8_t>(std::lround(255.0 * (wc.srgb_gamma ? SrgbEncode(x) : x)));
+  }
+  for (int v = 0; v < 256; ++v) {
+    decode[v] = static_cast<float>(wc.srgb_gamma ? SrgbDecode(v / 255.0) : v / 255.0);
+  }
+  sensor_values = static_cast<size_t>(w) * h * (wc.bayer ? 1 : 3);
+  if (wc.shot_noise || wc.read_noise_e > 0) {
+    cv::Mat bank(1, static_cast<int>(sensor_values + sensor_values / 2), CV_8S);
+    cv::RNG rng(SplitMix64(scenario.seed ^ 0xC0FFEEull));
+    rng.fill(bank, cv::RNG::NORMAL, 0.0, kNoiseUnits);
+    sensor_noise.assign(bank.ptr<int8_t>(0), bank.ptr<int8_t>(0) + bank.cols);
+  }
+}
+
+void SyntheticCamera::Impl::Tilt(const RobotState& r, double t_s, double tau, double* forward,
+                                 double* left) const {
+  const WebcamSimulation& wc = scenario.webcam;
+  constexpr double kDeg = kPi / 180.0;
+  const uint64_t id = static_cast<uint64_t>(r.robot_id);
+  // A static lean in a direction fixed per robot and seed.
+  const double phi = 2 * kPi * Uniform(scenario.seed, id, 1);
+  double f = wc.tilt_static_deg * kDeg * std::cos(phi);
+  double l = wc.tilt_static_deg * kDeg * std::sin(phi);
+  // Against the acceleration (body frame): speeding up leans back, a left
+  // turn's centripetal acceleration leans right.
+  const double heading = r.heading_rad + r.yaw_rate_radps * tau;
+  const double c = std::cos(heading), s = std::sin(heading);
+  const double a_forward = r.ax_mps2 * c + r.ay_mps2 * s;
+  const double a_left = -r.ax_mps2 * s + r.ay_mps2 * c;
+  f -= wc.tilt_per_acceleration_deg_per_mps2 * kDeg * a_forward;
+  l -= wc.tilt_per_acceleration_deg_per_mps2 * kDeg * a_left;
+  // Rocking on the floor's unevenness, growing with speed.
+  const double speed = std::hypot(r.vx_mps + r.ax_mps2 * tau, r.vy_mps + r.ay_mps2 * tau);
+  const double scale = std::min(speed / kRockReferenceSpeed_mps, kRockMaxScale);
+  if (scale > 0 && wc.tilt_rocking_deg > 0) {
+    const double t = t_s + tau;
+    for (int k = 0; k < 3; ++k) {
+      const double a = wc.tilt_rocking_deg * kDeg * scale * kRockWeight[k];
+      f += a * std::sin(2 * kPi * (kRockHz[k] * t + Uniform(scenario.seed, id, 10 + k)));
+      l += a * std::sin(2 * kPi * (kRockHz[k] * t + Uniform(scenario.seed, id, 20 + k)));
+    }
+  }
+  *forward = f;
+  *left = l;
+}
+
+Eigen::Vector3d SyntheticCamera::Impl::CentreAt(const MovingDisc& d, double t_s, double tau) const {
+  if (!d.on_robot) return Eigen::Vector3d(d.x, d.y, d.z);
+  const RobotState& r = d.robot;
+  double f = 0, l = 0;
+  Tilt(r, t_s, tau, &f, &l);
+  // The mast point (forward, 0, height) in the body frame (x ahead, y left,
+  // z up), leaned by Ry(f) Rx(-l) about the floor point under the centre
+  // (f tips z towards +x, l towards +y), then turned by the heading.
+  const double y1 = d.height_m * std::sin(l), z1 = d.height_m * std::cos(l);
+  const double x2 = d.forward_m * std::cos(f) + z1 * std::sin(f);
+  const double z2 = -d.forward_m * std::sin(f) + z1 * std::cos(f);
+  const double heading = r.heading_rad + r.yaw_rate_radps * tau;
+  const double c = std::cos(heading), s = std::sin(heading);
+  const double x = r.x_m + r.vx_mps * tau + 0.5 * r.ax_mps2 * tau * tau;
+  const double y = r.y_m + r.vy_mps * tau + 0.5 * r.ay_mps2 * tau * tau;
+  return Eigen::Vector3d(x + c * x2 - s * y1, y + s * x2 + c * y1, z2);
+}
+
+cv::Rect SyntheticCamera::Impl::DrawMovingDisc(const MovingDisc& disc, double t_s, cv::Mat* image,
+                                               MarkerTruth* truth) const {
+  const double exposure = scenario.webcam.exposure_s, readout = scenario.webcam.readout_s;
+  const double row_s = readout / h;
+  // Bound the disc over the frame's whole window (row 0's exposure start to
+  // the last row's read) by its rim at both ends and in the middle.
+  double u_min = 1e300, u_max = -1e300, v_min = 1e300, v_max = -1e300;
+  bool inside = true;
+  for (const double tau : {-exposure, 0.5 * (readout - exposure), readout}) {
+    const Eigen::Vector3d c = CentreAt(disc, t_s, tau);
+    for (int k = 0; k < kRimPoints; ++k) {
+      const double phi = 2 * kPi * k / kRimPoints;
+      double u, v;
+      if (!model.ProjectToPixel(Eigen::Vector3d(c.x() + disc.r * std::cos(phi),
+                                                c.y() + disc.r * std::sin(phi), c.z()),
+                                &u, &v)) {
+        if (truth) truth->visible = false;
+        return cv::Rect();
+      }
+      u_min = std::min(u_min, u), u_max = std::max(u_max, u);
+      v_min = std::min(v_min, v), v_max = std::max(v_max, v);
+      if (u < -0.5 || u > w - 0.5 || v < -0.5 || v > h - 0.5) inside = false;
+    }
+  }
+  const int i0 = std::max(0, static_cast<int>(std::floor(u_min)) - 2);
+  const int i1 = std::min(w - 1, static_cast<int>(std::ceil(u_max)) + 2);
+  const int j0 = std::max(0, static_cast<int>(std::floor(v_min)) - 2);
+  const int j1 = std::min(h - 1, static_cast<int>(std::ceil(v_max)) + 2);
+  if (i0 > i1 || j0 > j1) {
+    if (truth) truth->visible = false;
+    return cv::Rect();
+  }
+  // Time samples: enough that the disc moves at most kTimeSampleSpacingPx
+  // between two; fewer subsamples per pixel side when there are more.
+  int samples = 1;
+  if (exposure > 0) {
+    double u0, v0, u1, v1;
+    if (model.ProjectToPixel(CentreAt(disc, t_s, -exposure), &u0, &v0) &&
+        model.ProjectToPixel(CentreAt(disc, t_s, 0.0), &u1, &v1)) {
+      const double streak = std::hypot(u1 - u0, v1 - v0);
+      samples = std::clamp(static_cast<int>(std::ceil(streak / kTimeSampleSpacingPx)), 1,
+                           kMaxTimeSamples);
+    }
+  }
+  const int s = std::max(
+      3, static_cast<int>(std::lround(disc.supersample / std::sqrt(static_cast<double>(samples)))));
+  const double r2 = disc.r * disc.r;
+  std::vector<Eigen::Vector3d> centres(static_cast<size_t>(samples));
+  double sum = 0, sum_u = 0, sum_v = 0;
+  for (int j = j0; j <= j1; ++j) {
+    const double t_read = j * row_s;
+    for (int k = 0; k < samples; ++k) {
+      const double tau = exposure > 0 ? t_read - exposure + (k + 0.5) * exposure / samples : t_read;
+      centres[static_cast<size_t>(k)] = CentreAt(disc, t_s, tau);
+    }
+    cv::Vec3b* row = image->ptr<cv::Vec3b>(j);
+    for (int i = i0; i <= i1; ++i) {
+      const float* p = &ab[Index(i, j)];
+      if (!std::isfinite(p[0])) continue;
+      const double foot = FootprintAb(i, j);
+      int full = 0;
+      int hits = 0;
+      for (const Eigen::Vector3d& c : centres) {
+        const double depth = c.z() - pz;
+        const double dist = std::hypot(px + depth * p[0] - c.x(), py + depth * p[1] - c.y());
+        const double rho = std::abs(depth) * foot;
+        if (std::isfinite(rho) && dist + rho <= disc.r) {
+          ++full;
+        } else if (std::isfinite(rho) && dist - rho >= disc.r) {
+          continue;
+        } else {
+          for (int sj = 0; sj < s; ++sj) {
+            for (int si = 0; si < s; ++si) {
+              double a, b;
+              if (!Sample(i - 0.5 + (si + 0.5) / s, j - 0.5 + (sj + 0.5) / s, &a, &b)) continue;
+              const double ex = px + depth * a - c.x(), ey = py + depth * b - c.y();
+              if (ex * ex + ey * ey <= r2) ++hits;
+            }
+          }
+        }
+      }
+      if (full == 0 && hits == 0) continue;
+      const double coverage = (full + static_cast<double>(hits) / (s * s)) / samples;
+      sum += coverage;
+      sum_u += coverage * i;
+      sum_v += coverage * j;
+      cv::Vec3b& out = row[i];
+      for (int c = 0; c < 3; ++c) {
+        out[c] = cv::saturate_cast<uchar>(coverage * disc.bgr[c] + (1.0 - coverage) * out[c]);
+      }
+    }
+  }
+  if (truth) {
+    truth->area_px = sum;
+    if (sum > 0) {
+      truth->centroid_u_px = sum_u / sum;
+      truth->centroid_v_px = sum_v / sum;
+    }
+    truth->visible = inside && sum > 0;
+    const double row = std::isfinite(truth->centroid_v_px) ? truth->centroid_v_px : truth->v_px;
+    const double tau = (std::isfinite(row) ? row * row_s : 0.0) - 0.5 * exposure;
+    truth->exposure_mid_t_s = t_s + tau;
+    const Eigen::Vector3d c = CentreAt(disc, t_s, tau);
+    truth->exposure_mid_x_m = c.x();
+    truth->exposure_mid_y_m = c.y();
+    truth->exposure_mid_z_m = c.z();
+    if (disc.on_robot) {
+      const RobotState& r = disc.robot;
+      truth->robot_x_m = r.x_m + r.vx_mps * tau + 0.5 * r.ax_mps2 * tau * tau;
+      truth->robot_y_m = r.y_m + r.vy_mps * tau + 0.5 * r.ay_mps2 * tau * tau;
+      truth->robot_heading_rad = r.heading_rad + r.yaw_rate_radps * tau;
+      Tilt(r, t_s, tau, &truth->robot_tilt_forward_rad, &truth->robot_tilt_left_rad);
+    }
+  }
+  return cv::Rect(i0, j0, i1 - i0 + 1, j1 - j0 + 1);
+}
+
+void SyntheticCamera::Impl::Sensor(const cv::Mat& scene, double t_s, int64_t frame_seq,
+                                   cv::Mat* bgr) const {
+  const WebcamSimulation& wc = scenario.webcam;
+  // Slow drifts, at the middle of the frame's readout.
+  const double t = t_s + 0.5 * wc.readout_s;
+  const uint64_t seed = scenario.seed;
+  const double ae =
+      1.0 + wc.auto_exposure_drift *
+                std::sin(2 * kPi * (t / wc.auto_exposure_period_s + Uniform(seed, 0xAE, 0)));
+  const double wb_r =
+      1.0 + wc.white_balance_drift *
+                std::sin(2 * kPi * (t / wc.white_balance_period_s + Uniform(seed, 0xBA, 1)));
+  const double wb_b =
+      1.0 + wc.white_balance_drift *
+                std::sin(2 * kPi * (t / wc.white_balance_period_s + Uniform(seed, 0xBA, 2)));
+  const double global = GainAt(t_s) * ae;
+  const float full_well = static_cast<float>(wc.full_well_e);
+  // BGR gains, times the full well: linear light to electrons.
+  const float gain[3] = {static_cast<float>(global * wb_b) * full_well,
+                         static_cast<float>(global) * full_well,
+                         static_cast<float>(global * wb_r) * full_well};
+  const float to_index = static_cast<float>(kEncodeSteps) / full_well;
+  const float read_var = static_cast<float>(wc.read_noise_e * wc.read_noise_e);
+  const float shot = wc.shot_noise ? 1.0f : 0.0f;
+  const int8_t* nz = nullptr;
+  if (!sensor_noise.empty()) {
+    const uint64_t key = SplitMix64(seed ^ SplitMix64(static_cast<uint64_t>(frame_seq) + 77));
+    nz = sensor_noise.data() + key % (sensor_noise.size() - sensor_values + 1);
+  }
+  const float noise_scale = 1.0f / static_cast<float>(kNoiseUnits);
+  const float* vig = vignetting.empty() ? nullptr : vignetting.data();
+  // One value: 8-bit scene value -> electrons -> noise -> 8-bit output.
+  auto expose = [&](uint8_t value, int c, size_t pixel, size_t noise_index) -> uint8_t {
+    float e = decode[value] * gain[c];
+    if (vig != nullptr) e *= vig[pixel];
+    if (nz != nullptr) {
+      e += std::sqrt(shot * std::max(e, 0.0f) + read_var) * (nz[noise_index] * noise_scale);
+    }
+    const float index =
+        std::min(std::max(e * to_index + 0.5f, 0.0f), static_cast<float>(kEncodeSteps));
+    return encode[static_cast<size_t>(index)];
+  };
+  if (wc.bayer) {
+    // RGGB: R at even rows and columns, B at odd rows and columns.
+    cv::Mat mosaic(h, w, CV_8UC1);
+    for (int j = 0; j < h; ++j) {
+      const uchar* in = scene.ptr<uchar>(j);
+      uchar* out = mosaic.ptr<uchar>(j);
+      const size_t row = static_cast<size_t>(j) * w;
+      const int even = (j & 1) == 0 ? 2 : 1;  // channel at even columns
+      const int odd = (j & 1) == 0 ? 1 : 0;   // at odd columns
+      for (int i = 0; i < w; ++i) {
+        const int c = (i & 1) == 0 ? even : odd;
+        out[i] = expose(in[3 * i + c], c, row + i, row + i);
+      }
+    }
+    cv::cvtColor(mosaic, *bgr, cv::COLOR_BayerBG2BGR);
+  } else {
+    bgr->create(h, w, CV_8UC3);
+    for (int j = 0; j < h; ++j) {
+      const uchar* in = scene.ptr<uchar>(j);
+      uchar* out = bgr->ptr<uchar>(j);
+      const size_t row = static_cast<size_t>(j) * w;
+      for (int i = 0; i < w; ++i) {
+        for (int c = 0; c < 3; ++c) {
+          out[3 * i + c] = expose(in[3 * i + c], c, row + i, 3 * (row + i) + c);
+        }
+      }
+    }
+  }
+}
+
+void SyntheticCamera::Impl::RenderWebcam(double t_s, int64_t frame_seq,
+                                         const std::vector<RobotState>& robots, cv::Mat* bgr,
+                                         std::vector<MarkerTruth>* marks) const {
+  const WebcamSimulation& wc = scenario.webcam;
+  std::vector<MovingDisc> discs;
+  // Paint: worn towards grey by a fraction fixed per marker, whitened by a
+  // sheen growing with the viewing angle (full at 60 degrees off vertical).
+  auto paint = [&](cv::Vec3f colour, uint64_t key, const Eigen::Vector3d& at) {
+    const float wear = static_cast<float>(wc.marker_wear * Uniform(scenario.seed, key, 3));
+    colour = (1.0f - wear) * colour + wear * cv::Vec3f(kWearGrey, kWearGrey, kWearGrey);
+    const Eigen::Vector3d to_camera = Eigen::Vector3d(px, py, pz) - at;
+    const double cos_view = to_camera.z() / to_camera.norm();
+    const float sheen = static_cast<float>(wc.marker_sheen * std::min(1.0, (1.0 - cos_view) / 0.5));
+    return (1.0f - sheen) * colour + sheen * cv::Vec3f(255, 255, 255);
+  };
+  auto add_truth = [&](const std::string& cls, int robot_id, bool heading,
+                       const Eigen::Vector3d& at) {
+    MarkerTruth t;
+    t.robot_id = robot_id;
+    t.colour_class = cls;
+    t.is_heading_marker = heading;
+    t.x_m = at.x();
+    t.y_m = at.y();
+    t.z_m = at.z();
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    t.u_px = t.v_px = t.centroid_u_px = t.centroid_v_px = nan;
+    t.robot_x_m = t.robot_y_m = t.robot_heading_rad = nan;
+    t.robot_tilt_forward_rad = t.robot_tilt_left_rad = nan;
+    model.ProjectToPixel(at, &t.u_px, &t.v_px);
+    marks->push_back(t);
+    return static_cast<int>(marks->size()) - 1;
+  };
+  uint64_t key = 0;
+  for (const auto& d : scenario.distractors) {
+    const auto it = classes.find(d.colour_class);
+    ++key;
+    if (it == classes.end()) continue;
+    MovingDisc m;
+    m.x = d.x_m;
+    m.y = d.y_m;
+    m.r = 0.5 * d.diameter_m;
+    const Eigen::Vector3d at(m.x, m.y, 0.0);
+    m.bgr = paint(it->second.second, 1000 + key, at);
+    m.truth_index = add_truth(d.colour_class, -1, false, at);
+    discs.push_back(m);
+  }
+  for (const auto& r : robots) {
+    const auto cam = std::find_if(camera_robots.begin(), camera_robots.end(),
+                                  [&](const CameraRobot& c) { return c.robot_id == r.robot_id; });
+    if (cam == camera_robots.end()) continue;
+    MovingDisc base_disc;
+    base_disc.on_robot = true;
+    base_disc.robot = r;
+    if (options.body_diameter_m > 0) {
+      MovingDisc body = base_disc;
+      body.height_m = cam->marker_height_m - options.body_height_m;
+      body.r = 0.5 * options.body_diameter_m;
+      body.bgr = ToVec(options.body_bgr);
+      discs.push_back(body);
+    }
+    for (const bool heading : {false, true}) {
+      const std::string& cls = heading ? cam->heading_marker : cam->position_marker;
+      const auto it = classes.find(cls);
+      if (it == classes.end()) continue;
+      MovingDisc m = base_disc;
+      m.height_m = cam->marker_height_m;
+      m.forward_m = heading ? options.heading_marker_offset_m : 0.0;
+      m.r = 0.5 * it->second.first;
+      const Eigen::Vector3d at = CentreAt(m, t_s, 0.0);
+      m.bgr =
+          paint(it->second.second, 2 * static_cast<uint64_t>(r.robot_id) + (heading ? 1 : 0), at);
+      m.truth_index = add_truth(cls, r.robot_id, heading, at);
+      discs.push_back(m);
+    }
+  }
+  cv::Mat work = base.clone();
+  std::vector<cv::Rect> touched;
+  for (const auto& d : discs) {
+    const cv::Rect rect = DrawMovingDisc(
+        d, t_s, &work,
+        d.truth_index >= 0 ? &(*marks)[static_cast<size_t>(d.truth_index)] : nullptr);
+    if (!rect.empty()) touched.push_back(rect);
+  }
+  cv::Mat scene;
+  if (base_blurred.empty()) {
+    scene = work;
+  } else {
+    // Blurring is linear and local: the static floor was blurred once; only
+    // the discs' surroundings (plus the kernel's reach) are blurred again,
+    // reading the sharp frame around them (OpenCV's filters read outside an
+    // ROI from its parent, so the seams match the pre-blurred floor).
+    scene = base_blurred.clone();
+    const int reach = static_cast<int>(std::ceil(4 * wc.psf_sigma_px)) + 1;
+    const cv::Rect all(0, 0, w, h);
+    for (const cv::Rect& r : touched) {
+      const cv::Rect roi =
+          cv::Rect(r.x - reach, r.y - reach, r.width + 2 * reach, r.height + 2 * reach) & all;
+      cv::Mat blurred;
+      cv::GaussianBlur(work(roi), blurred, cv::Size(0, 0), wc.psf_sigma_px, wc.psf_sigma_px,
+                       cv::BORDER_REFLECT_101);
+      blurred.copyTo(scene(roi));
+    }
+  }
+  Sensor(scene, t_s, frame_seq, bgr);
+}
+
 void SyntheticCamera::Impl::DrawDisc(const Disc& disc, cv::Mat* image, MarkerTruth* truth) const {
   // Bound the disc's pixels by projecting its rim.
   double u_min = 1e300, u_max = -1e300, v_min = 1e300, v_max = -1e300;
@@ -357,14 +818,16 @@ bool ParseSimScenario(const std::string& text, SimScenario* scenario, std::strin
   s.name = name;
   const bool lighting = name == "lighting" || name == "harsh";
   const bool distractors = name == "distractors" || name == "harsh";
-  if (!(name == "clean" || name == "reference_circle" || lighting || distractors)) {
+  const bool webcam = name == "webcam";
+  if (!(name == "clean" || name == "reference_circle" || lighting || distractors || webcam)) {
     if (error) {
       *error = "unknown simulation scenario '" + text +
-               "': known scenarios are clean, reference_circle, lighting, distractors, harsh "
-               "(optionally prefixed sim:)";
+               "': known scenarios are clean, reference_circle, lighting, distractors, harsh, "
+               "webcam (optionally prefixed sim:)";
     }
     return false;
   }
+  s.webcam_effects = webcam;
   if (lighting) {
     s.gain_steps = {1.0, 1.4, 0.6};
     s.gradient = 0.3;
@@ -384,6 +847,13 @@ bool ParseSimScenario(const std::string& text, SimScenario* scenario, std::strin
   return true;
 }
 
+bool ParseSimScenario(const std::string& text, const Site& site, SimScenario* scenario,
+                      std::string* error) {
+  if (!ParseSimScenario(text, scenario, error)) return false;
+  if (scenario->webcam_effects) scenario->webcam = site.simulation.webcam;
+  return true;
+}
+
 SyntheticCamera::SyntheticCamera(const Site& site, const Camera& camera,
                                  const calib::CameraModel& model, SimScenario scenario,
                                  SyntheticCameraOptions options)
@@ -399,6 +869,13 @@ SyntheticCamera::SyntheticCamera(const Site& site, const Camera& camera,
   impl->scenario = std::move(scenario);
   impl->options = options;
   impl->model = model;
+  if (impl->scenario.webcam_effects) {
+    // The truth lens: the real lens is not the nominal one.
+    for (size_t k = 0; k < 4; ++k) impl->model.intrinsics.k[k] += impl->scenario.webcam.lens_k[k];
+    impl->model.intrinsics.cx_px += impl->scenario.webcam.lens_principal_offset_px[0];
+    impl->model.intrinsics.cy_px += impl->scenario.webcam.lens_principal_offset_px[1];
+    model_ = impl->model;
+  }
   impl->w = camera.width_px > 0 ? camera.width_px : model.intrinsics.width_px;
   impl->h = camera.height_px > 0 ? camera.height_px : model.intrinsics.height_px;
   impl->px = model.pose.position_m.x();
@@ -407,11 +884,37 @@ SyntheticCamera::SyntheticCamera(const Site& site, const Camera& camera,
   impl->BuildRayMap();
   impl->RenderFloor();
   impl->BuildLighting();
+  if (impl->scenario.webcam_effects) impl->BuildWebcam();
   impl_ = std::move(impl);
 }
 
 int SyntheticCamera::width_px() const { return impl_->w; }
 int SyntheticCamera::height_px() const { return impl_->h; }
+const SimScenario& SyntheticCamera::scenario() const { return impl_->scenario; }
+
+double SyntheticCamera::TimestampDelayS(int64_t frame_seq) const {
+  const SimScenario& s = impl_->scenario;
+  if (!s.webcam_effects) return 0.0;
+  const WebcamSimulation& wc = s.webcam;
+  const double u = Uniform(s.seed, static_cast<uint64_t>(frame_seq), 0x7135);
+  return wc.readout_s * (impl_->h - 1) / impl_->h + wc.timestamp_latency_s +
+         wc.timestamp_jitter_s * (2.0 * u - 1.0);
+}
+
+int SyntheticCamera::JpegQuality(int quality) const {
+  return impl_->scenario.webcam_effects ? impl_->scenario.webcam.jpeg_quality : quality;
+}
+
+bool SyntheticCamera::Encode(const cv::Mat& bgr, int quality, std::vector<uint8_t>* bytes) const {
+  bytes->clear();
+  const int q = JpegQuality(quality);
+  if (q <= 0) return true;
+  try {
+    return cv::imencode(".jpg", bgr, *bytes, {cv::IMWRITE_JPEG_QUALITY, q});
+  } catch (const cv::Exception&) {
+    return false;
+  }
+}
 
 std::vector<RobotState> SyntheticCamera::SimulatedRobots(double t_s) const {
   std::vector<RobotState> out;
@@ -421,7 +924,22 @@ std::vector<RobotState> SyntheticCamera::SimulatedRobots(double t_s) const {
                                    [&](const CameraRobot& c) { return c.robot_id == r.robot_id; });
     if (!known) continue;
     const GroundTruthPose pose = r.trajectory->PoseAt(t_s);
-    out.push_back({r.robot_id, pose.x_m, pose.y_m, pose.heading_rad});
+    const GroundTruthPose before = r.trajectory->PoseAt(t_s - kDifferenceStep_s);
+    const GroundTruthPose after = r.trajectory->PoseAt(t_s + kDifferenceStep_s);
+    RobotState state{r.robot_id, pose.x_m, pose.y_m, pose.heading_rad};
+    const double h = kDifferenceStep_s;
+    state.vx_mps = (after.x_m - before.x_m) / (2 * h);
+    state.vy_mps = (after.y_m - before.y_m) / (2 * h);
+    state.ax_mps2 = (after.x_m - 2 * pose.x_m + before.x_m) / (h * h);
+    state.ay_mps2 = (after.y_m - 2 * pose.y_m + before.y_m) / (h * h);
+    const double a = std::hypot(state.ax_mps2, state.ay_mps2);
+    if (a > kMaxAcceleration_mps2) {
+      state.ax_mps2 *= kMaxAcceleration_mps2 / a;
+      state.ay_mps2 *= kMaxAcceleration_mps2 / a;
+    }
+    state.yaw_rate_radps =
+        std::remainder(after.heading_rad - before.heading_rad, 2 * kPi) / (2 * h);
+    out.push_back(state);
   }
   return out;
 }
@@ -429,10 +947,14 @@ std::vector<RobotState> SyntheticCamera::SimulatedRobots(double t_s) const {
 void SyntheticCamera::Render(double t_s, int64_t frame_seq, const std::vector<RobotState>& robots,
                              cv::Mat* bgr, std::vector<MarkerTruth>* truth) const {
   const Impl& m = *impl_;
-  impl_->base.copyTo(*bgr);
   std::vector<MarkerTruth> local_truth;
   std::vector<MarkerTruth>& marks = truth ? *truth : local_truth;
   marks.clear();
+  if (m.scenario.webcam_effects) {
+    m.RenderWebcam(t_s, frame_seq, robots, bgr, &marks);
+    return;
+  }
+  impl_->base.copyTo(*bgr);
   std::vector<Disc> discs;
   // diameter_m <= 0: the class's diameter.
   auto add_marker = [&](const std::string& cls, int robot_id, bool heading, double x, double y,
@@ -448,6 +970,20 @@ void SyntheticCamera::Render(double t_s, int64_t frame_seq, const std::vector<Ro
     t.z_m = z;
     t.u_px = t.v_px = t.centroid_u_px = t.centroid_v_px = std::numeric_limits<double>::quiet_NaN();
     m.model.ProjectToPixel(Eigen::Vector3d(x, y, z), &t.u_px, &t.v_px);
+    // Every row at once, no exposure: the instant rendered.
+    t.exposure_mid_t_s = t_s;
+    t.exposure_mid_x_m = x;
+    t.exposure_mid_y_m = y;
+    t.exposure_mid_z_m = z;
+    t.robot_x_m = t.robot_y_m = t.robot_heading_rad = std::numeric_limits<double>::quiet_NaN();
+    t.robot_tilt_forward_rad = t.robot_tilt_left_rad = std::numeric_limits<double>::quiet_NaN();
+    for (const auto& r : robots) {
+      if (r.robot_id != robot_id) continue;
+      t.robot_x_m = r.x_m;
+      t.robot_y_m = r.y_m;
+      t.robot_heading_rad = r.heading_rad;
+      t.robot_tilt_forward_rad = t.robot_tilt_left_rad = 0.0;
+    }
     marks.push_back(t);
     discs.push_back({x, y, z, 0.5 * (diameter_m > 0 ? diameter_m : it->second.first),
                      it->second.second, static_cast<int>(marks.size()) - 1});
@@ -562,10 +1098,11 @@ bool WriteSequence(const SyntheticCamera& camera, const SequenceOptions& options
   std::ofstream csv(truth_path);
   if (!csv) return fail("cannot write " + truth_path);
   csv << "frame,t_s,utime,robot_id,colour_class,role,x_m,y_m,z_m,u_px,v_px,centroid_u_px,"
-         "centroid_v_px,visible,heading_rad\n";
+         "centroid_v_px,visible,heading_rad,capture_utime,exposure_mid_t_s,exposure_mid_x_m,"
+         "exposure_mid_y_m,exposure_mid_z_m,robot_x_m,robot_y_m,robot_heading_rad,"
+         "robot_tilt_forward_rad,robot_tilt_left_rad\n";
   csv << std::setprecision(10);
   const int64_t frames = static_cast<int64_t>(std::llround(options.duration_s * options.fps));
-  const std::vector<int> jpeg = {cv::IMWRITE_JPEG_QUALITY, options.jpeg_quality};
   cv::Mat image;
   std::vector<MarkerTruth> truth;
   for (int64_t f = 0; f < frames; ++f) {
@@ -580,13 +1117,12 @@ bool WriteSequence(const SyntheticCamera& camera, const SequenceOptions& options
       // Encoded here, written with every step checked: imwrite does not
       // report every failed write (a full disk).
       std::vector<uint8_t> bytes;
-      bool encoded = false;
-      try {
-        encoded = cv::imencode(".jpg", image, bytes, jpeg);
-      } catch (const cv::Exception&) {
-        encoded = false;
+      // A webcam scenario handing raw frames over (quality 0) still gets
+      // JPEG files, at the best quality.
+      if (!camera.Encode(image, options.jpeg_quality, &bytes) ||
+          (bytes.empty() && !cv::imencode(".jpg", image, bytes, {cv::IMWRITE_JPEG_QUALITY, 100}))) {
+        return fail("cannot encode frame " + std::to_string(f));
       }
-      if (!encoded) return fail("cannot encode frame " + std::to_string(f));
       std::string write_error;
       if (!WriteOutputFile(file, std::string(bytes.begin(), bytes.end()), &write_error)) {
         return fail(write_error);
@@ -605,7 +1141,11 @@ bool WriteSequence(const SyntheticCamera& camera, const SequenceOptions& options
       csv << f << ',' << t << ',' << utime << ',' << m.robot_id << ',' << m.colour_class << ','
           << role << ',' << m.x_m << ',' << m.y_m << ',' << m.z_m << ',' << m.u_px << ',' << m.v_px
           << ',' << m.centroid_u_px << ',' << m.centroid_v_px << ',' << (m.visible ? 1 : 0) << ','
-          << heading << '\n';
+          << heading << ',' << utime + std::llround(camera.TimestampDelayS(f) * 1e6) << ','
+          << m.exposure_mid_t_s << ',' << m.exposure_mid_x_m << ',' << m.exposure_mid_y_m << ','
+          << m.exposure_mid_z_m << ',' << m.robot_x_m << ',' << m.robot_y_m << ','
+          << m.robot_heading_rad << ',' << m.robot_tilt_forward_rad << ',' << m.robot_tilt_left_rad
+          << '\n';
     }
   }
   // close() flushes: a full disk shows here if not before.

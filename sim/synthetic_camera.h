@@ -46,14 +46,28 @@ struct SimScenario {
   std::vector<Distractor> distractors;
   // Seeds the sensor noise (with the frame sequence number).
   uint32_t seed = 1;
+  // The `webcam` scenario: a 1080p USB webcam's optics, exposure, sensor,
+  // world and timing (core/world/site.h, WebcamSimulation; each effect
+  // switched off by its own member). Off in every other scenario, whose
+  // frames stay as they were. With it on, Render's t_s is the instant row 0
+  // is read (the frame's start in the camera-timing contract) and the
+  // robots' motion over each row's exposure comes from RobotState's
+  // velocity and acceleration.
+  bool webcam_effects = false;
+  WebcamSimulation webcam;
 };
 
 // "clean" (alias "reference_circle"), "lighting" (gain steps 1, 1.4, 0.6,
 // gradient 0.3, flicker 0.1 at 100 Hz, noise 2 DN), "distractors" (an orange
 // and a green disc on the floor away from the robots' paths, plus noise 2 DN),
-// "harsh" (both). Accepts the "sim:" prefix. False with a message naming the
+// "harsh" (both), "webcam" (webcam_effects with WebcamSimulation's
+// defaults). Accepts the "sim:" prefix. False with a message naming the
 // known scenarios otherwise.
 bool ParseSimScenario(const std::string& text, SimScenario* scenario, std::string* error);
+
+// As above; "webcam" takes the site's `simulation.webcam` parameters.
+bool ParseSimScenario(const std::string& text, const Site& site, SimScenario* scenario,
+                      std::string* error);
 
 // Where a robot is at the instant rendered.
 struct RobotState {
@@ -61,6 +75,14 @@ struct RobotState {
   double x_m = 0.0;
   double y_m = 0.0;
   double heading_rad = 0.0;
+  // Motion at that instant (room frame), for the webcam scenario's motion
+  // blur, rolling shutter and tilt: over a frame the pose is extrapolated as
+  // p + v tau + a tau^2 / 2 and heading + yaw_rate tau. Zero: still.
+  double vx_mps = 0.0;
+  double vy_mps = 0.0;
+  double ax_mps2 = 0.0;
+  double ay_mps2 = 0.0;
+  double yaw_rate_radps = 0.0;
 };
 
 // What the image shows of one marker, for ground truth.
@@ -83,6 +105,25 @@ struct MarkerTruth {
   double area_px = 0.0;
   // Whole disc inside the image.
   bool visible = false;
+  // The instant (Render's clock, seconds) at which the centroid's row was
+  // mid-exposure: t_s + centroid_v_px readout_s / H - exposure_s / 2 (the
+  // camera-timing contract, with the row continuous); t_s when the scenario
+  // has no rolling shutter or exposure. Under motion blur and the rolling
+  // shutter the centroid above is that of the time-averaged image, which
+  // for motion linear over the exposure is where the marker was then.
+  double exposure_mid_t_s = 0.0;
+  // The disc centre (room frame) at exposure_mid_t_s, tilt included.
+  double exposure_mid_x_m = 0.0;
+  double exposure_mid_y_m = 0.0;
+  double exposure_mid_z_m = 0.0;
+  // The robot at exposure_mid_t_s: floor position, heading and tilt (the
+  // marker mast's lean forward and to the left, radians; NaN for a
+  // distractor).
+  double robot_x_m = 0.0;
+  double robot_y_m = 0.0;
+  double robot_heading_rad = 0.0;
+  double robot_tilt_forward_rad = 0.0;
+  double robot_tilt_left_rad = 0.0;
 };
 
 struct SyntheticCameraOptions {
@@ -122,10 +163,29 @@ class SyntheticCamera {
   void Render(double t_s, int64_t frame_seq, const std::vector<RobotState>& robots, cv::Mat* bgr,
               std::vector<MarkerTruth>* truth = nullptr) const;
 
-  // The robots at t_s from the site's simulation section.
+  // The robots at t_s from the site's simulation section, with their
+  // velocity and acceleration (central differences over 5 ms; the
+  // acceleration's magnitude capped at 3 m/s^2, so a waypoint corner does
+  // not throw the tilt model).
   std::vector<RobotState> SimulatedRobots(double t_s) const;
 
+  // Seconds from Render's t_s to the frame's timestamp: t_read(H - 1) -
+  // t_read(0) + latency + jitter = (H - 1) readout_s / H +
+  // timestamp_latency_s + a uniform draw in +-timestamp_jitter_s seeded by
+  // (seed, frame_seq). 0 without the webcam scenario.
+  double TimestampDelayS(int64_t frame_seq) const;
+
+  // The frame as the camera hands it over: JPEG at the webcam scenario's
+  // jpeg_quality (4:2:0, libjpeg's default), else at `quality`; quality 0
+  // leaves `bytes` empty (raw). False when the encoder fails.
+  bool Encode(const cv::Mat& bgr, int quality, std::vector<uint8_t>* bytes) const;
+  // The JPEG quality Encode uses given the caller's.
+  int JpegQuality(int quality) const;
+
+  // The truth lens the image is rendered through: the model given, with the
+  // webcam scenario's lens_k and lens_principal_offset_px added.
   const calib::CameraModel& model() const { return model_; }
+  const SimScenario& scenario() const;
   int width_px() const;
   int height_px() const;
 
@@ -142,9 +202,14 @@ class SyntheticCamera {
 // frame,t_s,utime,robot_id,colour_class,role,x_m,y_m,z_m,u_px,v_px,
 // centroid_u_px,centroid_v_px,visible and the robot's heading_rad (role is
 // position, heading or distractor; a distractor has robot_id -1 and heading
-// nan). Frame f is t_s = f / fps, utime = start_utime + t_s 1e6, robots from
-// SimulatedRobots(t_s), noise seeded by f. False with a message when the
-// output cannot be written or the extension is not .avi or .mp4.
+// nan), then capture_utime (the frame's timestamp, utime +
+// TimestampDelayS), exposure_mid_t_s, exposure_mid_x_m, exposure_mid_y_m,
+// exposure_mid_z_m, robot_x_m, robot_y_m, robot_heading_rad,
+// robot_tilt_forward_rad, robot_tilt_left_rad (MarkerTruth). Frame f is
+// t_s = f / fps, utime = start_utime + t_s 1e6, robots from
+// SimulatedRobots(t_s), noise seeded by f; JPEG frames through Encode. False
+// with a message when the output cannot be written or the extension is not
+// .avi or .mp4.
 struct SequenceOptions {
   double duration_s = 10.0;
   double fps = 30.0;

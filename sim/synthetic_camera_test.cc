@@ -385,7 +385,7 @@ TEST(SyntheticCamera, SimulatedRobotsFollowTheSiteTrajectories) {
 
 TEST(SyntheticCamera, PrintsTheFrameCost) {
   const Demo& d = DemoRoom();
-  for (const char* name : {"clean", "harsh"}) {
+  for (const char* name : {"clean", "harsh", "webcam"}) {
     SimScenario s;
     ASSERT_TRUE(ParseSimScenario(name, &s, nullptr));
     const auto t0 = std::chrono::steady_clock::now();
@@ -481,7 +481,10 @@ TEST(WriteSequence, WritesFramesAndTruthIntoAFolder) {
   EXPECT_EQ(CountLines(out + "/truth.csv"), 1 + 5 * 2);
   const std::string csv = testing::ReadFile(out + "/truth.csv");
   EXPECT_EQ(csv.rfind("frame,t_s,utime,robot_id,colour_class,role,x_m,y_m,z_m,u_px,v_px,"
-                      "centroid_u_px,centroid_v_px,visible,heading_rad\n",
+                      "centroid_u_px,centroid_v_px,visible,heading_rad,capture_utime,"
+                      "exposure_mid_t_s,exposure_mid_x_m,exposure_mid_y_m,exposure_mid_z_m,"
+                      "robot_x_m,robot_y_m,robot_heading_rad,robot_tilt_forward_rad,"
+                      "robot_tilt_left_rad\n",
                       0),
             0u);
   EXPECT_NE(csv.find(",position,"), std::string::npos);
@@ -524,6 +527,452 @@ TEST(WriteSequence, RefusesAnUnwritablePathOrUnknownExtension) {
   error.clear();
   EXPECT_FALSE(WriteSequence(camera, o, dir.File("seq.mkv"), &error));
   EXPECT_NE(error.find(".mkv"), std::string::npos) << error;
+}
+
+// ---------------------------------------------------------------------------
+// The webcam scenario.
+
+// The lean is two rotations (forward, then left) whose horizontal offset is
+// h sqrt(sin^2 l + cos^2 l sin^2 f), not h sin(hypot(f, l)): they differ by
+// ~h f^2 l^2, under a micrometre at 2 degrees.
+constexpr double kLeanCompositionM = 1e-6;
+
+// The webcam scenario with every effect switched off: must render the clean
+// image.
+SimScenario WebcamAllOff() {
+  SimScenario s;
+  EXPECT_TRUE(ParseSimScenario("webcam", &s, nullptr));
+  WebcamSimulation& w = s.webcam;
+  w.psf_sigma_px = 0.0;
+  w.vignetting_corner_gain = 1.0;
+  w.lens_k = {0, 0, 0, 0};
+  w.lens_principal_offset_px = {0, 0};
+  w.exposure_s = 0.0;
+  w.readout_s = 0.0;
+  w.auto_exposure_drift = 0.0;
+  w.white_balance_drift = 0.0;
+  w.shot_noise = false;
+  w.read_noise_e = 0.0;
+  w.bayer = false;
+  w.tilt_static_deg = 0.0;
+  w.tilt_per_acceleration_deg_per_mps2 = 0.0;
+  w.tilt_rocking_deg = 0.0;
+  w.marker_wear = 0.0;
+  w.marker_sheen = 0.0;
+  w.timestamp_latency_s = 0.0;
+  w.timestamp_jitter_s = 0.0;
+  return s;
+}
+
+// A robot still at (x, y) facing +x, or moving at (vx, vy).
+RobotState Robot(double x, double y, double vx = 0.0, double vy = 0.0) {
+  RobotState r;
+  r.robot_id = 1;
+  r.x_m = x;
+  r.y_m = y;
+  r.vx_mps = vx;
+  r.vy_mps = vy;
+  return r;
+}
+
+const MarkerTruth& Position(const std::vector<MarkerTruth>& truth) {
+  for (const auto& m : truth) {
+    if (m.robot_id >= 0 && !m.is_heading_marker) return m;
+  }
+  ADD_FAILURE() << "no position marker";
+  return truth.at(0);
+}
+
+// Per-pixel coverage of the position marker estimated from the image: the
+// pixel's colour between the floor's (`floor`, the same frame without the
+// robot) and the marker's (its centre pixel), projected on that difference.
+// Returns the coverage's centroid and its variance (sum over u and v),
+// within `half` pixels of `centre`.
+void CoverageMoments(const cv::Mat& image, const cv::Mat& floor, cv::Point centre, int half,
+                     double* cu, double* cv_px, double* variance) {
+  const cv::Vec3b m = image.at<cv::Vec3b>(centre);
+  double s = 0, su = 0, sv = 0, suu = 0, svv = 0;
+  for (int j = centre.y - half; j <= centre.y + half; ++j) {
+    for (int i = centre.x - half; i <= centre.x + half; ++i) {
+      const cv::Vec3b p = image.at<cv::Vec3b>(j, i), f = floor.at<cv::Vec3b>(j, i);
+      double num = 0, den = 0;
+      for (int c = 0; c < 3; ++c) {
+        num += (p[c] - f[c]) * static_cast<double>(m[c] - f[c]);
+        den += static_cast<double>(m[c] - f[c]) * (m[c] - f[c]);
+      }
+      const double w = std::clamp(num / den, 0.0, 1.0);
+      s += w;
+      su += w * i;
+      sv += w * j;
+      suu += w * i * i;
+      svv += w * j * j;
+    }
+  }
+  *cu = su / s;
+  *cv_px = sv / s;
+  *variance = suu / s - (su / s) * (su / s) + svv / s - (sv / s) * (sv / s);
+}
+
+TEST(Webcam, EveryEffectOffRendersTheCleanImage) {
+  const Demo& d = DemoRoom();
+  const SyntheticCamera webcam(d.site, d.camera, d.model, WebcamAllOff());
+  const std::vector<RobotState> robots = {Robot(1.9, 1.3, 0.2, 0.1)};
+  cv::Mat a, b;
+  std::vector<MarkerTruth> ta, tb;
+  webcam.Render(1.0, 3, robots, &a, &ta);
+  CleanCamera().Render(1.0, 3, robots, &b, &tb);
+  EXPECT_EQ(cv::norm(a, b, cv::NORM_INF), 0.0);
+  ASSERT_EQ(ta.size(), tb.size());
+  for (size_t k = 0; k < ta.size(); ++k) {
+    EXPECT_EQ(ta[k].centroid_u_px, tb[k].centroid_u_px);
+    EXPECT_EQ(ta[k].centroid_v_px, tb[k].centroid_v_px);
+    EXPECT_EQ(ta[k].exposure_mid_t_s, 1.0);
+  }
+  EXPECT_EQ(webcam.TimestampDelayS(3), 0.0);
+}
+
+TEST(Webcam, PointSpreadWidensTheMarkersEdge) {
+  // The coverage's variance grows by the PSF's: sigma^2 per axis, 2 sigma^2
+  // summed over u and v (a Gaussian convolution adds variances). Tolerance
+  // 10 %: the coverage is estimated from 8-bit colours, whose rounding in
+  // the blurred rim weighs with r^2 ~ 250 px^2 (measured: 4.79 for 4.5).
+  constexpr double kVarianceTolerancePx2 = 0.45;
+  const Demo& d = DemoRoom();
+  SimScenario blurred = WebcamAllOff();
+  blurred.webcam.psf_sigma_px = 1.5;
+  // No body, and the heading marker out of the measuring window.
+  SyntheticCameraOptions no_body;
+  no_body.body_diameter_m = 0.0;
+  no_body.heading_marker_offset_m = 0.3;
+  const SyntheticCamera sharp(d.site, d.camera, d.model, WebcamAllOff(), no_body);
+  const SyntheticCamera blur(d.site, d.camera, d.model, blurred, no_body);
+  const std::vector<RobotState> robots = {Robot(1.6, 1.2)};
+  cv::Mat a, b, floor_a, floor_b;
+  std::vector<MarkerTruth> truth;
+  sharp.Render(0.0, 0, robots, &a, &truth);
+  blur.Render(0.0, 0, robots, &b);
+  sharp.Render(0.0, 0, {}, &floor_a);
+  blur.Render(0.0, 0, {}, &floor_b);
+  const MarkerTruth& m = Position(truth);
+  const cv::Point c(static_cast<int>(std::lround(m.centroid_u_px)),
+                    static_cast<int>(std::lround(m.centroid_v_px)));
+  double au, av, va, bu, bv, vb;
+  CoverageMoments(a, floor_a, c, 24, &au, &av, &va);
+  CoverageMoments(b, floor_b, c, 24, &bu, &bv, &vb);
+  std::printf("coverage variance sharp %.3f px^2, blurred %.3f px^2 (expected + %.3f)\n", va, vb,
+              2 * 1.5 * 1.5);
+  EXPECT_NEAR(vb - va, 2 * 1.5 * 1.5, kVarianceTolerancePx2);
+  // The blur is symmetric: the centroid stays.
+  EXPECT_NEAR(bu, au, 0.05);
+  EXPECT_NEAR(bv, av, 0.05);
+}
+
+TEST(Webcam, VignettingDarkensTowardsTheCornersAsCos4) {
+  const Demo& d = DemoRoom();
+  SimScenario s = WebcamAllOff();
+  s.webcam.vignetting_corner_gain = 0.6;
+  const SyntheticCamera vignetted(d.site, d.camera, d.model, s);
+  cv::Mat a, b;
+  vignetted.Render(0.0, 0, {}, &a);
+  CleanCamera().Render(0.0, 0, {}, &b);
+  // Linear light ratio at floor points, against g(rho) = 1 / (1 + T rho^2)^2.
+  const double cx = d.model.intrinsics.cx_px, cy = d.model.intrinsics.cy_px;
+  const double r_corner = std::hypot(cx + 0.5, cy + 0.5);
+  const double T = 1 / std::sqrt(0.6) - 1;
+  for (const auto& [x, y] : {std::pair{1.75, 1.25}, std::pair{0.25, 0.25}, std::pair{3.8, 2.8}}) {
+    const cv::Point p = Pixel(d.model, x, y, 0.0);
+    const double rho2 = (std::pow(p.x - cx, 2) + std::pow(p.y - cy, 2)) / (r_corner * r_corner);
+    const double g = 1 / std::pow(1 + T * rho2, 2);
+    const double va = a.at<cv::Vec3b>(p)[1] / 255.0, vb = b.at<cv::Vec3b>(p)[1] / 255.0;
+    auto lin = [](double c) {
+      return c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4);
+    };
+    // One 8-bit step of the darker value, relative.
+    EXPECT_NEAR(lin(va) / lin(vb), g, 0.02) << x << ", " << y;
+  }
+}
+
+TEST(Webcam, TheTruthLensIsTheNominalOnePlusTheScenariosDistortion) {
+  const Demo& d = DemoRoom();
+  SimScenario s = WebcamAllOff();
+  s.webcam.lens_k = {0.03, -0.01, 0, 0};
+  s.webcam.lens_principal_offset_px = {6, -4};
+  const SyntheticCamera camera(d.site, d.camera, d.model, s);
+  EXPECT_EQ(camera.model().intrinsics.k[0], 0.03);
+  EXPECT_EQ(camera.model().intrinsics.cx_px, d.model.intrinsics.cx_px + 6);
+  std::vector<MarkerTruth> truth;
+  cv::Mat image;
+  camera.Render(0.0, 0, {Robot(0.6, 0.5)}, &image, &truth);
+  const MarkerTruth& m = Position(truth);
+  double u_truth, v_truth, u_nominal, v_nominal;
+  ASSERT_TRUE(camera.model().ProjectToPixel({m.x_m, m.y_m, m.z_m}, &u_truth, &v_truth));
+  ASSERT_TRUE(d.model.ProjectToPixel({m.x_m, m.y_m, m.z_m}, &u_nominal, &v_nominal));
+  // Rendered through the truth lens (the perspective bias of a finite disc
+  // is below 1 px) ...
+  EXPECT_NEAR(m.centroid_u_px, u_truth, kMaxBiasPx);
+  EXPECT_NEAR(m.centroid_v_px, v_truth, kMaxBiasPx);
+  // ... which near the floor's corner (30 degrees off axis) is ~3.4 px from
+  // the nominal one: k1 0.03 adds ~4 px there, the principal point offset
+  // takes some back.
+  const double shift = std::hypot(u_truth - u_nominal, v_truth - v_nominal);
+  std::printf("truth lens against the nominal one at (0.6, 0.5) m: %.2f px\n", shift);
+  EXPECT_GT(shift, 3 * kMaxBiasPx);
+}
+
+TEST(Webcam, NoiseFollowsShotAndReadNoiseInLinearLight) {
+  const Demo& d = DemoRoom();
+  SimScenario s = WebcamAllOff();
+  s.webcam.full_well_e = 1000.0;
+  s.webcam.read_noise_e = 5.0;
+  s.webcam.shot_noise = true;
+  const SyntheticCamera camera(d.site, d.camera, d.model, s);
+  cv::Mat image, clean;
+  camera.Render(0.0, 5, {}, &image);
+  CleanCamera().Render(0.0, 5, {}, &clean);
+  const cv::Point c = Pixel(d.model, 1.75, 1.25, 0.0);
+  auto lin = [](double v) {
+    const double x = v / 255.0;
+    return x <= 0.04045 ? x / 12.92 : std::pow((x + 0.055) / 1.055, 2.4);
+  };
+  for (int ch = 0; ch < 3; ++ch) {
+    double s1 = 0, s2 = 0;
+    int n = 0;
+    for (int j = c.y - 30; j < c.y + 30; ++j) {
+      for (int i = c.x - 30; i < c.x + 30; ++i) {
+        const double x = lin(image.at<cv::Vec3b>(j, i)[ch]);
+        s1 += x;
+        s2 += x * x;
+        ++n;
+      }
+    }
+    const double mean = s1 / n, sigma = std::sqrt(s2 / n - mean * mean);
+    const double signal = lin(clean.at<cv::Vec3b>(c)[ch]);
+    const double e = signal * 1000.0;
+    // Shot and read noise, plus the 8-bit output's rounding (1/12 of a code
+    // squared, through the curve's slope at this level).
+    const double slope =
+        (lin(clean.at<cv::Vec3b>(c)[ch] + 0.5) - lin(clean.at<cv::Vec3b>(c)[ch] - 0.5));
+    const double expected = std::sqrt((e + 25.0) / 1e6 + slope * slope / 12.0);
+    std::printf("channel %d: linear mean %.4f (clean %.4f), sigma %.5f, model %.5f\n", ch, mean,
+                signal, sigma, expected);
+    // The estimate's own spread over 3600 samples is 1.2 %; 5 % allows for
+    // the int8 noise bank's clipping and quantisation.
+    EXPECT_NEAR(sigma / expected, 1.0, 0.05) << ch;
+    EXPECT_NEAR(mean / signal, 1.0, 0.01) << ch;
+  }
+}
+
+TEST(Webcam, RollingShutterPutsAMovingMarkerWhereItsRowsTimeSays) {
+  const Demo& d = DemoRoom();
+  SimScenario s = WebcamAllOff();
+  s.webcam.readout_s = 0.030;
+  const SyntheticCamera camera(d.site, d.camera, d.model, s);
+  const SyntheticCamera global(d.site, d.camera, d.model, WebcamAllOff());
+  // 1 m/s along x: 30 mm over the readout, ~10 px.
+  const RobotState moving = Robot(1.5, 1.2, 1.0, 0.0);
+  std::vector<MarkerTruth> truth, still;
+  cv::Mat image;
+  camera.Render(2.0, 0, {moving}, &image, &truth);
+  const MarkerTruth& m = Position(truth);
+  const double row_time = m.centroid_v_px * 0.030 / d.camera.height_px;
+  EXPECT_DOUBLE_EQ(m.exposure_mid_t_s, 2.0 + row_time);
+  EXPECT_NEAR(m.exposure_mid_x_m, 1.5 + 1.0 * row_time, 1e-12);
+  // The image shows the marker where it was when its centroid's row was
+  // read: its projection then is the centroid (to the finite disc's
+  // perspective bias, measured on the still marker at that place).
+  RobotState there = moving;
+  there.x_m = m.exposure_mid_x_m;
+  there.vx_mps = 0.0;
+  global.Render(2.0, 0, {there}, &image, &still);
+  EXPECT_NEAR(m.centroid_u_px, Position(still).centroid_u_px, 0.02);
+  EXPECT_NEAR(m.centroid_v_px, Position(still).centroid_v_px, 0.02);
+  // And not where it was at the frame's start.
+  std::vector<MarkerTruth> start;
+  global.Render(2.0, 0, {moving}, &image, &start);
+  EXPECT_GT(std::abs(m.centroid_u_px - Position(start).centroid_u_px), 3.0);
+}
+
+TEST(Webcam, MotionBlurStreakIsSpeedTimesExposure) {
+  const Demo& d = DemoRoom();
+  SimScenario s = WebcamAllOff();
+  s.webcam.exposure_s = 0.0156;
+  SyntheticCameraOptions no_body;
+  no_body.body_diameter_m = 0.0;
+  no_body.heading_marker_offset_m = 0.3;
+  const SyntheticCamera blurred(d.site, d.camera, d.model, s, no_body);
+  const SyntheticCamera still(d.site, d.camera, d.model, WebcamAllOff(), no_body);
+  // 1 m/s sideways: 15.6 mm, ~5 px.
+  const RobotState moving = Robot(1.7, 1.4, 0.0, 1.0);
+  cv::Mat a, b, floor;
+  std::vector<MarkerTruth> ta, tb;
+  blurred.Render(0.0, 0, {moving}, &a, &ta);
+  still.Render(0.0, 0, {moving}, &b, &tb);
+  still.Render(0.0, 0, {}, &floor);
+  double u0, v0, u1, v1;
+  ASSERT_TRUE(d.model.ProjectToPixel({1.7, 1.4 - 0.0156, 0.2}, &u0, &v0));
+  ASSERT_TRUE(d.model.ProjectToPixel({1.7, 1.4, 0.2}, &u1, &v1));
+  const double streak = std::hypot(u1 - u0, v1 - v0);
+  const cv::Point c(static_cast<int>(std::lround(Position(tb).centroid_u_px)),
+                    static_cast<int>(std::lround(Position(tb).centroid_v_px)));
+  double au, av, va, bu, bv, vb;
+  CoverageMoments(a, floor, c, 22, &au, &av, &va);
+  CoverageMoments(b, floor, c, 22, &bu, &bv, &vb);
+  // A box of length L adds L^2 / 12 of variance along the motion.
+  const double measured = std::sqrt(12 * (va - vb));
+  std::printf("streak %.2f px measured, %.2f px = speed x exposure\n", measured, streak);
+  EXPECT_NEAR(measured, streak, 0.05 * streak);
+  // The centroid of the streak is the marker at mid-exposure.
+  const MarkerTruth& m = Position(ta);
+  EXPECT_NEAR(m.exposure_mid_t_s, -0.0078, 1e-12);
+  EXPECT_NEAR(m.exposure_mid_y_m, 1.4 - 0.0078, 1e-12);
+  double um, vm;
+  ASSERT_TRUE(d.model.ProjectToPixel({1.7, 1.4 - 0.0078, 0.2}, &um, &vm));
+  EXPECT_NEAR(m.centroid_u_px - Position(tb).centroid_u_px, um - u1, 0.02);
+  EXPECT_NEAR(m.centroid_v_px - Position(tb).centroid_v_px, vm - v1, 0.02);
+  EXPECT_NEAR(au, m.centroid_u_px, 0.1);
+  EXPECT_NEAR(av, m.centroid_v_px, 0.1);
+}
+
+TEST(Webcam, TimestampIsTheLastRowsReadPlusLatencyWithinTheJitter) {
+  const Demo& d = DemoRoom();
+  SimScenario s;
+  ASSERT_TRUE(ParseSimScenario("webcam", &s, nullptr));
+  const SyntheticCamera camera(d.site, d.camera, d.model, s);
+  const double nominal = s.webcam.readout_s * 1079.0 / 1080.0 + s.webcam.timestamp_latency_s;
+  double lo = 1e9, hi = -1e9, sum = 0;
+  constexpr int kFrames = 2000;
+  for (int f = 0; f < kFrames; ++f) {
+    const double delay = camera.TimestampDelayS(f);
+    lo = std::min(lo, delay);
+    hi = std::max(hi, delay);
+    sum += delay;
+    EXPECT_EQ(delay, camera.TimestampDelayS(f));
+  }
+  EXPECT_GE(lo, nominal - s.webcam.timestamp_jitter_s);
+  EXPECT_LE(hi, nominal + s.webcam.timestamp_jitter_s);
+  // A uniform jitter fills its range and averages out (its mean's sigma
+  // over 2000 frames is j / sqrt(3 x 2000) ~ 0.013 j).
+  EXPECT_GT(hi - lo, 1.9 * s.webcam.timestamp_jitter_s);
+  EXPECT_NEAR(sum / kFrames, nominal, 0.05 * s.webcam.timestamp_jitter_s);
+}
+
+TEST(Webcam, RobotTiltsByItsStaticLeanAndMovesTheMarker) {
+  const Demo& d = DemoRoom();
+  SimScenario s = WebcamAllOff();
+  s.webcam.tilt_static_deg = 1.0;
+  const SyntheticCamera camera(d.site, d.camera, d.model, s);
+  std::vector<MarkerTruth> truth;
+  cv::Mat image;
+  camera.Render(0.0, 0, {Robot(2.0, 1.5)}, &image, &truth);
+  const MarkerTruth& m = Position(truth);
+  const double tilt = std::hypot(m.robot_tilt_forward_rad, m.robot_tilt_left_rad);
+  EXPECT_NEAR(tilt, M_PI / 180, 1e-12);
+  // 20 cm up, one degree: 3.49 mm sideways.
+  EXPECT_NEAR(std::hypot(m.x_m - 2.0, m.y_m - 1.5), 0.2 * std::sin(M_PI / 180), kLeanCompositionM);
+}
+
+TEST(Webcam, DrivingRobotTiltsByADegreeOrTwo) {
+  // The reference circle at 20 cm/s with the default tilt model: a rocking
+  // lean around the static one, within the "a degree or two", and
+  // the marker off the robot's centre by its mast height times the lean.
+  const Demo& d = DemoRoom();
+  SimScenario s;
+  ASSERT_TRUE(ParseSimScenario("webcam", &s, nullptr));
+  Camera small = d.camera;
+  small.width_px = 320;
+  small.height_px = 180;
+  const SyntheticCamera camera(d.site, small,
+                               calib::NominalCamera(small.mount_position_m, 120, 320, 180), s);
+  double max_tilt = 0, min_tilt = 1e9;
+  for (int f = 0; f < 100; ++f) {
+    std::vector<MarkerTruth> truth;
+    cv::Mat image;
+    const double t = f / 10.0;
+    camera.Render(t, f, camera.SimulatedRobots(t), &image, &truth);
+    const MarkerTruth& m = Position(truth);
+    const double tilt = std::hypot(m.robot_tilt_forward_rad, m.robot_tilt_left_rad);
+    max_tilt = std::max(max_tilt, tilt * 180 / M_PI);
+    min_tilt = std::min(min_tilt, tilt * 180 / M_PI);
+    EXPECT_NEAR(std::hypot(m.exposure_mid_x_m - m.robot_x_m, m.exposure_mid_y_m - m.robot_y_m),
+                0.2 * std::sin(tilt), kLeanCompositionM);
+  }
+  std::printf("tilt on the reference circle: %.2f .. %.2f degrees\n", min_tilt, max_tilt);
+  EXPECT_GT(max_tilt, 0.8);
+  EXPECT_LT(max_tilt, 2.5);
+}
+
+TEST(Webcam, WornMarkersFadeTowardsGrey) {
+  const Demo& d = DemoRoom();
+  SimScenario worn = WebcamAllOff();
+  worn.webcam.marker_wear = 0.5;
+  const SyntheticCamera camera(d.site, d.camera, d.model, worn);
+  std::vector<MarkerTruth> truth;
+  cv::Mat a, b;
+  camera.Render(0.0, 0, {Robot(2.0, 1.5)}, &a, &truth);
+  CleanCamera().Render(0.0, 0, {Robot(2.0, 1.5)}, &b);
+  const cv::Point c(static_cast<int>(std::lround(Position(truth).centroid_u_px)),
+                    static_cast<int>(std::lround(Position(truth).centroid_v_px)));
+  const cv::Vec3b pa = a.at<cv::Vec3b>(c), pb = b.at<cv::Vec3b>(c);
+  // colour = (1 - f) class + f grey, the same f for every channel, f <= wear.
+  const double f = (pb[2] - pa[2]) / (pb[2] - 150.0);
+  EXPECT_GT(f, 0.0);
+  EXPECT_LE(f, 0.5);
+  for (int ch = 0; ch < 3; ++ch) {
+    EXPECT_NEAR(pa[ch], (1 - f) * pb[ch] + f * 150.0, 1.0) << ch;
+  }
+}
+
+TEST(Webcam, BayerMosaicKeepsFlatColoursAndFringesEdges) {
+  const Demo& d = DemoRoom();
+  SimScenario s = WebcamAllOff();
+  s.webcam.bayer = true;
+  const SyntheticCamera camera(d.site, d.camera, d.model, s);
+  std::vector<MarkerTruth> truth;
+  cv::Mat a, b;
+  camera.Render(0.0, 0, {Robot(2.0, 1.5)}, &a, &truth);
+  CleanCamera().Render(0.0, 0, {Robot(2.0, 1.5)}, &b);
+  // Inside the marker and on the open floor every channel survives the
+  // mosaic (an RGGB layout demosaiced with the matching OpenCV code).
+  const cv::Point c(static_cast<int>(std::lround(Position(truth).centroid_u_px)),
+                    static_cast<int>(std::lround(Position(truth).centroid_v_px)));
+  for (const cv::Point p : {c, Pixel(d.model, 1.75, 1.25, 0.0)}) {
+    for (int ch = 0; ch < 3; ++ch) {
+      EXPECT_NEAR(a.at<cv::Vec3b>(p)[ch], b.at<cv::Vec3b>(p)[ch], 2.0) << p << " " << ch;
+    }
+  }
+  // At edges the interpolation differs from the ideal image.
+  EXPECT_GT(cv::norm(a, b, cv::NORM_INF), 20.0);
+}
+
+TEST(Webcam, SameSequenceNumberGivesTheSameBytes) {
+  const Demo& d = DemoRoom();
+  SimScenario s;
+  ASSERT_TRUE(ParseSimScenario("webcam", &s, nullptr));
+  const SyntheticCamera camera(d.site, d.camera, d.model, s);
+  cv::Mat a, b, c;
+  const auto robots = camera.SimulatedRobots(1.0);
+  camera.Render(1.0, 30, robots, &a);
+  camera.Render(1.0, 30, robots, &b);
+  camera.Render(1.0, 31, robots, &c);
+  EXPECT_EQ(cv::norm(a, b, cv::NORM_INF), 0.0);
+  EXPECT_GT(cv::norm(a, c, cv::NORM_INF), 0.0);
+  std::vector<uint8_t> ja, jb;
+  ASSERT_TRUE(camera.Encode(a, 90, &ja));
+  ASSERT_TRUE(camera.Encode(b, 90, &jb));
+  EXPECT_EQ(ja, jb);
+  EXPECT_EQ(camera.JpegQuality(90), 80);
+}
+
+TEST(Webcam, SiteParametersReachTheScenario) {
+  Site site = DemoRoom().site;
+  site.simulation.webcam.exposure_s = 0.01;
+  SimScenario s;
+  std::string error;
+  ASSERT_TRUE(ParseSimScenario("sim:webcam", site, &s, &error)) << error;
+  EXPECT_TRUE(s.webcam_effects);
+  EXPECT_EQ(s.webcam.exposure_s, 0.01);
+  ASSERT_TRUE(ParseSimScenario("clean", site, &s, &error));
+  EXPECT_FALSE(s.webcam_effects);
 }
 
 }  // namespace

@@ -115,7 +115,7 @@ int RunRenderCamera(const RenderCameraFlags& f) {
     scenario_name = camera->device.rfind("sim:", 0) == 0 ? camera->device : "clean";
   }
   sim::SimScenario scenario;
-  if (!sim::ParseSimScenario(scenario_name, &scenario, &error)) {
+  if (!sim::ParseSimScenario(scenario_name, site, &scenario, &error)) {
     std::cerr << kName << error << "\n";
     return 1;
   }

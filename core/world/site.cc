@@ -582,13 +582,112 @@ std::shared_ptr<const Trajectory> ParseTrajectory(const Reader& r, const YAML::N
   return t;
 }
 
+// simulation.webcam: every key optional, each checked against the range in
+// which its model means something (docs/synthetic_camera.md).
+WebcamSimulation ParseWebcam(const Reader& r, const YAML::Node& node) {
+  const std::string key = "simulation.webcam";
+  r.ExpectMap(node, key);
+  r.OnlyKeys(node, key,
+             {"psf_sigma_px",
+              "vignetting_corner_gain",
+              "lens_k",
+              "lens_principal_offset_px",
+              "exposure_s",
+              "readout_s",
+              "auto_exposure_drift",
+              "auto_exposure_period_s",
+              "white_balance_drift",
+              "white_balance_period_s",
+              "full_well_e",
+              "read_noise_e",
+              "shot_noise",
+              "srgb_gamma",
+              "bayer",
+              "jpeg_quality",
+              "tilt_static_deg",
+              "tilt_per_acceleration_deg_per_mps2",
+              "tilt_rocking_deg",
+              "marker_wear",
+              "marker_sheen",
+              "timestamp_latency_s",
+              "timestamp_jitter_s"});
+  WebcamSimulation w;
+  // A number in [lo, hi] (inclusive).
+  auto in_range = [&](const char* name, double lo, double hi, const char* what, double* out) {
+    const YAML::Node n = node[name];
+    if (!n) return;
+    const double v = r.Double(n, key + "." + name);
+    if (v < lo || v > hi) r.Fail(n, key + "." + name, what);
+    *out = v;
+  };
+  auto flag = [&](const char* name, bool* out) {
+    if (node[name]) *out = r.Bool(node[name], key + "." + name);
+  };
+  in_range("psf_sigma_px", 0.0, 10.0, "must be between 0 (sharp) and 10 px", &w.psf_sigma_px);
+  in_range("vignetting_corner_gain", 0.05, 1.0,
+           "must be between 0.05 and 1 (the corner's illumination relative to the centre)",
+           &w.vignetting_corner_gain);
+  if (node["lens_k"]) {
+    w.lens_k = r.Doubles<4>(node["lens_k"], key + ".lens_k");
+    for (const double k : w.lens_k) {
+      if (std::abs(k) > 0.5) {
+        r.Fail(node["lens_k"], key + ".lens_k",
+               "each coefficient must be within +-0.5 (a fisheye lens, not a different one)");
+      }
+    }
+  }
+  if (node["lens_principal_offset_px"]) {
+    w.lens_principal_offset_px =
+        r.Doubles<2>(node["lens_principal_offset_px"], key + ".lens_principal_offset_px");
+    for (const double o : w.lens_principal_offset_px) {
+      if (std::abs(o) > 100.0) {
+        r.Fail(node["lens_principal_offset_px"], key + ".lens_principal_offset_px",
+               "must be within +-100 px");
+      }
+    }
+  }
+  in_range("exposure_s", 0.0, 0.1, "must be between 0 (instantaneous) and 0.1 s", &w.exposure_s);
+  in_range("readout_s", 0.0, 0.1, "must be between 0 (global shutter) and 0.1 s", &w.readout_s);
+  in_range("auto_exposure_drift", 0.0, 0.5, "must be between 0 and 0.5 (relative gain)",
+           &w.auto_exposure_drift);
+  in_range("auto_exposure_period_s", 0.1, 3600.0, "must be between 0.1 and 3600 s",
+           &w.auto_exposure_period_s);
+  in_range("white_balance_drift", 0.0, 0.5, "must be between 0 and 0.5 (relative gain)",
+           &w.white_balance_drift);
+  in_range("white_balance_period_s", 0.1, 3600.0, "must be between 0.1 and 3600 s",
+           &w.white_balance_period_s);
+  in_range("full_well_e", 10.0, 1e6, "must be between 10 and 1e6 electrons", &w.full_well_e);
+  in_range("read_noise_e", 0.0, 1000.0, "must be between 0 and 1000 electrons", &w.read_noise_e);
+  flag("shot_noise", &w.shot_noise);
+  flag("srgb_gamma", &w.srgb_gamma);
+  flag("bayer", &w.bayer);
+  if (const YAML::Node q = node["jpeg_quality"]) {
+    w.jpeg_quality = r.Int(q, key + ".jpeg_quality");
+    if (w.jpeg_quality < 0 || w.jpeg_quality > 100) {
+      r.Fail(q, key + ".jpeg_quality", "must be 1..100, or 0 for raw frames");
+    }
+  }
+  in_range("tilt_static_deg", 0.0, 10.0, "must be between 0 and 10 degrees", &w.tilt_static_deg);
+  in_range("tilt_per_acceleration_deg_per_mps2", 0.0, 20.0,
+           "must be between 0 and 20 degrees per m/s^2", &w.tilt_per_acceleration_deg_per_mps2);
+  in_range("tilt_rocking_deg", 0.0, 10.0, "must be between 0 and 10 degrees", &w.tilt_rocking_deg);
+  in_range("marker_wear", 0.0, 1.0, "must be between 0 and 1", &w.marker_wear);
+  in_range("marker_sheen", 0.0, 1.0, "must be between 0 and 1", &w.marker_sheen);
+  in_range("timestamp_latency_s", 0.0, 1.0, "must be between 0 and 1 s", &w.timestamp_latency_s);
+  in_range("timestamp_jitter_s", 0.0, 0.1, "must be between 0 and 0.1 s", &w.timestamp_jitter_s);
+  return w;
+}
+
 void ParseSimulation(const Reader& r, const YAML::Node& root, Site* site) {
   const YAML::Node sim = root["simulation"];
   if (!sim) return;
   r.ExpectMap(sim, "simulation");
-  r.OnlyKeys(sim, "simulation", {"temperature_c", "robots"});
+  r.OnlyKeys(sim, "simulation", {"temperature_c", "robots", "webcam"});
   if (sim["temperature_c"]) {
     site->simulation.temperature_c = r.Double(sim["temperature_c"], "simulation.temperature_c");
+  }
+  if (const YAML::Node webcam = sim["webcam"]) {
+    site->simulation.webcam = ParseWebcam(r, webcam);
   }
   const YAML::Node robots = sim["robots"];
   if (!robots) return;

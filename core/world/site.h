@@ -145,9 +145,66 @@ struct SimulatedRobot {
   std::shared_ptr<const Trajectory> trajectory;
 };
 
+// What a 1080p USB webcam behind a 120-degree lens adds to the ideal image:
+// the synthetic camera's `webcam` scenario (sim/synthetic_camera.h) renders
+// with these. Each member is a key of the same name under the site's
+// `simulation.webcam`; the defaults are published webcam and sensor figures
+// (docs/synthetic_camera.md names each source and gives each model's
+// equation). Zero, false or 1 for a gain switches an effect off.
+struct WebcamSimulation {
+  // Optics. Gaussian point spread (defocus and lens blur), sigma in pixels.
+  double psf_sigma_px = 1.2;
+  // Relative illumination at the image corner (cos^4-like falloff of an
+  // equivalent rectilinear lens; 1 = no vignetting).
+  double vignetting_corner_gain = 0.7;
+  // The truth lens's distortion k1..k4 (theta_d = theta (1 + k1 theta^2 +
+  // ...)) and principal point offset, added to the model the camera renders
+  // through: the real lens is not the nominal equidistant one.
+  std::array<double, 4> lens_k = {0.03, -0.01, 0.0, 0.0};
+  std::array<double, 2> lens_principal_offset_px = {6.0, -4.0};
+  // Exposure: each row integrates light over exposure_s (motion blur) and
+  // rows are read one after another over readout_s (rolling shutter; the
+  // shared camera-timing contract, docs/synthetic_camera.md).
+  double exposure_s = 0.0156;
+  double readout_s = 0.030;
+  // Slow auto-exposure and white-balance drift: relative gain amplitudes and
+  // periods.
+  double auto_exposure_drift = 0.04;
+  double auto_exposure_period_s = 17.0;
+  double white_balance_drift = 0.03;
+  double white_balance_period_s = 23.0;
+  // Sensor: electrons at which the 8-bit output saturates (at the analogue
+  // gain in use) and read noise in electrons; photon shot noise on/off.
+  double full_well_e = 6000.0;
+  double read_noise_e = 3.0;
+  bool shot_noise = true;
+  // The sRGB transfer curve (IEC 61966-2-1) between linear light and the
+  // 8-bit output; false: noise is added in 8-bit units directly.
+  bool srgb_gamma = true;
+  // An RGGB colour filter mosaic, demosaiced by OpenCV.
+  bool bayer = true;
+  // MJPEG quality 1..100 (libjpeg's defaults, which OpenCV's encoder keeps,
+  // subsample chroma 4:2:0); 0: frames handed over raw.
+  int jpeg_quality = 80;
+  // The world: the robot tilting (a static lean, a tilt against its
+  // acceleration, rocking while it drives) and marker paint fading (wear)
+  // and whitening at oblique views (sheen).
+  double tilt_static_deg = 0.5;
+  double tilt_per_acceleration_deg_per_mps2 = 2.0;
+  double tilt_rocking_deg = 1.0;
+  double marker_wear = 0.15;
+  double marker_sheen = 0.15;
+  // Timing: the buffer's timestamp is the last row's read time plus a fixed
+  // latency plus a uniform jitter in [-timestamp_jitter_s, +timestamp_jitter_s].
+  double timestamp_latency_s = 0.005;
+  double timestamp_jitter_s = 0.0005;
+};
+
 struct Simulation {
   double temperature_c = 20.0;
   std::vector<SimulatedRobot> robots;
+  // The `webcam` scenario's parameters (defaults when the site gives none).
+  WebcamSimulation webcam;
 };
 
 struct Site {

@@ -87,7 +87,8 @@ TEST_F(FusionProcess, FusedIsNoWorseThanTheCameraAndRidesOutEachSensorsOutage) {
                        "--log-level", "warn"});
   ChildProcess fusion({BinDir() + "/fusion_proc", "--config", DemoSite(), "--log-level", "warn"});
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
-  ChildProcess camera({BinDir() + "/camera_proc", "--config", DemoSite(), "--log-level", "warn"});
+  ChildProcess camera({BinDir() + "/camera_proc", "--config", DemoSite(), "--device",
+                       "sim:reference_circle", "--log-level", "warn"});
   Listen(3.0);  // start-up and the filter's first second
   auto now = [] { return NowUtime(); };
 

@@ -714,7 +714,8 @@ TEST_F(HostileTraffic, HeadlessViewerSurvivesEveryClassAndForgetsUnknownRobots) 
 // it subscribe to POSE_ULTRASOUND for search hints.
 TEST_F(HostileTraffic, CameraProcsHintSubscriptionSurvivesEveryClass) {
   Listener listener("");
-  ChildProcess camera({BinDir() + "/camera_proc", "--config", DemoSite(), "--log-level", "error"});
+  ChildProcess camera({BinDir() + "/camera_proc", "--config", DemoSite(), "--device",
+                       "sim:reference_circle", "--log-level", "error"});
   double rss = 0;
   ASSERT_TRUE(WaitReady(&listener, "camera_proc", &camera, &rss));
   const auto last = SendEveryClass(nullptr, &camera);

@@ -118,8 +118,16 @@ class Pipeline {
       return {bin, "--config", DemoSite(), "--method", "robust", "--log-level", "warn"};
     }
     if (name == "camera_proc") {
-      return {bin,           "--config", DemoSite(), "--start-utime", std::to_string(start_utime_),
-              "--log-level", "warn"};
+      // The clean synthetic camera the demo site used before its webcam.
+      return {bin,
+              "--config",
+              DemoSite(),
+              "--device",
+              "sim:reference_circle",
+              "--start-utime",
+              std::to_string(start_utime_),
+              "--log-level",
+              "warn"};
     }
     // roomfix_logger: a new file per start, as an operator would restart it.
     return {bin, LogPath(), "--log-level", "warn"};
