@@ -700,8 +700,13 @@ void SyntheticCamera::Impl::RenderWebcam(double t_s, int64_t frame_seq,
       if (it == classes.end()) continue;
       MovingDisc m = base_disc;
       m.height_m = cam->marker_height_m;
-      m.forward_m = heading ? options.heading_marker_offset_m : 0.0;
-      m.r = 0.5 * it->second.first;
+      // A site's marker code sizes and spaces the markers by role.
+      const double offset_m =
+          marker_code.enabled() ? marker_code.heading_offset_m : options.heading_marker_offset_m;
+      const double code_diameter_m =
+          heading ? marker_code.heading_diameter_m : marker_code.position_diameter_m;
+      m.forward_m = heading ? offset_m : 0.0;
+      m.r = 0.5 * (marker_code.enabled() ? code_diameter_m : it->second.first);
       const Eigen::Vector3d at = CentreAt(m, t_s, 0.0);
       m.bgr =
           paint(it->second.second, 2 * static_cast<uint64_t>(r.robot_id) + (heading ? 1 : 0), at);
