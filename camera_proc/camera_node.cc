@@ -119,18 +119,24 @@ bool MakeCameraSetup(const Room& room, const Camera& camera, const calib::Camera
   for (const CameraRobot& r : camera.robots) {
     max_height_m = std::max(max_height_m, r.marker_height_m);
   }
+  const MarkerCode& code = camera.marker_code;
   for (const MarkerClass& mc : camera.marker_classes) {
     vision::ColourClass c;
     c.name = mc.name;
     c.hsv_min = mc.hsv_min;
     c.hsv_max = mc.hsv_max;
-    const double radius_m = mc.diameter_m > 0.0 ? mc.diameter_m / 2.0 : 0.05;
+    // With a marker code a class is seen at both roles' sizes: the filter
+    // spans the small one far away to the large one below the lens.
+    const double radius_m = code.enabled()        ? code.position_diameter_m / 2.0
+                            : mc.diameter_m > 0.0 ? mc.diameter_m / 2.0
+                                                  : 0.05;
+    const double small_radius_m = code.enabled() ? code.heading_diameter_m / 2.0 : radius_m;
     const double near_px = ImageRadiusPx(lens, mount.x(), mount.y(), max_height_m, radius_m);
     // A far corner may lie outside the image; the marker is then never seen
     // smaller than at the image's edge, which a quarter of the near radius
     // bounds for a 120-degree lens.
-    double far_px = ImageRadiusPx(lens, far_x, far_y, min_height_m, radius_m);
-    if (!(far_px > 0.0)) far_px = 0.25 * near_px;
+    double far_px = ImageRadiusPx(lens, far_x, far_y, min_height_m, small_radius_m);
+    if (!(far_px > 0.0)) far_px = 0.25 * near_px * small_radius_m / radius_m;
     c.min_area_px = std::max(6.0, M_PI * std::pow(0.5 * far_px, 2));
     c.max_area_px = std::max(c.min_area_px * 4.0, M_PI * std::pow(1.8 * near_px + 2.0, 2));
     c.min_circularity = 0.6;
@@ -145,14 +151,18 @@ bool MakeCameraSetup(const Room& room, const Camera& camera, const calib::Camera
       *error = "robot " + std::to_string(r.robot_id) + " names a marker class the camera lacks";
       return false;
     }
-    const MarkerClass& pos = camera.marker_classes[static_cast<size_t>(spec.position_class)];
-    const MarkerClass& head = camera.marker_classes[static_cast<size_t>(spec.heading_class)];
+    const double position_radius_m = PositionMarkerDiameterM(camera, r) / 2.0;
     spec.position_radius_px =
-        ImageRadiusPx(lens, mount.x(), mount.y(), r.marker_height_m, pos.diameter_m / 2.0);
+        ImageRadiusPx(lens, mount.x(), mount.y(), r.marker_height_m, position_radius_m);
     setup->robots.push_back(spec);
     setup->marker_height_m.push_back(r.marker_height_m);
-    setup->position_radius_m.push_back(pos.diameter_m / 2.0);
-    setup->heading_radius_m.push_back(head.diameter_m / 2.0);
+    setup->position_radius_m.push_back(position_radius_m);
+    setup->heading_radius_m.push_back(HeadingMarkerDiameterM(camera, r) / 2.0);
+  }
+  if (code.enabled()) {
+    setup->tracker.identify_by_code = true;
+    setup->tracker.heading_offset_radii = code.heading_offset_m / (code.position_diameter_m / 2.0);
+    setup->tracker.heading_size_ratio = code.heading_diameter_m / code.position_diameter_m;
   }
   // Pixels per metre on the floor are largest straight below the lens.
   double px_per_m = 0.0;
@@ -347,7 +357,11 @@ void CameraNode::OnFrame(camera::Frame* frame, int64_t now_utime) {
     w.offset_u_px = plans[i].window.x;
     w.offset_v_px = plans[i].window.y;
     const vision::TrackedRobotSpec& spec = tracker_->robots()[i];
-    window_blobs[i] = detector_->Detect(window, w, {spec.position_class, spec.heading_class});
+    // With a marker code every class may be a neighbour's marker: all are
+    // searched, so a pairing with a neighbour's marker is seen, not missed.
+    window_blobs[i] = setup_.tracker.identify_by_code
+                          ? detector_->Detect(window, w)
+                          : detector_->Detect(window, w, {spec.position_class, spec.heading_class});
   }
   if (!decoded) {
     status_.Reject("corrupt_frame");
@@ -502,7 +516,10 @@ void CameraNode::Track(int64_t capture_utime, const std::vector<vision::SearchPl
     const vision::TrackedRobotSpec& spec = tracker_->robots()[i];
     const cv::Rect& r = plans[i].window;
     for (const vision::Blob& b : blobs) {
-      if (b.class_index != spec.position_class && b.class_index != spec.heading_class) continue;
+      if (!setup_.tracker.identify_by_code && b.class_index != spec.position_class &&
+          b.class_index != spec.heading_class) {
+        continue;
+      }
       if (b.u_px >= r.x - 0.5 && b.u_px <= r.x + r.width - 0.5 && b.v_px >= r.y - 0.5 &&
           b.v_px <= r.y + r.height - 0.5) {
         window_blobs[i].push_back(b);
@@ -530,6 +547,8 @@ void CameraNode::Track(int64_t capture_utime, const std::vector<vision::SearchPl
       last_states_[i] = state;
     }
     if (o.state == vision::TrackState::kAmbiguous) status_.Count("ambiguous_frames");
+    // Identification doubts (marker code): each counted by its kind.
+    if (!o.identity_problem.empty()) status_.Count(o.identity_problem);
     if (!o.found) status_.Count("robot_not_found");
   }
 }

@@ -108,6 +108,7 @@ constexpr double kMaxAcceleration_mps2 = 3.0;
 struct SyntheticCamera::Impl {
   Room room;
   std::vector<CameraRobot> camera_robots;
+  MarkerCode marker_code;
   std::map<std::string, std::pair<double, cv::Vec3f>> classes;  // diameter, colour
   std::vector<SimulatedRobot> sim_robots;
   SimScenario scenario;
@@ -719,8 +720,13 @@ void SyntheticCamera::Impl::RenderWebcam(double t_s, int64_t frame_seq,
       if (it == classes.end()) continue;
       MovingDisc m = base_disc;
       m.height_m = cam->marker_height_m;
-      m.forward_m = heading ? options.heading_marker_offset_m : 0.0;
-      m.r = 0.5 * it->second.first;
+      // A site's marker code sizes and spaces the markers by role.
+      const double offset_m =
+          marker_code.enabled() ? marker_code.heading_offset_m : options.heading_marker_offset_m;
+      const double code_diameter_m =
+          heading ? marker_code.heading_diameter_m : marker_code.position_diameter_m;
+      m.forward_m = heading ? offset_m : 0.0;
+      m.r = 0.5 * (marker_code.enabled() ? code_diameter_m : it->second.first);
       const Eigen::Vector3d at = CentreAt(m, t_s, 0.0);
       m.bgr =
           paint(it->second.second, 2 * static_cast<uint64_t>(r.robot_id) + (heading ? 1 : 0), at);
@@ -880,6 +886,7 @@ SyntheticCamera::SyntheticCamera(const Site& site, const Camera& camera,
   auto impl = std::make_shared<Impl>();
   impl->room = site.room;
   impl->camera_robots = camera.robots;
+  impl->marker_code = camera.marker_code;
   for (const auto& c : camera.marker_classes) {
     impl->classes[c.name] = {c.diameter_m, ClassColour(c)};
   }
@@ -1019,10 +1026,13 @@ void SyntheticCamera::Render(double t_s, int64_t frame_seq, const std::vector<Ro
       discs.push_back({r.x_m, r.y_m, z - m.options.body_height_m, 0.5 * m.options.body_diameter_m,
                        ToVec(m.options.body_bgr), -1});
     }
-    add_marker(cam->position_marker, r.robot_id, false, r.x_m, r.y_m, z, 0.0);
-    const double off = m.options.heading_marker_offset_m;
+    // A site's marker code sizes and spaces the markers by role (0: the
+    // class's diameter and the options' offset).
+    const MarkerCode& code = m.marker_code;
+    add_marker(cam->position_marker, r.robot_id, false, r.x_m, r.y_m, z, code.position_diameter_m);
+    const double off = code.enabled() ? code.heading_offset_m : m.options.heading_marker_offset_m;
     add_marker(cam->heading_marker, r.robot_id, true, r.x_m + off * std::cos(r.heading_rad),
-               r.y_m + off * std::sin(r.heading_rad), z, 0.0);
+               r.y_m + off * std::sin(r.heading_rad), z, code.heading_diameter_m);
   }
   for (const auto& d : discs) {
     m.DrawDisc(d, bgr, d.truth_index >= 0 ? &marks[static_cast<size_t>(d.truth_index)] : nullptr);

@@ -144,6 +144,7 @@ std::vector<SearchPlan> RobotTracker::Plan(int64_t utime) const {
 std::vector<RobotObservation> RobotTracker::Update(
     int64_t utime, const std::vector<SearchPlan>& plans, const std::vector<Blob>& full_frame_blobs,
     const std::vector<std::vector<Blob>>& window_blobs) {
+  if (options_.identify_by_code) return UpdateByCode(utime, plans, full_frame_blobs, window_blobs);
   const size_t n = robots_.size();
   std::vector<RobotObservation> obs(n);
   // Per robot: its plan (default full frame) and the blobs it may look at.
@@ -383,8 +384,15 @@ std::vector<RobotObservation> RobotTracker::Update(
     }
   }
 
-  // 3. Track bookkeeping.
-  for (size_t i = 0; i < n; ++i) {
+  Bookkeep(utime, from_full_frame, ambiguous, &obs);
+  return obs;
+}
+
+void RobotTracker::Bookkeep(int64_t utime, const std::vector<bool>& from_full_frame,
+                            const std::vector<bool>& ambiguous,
+                            std::vector<RobotObservation>* observations) {
+  std::vector<RobotObservation>& obs = *observations;
+  for (size_t i = 0; i < robots_.size(); ++i) {
     Track& t = tracks_[i];
     RobotObservation& o = obs[i];
     if (o.found) {
@@ -411,6 +419,7 @@ std::vector<RobotObservation> RobotTracker::Update(
       }
       t.u_px = u;
       t.v_px = v;
+      t.radius_px = o.position.radius_px;
       t.last_seen_utime = utime;
       t.ever_found = true;
       t.found_last_update = true;
@@ -432,6 +441,188 @@ std::vector<RobotObservation> RobotTracker::Update(
     }
     o.state = t.state;
   }
+}
+
+std::vector<RobotObservation> RobotTracker::UpdateByCode(
+    int64_t utime, const std::vector<SearchPlan>& plans, const std::vector<Blob>& full_frame_blobs,
+    const std::vector<std::vector<Blob>>& window_blobs) {
+  const size_t n = robots_.size();
+  std::vector<RobotObservation> obs(n);
+  // Every blob searched, once. Windows are searched for every class, so a
+  // neighbour's marker that a window's edge cuts shows there as a smaller
+  // blob a few pixels off the whole one (measured in its own window or the
+  // full frame): two blobs of one class whose centres lie within the larger
+  // one's radius are one marker, and the larger measurement is kept.
+  std::vector<Blob> pool;
+  auto add = [&pool](const Blob& b) {
+    for (Blob& p : pool) {
+      if (p.class_index == b.class_index && Distance(p.u_px, p.v_px, b.u_px, b.v_px) <
+                                                std::max({p.radius_px, b.radius_px, kSameBlobPx})) {
+        if (b.area_px > p.area_px) p = b;
+        return;
+      }
+    }
+    pool.push_back(b);
+  };
+  for (const auto& list : window_blobs) {
+    for (const Blob& b : list) add(b);
+  }
+  for (const Blob& b : full_frame_blobs) add(b);
+
+  std::map<std::pair<int, int>, size_t> robot_of_code;
+  for (size_t i = 0; i < n; ++i) {
+    robot_of_code[{robots_[i].position_class, robots_[i].heading_class}] = i;
+  }
+  std::vector<bool> full_plan(n, true);
+  for (const SearchPlan& p : plans) {
+    for (size_t i = 0; i < n; ++i) {
+      if (robots_[i].robot_id == p.robot_id) full_plan[i] = p.full_frame;
+    }
+  }
+
+  // Pairs whose code is a robot's. Size: the heading blob's radius over the
+  // position blob's lies nearer the code's ratio rho than 1 in log scale,
+  // i.e. in (rho^1.5, rho^0.5) (0.35..0.71 for rho 0.5): the geometric
+  // midpoints to a same-size pair and to a pair one step smaller still.
+  const double rho = options_.heading_size_ratio;
+  const double ratio_lo = std::pow(rho, 1.5), ratio_hi = std::sqrt(rho);
+  const double offset_lo =
+      options_.heading_offset_radii * (1.0 - options_.heading_offset_tolerance);
+  const double offset_hi =
+      options_.heading_offset_radii * (1.0 + options_.heading_offset_tolerance);
+  struct Pair {
+    size_t position, heading, robot;
+    bool in_gate = true;
+  };
+  std::vector<Pair> pairs;
+  for (size_t a = 0; a < pool.size(); ++a) {
+    const Blob& p = pool[a];
+    if (!(p.radius_px > 0.0)) continue;
+    for (size_t b = 0; b < pool.size(); ++b) {
+      const Blob& h = pool[b];
+      if (a == b) continue;
+      const auto it = robot_of_code.find({p.class_index, h.class_index});
+      if (it == robot_of_code.end()) continue;
+      const double ratio = h.radius_px / p.radius_px;
+      const double offset = Distance(p.u_px, p.v_px, h.u_px, h.v_px) / p.radius_px;
+      if (ratio > ratio_lo && ratio < ratio_hi && offset >= offset_lo && offset <= offset_hi) {
+        pairs.push_back({a, b, it->second});
+      }
+    }
+  }
+
+  // Gates: where a recently found robot can be now.
+  std::vector<bool> gated(n, false);
+  std::vector<double> gate_u(n), gate_v(n), gate_px(n);
+  for (size_t i = 0; i < n; ++i) {
+    const Track& t = tracks_[i];
+    const double dt = Seconds(t.last_seen_utime, utime);
+    if (!t.ever_found || dt >= options_.lost_after_s) continue;
+    gated[i] = true;
+    gate_u[i] = t.u_px + (t.has_velocity ? t.du_px_per_s * dt : 0.0);
+    gate_v[i] = t.v_px + (t.has_velocity ? t.dv_px_per_s * dt : 0.0);
+    gate_px[i] = options_.window_margin_px +
+                 robots_[i].position_radius_px * options_.window_radius_factor +
+                 options_.max_speed_px_per_s * dt;
+  }
+  std::vector<int> inside(n, 0), outside(n, 0);
+  for (Pair& pr : pairs) {
+    const size_t i = pr.robot;
+    if (gated[i]) {
+      const Blob& p = pool[pr.position];
+      pr.in_gate = Distance(gate_u[i], gate_v[i], p.u_px, p.v_px) <= gate_px[i];
+    }
+    ++(pr.in_gate ? inside[i] : outside[i]);
+  }
+  // Interleaved: a blob in two pairs that are each some robot's code.
+  std::vector<int> uses(pool.size(), 0);
+  for (const Pair& pr : pairs) {
+    if (!pr.in_gate) continue;
+    ++uses[pr.position];
+    ++uses[pr.heading];
+  }
+  std::vector<bool> interleaved(n, false);
+  for (const Pair& pr : pairs) {
+    if (pr.in_gate && (uses[pr.position] > 1 || uses[pr.heading] > 1)) interleaved[pr.robot] = true;
+  }
+
+  std::vector<bool> ambiguous(n, false);
+  std::vector<bool> in_a_pair(pool.size(), false);
+  for (const Pair& pr : pairs) {
+    if (!pr.in_gate) continue;
+    in_a_pair[pr.position] = true;
+    in_a_pair[pr.heading] = true;
+  }
+  for (size_t i = 0; i < n; ++i) {
+    RobotObservation& o = obs[i];
+    o.robot_id = robots_[i].robot_id;
+    o.num_candidates = inside[i];
+    if (interleaved[i]) {
+      ambiguous[i] = true;
+      o.identity_problem = "interleaved_markers";
+      o.note = "a marker of its code pair also pairs with another robot's marker: not published";
+      continue;
+    }
+    if (inside[i] >= 2) {
+      ambiguous[i] = true;
+      o.identity_problem = "code_seen_twice";
+      o.note = "its code is seen " + std::to_string(inside[i]) + " times" +
+               (gated[i] ? " inside its gate" : "") + ": not published";
+      continue;
+    }
+    if (inside[i] == 1) {
+      const auto pr = std::find_if(pairs.begin(), pairs.end(),
+                                   [&](const Pair& x) { return x.robot == i && x.in_gate; });
+      Candidate c;
+      c.position = pool[pr->position];
+      // Another pair with this code outside the gate: the identity rests on
+      // the gate alone, so the heading (and the status ok) is withheld.
+      c.has_heading = outside[i] == 0;
+      c.heading = pool[pr->heading];
+      Fill(c, &o);
+      if (outside[i] > 0) {
+        o.identity_problem = "code_seen_twice";
+        o.note = "its code is seen inside its gate and " + std::to_string(outside[i]) +
+                 " time(s) outside: published degraded";
+      }
+      continue;
+    }
+    if (outside[i] > 0) {
+      o.identity_problem = "impossible_jump";
+      o.note = "its code is seen only beyond where it can be after its last find: not published";
+      continue;
+    }
+    // No pair: a lone position-class blob of the last find's size inside
+    // the gate, which no pair claims, when it is the only one.
+    if (!gated[i]) {
+      o.note = "no pair of blobs shows its marker code";
+      continue;
+    }
+    int lone = 0;
+    const Blob* taken = nullptr;
+    for (size_t k = 0; k < pool.size(); ++k) {
+      const Blob& b = pool[k];
+      if (in_a_pair[k] || b.class_index != robots_[i].position_class) continue;
+      const double size = tracks_[i].radius_px > 0.0 ? b.radius_px / tracks_[i].radius_px : 1.0;
+      if (size <= ratio_hi || size >= 1.0 / ratio_hi) continue;
+      if (Distance(gate_u[i], gate_v[i], b.u_px, b.v_px) > gate_px[i]) continue;
+      ++lone;
+      taken = &b;
+    }
+    if (lone == 1) {
+      Candidate c;
+      c.position = *taken;
+      Fill(c, &o);
+      o.note = "no heading marker beside the position marker";
+    } else {
+      o.note = lone == 0 ? "no pair of blobs shows its code inside its gate"
+                         : std::to_string(lone) +
+                               " lone position-class blobs inside its gate: none taken";
+    }
+  }
+  std::vector<bool> from_full_frame(n, false);
+  for (size_t i = 0; i < n; ++i) from_full_frame[i] = obs[i].found && full_plan[i];
+  Bookkeep(utime, from_full_frame, ambiguous, &obs);
   return obs;
 }
 

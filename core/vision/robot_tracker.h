@@ -37,6 +37,21 @@ struct TrackerOptions {
   double lost_after_s = 0.5;
   // A position hint (SetHint) counts for this long around its time.
   double hint_max_age_s = 1.0;
+  // Identification by marker code (the site's marker_code): any class may
+  // be a position or a heading marker, a robot is the one whose ordered
+  // class pair (position, heading) a pair of blobs shows, and a blob's role
+  // comes from its size next to its partner (UpdateByCode). False: a robot
+  // is its classes, as in the one-robot demo.
+  bool identify_by_code = false;
+  // Centre-to-centre distance of the two markers in position-marker radii,
+  // and the heading marker's diameter over the position marker's.
+  double heading_offset_radii = 2.0;
+  double heading_size_ratio = 0.5;
+  // A pair's measured distance may differ from heading_offset_radii times
+  // the position blob's radius by this fraction: a fisheye squeezes a disc
+  // radially towards the image's edge (down to 0.6 of the tangential scale
+  // at the 6 x 4 m room's corners), which moves the ratio by up to +-35 %.
+  double heading_offset_tolerance = 0.45;
 };
 
 enum class TrackState {
@@ -67,6 +82,10 @@ struct RobotObservation {
   // Candidates that fitted (kAmbiguous lists them all); for messages.
   int num_candidates = 0;
   std::string note;  // why not found / why ambiguous, one line
+  // Marker code only: why this frame's identification is in doubt, as a
+  // STATUS counter name (empty when it is not): "interleaved_markers",
+  // "code_seen_twice" or "impossible_jump" (UpdateByCode states the rule).
+  std::string identity_problem;
 };
 
 // Region-of-interest tracking of several robots, each a pair of marker
@@ -116,10 +135,40 @@ class RobotTracker {
   const std::vector<TrackedRobotSpec>& robots() const { return robots_; }
 
  private:
+  // Update for identify_by_code. Every blob handed in (windows and full
+  // frame, each once) is paired: a position blob p and a heading blob h form
+  // a pair when h's radius over p's is nearer heading_size_ratio than 1 (in
+  // log scale) and their distance is heading_offset_radii p-radii within
+  // heading_offset_tolerance; the pair's classes are its code, and the code
+  // names the robot. Lens scale cancels: both tests are ratios of blobs a
+  // few centimetres apart. Then, per robot, with its gate the tracking
+  // window's half-size around the prediction when it was found less than
+  // lost_after_s ago (no gate otherwise):
+  //  - a blob in two pairs with robots' codes (markers of neighbours
+  //    interleaved): every robot of those pairs is not published this frame
+  //    (kAmbiguous, identity_problem "interleaved_markers");
+  //  - two pairs with its code inside the gate (or without a gate): not
+  //    published (kAmbiguous, "code_seen_twice");
+  //  - one inside and others outside: the inside one, published degraded
+  //    (position only, "code_seen_twice"): its identity rests on the gate;
+  //  - only pairs outside the gate (an identity swap, or a look-alike):
+  //    not published ("impossible_jump") until the track is lost
+  //    (lost_after_s), after which the code is taken wherever it is;
+  //  - no pair: a lone blob of its position class, of the last position
+  //    blob's size, inside the gate and in no pair is taken when it is the
+  //    only one, degraded (no heading), as the demo does.
+  std::vector<RobotObservation> UpdateByCode(int64_t utime, const std::vector<SearchPlan>& plans,
+                                             const std::vector<Blob>& full_frame_blobs,
+                                             const std::vector<std::vector<Blob>>& window_blobs);
+  // Velocities, states and last positions from a frame's observations.
+  void Bookkeep(int64_t utime, const std::vector<bool>& from_full_frame,
+                const std::vector<bool>& ambiguous, std::vector<RobotObservation>* obs);
+
   struct Track {
     TrackState state = TrackState::kSearching;
     int64_t last_seen_utime = 0;
     double u_px = 0.0, v_px = 0.0;                // last confirmed position
+    double radius_px = 0.0;                       // its position blob's radius
     double du_px_per_s = 0.0, dv_px_per_s = 0.0;  // velocity estimate
     bool has_velocity = false;
     bool ever_found = false;

@@ -487,5 +487,201 @@ TEST(RobotTracker, HeadingMarkerFartherThanTheSearchRadiusIsNotPaired) {
   EXPECT_EQ(f.obs[0].num_candidates, 0);
 }
 
+// --- Identification by marker code (ordered colour pairs, roles by size) ---
+namespace code {
+
+// Four colours; every class may be either marker.
+constexpr int kRed = 0;
+constexpr int kYellow = 1;
+constexpr int kGreen = 2;
+constexpr int kBlue = 3;
+// Position markers 15 px in radius, heading markers half that, 30 px apart
+// (the site's 12 cm / 6 cm / 12 cm at 250 px per metre).
+constexpr double kPosRadiusPx = 15.0;
+constexpr double kHeadRadiusPx = 7.5;
+constexpr double kOffsetPx = 30.0;
+// Two robots' centres 0.35 m apart at 250 px/m: the closest the 0.30 m
+// bodies pass in the eight-robot site.
+constexpr double kCloseBodiesPx = 87.5;
+
+TrackerOptions CodeOptions() {
+  TrackerOptions o;
+  o.identify_by_code = true;
+  o.heading_offset_radii = kOffsetPx / kPosRadiusPx;
+  o.heading_size_ratio = kHeadRadiusPx / kPosRadiusPx;
+  return o;
+}
+
+// Robot `id`'s markers at (u, v) heading `angle_rad` in the image.
+std::vector<Blob> Coded(int position_class, int heading_class, double u, double v,
+                        double angle_rad) {
+  return {MakeBlob(position_class, u, v, kPosRadiusPx),
+          MakeBlob(heading_class, u + kOffsetPx * std::cos(angle_rad),
+                   v + kOffsetPx * std::sin(angle_rad), kHeadRadiusPx)};
+}
+
+std::vector<TrackedRobotSpec> SwappedPairRobots() {
+  return {Spec(1, kRed, kGreen), Spec(2, kGreen, kRed), Spec(3, kYellow, kBlue),
+          Spec(4, kBlue, kYellow)};
+}
+
+TEST(RobotTrackerCode, TellsSwappedColourPairsApartByTheMarkersSizes) {
+  RobotTracker tracker(SwappedPairRobots(), CodeOptions(), kWidthPx, kHeightPx);
+  // Robot 1 (red big, green small) and robot 2 (green big, red small) side
+  // by side 0.35 m apart, headings towards each other: each one's small
+  // marker is nearest the other's big marker of the same colour.
+  const std::vector<Blob> scene = Join(Coded(kRed, kGreen, 800, 500, 0.0),
+                                       Coded(kGreen, kRed, 800 + kCloseBodiesPx, 500, M_PI));
+  const Frame f = Step(&tracker, kStartUs, scene);
+  ASSERT_TRUE(f.obs[0].found);
+  ASSERT_TRUE(f.obs[1].found);
+  EXPECT_NEAR(f.obs[0].position.u_px, 800.0, kTolPx);
+  EXPECT_NEAR(f.obs[1].position.u_px, 800.0 + kCloseBodiesPx, kTolPx);
+  EXPECT_TRUE(f.obs[0].has_heading);
+  EXPECT_NEAR(f.obs[0].image_angle_rad, 0.0, kTolRad);
+  EXPECT_NEAR(std::abs(f.obs[1].image_angle_rad), M_PI, kTolRad);
+  EXPECT_TRUE(f.obs[0].identity_problem.empty()) << f.obs[0].identity_problem;
+  EXPECT_FALSE(f.obs[2].found);  // not in view
+  EXPECT_EQ(f.obs[2].state, TrackState::kSearching);
+}
+
+TEST(RobotTrackerCode, TracksEightRobotsInARingCloseTogetherFrameAfterFrame) {
+  std::vector<TrackedRobotSpec> specs;
+  const int colours[4] = {kRed, kYellow, kGreen, kBlue};
+  for (int k = 0; k < 8; ++k) {
+    specs.push_back(Spec(k + 1, colours[k % 4], colours[(k + 1 + k / 4) % 4]));
+  }
+  RobotTracker tracker(specs, CodeOptions(), kWidthPx, kHeightPx);
+  // Eight robots on a ring whose neighbours are 0.35 m apart, turning at
+  // 0.5 rad/s, headings tangential.
+  const double ring_px = kCloseBodiesPx / (2.0 * std::sin(M_PI / 8.0));
+  int wrong = 0, found = 0;
+  for (int f = 0; f < 60; ++f) {
+    const double t = f * kFramePeriodS;
+    std::vector<Blob> scene;
+    for (int k = 0; k < 8; ++k) {
+      const double a = 0.5 * t + k * M_PI / 4.0;
+      scene = Join(
+          scene, Coded(specs[k].position_class, specs[k].heading_class, 960 + ring_px * std::cos(a),
+                       540 + ring_px * std::sin(a), a + M_PI / 2.0));
+    }
+    const Frame fr = Step(&tracker, kStartUs + f * kFramePeriodUs, scene);
+    for (int k = 0; k < 8; ++k) {
+      if (!fr.obs[k].found) continue;
+      ++found;
+      const double a = 0.5 * t + k * M_PI / 4.0;
+      if (std::hypot(fr.obs[k].position.u_px - (960 + ring_px * std::cos(a)),
+                     fr.obs[k].position.v_px - (540 + ring_px * std::sin(a))) > 1.0) {
+        ++wrong;
+      }
+    }
+  }
+  EXPECT_EQ(found, 8 * 60);
+  EXPECT_EQ(wrong, 0);
+}
+
+TEST(RobotTrackerCode, ACodeSeenTwiceIsNotPublishedBeforeTheFirstFind) {
+  RobotTracker tracker(SwappedPairRobots(), CodeOptions(), kWidthPx, kHeightPx);
+  // Robot 3's code twice (a look-alike on the floor): neither is taken.
+  const std::vector<Blob> scene =
+      Join(Coded(kYellow, kBlue, 400, 300, 0.0), Coded(kYellow, kBlue, 1400, 700, 1.0));
+  const Frame f = Step(&tracker, kStartUs, scene);
+  EXPECT_FALSE(f.obs[2].found);
+  EXPECT_EQ(f.obs[2].state, TrackState::kAmbiguous);
+  EXPECT_EQ(f.obs[2].identity_problem, "code_seen_twice");
+  EXPECT_EQ(f.obs[2].num_candidates, 2);
+}
+
+TEST(RobotTrackerCode, ALookAlikeOutsideTheGateLeavesTheTrackedRobotDegraded) {
+  RobotTracker tracker(SwappedPairRobots(), CodeOptions(), kWidthPx, kHeightPx);
+  ASSERT_TRUE(Step(&tracker, kStartUs, Coded(kYellow, kBlue, 400, 300, 0.0)).obs[2].found);
+  // Next frame a second copy of robot 3's code far away, handed in with
+  // the window's blobs: the one inside the gate is taken, without its
+  // heading (status degraded), and the doubt is counted.
+  const std::vector<Blob> scene =
+      Join(Coded(kYellow, kBlue, 402, 300, 0.0), Coded(kYellow, kBlue, 1400, 700, 1.0));
+  const Frame f = Step(&tracker, kStartUs + kFramePeriodUs, scene, /*leak_into_windows=*/true);
+  ASSERT_TRUE(f.obs[2].found);
+  EXPECT_NEAR(f.obs[2].position.u_px, 402.0, kTolPx);
+  EXPECT_FALSE(f.obs[2].has_heading);
+  EXPECT_EQ(f.obs[2].identity_problem, "code_seen_twice");
+}
+
+TEST(RobotTrackerCode, AnIdentitySwapThatWouldBeAnImpossibleJumpIsNotPublished) {
+  RobotTracker tracker(SwappedPairRobots(), CodeOptions(), kWidthPx, kHeightPx);
+  ASSERT_TRUE(Step(&tracker, kStartUs, Coded(kRed, kGreen, 400, 300, 0.0)).obs[0].found);
+  // One frame later robot 1's code shows 800 px away (its markers misread
+  // elsewhere) and not where it was: at 600 px/s it cannot have gone there.
+  const Frame f = Step(&tracker, kStartUs + kFramePeriodUs, Coded(kRed, kGreen, 1200, 300, 0.0),
+                       /*leak_into_windows=*/true);
+  EXPECT_FALSE(f.obs[0].found);
+  EXPECT_EQ(f.obs[0].identity_problem, "impossible_jump");
+  EXPECT_EQ(f.obs[0].state, TrackState::kTracking);  // not lost yet
+  // Once the track is lost (0.5 s), the code is taken where it is.
+  Frame later;
+  for (int k = 2; k <= 20; ++k) {
+    later = Step(&tracker, kStartUs + k * kFramePeriodUs, Coded(kRed, kGreen, 1200, 300, 0.0));
+  }
+  EXPECT_TRUE(later.obs[0].found);
+  EXPECT_NEAR(later.obs[0].position.u_px, 1200.0, kTolPx);
+}
+
+TEST(RobotTrackerCode, InterleavedMarkersOfTwoRobotsAreNotPublished) {
+  RobotTracker tracker(SwappedPairRobots(), CodeOptions(), kWidthPx, kHeightPx);
+  // Robot 1's big red marker with a small green blob on either side at the
+  // code's distance: two pairs with its code share the red blob.
+  std::vector<Blob> scene = Coded(kRed, kGreen, 800, 500, 0.0);
+  scene.push_back(MakeBlob(kGreen, 800 - kOffsetPx, 500, kHeadRadiusPx));
+  const Frame f = Step(&tracker, kStartUs, scene);
+  EXPECT_FALSE(f.obs[0].found);
+  EXPECT_EQ(f.obs[0].state, TrackState::kAmbiguous);
+  EXPECT_EQ(f.obs[0].identity_problem, "interleaved_markers");
+
+  // Robot 1's small green marker also lies at the code's distance from a
+  // big blue one, and blue/green is robot 7's code: the green blob would
+  // serve two robots, so neither is published.
+  RobotTracker seven({Spec(1, kRed, kGreen), Spec(7, kBlue, kGreen)}, CodeOptions(), kWidthPx,
+                     kHeightPx);
+  std::vector<Blob> shared = Coded(kRed, kGreen, 800, 500, 0.0);
+  shared.push_back(MakeBlob(kBlue, 800 + 2 * kOffsetPx, 500, kPosRadiusPx));
+  const Frame g = Step(&seven, kStartUs, shared);
+  EXPECT_FALSE(g.obs[0].found);
+  EXPECT_FALSE(g.obs[1].found);
+  EXPECT_EQ(g.obs[0].identity_problem, "interleaved_markers");
+  EXPECT_EQ(g.obs[1].identity_problem, "interleaved_markers");
+}
+
+TEST(RobotTrackerCode, ALonePositionMarkerInsideTheGateIsTakenWithoutHeading) {
+  RobotTracker tracker(SwappedPairRobots(), CodeOptions(), kWidthPx, kHeightPx);
+  ASSERT_TRUE(Step(&tracker, kStartUs, Coded(kBlue, kYellow, 600, 600, 0.0)).obs[3].found);
+  // The heading marker is hidden: the big blue blob near where robot 4 was
+  // is taken, status degraded. A small blue blob (another robot's heading
+  // marker size) would not be.
+  const Frame f =
+      Step(&tracker, kStartUs + kFramePeriodUs, {MakeBlob(kBlue, 603, 600, kPosRadiusPx)});
+  ASSERT_TRUE(f.obs[3].found);
+  EXPECT_FALSE(f.obs[3].has_heading);
+  EXPECT_TRUE(f.obs[3].identity_problem.empty());
+  const Frame g =
+      Step(&tracker, kStartUs + 2 * kFramePeriodUs, {MakeBlob(kBlue, 606, 600, kHeadRadiusPx)});
+  EXPECT_FALSE(g.obs[3].found);
+}
+
+TEST(RobotTrackerCode, AMarkerCutByAWindowEdgeIsOneMarkerNotTwo) {
+  RobotTracker tracker(SwappedPairRobots(), CodeOptions(), kWidthPx, kHeightPx);
+  // Robot 3's heading marker measured whole (full frame) and, cut by a
+  // neighbour's window edge, as a smaller blob 3 px off: were they two
+  // blobs, two pairs would share robot 3's position marker.
+  std::vector<Blob> scene = Coded(kYellow, kBlue, 700, 350, 0.0);
+  scene.push_back(MakeBlob(kBlue, 700 + kOffsetPx - 3.0, 350, 5.5));
+  const Frame f = Step(&tracker, kStartUs, scene);
+  ASSERT_TRUE(f.obs[2].found);
+  EXPECT_TRUE(f.obs[2].has_heading);
+  EXPECT_NEAR(f.obs[2].heading.u_px, 700 + kOffsetPx, kTolPx);  // the whole one
+  EXPECT_TRUE(f.obs[2].identity_problem.empty()) << f.obs[2].identity_problem;
+}
+
+}  // namespace code
+
 }  // namespace
 }  // namespace roomfix::vision

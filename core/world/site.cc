@@ -247,7 +247,45 @@ void ParseRobots(const Reader& r, const YAML::Node& root, Site* site) {
   }
 }
 
-MarkerClass ParseMarkerClass(const Reader& r, const YAML::Node& node, const std::string& key) {
+// The code's sizes must let a blob's size say its role and keep the two
+// markers apart: see docs/camera.md, "Many robots", for the figures.
+constexpr double kMaxHeadingToPositionRatio = 0.6;
+constexpr double kMinMarkerGapM = 0.02;
+
+MarkerCode ParseMarkerCode(const Reader& r, const YAML::Node& node, const std::string& key) {
+  r.ExpectMap(node, key);
+  r.OnlyKeys(node, key, {"position_diameter_m", "heading_diameter_m", "heading_offset_m"});
+  MarkerCode code;
+  code.position_diameter_m =
+      r.Positive(r.Required(node, key, "position_diameter_m"), key + ".position_diameter_m");
+  const YAML::Node heading = r.Required(node, key, "heading_diameter_m");
+  code.heading_diameter_m = r.Positive(heading, key + ".heading_diameter_m");
+  const YAML::Node offset = r.Required(node, key, "heading_offset_m");
+  code.heading_offset_m = r.Positive(offset, key + ".heading_offset_m");
+  if (code.heading_diameter_m > kMaxHeadingToPositionRatio * code.position_diameter_m) {
+    char text[160];
+    std::snprintf(text, sizeof(text),
+                  "must be at most %.1f times position_diameter_m (%.3f m): the size tells a "
+                  "heading marker from a position marker",
+                  kMaxHeadingToPositionRatio,
+                  kMaxHeadingToPositionRatio * code.position_diameter_m);
+    r.Fail(heading, key + ".heading_diameter_m", text);
+  }
+  const double gap_m =
+      code.heading_offset_m - 0.5 * (code.position_diameter_m + code.heading_diameter_m);
+  if (gap_m < kMinMarkerGapM) {
+    char text[160];
+    std::snprintf(text, sizeof(text),
+                  "leaves %.3f m between the two markers' edges, under %.2f m: they would "
+                  "blur into one blob",
+                  gap_m, kMinMarkerGapM);
+    r.Fail(offset, key + ".heading_offset_m", text);
+  }
+  return code;
+}
+
+MarkerClass ParseMarkerClass(const Reader& r, const YAML::Node& node, const std::string& key,
+                             const MarkerCode& code, const std::string& code_key) {
   r.ExpectMap(node, key);
   r.OnlyKeys(node, key, {"name", "hsv_min", "hsv_max", "diameter_m"});
   MarkerClass mc;
@@ -274,7 +312,15 @@ MarkerClass ParseMarkerClass(const Reader& r, const YAML::Node& node, const std:
   if (mc.hsv_min[1] > mc.hsv_max[1] || mc.hsv_min[2] > mc.hsv_max[2]) {
     r.Fail(lo, key + ".hsv_min", "saturation and value minimums must not exceed the maximums");
   }
-  mc.diameter_m = r.Positive(r.Required(node, key, "diameter_m"), key + ".diameter_m");
+  if (code.enabled()) {
+    // Two sizes for one class would leave the reader guessing which holds.
+    if (node["diameter_m"]) {
+      r.Fail(node["diameter_m"], key + ".diameter_m",
+             "marker sizes are per role under " + code_key + ": remove this diameter");
+    }
+  } else {
+    mc.diameter_m = r.Positive(r.Required(node, key, "diameter_m"), key + ".diameter_m");
+  }
   return mc;
 }
 
@@ -331,8 +377,8 @@ void ParseCameras(const Reader& r, const YAML::Node& root, const std::string& ba
     r.ExpectMap(node, key);
     r.OnlyKeys(node, key,
                {"id", "device", "resolution", "fps", "pixel_format", "mount_position_m",
-                "field_of_view_deg", "properties", "calibration", "marker_classes", "robots",
-                "readout_s", "exposure_s", "timestamp_latency_s"});
+                "field_of_view_deg", "properties", "calibration", "marker_code", "marker_classes",
+                "robots", "readout_s", "exposure_s", "timestamp_latency_s"});
     Camera cam;
     cam.id = r.UniqueId(node, key, "id", "camera", &ids);
     // pose2d_t.camera_id is -1 (NO_CAMERA) for poses no camera measured.
@@ -393,11 +439,14 @@ void ParseCameras(const Reader& r, const YAML::Node& root, const std::string& ba
       if (!file.empty() && file[0] != '/' && !base_dir.empty()) file = base_dir + "/" + file;
       cam.calibration_file = file;
     }
+    const std::string code_key = key + ".marker_code";
+    if (const YAML::Node code = node["marker_code"])
+      cam.marker_code = ParseMarkerCode(r, code, code_key);
     const YAML::Node classes = r.Required(node, key, "marker_classes");
     r.ExpectSequence(classes, key + ".marker_classes");
     for (size_t c = 0; c < classes.size(); ++c) {
       const std::string ckey = K::Index(key + ".marker_classes", c);
-      MarkerClass mc = ParseMarkerClass(r, classes[c], ckey);
+      MarkerClass mc = ParseMarkerClass(r, classes[c], ckey, cam.marker_code, code_key);
       for (const auto& other : cam.marker_classes) {
         if (other.name == mc.name) {
           r.Fail(classes[c], ckey + ".name", "duplicate marker class '" + mc.name + "'");
@@ -417,6 +466,10 @@ void ParseCameras(const Reader& r, const YAML::Node& root, const std::string& ba
     const YAML::Node robots = r.Required(node, key, "robots");
     r.ExpectSequence(robots, key + ".robots");
     std::set<int> robot_ids;
+    // Per class: the first robot using it as a position and as a heading
+    // marker (for the role check without a code); per code: its robot.
+    std::map<std::string, size_t> position_user, heading_user;
+    std::map<std::pair<std::string, std::string>, size_t> code_user;
     for (size_t k = 0; k < robots.size(); ++k) {
       const YAML::Node rn = robots[k];
       const std::string rkey = K::Index(key + ".robots", k);
@@ -442,7 +495,38 @@ void ParseCameras(const Reader& r, const YAML::Node& root, const std::string& ba
         }
       }
       if (cr.position_marker == cr.heading_marker) {
-        r.Fail(rn, rkey + ".heading_marker", "must differ from position_marker");
+        // With a code the sizes would tell the roles apart, but the two
+        // markers' gap (a few pixels at the far corners) blurs shut and the
+        // pair reads as one blob.
+        r.Fail(rn, rkey + ".heading_marker",
+               "must differ from position_marker (two markers of one colour side by side merge "
+               "into one blob)");
+      }
+      const auto code = std::make_pair(cr.position_marker, cr.heading_marker);
+      if (const auto it = code_user.find(code); it != code_user.end()) {
+        r.Fail(rn, rkey,
+               "code " + cr.position_marker + "/" + cr.heading_marker + " is already robot " +
+                   std::to_string(cam.robots[it->second].robot_id) + "'s (" +
+                   K::Index(key + ".robots", it->second) +
+                   "): the camera could not tell the two robots apart");
+      }
+      code_user[code] = k;
+      if (!cam.marker_code.enabled()) {
+        // Without a code a blob's role comes from its class alone.
+        const auto pos = heading_user.find(cr.position_marker);
+        const auto head = position_user.find(cr.heading_marker);
+        if (pos != heading_user.end() || head != position_user.end()) {
+          const bool as_pos = pos != heading_user.end();
+          const std::string& cls = as_pos ? cr.position_marker : cr.heading_marker;
+          const size_t other = as_pos ? pos->second : head->second;
+          r.Fail(rn, rkey + (as_pos ? ".position_marker" : ".heading_marker"),
+                 "class '" + cls + "' is robot " + std::to_string(cam.robots[other].robot_id) +
+                     "'s " + (as_pos ? "heading" : "position") +
+                     " marker: a class serves one role unless " + code_key +
+                     " sizes the roles (docs/camera.md, \"Many robots\")");
+        }
+        position_user.emplace(cr.position_marker, k);
+        heading_user.emplace(cr.heading_marker, k);
       }
       const YAML::Node h = r.Required(rn, rkey, "marker_height_m");
       cr.marker_height_m = r.Double(h, rkey + ".marker_height_m");
@@ -782,6 +866,22 @@ const Robot* Site::FindRobot(int id) const {
 
 const Camera* Site::FindCamera(int id) const {
   return FindIf(cameras, [id](const Camera& c) { return c.id == id; });
+}
+
+double PositionMarkerDiameterM(const Camera& camera, const CameraRobot& robot) {
+  if (camera.marker_code.enabled()) return camera.marker_code.position_diameter_m;
+  for (const MarkerClass& c : camera.marker_classes) {
+    if (c.name == robot.position_marker) return c.diameter_m;
+  }
+  return 0.0;
+}
+
+double HeadingMarkerDiameterM(const Camera& camera, const CameraRobot& robot) {
+  if (camera.marker_code.enabled()) return camera.marker_code.heading_diameter_m;
+  for (const MarkerClass& c : camera.marker_classes) {
+    if (c.name == robot.heading_marker) return c.diameter_m;
+  }
+  return 0.0;
 }
 
 bool HsvRangesOverlap(const MarkerClass& a, const MarkerClass& b) {

@@ -65,7 +65,23 @@ struct MarkerClass {
   std::string name;
   std::array<int, 3> hsv_min{};
   std::array<int, 3> hsv_max{};
+  // The markers' diameter; 0 when the camera's marker_code sizes markers by
+  // role instead.
   double diameter_m = 0.0;
+};
+
+// Robots told apart by an ordered pair of colours (docs/camera.md, "Many
+// robots"): every marker class may serve as a position or a heading marker,
+// the role of a blob is read from its size (position markers are the large
+// ones), and each robot's code is (position colour, heading colour). Without
+// it (diameter 0 here) the role comes from the class, as in the one-robot
+// demo.
+struct MarkerCode {
+  double position_diameter_m = 0.0;
+  double heading_diameter_m = 0.0;
+  // Centre of the position marker to centre of the heading marker.
+  double heading_offset_m = 0.0;
+  bool enabled() const { return position_diameter_m > 0.0; }
 };
 
 // A robot as the camera sees it: a large marker for its position and a small
@@ -116,7 +132,16 @@ struct Camera {
   std::string calibration_file;
   std::vector<MarkerClass> marker_classes;
   std::vector<CameraRobot> robots;
+  // Identification by ordered colour pairs with per-role sizes; disabled
+  // when the site gives no `marker_code`.
+  MarkerCode marker_code;
 };
+
+// The diameters of a robot's two markers on this camera: the code's
+// per-role sizes when it has one, else the classes' diameters (0 for an
+// unknown class).
+double PositionMarkerDiameterM(const Camera& camera, const CameraRobot& robot);
+double HeadingMarkerDiameterM(const Camera& camera, const CameraRobot& robot);
 
 // A robot in the site, tying its beacon to its camera markers.
 struct Robot {

@@ -85,6 +85,45 @@ TEST(Site, FindsReceiversAndBeaconsByIdAndAddress) {
   EXPECT_EQ(site.FindReceiverByAddress(0x0013A20042000001ull), nullptr);
 }
 
+// The eight-robot site tells its robots apart by ordered colour pairs: the
+// marker code sizes the markers by role, every class may serve either role,
+// and no two robots share a pair.
+TEST(Site, EightRobotSiteSizesMarkersByRoleAndGivesEveryRobotItsOwnPair) {
+  Site site;
+  std::string error;
+  ASSERT_TRUE(LoadSite(SourceDir() + "/config/sites/eight_robots.yaml", &site, &error)) << error;
+  ASSERT_EQ(site.cameras.size(), 1u);
+  const Camera& cam = site.cameras.front();
+  ASSERT_TRUE(cam.marker_code.enabled());
+  EXPECT_EQ(cam.marker_code.position_diameter_m, 0.12);
+  EXPECT_EQ(cam.marker_code.heading_diameter_m, 0.06);
+  EXPECT_EQ(cam.marker_code.heading_offset_m, 0.12);
+  EXPECT_EQ(cam.marker_classes.size(), 4u);
+  for (const MarkerClass& c : cam.marker_classes) EXPECT_EQ(c.diameter_m, 0.0) << c.name;
+  ASSERT_EQ(cam.robots.size(), 8u);
+  std::set<std::pair<std::string, std::string>> codes;
+  for (const CameraRobot& r : cam.robots) {
+    EXPECT_EQ(PositionMarkerDiameterM(cam, r), 0.12);
+    EXPECT_EQ(HeadingMarkerDiameterM(cam, r), 0.06);
+    EXPECT_TRUE(codes.insert({r.position_marker, r.heading_marker}).second) << r.robot_id;
+  }
+  // Robot 1 is red/green and robot 2 green/red: only the sizes tell them apart.
+  EXPECT_EQ(cam.robots[0].position_marker, cam.robots[1].heading_marker);
+  EXPECT_EQ(cam.robots[1].position_marker, cam.robots[0].heading_marker);
+}
+
+// Without a marker code the role comes from the class: its diameter is the
+// markers' size.
+TEST(Site, WithoutAMarkerCodeEachClassGivesItsOwnDiameter) {
+  Site site;
+  std::string error;
+  ASSERT_TRUE(LoadSite(SourceDir() + "/config/sites/demo_room.yaml", &site, &error)) << error;
+  const Camera& cam = site.cameras.front();
+  EXPECT_FALSE(cam.marker_code.enabled());
+  EXPECT_EQ(PositionMarkerDiameterM(cam, cam.robots[0]), 0.10);
+  EXPECT_EQ(HeadingMarkerDiameterM(cam, cam.robots[0]), 0.05);
+}
+
 // Each file in tests/data/broken_sites starts with "# expect: <text>", the
 // error the loader must give. The error is one line that names the file, the
 // key and the problem.
