@@ -54,8 +54,10 @@ bool SimFrameSource::Open(std::string* error) {
       std::lock_guard<std::mutex> lock(mutex_);
       stop_ = false;
       queue_.clear();
+      rendered_.reset();
     }
-    producer_ = std::thread(&SimFrameSource::Produce, this);
+    producer_ = std::thread(&SimFrameSource::RenderLoop, this);
+    encoder_ = std::thread(&SimFrameSource::EncodeLoop, this);
   }
   return true;
 }
@@ -68,8 +70,10 @@ void SimFrameSource::Close() {
   }
   changed_.notify_all();
   producer_.join();
+  encoder_.join();
   std::lock_guard<std::mutex> lock(mutex_);
   queue_.clear();
+  rendered_.reset();
 }
 
 int64_t SimFrameSource::render_skipped() const {
@@ -81,7 +85,7 @@ int64_t SimFrameSource::CaptureUtime(int64_t seq) const {
   return options_.start_utime + static_cast<int64_t>(std::llround(seq * 1e6 / options_.fps));
 }
 
-void SimFrameSource::Render(int64_t seq, Rendered* out) const {
+void SimFrameSource::RenderPixels(int64_t seq, Rendered* out) const {
   // The frame starts (row 0 is read) at start + seq / fps; its timestamp is
   // the last row's read time plus the latency and jitter (the webcam
   // scenario; 0 otherwise).
@@ -91,23 +95,27 @@ void SimFrameSource::Render(int64_t seq, Rendered* out) const {
     out->status = ReadStatus::kEndOfStream;
     return;
   }
-  cv::Mat bgr;
-  camera_->Render(t_s, seq, camera_->SimulatedRobots(t_s), &bgr, &out->truth);
+  camera_->Render(t_s, seq, camera_->SimulatedRobots(t_s), &out->bgr, &out->truth);
   out->frame.capture_utime = capture + std::llround(camera_->TimestampDelayS(seq) * 1e6);
   out->frame.seq = seq;
   out->status = ReadStatus::kFrame;
+}
+
+void SimFrameSource::Encode(Rendered* out) const {
+  if (out->status != ReadStatus::kFrame) return;
   if (camera_->JpegQuality(options_.jpeg_quality) > 0) {
     std::vector<uint8_t> bytes;
-    if (!camera_->Encode(bgr, options_.jpeg_quality, &bytes)) {
-      out->error = "cannot encode synthetic frame " + std::to_string(seq);
+    if (!camera_->Encode(out->bgr, options_.jpeg_quality, &bytes)) {
+      out->error = "cannot encode synthetic frame " + std::to_string(out->frame.seq);
       out->status = ReadStatus::kBadFrame;
       return;
     }
     out->frame.image = MakeJpegImage(std::move(bytes), &out->error);
     if (out->frame.image == nullptr) out->status = ReadStatus::kBadFrame;
   } else {
-    out->frame.image = MakeDecodedImage(std::move(bgr));
+    out->frame.image = MakeDecodedImage(std::move(out->bgr));
   }
+  out->bgr.release();
 }
 
 bool SimFrameSource::WaitUntil(int64_t utime, std::unique_lock<std::mutex>* lock) {
@@ -121,7 +129,7 @@ bool SimFrameSource::WaitUntil(int64_t utime, std::unique_lock<std::mutex>* lock
   return false;
 }
 
-void SimFrameSource::Produce() {
+void SimFrameSource::RenderLoop() {
   const double period_us = 1e6 / options_.fps;
   int64_t skipped = 0;
   std::unique_lock<std::mutex> lock(mutex_);
@@ -143,15 +151,37 @@ void SimFrameSource::Produce() {
     if (!WaitUntil(CaptureUtime(seq), &lock)) break;
     Rendered item;
     lock.unlock();
-    Render(seq, &item);
+    RenderPixels(seq, &item);
+    lock.lock();
+    item.frame.source_skipped = skipped;
+    skipped = 0;
+    // The encoder takes one frame at a time; waiting for it is falling
+    // behind, which the next frame's skip check sees.
+    changed_.wait(lock, [&] { return !rendered_.has_value() || stop_; });
+    if (stop_) break;
+    const bool end = item.status == ReadStatus::kEndOfStream;
+    rendered_ = std::move(item);
+    changed_.notify_all();
+    if (end) break;
+    ++seq;
+  }
+}
+
+void SimFrameSource::EncodeLoop() {
+  std::unique_lock<std::mutex> lock(mutex_);
+  while (!stop_) {
+    changed_.wait(lock, [&] { return rendered_.has_value() || stop_; });
+    if (stop_) break;
+    Rendered item = std::move(*rendered_);
+    rendered_.reset();
+    changed_.notify_all();
+    lock.unlock();
+    Encode(&item);
     lock.lock();
     // Handed over at its timestamp, not before (a camera cannot deliver a
     // frame before its last row is read).
-    if (item.status != ReadStatus::kEndOfStream && !WaitUntil(item.frame.capture_utime, &lock)) {
-      break;
-    }
-    item.frame.source_skipped = skipped;
-    skipped = 0;
+    const bool end = item.status == ReadStatus::kEndOfStream;
+    if (!end && !WaitUntil(item.frame.capture_utime, &lock)) break;
     if (static_cast<int>(queue_.size()) >= options_.queue_frames) {
       // The reader is behind: the oldest frame goes (camera_proc's drop),
       // but the renderer's own skips before it stay counted as such.
@@ -163,11 +193,9 @@ void SimFrameSource::Produce() {
         item.frame.source_skipped += carried;
       }
     }
-    const bool end = item.status == ReadStatus::kEndOfStream;
     queue_.push_back(std::move(item));
     changed_.notify_all();
     if (end) break;
-    ++seq;
   }
 }
 
@@ -189,7 +217,8 @@ ReadStatus SimFrameSource::Read(Frame* frame, std::string* error) {
     item = std::move(queue_.front());
     queue_.pop_front();
   } else {
-    Render(next_seq_++, &item);
+    RenderPixels(next_seq_++, &item);
+    Encode(&item);
   }
   if (item.status == ReadStatus::kEndOfStream) return item.status;
   truth_ = std::move(item.truth);

@@ -23,14 +23,13 @@ struct SimSourceOptions {
   // The simulation's t = 0 (the same instant roomfix_sim was given, so the
   // two agree on where the robot is), microseconds since the Unix epoch.
   int64_t start_utime = 0;
-  // Real time: a producer thread renders each frame from its start time on
-  // and hands it over at its timestamp, as a camera captures in parallel
-  // with the processing; frames whose start has passed while the renderer
-  // was busy are skipped (a gap in seq, counted in Frame::source_skipped),
-  // and when the reader falls `queue_frames` behind the oldest waiting frame
-  // is discarded (a gap camera_proc counts as its own drop), as a driver
-  // with full buffers does. Otherwise frames are rendered back to back in
-  // Read, on a virtual clock, start + seq / fps, with no thread.
+  // Real time: producer threads render (one) and encode (the other) each
+  // frame from its start time on and hand it over at its timestamp, as a
+  // camera captures in parallel with the processing; frames whose start has passed while the
+  // renderer was busy are skipped (a gap in seq, counted in Frame::source_skipped), and when the
+  // reader falls `queue_frames` behind the oldest waiting frame is discarded (a gap camera_proc
+  // counts as its own drop), as a driver with full buffers does. Otherwise frames are rendered back
+  // to back in Read, on a virtual clock, start + seq / fps, with no thread.
   bool realtime = true;
   // Frames rendered ahead of the reader (realtime only), at least 1.
   int queue_frames = 2;
@@ -57,14 +56,14 @@ calib::CameraTiming ScenarioTiming(const sim::SimScenario& scenario, int height_
 class SimFrameSource final : public FrameSource {
  public:
   SimFrameSource(std::shared_ptr<const sim::SyntheticCamera> camera, SimSourceOptions options);
-  // Stops and joins the producer thread.
+  // Stops and joins the producer threads.
   ~SimFrameSource() override;
   SimFrameSource(const SimFrameSource&) = delete;
   SimFrameSource& operator=(const SimFrameSource&) = delete;
 
-  // Realtime: starts the producer thread (frames from the clock's present).
+  // Realtime: starts the producer threads (frames from the clock's present).
   bool Open(std::string* error) override;
-  // Stops and joins the producer thread; frames not yet read are discarded.
+  // Stops and joins the producer threads; frames not yet read are discarded.
   void Close() override;
   // Realtime: blocks until the producer has a frame (about one frame
   // interval while it keeps up).
@@ -84,12 +83,19 @@ class SimFrameSource final : public FrameSource {
     Frame frame;
     std::string error;
     std::vector<sim::MarkerTruth> truth;
+    // The rendered pixels until they are encoded.
+    cv::Mat bgr;
   };
   int64_t CaptureUtime(int64_t seq) const;
-  // Renders and encodes frame `seq` (stamp, image, truth, or kEndOfStream
-  // past duration_s); no waiting.
-  void Render(int64_t seq, Rendered* out) const;
-  void Produce();
+  // Renders frame `seq` (stamp, pixels, truth, or kEndOfStream past
+  // duration_s); no waiting.
+  void RenderPixels(int64_t seq, Rendered* out) const;
+  // The pixels to the frame's image (MJPEG, or BGR as they are).
+  void Encode(Rendered* out) const;
+  // Realtime: two stages, so that a frame's render and the previous frame's
+  // encode run at once (each within a frame period even on a loaded core).
+  void RenderLoop();
+  void EncodeLoop();
   // Waits until the clock reaches `utime` or Close asks to stop; false when
   // stopping.
   bool WaitUntil(int64_t utime, std::unique_lock<std::mutex>* lock);
@@ -101,6 +107,9 @@ class SimFrameSource final : public FrameSource {
 
   // The producer (realtime): guarded by mutex_.
   std::thread producer_;
+  std::thread encoder_;
+  // Rendered, not yet encoded (at most one).
+  std::optional<Rendered> rendered_;
   mutable std::mutex mutex_;
   std::condition_variable changed_;
   std::deque<Rendered> queue_;
