@@ -148,7 +148,10 @@ class CalibratedPipelineTest : public ::testing::Test {
     std::vector<pose2d_t> poses;
     bus.Subscribe<pose2d_t>(kCameraPoseChannel,
                             [&](const pose2d_t& p, const MessageInfo&) { poses.push_back(p); });
-    CameraNode node(site_, camera_, calibration, &bus, CameraNodeOptions{}, kStartUtime);
+    CameraNodeOptions node_options;
+    if (use_device_timing_) node_options.device_timing = source.device_timing();
+    CameraNode node(site_, camera_, calibration, &bus, node_options, kStartUtime);
+    node_timing_ = node.timing();
     double sum2 = 0.0;
     int n = 0;
     int inside = 0;
@@ -182,6 +185,10 @@ class CalibratedPipelineTest : public ::testing::Test {
   // The site's camera as it is: the webcam's timing and the robot's tilt.
   Camera webcam_camera_;
   calib::CameraModel truth_;
+  // Give the node the frame source's own timing, as camera_proc does.
+  bool use_device_timing_ = false;
+  // The timing the last RmseOnFrames's node used.
+  calib::CameraTiming node_timing_;
 };
 
 TEST_F(CalibratedPipelineTest, StaticRobotWithinThreeMillimetres) {
@@ -298,6 +305,53 @@ TEST_F(WebcamPipelineTest, ReferenceCircleWithinFiveMillimetresAndCovered) {
   EXPECT_EQ(dropped, 0);
   EXPECT_GE(inside_95, kCoverageLow);
   EXPECT_LE(inside_95, kCoverageHigh);
+}
+
+}  // namespace
+}  // namespace roomfix
+
+namespace roomfix {
+namespace {
+
+// camera_proc run with a pinned synthetic device (--device sim:SCENARIO): the
+// device decides the timing physics, whatever the site's camera says.
+using DeviceTimingTest = CalibratedPipelineTest;
+
+TEST_F(DeviceTimingTest, CleanSimDeviceOnTheWebcamSitePublishesPosesAtTheirTrueTimes) {
+  // The demo site's camera states the webcam's 30 ms readout, 15.6 ms
+  // exposure and 5 ms latency; the clean scenario exposes every row at the
+  // frame's instant and stamps it exactly. With the site's figures the poses
+  // would be dated about 28 ms early (5 mm at 18 cm/s).
+  camera_ = webcam_camera_;
+  for (CameraRobot& r : camera_.robots) r.tilt_sigma_deg = 0.0;
+  ASSERT_GT(camera_.readout_s, 0.0);
+  use_device_timing_ = true;
+  const calib::Calibration calibration = CalibrateFromTripodImages();
+  // RmseOnFrames asserts, for a scenario without webcam effects, that each
+  // pose's utime is its frame's capture time.
+  const double rmse = RmseOnFrames(calibration, 150);
+  EXPECT_EQ(node_timing_.readout_s, 0.0);
+  EXPECT_EQ(node_timing_.exposure_s, 0.0);
+  EXPECT_EQ(node_timing_.latency_s, 0.0);
+  EXPECT_EQ(node_timing_.height_px, camera_.height_px);
+  std::printf("clean device on the webcam site: %.2f mm RMS\n", rmse * 1e3);
+  EXPECT_LT(rmse, kCircleRmseM);
+}
+
+TEST_F(DeviceTimingTest, WebcamSimDeviceUsesTheWebcamsTimingOverASiteThatStatesNone) {
+  // The fixture's camera_ states an ideal camera (all 0); the device renders
+  // the webcam, whose rows are late by up to 30 ms: its figures must win.
+  use_device_timing_ = true;
+  const calib::Calibration calibration =
+      CalibrateFromTripodImages(/*point_noise_px=*/0.0, /*as_frames=*/true, "webcam");
+  const double rmse = RmseOnFrames(calibration, 90, nullptr, "webcam");
+  const WebcamSimulation& w = site_.simulation.webcam;
+  EXPECT_EQ(node_timing_.readout_s, w.readout_s);
+  EXPECT_EQ(node_timing_.exposure_s, w.exposure_s);
+  EXPECT_EQ(node_timing_.latency_s, w.timestamp_latency_s);
+  ASSERT_GT(w.readout_s, 0.0);
+  std::printf("webcam device on an ideal-camera site: %.2f mm RMS\n", rmse * 1e3);
+  EXPECT_LT(rmse, kCircleRmseM);
 }
 
 }  // namespace

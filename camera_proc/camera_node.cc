@@ -90,6 +90,10 @@ bool CameraNodeOptions::IsValid(std::string* error) const {
     *error = "blur sigma must not be negative";
     return false;
   }
+  if (device_timing && !device_timing->IsValid(error)) {
+    *error = "device timing: " + *error;
+    return false;
+  }
   return true;
 }
 
@@ -188,6 +192,24 @@ CameraNode::CameraNode(const Site& site, const Camera& camera,
   timing_.exposure_s = camera.exposure_s;
   timing_.latency_s = camera.timestamp_latency_s;
   timing_.height_px = camera.height_px;
+  if (options_.device_timing) {
+    // The device decides: a synthetic clean frame is exact whatever the
+    // site's camera says, and shifting its poses by the site's readout and
+    // latency would misplace them (about 5 mm at 18 cm/s for 28 ms).
+    const calib::CameraTiming& d = *options_.device_timing;
+    if (d.readout_s != timing_.readout_s || d.exposure_s != timing_.exposure_s ||
+        d.latency_s != timing_.latency_s) {
+      spdlog::warn(
+          "camera {}: the device defines its own timing (readout {:.1f} ms, exposure {:.1f} ms, "
+          "timestamp latency {:.1f} ms), not the site's (readout_s {:.1f} ms, exposure_s "
+          "{:.1f} ms, timestamp_latency_s {:.1f} ms); using the device's",
+          camera.id, d.readout_s * 1e3, d.exposure_s * 1e3, d.latency_s * 1e3,
+          timing_.readout_s * 1e3, timing_.exposure_s * 1e3, timing_.latency_s * 1e3);
+    }
+    timing_.readout_s = d.readout_s;
+    timing_.exposure_s = d.exposure_s;
+    timing_.latency_s = d.latency_s;
+  }
   // The lens that sizes windows and blobs: the calibrated one when there is
   // a full model, else the nominal lens at the mount position.
   calib::CameraModel lens = calib::NominalCamera(camera.mount_position_m, camera.field_of_view_deg,
@@ -313,8 +335,11 @@ void CameraNode::OnFrame(camera::Frame* frame, int64_t now_utime) {
   status_.AddInputs();
   // A gap in the source's numbering is frames the camera dropped, less the
   // ones that came but were unreadable (counted as such in OnBadFrame).
+  // The source's own skips (a synthetic renderer behind real time) are
+  // counted apart: they are not frames camera_proc failed to keep up with.
+  if (frame->source_skipped > 0) status_.Count("source_skipped_frames", frame->source_skipped);
   if (last_seq_ >= 0 && frame->seq > last_seq_ + 1) {
-    const int64_t dropped = frame->seq - last_seq_ - 1 - bad_since_last_;
+    const int64_t dropped = frame->seq - last_seq_ - 1 - bad_since_last_ - frame->source_skipped;
     if (dropped > 0) status_.AddDropped(dropped);
   }
   bad_since_last_ = 0;

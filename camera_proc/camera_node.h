@@ -67,6 +67,12 @@ struct CameraNodeOptions {
   // A reduced JPEG of a frame on CAMERA_PREVIEW this often, for the viewer
   // (0: never). Costs one 1/8-size decode and a small encode.
   double preview_hz = 1.0;
+  // The frame source's own exposure and timestamp timing when the device
+  // defines it (FrameSource::device_timing: a synthetic scenario renders its
+  // own physics, so its figures are the truth whatever the site says); empty:
+  // the site camera's readout_s, exposure_s and timestamp_latency_s, the only
+  // statement there is of a real camera's timing.
+  std::optional<calib::CameraTiming> device_timing;
   // Measures processing time (microseconds, any monotonic epoch).
   std::function<int64_t()> steady_clock;
 
@@ -135,6 +141,9 @@ class CameraNode {
   const std::vector<vision::RobotObservation>& last_observations() const { return observations_; }
   const marker_pixels_t& last_marker_pixels() const { return last_pixels_; }
   bool calibrated() const { return calibration_.has_value(); }
+  // The timing each marker's time is computed with (options.device_timing
+  // when given, else the site camera's keys).
+  const calib::CameraTiming& timing() const { return timing_; }
 
  private:
   bool SearchFullFrame(camera::FrameImage* image, std::vector<vision::Blob>* blobs,

@@ -393,6 +393,27 @@ TEST_F(CameraNodeTest, WithoutCalibrationPublishesPixelsOnly) {
   }
 }
 
+TEST_F(CameraNodeTest, FramesTheSourceSkippedAreNotCountedAsDropped) {
+  MakeStatic(2.0, 1.5, 0.0);
+  PipelineRun run = RunFrames("clean", 3);  // seq 0..2
+  sim::SimScenario scenario;
+  std::string error;
+  ASSERT_TRUE(sim::ParseSimScenario("clean", &scenario, &error));
+  sim::SyntheticCamera camera(site_, camera_, lens_, scenario);
+  cv::Mat bgr;
+  camera.Render(0.3, 9, camera.SimulatedRobots(0.3), &bgr);
+  camera::Frame frame;
+  // Frames 3..8 never came: the synthetic renderer skipped 4 of them (it
+  // fell behind real time), so camera_proc dropped the other 2.
+  frame.seq = 9;
+  frame.source_skipped = 4;
+  frame.capture_utime = kStartUtime + 300'000;
+  frame.image = camera::MakeDecodedImage(bgr);
+  run.node->OnFrame(&frame, frame.capture_utime);
+  EXPECT_EQ(run.node->status().dropped(), 2);
+  EXPECT_EQ(run.node->status().counter("source_skipped_frames"), 4);
+}
+
 TEST_F(CameraNodeTest, CorruptFramesAreCountedAndSkipped) {
   MakeStatic(2.0, 1.5, 0.0);
   PipelineRun run = RunFrames("clean", 3);

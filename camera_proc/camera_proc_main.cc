@@ -231,6 +231,13 @@ int main(int argc, char** argv) {
     }
   }
 
+  // A device that defines its own timing (a synthetic scenario) overrides
+  // the site camera's readout, exposure and latency (CameraNodeOptions).
+  options.device_timing = source->device_timing();
+  if (!options.IsValid(&error)) {
+    std::cerr << "camera_proc: " << error << "\n";
+    return 1;
+  }
   roomfix::CameraNode node(ctx->site, *camera, calibration, ctx->bus.get(), options,
                            roomfix::NowUtime());
   if (!node.ok(&error)) {
@@ -305,7 +312,10 @@ int main(int argc, char** argv) {
     node.Tick(read_utime);
   }
   node.Stop(roomfix::NowUtime());
-  spdlog::info("stopped: {} frames processed, {} dropped", node.frames_processed(),
-               node.status().dropped());
+  // Joins a synthetic camera's renderer before the summary.
+  source->Close();
+  spdlog::info("stopped: {} frames processed, {} dropped, {} skipped by the source",
+               node.frames_processed(), node.status().dropped(),
+               node.status().counter("source_skipped_frames"));
   return rc;
 }

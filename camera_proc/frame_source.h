@@ -6,8 +6,11 @@
 #include <map>
 #include <memory>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <string>
 #include <vector>
+
+#include "core/calib/camera_timing.h"
 
 namespace roomfix::camera {
 
@@ -52,6 +55,10 @@ struct Frame {
   int64_t capture_utime = 0;
   // 0, 1, 2 ... from the source; a gap means frames were dropped.
   int64_t seq = 0;
+  // Of the gap in seq before this frame, the frames the source itself
+  // skipped (the synthetic camera's renderer fell behind real time): not
+  // frames camera_proc dropped.
+  int64_t source_skipped = 0;
   std::unique_ptr<FrameImage> image;
 };
 
@@ -94,6 +101,10 @@ class FrameSource {
   // Properties the camera refused or changed, with what it reported back
   // ("exposure: asked 156, got 250"), filled by Open().
   virtual std::vector<std::string> refused_properties() const { return {}; }
+  // The exposure and timestamp timing the device itself defines (a
+  // synthetic scenario renders its own physics); empty for a real camera or
+  // a file, whose timing only the site's cameras[] keys can state.
+  virtual std::optional<calib::CameraTiming> device_timing() const { return std::nullopt; }
 };
 
 // Chooses by the device string: "/dev/video*" (or a bare number) opens a V4L2

@@ -2,9 +2,12 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <memory>
+#include <opencv2/core.hpp>
 #include <string>
+#include <thread>
 
 #include "core/calib/fisheye_camera.h"
 #include "core/world/site.h"
@@ -54,6 +57,125 @@ TEST(SimFrameSource, WebcamFramesAreStampedAtTheLastRowsReadPlusLatency) {
               frame_start_us + std::llround(webcam->TimestampDelayS(seq) * 1e6));
     ASSERT_NE(frame.image, nullptr);
   }
+}
+
+int64_t WallUtime() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+cv::Mat Pixels(Frame* frame) {
+  cv::Mat bgr;
+  std::string error;
+  EXPECT_TRUE(frame->image->DecodeRegion(
+      cv::Rect(0, 0, frame->image->width_px(), frame->image->height_px()), &bgr, &error))
+      << error;
+  return bgr;
+}
+
+TEST(SimFrameSource, RealtimeFramesFromTheProducerThreadEqualTheVirtualClocksFrames) {
+  // A frame is a function of its seq: rendered ahead on the producer thread
+  // it is the same frame, stamp and pixels, as rendered in Read.
+  sim::SimScenario scenario;
+  const auto webcam = SmallWebcam(&scenario);
+  SimSourceOptions o;
+  o.start_utime = WallUtime();
+  o.realtime = true;
+  SimFrameSource live(webcam, o);
+  o.realtime = false;
+  SimFrameSource virtual_clock(webcam, o);
+  std::string error;
+  ASSERT_TRUE(live.Open(&error)) << error;
+  ASSERT_TRUE(virtual_clock.Open(&error)) << error;
+  Frame expected;
+  for (int i = 0; i < 4; ++i) {
+    Frame frame;
+    ASSERT_EQ(live.Read(&frame, &error), ReadStatus::kFrame) << error;
+    // A realtime frame is never handed over before its own timestamp.
+    EXPECT_GE(WallUtime(), frame.capture_utime);
+    do {
+      ASSERT_EQ(virtual_clock.Read(&expected, &error), ReadStatus::kFrame) << error;
+    } while (expected.seq < frame.seq);
+    EXPECT_EQ(frame.capture_utime, expected.capture_utime) << frame.seq;
+    EXPECT_EQ(cv::norm(Pixels(&frame), Pixels(&expected), cv::NORM_INF), 0.0) << frame.seq;
+  }
+  live.Close();
+  Frame after;
+  EXPECT_EQ(live.Read(&after, &error), ReadStatus::kDeviceLost);
+}
+
+TEST(SimFrameSource, RendererBehindRealTimeIsCountedApartFromFramesTheReaderMissed) {
+  sim::SimScenario scenario;
+  const auto webcam = SmallWebcam(&scenario);
+  SimSourceOptions o;
+  o.fps = 30.0;
+  o.queue_frames = 2;
+  // t = 0 a second ago: the renderer starts 30 frames behind and skips to
+  // the newest, which is its own skip, not the reader's.
+  o.start_utime = WallUtime() - 1'000'000;
+  SimFrameSource source(webcam, o);
+  std::string error;
+  ASSERT_TRUE(source.Open(&error)) << error;
+  Frame first;
+  ASSERT_EQ(source.Read(&first, &error), ReadStatus::kFrame) << error;
+  EXPECT_GE(first.seq, 29);
+  EXPECT_EQ(first.source_skipped, first.seq);
+  EXPECT_GE(source.render_skipped(), first.seq);
+  // The reader sleeps 10 frame periods: the queue keeps the 2 newest, so
+  // about 8 are the reader's drops; whatever the renderer itself skipped
+  // under load is counted in the frame, and the two add up to the gap.
+  std::this_thread::sleep_for(std::chrono::milliseconds(333));
+  const int64_t skipped_before = source.render_skipped();
+  Frame next;
+  ASSERT_EQ(source.Read(&next, &error), ReadStatus::kFrame) << error;
+  const int64_t gap = next.seq - first.seq - 1;
+  const int64_t reader_missed = gap - next.source_skipped;
+  EXPECT_GE(reader_missed, 5) << "gap " << gap << ", source skipped " << next.source_skipped;
+  EXPECT_LE(next.source_skipped, source.render_skipped() - first.source_skipped);
+  EXPECT_GE(source.render_skipped(), skipped_before);
+  // The destructor stops and joins the producer thread (no Close).
+}
+
+TEST(SimFrameSource, ClosingStopsTheProducerWhileItWaitsForAFrame) {
+  sim::SimScenario scenario;
+  const auto webcam = SmallWebcam(&scenario);
+  SimSourceOptions o;
+  o.fps = 1.0;  // the producer sleeps most of a second between frames
+  o.start_utime = WallUtime();
+  SimFrameSource source(webcam, o);
+  std::string error;
+  ASSERT_TRUE(source.Open(&error)) << error;
+  Frame frame;
+  ASSERT_EQ(source.Read(&frame, &error), ReadStatus::kFrame) << error;
+  const auto begin = std::chrono::steady_clock::now();
+  source.Close();
+  // Close wakes the producer instead of waiting for the next frame's time.
+  EXPECT_LT(std::chrono::steady_clock::now() - begin, std::chrono::milliseconds(500));
+  // Opened again, it goes on from the clock's present, never repeating a
+  // frame.
+  ASSERT_TRUE(source.Open(&error)) << error;
+  ASSERT_EQ(source.Read(&frame, &error), ReadStatus::kFrame) << error;
+  EXPECT_GE(frame.seq, 1);
+}
+
+TEST(SimFrameSource, DeviceTimingIsTheScenariosOwn) {
+  sim::SimScenario scenario;
+  const auto webcam = SmallWebcam(&scenario);
+  const std::optional<calib::CameraTiming> t = SimFrameSource(webcam, {}).device_timing();
+  ASSERT_TRUE(t.has_value());
+  EXPECT_EQ(t->readout_s, scenario.webcam.readout_s);
+  EXPECT_EQ(t->exposure_s, scenario.webcam.exposure_s);
+  EXPECT_EQ(t->latency_s, scenario.webcam.timestamp_latency_s);
+  EXPECT_EQ(t->height_px, 180);
+  ASSERT_GT(scenario.webcam.readout_s, 0.0);
+  sim::SimScenario clean;
+  std::string error;
+  ASSERT_TRUE(sim::ParseSimScenario("sim:clean", &clean, &error)) << error;
+  const calib::CameraTiming c = ScenarioTiming(clean, 180);
+  EXPECT_EQ(c.readout_s, 0.0);
+  EXPECT_EQ(c.exposure_s, 0.0);
+  EXPECT_EQ(c.latency_s, 0.0);
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 #include "msgio/message_json.h"
 #include "msgio/wire_check.h"
 #include "roomfix/marker_pixels_t.hpp"
+#include "roomfix/process_status_t.hpp"
 #include "tools/commands.h"
 
 namespace roomfix {
@@ -35,6 +36,12 @@ struct CameraFrames {
   int64_t first_utime = 0;
   int64_t last_utime = 0;
   std::vector<int32_t> processing_us;
+};
+// What a camera_proc's last STATUS says of the gaps: frames its synthetic
+// camera's renderer skipped because it fell behind real time
+// (source_skipped_frames), which are not frames camera_proc dropped.
+struct CameraProcStatus {
+  int64_t source_skipped = 0;
 };
 // Cameras beyond this many share no row: a log's camera ids are outside input.
 constexpr size_t kMaxCameras = 64;
@@ -90,6 +97,8 @@ void AddLogInfoCommand(CLI::App* app, int* exit_code) {
     // so the table (and memory) stays bounded however many there are.
     std::map<std::string, ChannelSummary> channels;
     std::map<int, CameraFrames> cameras;
+    // By pid (STATUS carries no camera id); as many as there are cameras.
+    std::map<int32_t, CameraProcStatus> camera_procs;
     int64_t unlisted_channel_events = 0;
     LogEvent event;
     while (reader->Next(&event)) {
@@ -107,7 +116,18 @@ void AddLogInfoCommand(CLI::App* app, int* exit_code) {
       const char* type = RoomfixTypeName(event.data.data(), static_cast<int>(event.data.size()));
       ++c.types[type != nullptr ? type : ForeignTypeName(event.channel)];
       marker_pixels_t pixels;
+      process_status_t status;
       std::string reason;
+      if (event.channel == "STATUS" &&
+          DecodeChecked(event.data.data(), static_cast<int>(event.data.size()), &status, &reason) &&
+          status.process == "camera_proc" &&
+          (camera_procs.size() < kMaxCameras || camera_procs.count(status.pid) > 0)) {
+        // Counters are totals since start: the last heartbeat holds them all.
+        CameraProcStatus& p = camera_procs[status.pid];
+        for (const counter_t& counter : status.counters) {
+          if (counter.name == "source_skipped_frames") p.source_skipped = counter.count;
+        }
+      }
       if (event.channel == "MARKER_PIXELS" &&
           DecodeChecked(event.data.data(), static_cast<int>(event.data.size()), &pixels, &reason)) {
         if (cameras.size() >= kMaxCameras && cameras.count(pixels.camera_id) == 0) continue;
@@ -138,20 +158,36 @@ void AddLogInfoCommand(CLI::App* app, int* exit_code) {
                     static_cast<long long>(c.bytes), rate, type.c_str());
       }
     }
+    int64_t source_skipped = 0;
+    for (const auto& [pid, p] : camera_procs) source_skipped += p.source_skipped;
     for (auto& [id, f] : cameras) {
       const double span_s = (f.last_utime - f.first_utime) * 1e-6;
+      // One camera, so its camera_procs' skips are its own: split the gaps.
+      // With several the STATUS cannot say whose they are (listed below).
+      std::string split;
+      if (cameras.size() == 1 && !camera_procs.empty()) {
+        split = ": " + std::to_string(f.dropped - source_skipped) + " by camera_proc, " +
+                std::to_string(source_skipped) + " skipped by the synthetic camera's renderer";
+      }
       auto mid = f.processing_us.begin() + static_cast<std::ptrdiff_t>(f.processing_us.size() / 2);
       std::nth_element(f.processing_us.begin(), mid, f.processing_us.end());
       std::printf(
           "camera %d: %lld frames (seq %lld..%lld) at %.2f fps, %lld dropped (gaps in "
-          "frame_seq)%s, "
+          "frame_seq%s)%s, "
           "capture to detection median %.1f ms\n",
           id, static_cast<long long>(f.frames), static_cast<long long>(f.first_seq),
           static_cast<long long>(f.last_seq), span_s > 0 ? (f.frames - 1) / span_s : 0.0,
-          static_cast<long long>(f.dropped),
+          static_cast<long long>(f.dropped), split.c_str(),
           f.out_of_order > 0 ? (", " + std::to_string(f.out_of_order) + " out of order").c_str()
                              : "",
           *mid * 1e-3);
+    }
+    if (cameras.size() != 1) {
+      for (const auto& [pid, p] : camera_procs) {
+        if (p.source_skipped == 0) continue;
+        std::printf("camera_proc pid %d: %lld frames skipped by the synthetic camera's renderer\n",
+                    pid, static_cast<long long>(p.source_skipped));
+      }
     }
     if (unlisted_channel_events > 0) {
       std::cerr << "roomfix log-info: warning: more than " << kMaxListedChannels

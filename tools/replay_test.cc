@@ -206,6 +206,14 @@ TEST(PipelineReplay, ReproducesTheLiveFusedPosesWithinTheLiveTimingNoise) {
 PipelineReplayOptions CameraOptions() {
   PipelineReplayOptions options = LiveOptions();
   options.camera = true;
+  // The log was recorded with camera_proc on the pinned device
+  // sim:reference_circle (scripts/record_test_logs.sh), whose own timing (a
+  // global shutter stamped exactly, camera_proc/sim_frame_source.h's
+  // ScenarioTiming) overrode the demo site camera's webcam figures; the
+  // replayed node must use the same.
+  calib::CameraTiming clean;
+  clean.height_px = 1080;
+  options.camera_options.device_timing = clean;
   LoadedSite loaded;
   std::string error;
   EXPECT_TRUE(LoadSiteWithTexts(SourceDir() + "/config/sites/demo_room.yaml", &loaded, &error))

@@ -38,6 +38,29 @@ constexpr double kMaxChildPeakRssMb = 600.0;
 
 std::string DemoSite() { return SourceDir() + "/config/sites/demo_room.yaml"; }
 
+// The demo site with its camera stated as an ideal one (readout_s,
+// exposure_s and timestamp_latency_s 0) in `dir`: a folder of frames that
+// `roomfix render-camera --scenario lighting` wrote is a global shutter
+// stamped exactly, but camera_proc cannot know that of files and takes the
+// site's word (the demo site's camera states the webcam's timing).
+std::string IdealCameraSite(const testing::TempDir& dir) {
+  std::string text = testing::ReadFile(DemoSite());
+  auto replace_first = [&text](const std::string& from, const std::string& to) {
+    const size_t at = text.find(from);
+    EXPECT_NE(at, std::string::npos) << from;
+    if (at != std::string::npos) text.replace(at, from.size(), to);
+  };
+  // The cameras[] entry comes before simulation.webcam's keys.
+  replace_first("readout_s: 0.030", "readout_s: 0.0");
+  replace_first("exposure_s: 0.0156", "exposure_s: 0.0");
+  replace_first("timestamp_latency_s: 0.005", "timestamp_latency_s: 0.0");
+  replace_first("calibration: ../calibration/",
+                "calibration: " + SourceDir() + "/config/calibration/");
+  const std::string path = dir.File("ideal_camera_site.yaml");
+  std::ofstream(path) << text;
+  return path;
+}
+
 int64_t Counter(const std::vector<counter_t>& counters, const std::string& name) {
   for (const counter_t& c : counters) {
     if (c.name == name) return c.count;
@@ -106,8 +129,9 @@ TEST_F(CameraProcess, AFolderOfFramesBecomesPosesAndBadFilesAreCounted) {
     std::ofstream(frames + "/zz_truncated.jpg") << jpeg.substr(0, jpeg.size() / 2);
     std::ofstream(frames + "/zz_empty.jpg");
   }
-  ChildProcess camera({BinDir() + "/camera_proc", "--config", DemoSite(), "--device", frames,
-                       "--start-utime", std::to_string(kStartUtime), "--log-level", "warn"});
+  ChildProcess camera({BinDir() + "/camera_proc", "--config", IdealCameraSite(dir_), "--device",
+                       frames, "--start-utime", std::to_string(kStartUtime), "--log-level",
+                       "warn"});
   ASSERT_TRUE(HandleUntil(
       bus_.get(),
       [&] {
