@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cstdlib>
 
+#include "msgio/time_limits.h"
+
 namespace roomfix {
 
 bool RangeSetMergerOptions::IsValid(std::string* error) const {
@@ -22,7 +24,8 @@ bool RangeSetMergerOptions::IsValid(std::string* error) const {
 }
 
 RangeSetMerger::RangeSetMerger(const RangeSetMergerOptions& options) : options_(options) {
-  for (const char* name : {"parts", "complete", "deadline", "duplicate_receiver", "late_part"}) {
+  for (const char* name :
+       {"parts", "complete", "deadline", "duplicate_receiver", "late_part", "duplicate_part"}) {
     counters_[name] = 0;
   }
 }
@@ -37,6 +40,39 @@ void RangeSetMerger::Release(std::map<std::pair<int32_t, int32_t>, Open>::iterat
   open_.erase(it);
 }
 
+std::vector<int32_t> RangeSetMerger::PartSignature(const range_set_t& set) const {
+  std::vector<int32_t> signature;
+  if (!options_.radio_of_receiver.empty()) {
+    // A bridge run with --radio reports only its radio's receivers; a part
+    // that mixes radios (or names receivers no radio carries) is signed by
+    // all the radios it names, so it still cannot repeat a part.
+    for (const range_t& r : set.ranges) {
+      const auto radio = options_.radio_of_receiver.find(r.receiver_id);
+      signature.push_back(radio == options_.radio_of_receiver.end() ? -1 - r.receiver_id
+                                                                    : radio->second);
+    }
+  } else {
+    for (const range_t& r : set.ranges) signature.push_back(r.receiver_id);
+  }
+  std::sort(signature.begin(), signature.end());
+  signature.erase(std::unique(signature.begin(), signature.end()), signature.end());
+  return signature;
+}
+
+void RangeSetMerger::Merge(const range_set_t& set, Open* open) {
+  range_set_t& merged = open->set;
+  for (const range_t& r : set.ranges) {
+    // One range per receiver, and never more ranges than the site has
+    // receivers: a hostile part cannot grow a merge.
+    if (!open->receivers.insert(r.receiver_id).second ||
+        merged.ranges.size() >= static_cast<size_t>(options_.site_receivers)) {
+      ++counters_["duplicate_receiver"];
+    } else {
+      merged.ranges.push_back(r);
+    }
+  }
+}
+
 void RangeSetMerger::Add(const range_set_t& set, int64_t recv_utime, std::vector<Ready>* ready) {
   if (set.num_expected >= options_.site_receivers) {
     ready->push_back({set, recv_utime});
@@ -47,24 +83,33 @@ void RangeSetMerger::Add(const range_set_t& set, int64_t recv_utime, std::vector
                                         static_cast<int32_t>(set.firing_seq & 0xFFFF)};
   auto it = open_.find(key);
   const int64_t same_us = static_cast<int64_t>(options_.same_firing_s * 1e6);
+  // Saturating: utime is a publisher's word, INT64_MIN included.
+  auto apart = [&](int64_t a, int64_t b) {
+    const int64_t d = SaturatingDifferenceUs(a, b);
+    return d == INT64_MIN ? INT64_MAX : std::llabs(d);
+  };
   if (it == open_.end()) {
     // A part of a firing already solved (its sibling came after the
     // deadline): a second pose for one firing would repeat its number with
     // fewer ranges. Counted and dropped; a rising count says the deadline is
     // short for the bridges' hosts.
     for (const auto& [k, utime] : released_) {
-      if (k == key && std::llabs(utime - set.utime) <= same_us) {
+      if (k == key && apart(utime, set.utime) <= same_us) {
         ++counters_["late_part"];
         return;
       }
     }
   }
-  if (it != open_.end() && std::llabs(it->second.set.utime - set.utime) > same_us) {
+  if (it != open_.end() && apart(it->second.set.utime, set.utime) > same_us) {
     // The same 16-bit number an hour apart, or a restarted beacon: another
     // firing. What was open is released as it is.
     Release(it, recv_utime, "deadline", ready);
     it = open_.end();
   }
+  std::vector<int32_t> signature = PartSignature(set);
+  // A part's own count, never negative: a merge completes only when the
+  // counts of distinct parts reach the site's receivers.
+  const int32_t expected = std::max<int32_t>(set.num_expected, 0);
   if (it == open_.end()) {
     // Bounded: a flood of parts that never complete (a bridge with a wrong
     // --radio, invented firing numbers) releases the oldest.
@@ -75,22 +120,25 @@ void RangeSetMerger::Add(const range_set_t& set, int64_t recv_utime, std::vector
       });
       Release(oldest, recv_utime, "deadline", ready);
     }
-    it = open_.emplace(key, Open{set, recv_utime}).first;
+    Open open;
+    open.set = set;
+    open.set.ranges.clear();
+    open.set.num_expected = expected;
+    open.first_recv_utime = recv_utime;
+    Merge(set, &open);
+    open.parts.insert(std::move(signature));
+    it = open_.emplace(key, std::move(open)).first;
   } else {
-    range_set_t& merged = it->second.set;
-    for (const range_t& r : set.ranges) {
-      const bool seen =
-          std::any_of(merged.ranges.begin(), merged.ranges.end(),
-                      [&](const range_t& m) { return m.receiver_id == r.receiver_id; });
-      if (seen) {
-        ++counters_["duplicate_receiver"];
-      } else {
-        merged.ranges.push_back(r);
-      }
+    Open& open = it->second;
+    if (!open.parts.insert(std::move(signature)).second) {
+      ++counters_["duplicate_part"];
+      return;
     }
-    merged.num_expected += set.num_expected;
+    Merge(set, &open);
+    open.set.num_expected = static_cast<int32_t>(
+        std::min<int64_t>(int64_t{open.set.num_expected} + expected, options_.site_receivers));
     // The firing time is the earliest arrival of its announcement.
-    merged.utime = std::min(merged.utime, set.utime);
+    open.set.utime = std::min(open.set.utime, set.utime);
   }
   if (it->second.set.num_expected >= options_.site_receivers) {
     Release(it, recv_utime, "complete", ready);

@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <deque>
 #include <map>
+#include <set>
 #include <string>
 #include <utility>
 #include <vector>
@@ -34,6 +35,11 @@ struct RangeSetMergerOptions {
   double same_firing_s = 0.5;
   // The site's receivers: what a merged set expects in all.
   int site_receivers = 0;
+  // Which radio carries each receiver (the site's `radios`; empty when it
+  // names none). A part is attributed to its ranges' radio, so a repeated
+  // part (a replayed datagram, two bridges started with the same --radio)
+  // cannot stand in for the other radio's part and complete the firing.
+  std::map<int32_t, int32_t> radio_of_receiver;
 
   bool IsValid(std::string* error) const;
 };
@@ -57,14 +63,23 @@ class RangeSetMerger {
 
   // parts (sets that were parts), complete, deadline (released with what
   // came), duplicate_receiver (a receiver in two parts: the first kept),
-  // late_part (a part of a firing already released: dropped).
+  // late_part (a part of a firing already released: dropped), duplicate_part
+  // (a second part from the same radio, or the same receivers, for one
+  // firing: dropped).
   const std::map<std::string, int64_t>& counters() const { return counters_; }
 
  private:
   struct Open {
     range_set_t set;
     int64_t first_recv_utime = 0;
+    // Receivers merged so far, and the parts taken: by radio when the site
+    // names radios, otherwise by the part's receiver list.
+    std::set<int32_t> receivers;
+    std::set<std::vector<int32_t>> parts;
   };
+  // What identifies where a part came from (see Open::parts).
+  std::vector<int32_t> PartSignature(const range_set_t& set) const;
+  void Merge(const range_set_t& set, Open* open);
   void Release(std::map<std::pair<int32_t, int32_t>, Open>::iterator it, int64_t recv_utime,
                const char* why, std::vector<Ready>* ready);
 

@@ -115,3 +115,62 @@ TEST(RangeSetMerger, OpenMergesAreBounded) {
 
 }  // namespace
 }  // namespace roomfix
+
+namespace roomfix {
+namespace {
+
+// The two_radios layout: receivers 1-3 on radio 1, 4-6 on radio 2.
+RangeSetMergerOptions TwoRadios() {
+  RangeSetMergerOptions o = SixReceivers();
+  for (int id : {1, 2, 3}) o.radio_of_receiver[id] = 1;
+  for (int id : {4, 5, 6}) o.radio_of_receiver[id] = 2;
+  return o;
+}
+
+TEST(RangeSetMerger, ARepeatedPartOfOneRadioDoesNotCompleteTheFiring) {
+  RangeSetMerger m(TwoRadios());
+  std::vector<RangeSetMerger::Ready> ready;
+  // Radio 1's part twice (a replayed datagram, or two bridges both started
+  // with --radio 1): its counts add up to the site's six, but radio 2 has
+  // not spoken, so the firing stays open for radio 2's part.
+  m.Add(Part(3, 10, 1'000'000, {1, 2, 3}, 3), 1'020'000, &ready);
+  m.Add(Part(3, 10, 1'000'000, {1, 2}, 3), 1'021'000, &ready);
+  EXPECT_TRUE(ready.empty());
+  EXPECT_EQ(m.counters().at("duplicate_part"), 1);
+  m.Add(Part(3, 10, 1'000'000, {4, 5, 6}, 3), 1'022'000, &ready);
+  ASSERT_EQ(ready.size(), 1u);
+  EXPECT_EQ(ready[0].set.num_ranges, 6);
+  EXPECT_EQ(m.counters().at("complete"), 1);
+}
+
+TEST(RangeSetMerger, AHostilePartCannotGrowAMergeBeyondTheSitesReceivers) {
+  RangeSetMerger m(TwoRadios());
+  std::vector<RangeSetMerger::Ready> ready;
+  std::vector<int> many;
+  for (int id = 100; id < 356; ++id) many.push_back(id);
+  // Parts naming receivers no radio carries, each a different list: every
+  // one is a new part, yet the merge holds at most six ranges.
+  for (int k = 0; k < 50; ++k) {
+    std::vector<int> ids(many.begin() + k, many.begin() + k + 200);
+    m.Add(Part(3, 10, 1'000'000, ids, 0), 1'000'000 + k, &ready);
+  }
+  EXPECT_TRUE(ready.empty());
+  m.Flush(1'100'000, &ready);
+  ASSERT_EQ(ready.size(), 1u);
+  EXPECT_EQ(ready[0].set.num_ranges, 6);
+}
+
+TEST(RangeSetMerger, AnExtremeFiringTimeIsAnotherFiringWithoutOverflow) {
+  RangeSetMerger m(SixReceivers());
+  std::vector<RangeSetMerger::Ready> ready;
+  m.Add(Part(3, 10, INT64_MAX, {1, 2, 3}, 3), 1'000'000, &ready);
+  m.Add(Part(3, 10, INT64_MIN, {4, 5, 6}, 3), 1'001'000, &ready);
+  // Not the same firing (an impossible distance apart): the first is
+  // released as it was, the second waits for its sibling.
+  ASSERT_EQ(ready.size(), 1u);
+  EXPECT_EQ(ready[0].set.num_ranges, 3);
+  EXPECT_EQ(m.open(), 1u);
+}
+
+}  // namespace
+}  // namespace roomfix

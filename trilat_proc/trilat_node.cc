@@ -52,8 +52,7 @@ TrilatNode::TrilatNode(const Site& site, Bus* bus, const TrilatNodeOptions& opti
       bus_(bus),
       options_(options),
       status_("trilat_proc", start_utime),
-      merger_(RangeSetMergerOptions{options.merge_deadline_s, 0.5,
-                                    static_cast<int>(site.receivers.size())}) {
+      merger_(MergerOptions(site, options)) {
   const Room& room = site.room;
   max_range_m_ = std::sqrt(room.size_x_m * room.size_x_m + room.size_y_m * room.size_y_m +
                            room.height_m * room.height_m) +
@@ -82,9 +81,53 @@ bool TrilatNode::OutsideRoom(const Eigen::Vector3d& p) const {
 void TrilatNode::OnRangeSet(const range_set_t& set, const MessageInfo& info) {
   status_.AddInputs();
   ranges_watch_.Seen(info.recv_utime, &status_);
+  // The checks that need only the set itself run before it can enter a
+  // merge, so a hostile part is refused before it holds any state; Solve
+  // repeats them on what the merger releases.
+  if (!Admissible(set, info)) return;
   ready_.clear();
   merger_.Add(set, info.recv_utime, &ready_);
   SolveReady();
+}
+
+RangeSetMergerOptions TrilatNode::MergerOptions(const Site& site,
+                                                const TrilatNodeOptions& options) {
+  RangeSetMergerOptions merger;
+  merger.deadline_s = options.merge_deadline_s;
+  merger.site_receivers = static_cast<int>(site.receivers.size());
+  for (const RadioNetwork& radio : site.radios) {
+    for (int id : radio.receiver_ids) merger.radio_of_receiver[id] = radio.id;
+  }
+  return merger;
+}
+
+bool TrilatNode::Admissible(const range_set_t& set, const MessageInfo& info) {
+  auto refuse = [&](const char* reason, const std::string& why) {
+    status_.Reject(reason);
+    status_.SetError("range set from beacon " + std::to_string(set.beacon_id) + ": " + why,
+                     info.recv_utime);
+    return false;
+  };
+  if (!UtimeNear(set.utime, info.recv_utime)) {
+    return refuse("utime_out_of_range", "firing time " + std::to_string(set.utime) +
+                                            " us is more than an hour from its receive time " +
+                                            std::to_string(info.recv_utime) + " us");
+  }
+  if (!std::isfinite(set.speed_of_sound_mps) || !std::isfinite(set.temperature_c)) {
+    return refuse("non_finite", "speed of sound or temperature is not a finite number");
+  }
+  // One range per receiver at most: more than the site has receivers is a
+  // corrupt or hostile set, refused before any work is spent on it.
+  if (set.ranges.size() > site_.receivers.size()) {
+    return refuse("too_many_ranges", std::to_string(set.ranges.size()) +
+                                         " ranges, but the site has " +
+                                         std::to_string(site_.receivers.size()) + " receivers");
+  }
+  if (set.num_expected < 0) {
+    return refuse("negative_expected",
+                  "num_expected " + std::to_string(set.num_expected) + " is negative");
+  }
+  return true;
 }
 
 void TrilatNode::SolveReady() {
@@ -103,21 +146,7 @@ void TrilatNode::SolveReady() {
 }
 
 void TrilatNode::Solve(const range_set_t& set, const MessageInfo& info) {
-  auto refuse = [&](const char* reason, const std::string& why) {
-    status_.Reject(reason);
-    status_.SetError("range set from beacon " + std::to_string(set.beacon_id) + ": " + why,
-                     info.recv_utime);
-  };
-  if (!UtimeNear(set.utime, info.recv_utime)) {
-    refuse("utime_out_of_range", "firing time " + std::to_string(set.utime) +
-                                     " us is more than an hour from its receive time " +
-                                     std::to_string(info.recv_utime) + " us");
-    return;
-  }
-  if (!std::isfinite(set.speed_of_sound_mps) || !std::isfinite(set.temperature_c)) {
-    refuse("non_finite", "speed of sound or temperature is not a finite number");
-    return;
-  }
+  if (!Admissible(set, info)) return;
   trilat::SolverOptions solver = options_.solver;
   int32_t robot_id = set.beacon_id;
   trilat::BeaconPriorOptions prior_options = options_.prior;
@@ -138,14 +167,6 @@ void TrilatNode::Solve(const range_set_t& set, const MessageInfo& info) {
                      info.recv_utime);
     return;
   }
-  // One range per receiver at most: more than the site has receivers is a
-  // corrupt or hostile set, refused before any work is spent on it.
-  if (set.ranges.size() > site_.receivers.size()) {
-    refuse("too_many_ranges", std::to_string(set.ranges.size()) + " ranges, but the site has " +
-                                  std::to_string(site_.receivers.size()) + " receivers");
-    return;
-  }
-
   RangesFromMessage(set, &ranges_);
   // Ranges the node drops itself; the solver sees only the rest and drops
   // (and counts) its own: negative, too long, duplicate receiver.

@@ -117,6 +117,10 @@ class TrilatNode {
   InputWatch ranges_watch_{"range sets on RANGES", 1.0};
   double max_range_m_ = 0.0;
   std::unordered_map<int, BeaconTrack> tracks_;
+  static RangeSetMergerOptions MergerOptions(const Site& site, const TrilatNodeOptions& options);
+  // The checks a set passes before it is merged or solved (refused and
+  // counted otherwise).
+  bool Admissible(const range_set_t& set, const MessageInfo& info);
   RangeSetMerger merger_;
   std::vector<RangeSetMerger::Ready> ready_;
   std::vector<trilat::RangeMeasurement> ranges_;
