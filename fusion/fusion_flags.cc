@@ -40,6 +40,10 @@ void AddFusionFlags(CLI::App* app, const std::string& prefix, FusionNodeOptions*
                   "Several cameras: each camera calibration's error, m, added to its poses' "
                   "covariance (docs/fusion.md, \"Several cameras\")")
       ->capture_default_str();
+  app->add_option(name("camera-bias-time"), filter.camera_bias_time_s,
+                  "Correlation time of the camera's correlated error (the robot's tilt, its "
+                  "sigma from the site), s; 0: every camera error white (docs/fusion.md)")
+      ->capture_default_str();
   app->add_option(name("gate"), filter.gate_chi2_2dof,
                   "Gate on the squared Mahalanobis distance of a position (chi-square, 2 dof)")
       ->capture_default_str();

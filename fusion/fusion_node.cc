@@ -1,5 +1,6 @@
 #include "fusion/fusion_node.h"
 
+#include <algorithm>
 #include <cmath>
 #include <iterator>
 #include <limits>
@@ -47,7 +48,17 @@ FusionNode::FusionNode(const Site& site, Bus* bus, const FusionNodeOptions& opti
                        int64_t start_utime)
     : bus_(bus), options_(options), status_("fusion_proc", start_utime) {
   for (const Robot& robot : site.robots) site_robots_.insert(robot.id);
-  for (const Camera& camera : site.cameras) site_cameras_.insert(camera.id);
+  for (const Camera& camera : site.cameras) {
+    site_cameras_.insert(camera.id);
+    for (const CameraRobot& robot : camera.robots) {
+      // As core/calib/pose_covariance: a tilt theta moves the marker h theta.
+      const double sigma_m = robot.marker_height_m * robot.tilt_sigma_deg * M_PI / 180.0;
+      if (!(std::isfinite(sigma_m) && sigma_m > 0.0)) continue;
+      tilt_sigma_m_[{camera.id, robot.robot_id}] = sigma_m;
+      double& bias = robot_bias_sigma_m_[robot.robot_id];
+      bias = std::max(bias, sigma_m);
+    }
+  }
   bus_->Subscribe<pose2d_t>(options_.camera_channel,
                             [this](const pose2d_t& pose, const MessageInfo& info) {
                               OnPose(pose, info, fusion::Source::kCamera);
@@ -122,10 +133,21 @@ void FusionNode::OnPose(const pose2d_t& pose, const MessageInfo& info, fusion::S
       pose.covariance[1][1];
   m.heading_rad = pose.heading_rad;
   m.heading_var_rad2 = pose.covariance[2][2];
+  if (source == fusion::Source::kCamera) {
+    auto tilt = tilt_sigma_m_.find({pose.camera_id, pose.robot_id});
+    if (tilt != tilt_sigma_m_.end()) m.correlated_sigma_m = tilt->second;
+  }
 
   auto it = tracks_.find(pose.robot_id);
   if (it == tracks_.end()) {
-    it = tracks_.emplace(pose.robot_id, Track(options_.filter)).first;
+    // The robot's camera bias from the site, unless the options turned the
+    // model off (a correlation time of 0).
+    fusion::PoseFilterOptions filter_options = options_.filter;
+    auto bias = robot_bias_sigma_m_.find(pose.robot_id);
+    if (bias != robot_bias_sigma_m_.end() && filter_options.camera_bias_sigma_m == 0.0) {
+      filter_options.camera_bias_sigma_m = bias->second;
+    }
+    it = tracks_.emplace(pose.robot_id, Track(filter_options)).first;
   }
   Track& track = it->second;
   track.last_recv_utime = info.recv_utime;

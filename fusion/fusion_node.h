@@ -5,6 +5,7 @@
 #include <map>
 #include <set>
 #include <string>
+#include <utility>
 
 #include "core/fusion/pose_filter.h"
 #include "core/world/site.h"
@@ -84,6 +85,12 @@ class FusionNode {
   StatusReporter status_;
   std::set<int32_t> site_robots_;
   std::set<int32_t> site_cameras_;
+  // The camera's correlated error (docs/fusion.md, "Correlated camera
+  // error"), m per axis: of each (camera, robot) the site lists, its marker
+  // height x tilt sigma (the term camera_proc adds to its poses); of each
+  // robot the largest over the cameras, its filter's bias sigma.
+  std::map<std::pair<int32_t, int32_t>, double> tilt_sigma_m_;
+  std::map<int32_t, double> robot_bias_sigma_m_;
   std::map<int32_t, Track> tracks_;
   int64_t next_rate_utime_ = 0;
 };

@@ -46,6 +46,10 @@ Eigen::Matrix2d ConditionCovariance(const Eigen::Matrix2d& cov, double inflation
   return solver.eigenvectors() * values.asDiagonal() * solver.eigenvectors().transpose();
 }
 
+bool BiasModelled(const PoseFilterOptions& o) {
+  return o.camera_bias_sigma_m > 0.0 && o.camera_bias_time_s > 0.0;
+}
+
 }  // namespace
 
 double WrapAngle(double angle_rad) {
@@ -95,6 +99,8 @@ bool PoseFilterOptions::IsValid(std::string* error) const {
       {camera_inflation, "camera_inflation", false},
       {camera_sigma_floor_m, "camera_sigma_floor_m", false},
       {camera_calibration_sigma_m, "camera_calibration_sigma_m", true},
+      {camera_bias_sigma_m, "camera_bias_sigma_m", true},
+      {camera_bias_time_s, "camera_bias_time_s", true},
       {ultrasound_inflation, "ultrasound_inflation", false},
       {ultrasound_sigma_floor_m, "ultrasound_sigma_floor_m", false},
       {heading_sigma_floor_rad, "heading_sigma_floor_rad", false},
@@ -150,8 +156,19 @@ Outcome PoseFilter::Add(const Measurement& measurement, int64_t now_utime, Estim
   Measurement m = measurement;
   const bool camera = m.source == Source::kCamera;
   if (camera) {
-    m.position_cov_m2 += Eigen::Matrix2d::Identity() * options_.camera_calibration_sigma_m *
-                         options_.camera_calibration_sigma_m;
+    // The correlated part goes into the bias state, so it leaves the white
+    // noise: at most what the bias models (none when it is off), and the
+    // floor below keeps what is left positive definite.
+    const double correlated_m =
+        BiasModelled(options_) && std::isfinite(m.correlated_sigma_m)
+            ? std::clamp(m.correlated_sigma_m, 0.0, options_.camera_bias_sigma_m)
+            : 0.0;
+    m.correlated_sigma_m = correlated_m;
+    m.position_cov_m2 += Eigen::Matrix2d::Identity() * (options_.camera_calibration_sigma_m *
+                                                            options_.camera_calibration_sigma_m -
+                                                        correlated_m * correlated_m);
+  } else {
+    m.correlated_sigma_m = 0.0;
   }
   m.position_cov_m2 = ConditionCovariance(
       m.position_cov_m2, camera ? options_.camera_inflation : options_.ultrasound_inflation,
@@ -207,6 +224,20 @@ void PoseFilter::Initialise(const Measurement& m, State* state) const {
   s.x.head<2>() = m.position_m;
   s.p.setZero();
   s.p.topLeftCorner<2, 2>() = m.position_cov_m2;
+  if (BiasModelled(options_)) {
+    // The bias starts at its prior, 0 with its stationary variance. A camera
+    // position is the robot's plus the bias: the robot's position is then
+    // uncertain by both, and anti-correlated with the bias (x = z - b - w).
+    const double b2 = options_.camera_bias_sigma_m * options_.camera_bias_sigma_m;
+    s.p(kBiasX, kBiasX) = b2;
+    s.p(kBiasY, kBiasY) = b2;
+    if (camera) {
+      s.p(kX, kX) += b2;
+      s.p(kY, kY) += b2;
+      s.p(kX, kBiasX) = s.p(kBiasX, kX) = -b2;
+      s.p(kY, kBiasY) = s.p(kBiasY, kY) = -b2;
+    }
+  }
   const double v2 = options_.initial_speed_sigma_mps * options_.initial_speed_sigma_mps;
   s.p(kVx, kVx) = v2;
   s.p(kVy, kVy) = v2;
@@ -270,6 +301,15 @@ void PoseFilter::PredictState(int64_t utime, State* state) const {
   next[kVx] = cos_th * vx - sin_th * vy;
   next[kVy] = sin_th * vx + cos_th * vy;
   next[kHeading] = WrapAngle(state->x[kHeading] + w * dt);
+  // The camera bias decays towards 0 (first-order Gauss-Markov).
+  double bias_decay = 1.0;
+  if (BiasModelled(options_)) {
+    bias_decay = std::exp(-dt / options_.camera_bias_time_s);
+    f(kBiasX, kBiasX) = bias_decay;
+    f(kBiasY, kBiasY) = bias_decay;
+    next[kBiasX] *= bias_decay;
+    next[kBiasY] *= bias_decay;
+  }
   state->x = next;
 
   // Discretised white-acceleration noise for each (value, rate) pair.
@@ -287,6 +327,12 @@ void PoseFilter::PredictState(int64_t utime, State* state) const {
       }
     }
   }
+  if (BiasModelled(options_)) {
+    // Keeps the bias's variance at its stationary value when unobserved.
+    const double b2 = options_.camera_bias_sigma_m * options_.camera_bias_sigma_m;
+    q(kBiasX, kBiasX) = b2 * (1.0 - bias_decay * bias_decay);
+    q(kBiasY, kBiasY) = b2 * (1.0 - bias_decay * bias_decay);
+  }
   state->p = f * state->p * f.transpose() + q;
   CapVariance(kHeading, kMaxHeadingVar_rad2, &state->p);
   CapVariance(kTurnRate, kMaxTurnRateVar_rad2ps2, &state->p);
@@ -301,7 +347,7 @@ namespace {
 // Returns false, changing nothing, when the squared Mahalanobis distance of
 // the innovation exceeds gate. *innovation is the innovation's norm.
 template <int N>
-bool Update(const Eigen::Matrix<double, N, 1>& z, const Eigen::Matrix<double, N, 6>& h,
+bool Update(const Eigen::Matrix<double, N, 1>& z, const Eigen::Matrix<double, N, kStateSize>& h,
             const Eigen::Matrix<double, N, N>& r, int wrap_row, double gate, StateVector* x,
             StateCovariance* p, double* innovation) {
   Eigen::Matrix<double, N, 1> y = z - h * (*x);
@@ -312,7 +358,7 @@ bool Update(const Eigen::Matrix<double, N, 1>& z, const Eigen::Matrix<double, N,
   const double d2 = y.dot(ldlt.solve(y));
   *innovation = y.norm();
   if (!(d2 <= gate)) return false;
-  const Eigen::Matrix<double, 6, N> k =
+  const Eigen::Matrix<double, kStateSize, N> k =
       (*p) * h.transpose() * ldlt.solve(Eigen::Matrix<double, N, N>::Identity());
   *x += k * y;
   (*x)[kHeading] = WrapAngle((*x)[kHeading]);
@@ -351,13 +397,19 @@ Outcome PoseFilter::Apply(const Measurement& m, State* state) const {
   // misread heading marker does not throw away a good position. With the
   // covariance block-diagonal this sequence equals the joint update.
   double innovation_m = std::numeric_limits<double>::quiet_NaN();
-  Eigen::Matrix<double, 2, 6> h_position = Eigen::Matrix<double, 2, 6>::Zero();
+  Eigen::Matrix<double, 2, kStateSize> h_position = Eigen::Matrix<double, 2, kStateSize>::Zero();
   h_position(0, kX) = 1.0;
   h_position(1, kY) = 1.0;
+  // A camera sees the robot's position plus the bias (zero and of zero
+  // variance when the bias is not modelled); the ultrasound does not.
+  if (camera) {
+    h_position(0, kBiasX) = 1.0;
+    h_position(1, kBiasY) = 1.0;
+  }
   const bool accepted = Update<2>(m.position_m, h_position, m.position_cov_m2, -1,
                                   options_.gate_chi2_2dof, &state->x, &state->p, &innovation_m);
   if (accepted && std::isfinite(m.heading_rad)) {
-    Eigen::Matrix<double, 1, 6> h_heading = Eigen::Matrix<double, 1, 6>::Zero();
+    Eigen::Matrix<double, 1, kStateSize> h_heading = Eigen::Matrix<double, 1, kStateSize>::Zero();
     h_heading(0, kHeading) = 1.0;
     double heading_innovation = 0.0;
     if (Update<1>(Eigen::Matrix<double, 1, 1>(m.heading_rad), h_heading,

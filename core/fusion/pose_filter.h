@@ -35,6 +35,13 @@ struct Measurement {
   // Covariance of position_m, m^2. Must be finite and symmetric; the
   // filter inflates it and floors its eigenvalues (see PoseFilterOptions).
   Eigen::Matrix2d position_cov_m2 = Eigen::Matrix2d::Identity();
+  // Camera only: one sigma per axis, m, of the part of position_cov_m2 that
+  // is the robot's slowly varying camera error (its tilt: marker height x
+  // tilt sigma, the term camera_proc adds, docs/camera.md), not new noise
+  // in every frame. The filter takes it out of the measurement's white
+  // noise and models it as the bias state instead (PoseFilterOptions::
+  // camera_bias_sigma_m); it removes at most that sigma. 0: all white.
+  double correlated_sigma_m = 0.0;
   // Heading, radians, and its variance, rad^2; either one NaN (or a
   // non-positive variance) means the heading is unknown and only the
   // position is used.
@@ -69,6 +76,25 @@ struct PoseFilterOptions {
   // without it the second camera's poses are gated while the first holds
   // the track. 0 (the default) leaves one camera's covariance as it is.
   double camera_calibration_sigma_m = 0.0;
+
+  // The camera's correlated error (docs/fusion.md, "Correlated camera
+  // error"): a robot's tilt moves its marker over the floor by marker height
+  // x tilt, the same in consecutive frames, which frame averaging cannot
+  // remove. The filter models it as a bias b (x, y) seen by every camera
+  // measurement (z = position + b + white noise) and not by the ultrasound:
+  // a first-order Gauss-Markov process, stationary sigma
+  // camera_bias_sigma_m per axis, correlation time camera_bias_time_s
+  // (b' = e^(-dt/tau) b, added variance sigma^2 (1 - e^(-2 dt/tau))).
+  // The sigma comes from the site (FusionNode: the robot's marker height x
+  // tilt sigma); 0 (or a time of 0) leaves the bias out: every camera error
+  // white, the filter of before. The time: a robot's tilt changes as it
+  // rolls over the floor's unevenness and as it speeds up, slows and turns,
+  // all on the time it takes to drive its own length (~1 s at 0.2 m/s);
+  // a still robot's lean does not change at all. The shortest of these is
+  // the cautious choice: a longer time lets the ultrasound average the bias
+  // over longer than it stays.
+  double camera_bias_sigma_m = 0.0;
+  double camera_bias_time_s = 1.0;
   double ultrasound_inflation = 1.0;
   double ultrasound_sigma_floor_m = 0.005;
   double heading_sigma_floor_rad = 0.001;
@@ -138,11 +164,15 @@ bool Entered(Outcome outcome);
 
 enum class TrackStatus { kOk, kDegraded, kLost };
 
-// State vector layout: [x, y, vx, vy, heading, heading_rate] in m, m/s,
-// rad, rad/s.
-using StateVector = Eigen::Matrix<double, 6, 1>;
-using StateCovariance = Eigen::Matrix<double, 6, 6>;
-inline constexpr int kX = 0, kY = 1, kVx = 2, kVy = 3, kHeading = 4, kTurnRate = 5;
+// State vector layout: [x, y, vx, vy, heading, heading_rate, bias_x,
+// bias_y] in m, m/s, rad, rad/s, m. The bias is the camera's correlated
+// error (PoseFilterOptions::camera_bias_sigma_m); x, y are the robot's
+// position (the marker's floor point), which the output reports.
+inline constexpr int kStateSize = 8;
+using StateVector = Eigen::Matrix<double, kStateSize, 1>;
+using StateCovariance = Eigen::Matrix<double, kStateSize, kStateSize>;
+inline constexpr int kX = 0, kY = 1, kVx = 2, kVy = 3, kHeading = 4, kTurnRate = 5, kBiasX = 6,
+                     kBiasY = 7;
 
 // The filter's belief at one time.
 struct Estimate {
@@ -174,7 +204,9 @@ struct Estimate {
 // heading. With an unknown heading rate (ultrasound only) the turn rate stays
 // near zero and the model is constant velocity. Heading and its innovation
 // are wrapped to (-pi, pi].
-// Measurements: h(x) = (x, y) or (x, y, heading).
+// Measurements: h(x) = (x, y) (ultrasound), (x + bias_x, y + bias_y) or
+// that and the heading (camera; the bias is the robot's tilt, which moves
+// both markers alike and so not the heading).
 //
 // Each measurement is applied at its own time: the filter keeps the
 // measurements of the last history_s, each with the state after it, ordered

@@ -383,6 +383,65 @@ TEST(PoseFilter, PrefersTheCameraWhenTheUltrasoundDisagrees) {
   EXPECT_NEAR(filter.Latest().state[kX], 1.0, 0.001);
 }
 
+TEST(PoseFilterCameraBias, LeavesAnUltrasoundOnlyTrackAsItWas) {
+  // The ultrasound does not see the camera's bias: without camera frames the
+  // bias stays at its prior, uncorrelated with the position, and every
+  // estimate equals the filter's without the bias.
+  const auto circle = ReferenceCircle();
+  StreamOptions so;
+  so.camera_outage_start_s = 0.0;
+  so.camera_outage_end_s = so.duration_s + 1.0;
+  const std::vector<StreamItem> stream = MakeStream(*circle, so);
+  PoseFilterOptions with_bias;
+  with_bias.camera_bias_sigma_m = 0.002;
+  PoseFilter plain{PoseFilterOptions()};
+  PoseFilter biased{with_bias};
+  const FilterRun a = RunFilter(&plain, stream);
+  const FilterRun b = RunFilter(&biased, stream);
+  ASSERT_EQ(a.estimates.size(), b.estimates.size());
+  ASSERT_GT(a.estimates.size(), 300u);
+  for (size_t i = 0; i < a.estimates.size(); ++i) {
+    EXPECT_EQ(a.outcomes[i], b.outcomes[i]) << i;
+    EXPECT_LT((a.estimates[i].state - b.estimates[i].state).cwiseAbs().maxCoeff(), kSameResult);
+    EXPECT_LT((a.estimates[i].covariance.topLeftCorner<6, 6>() -
+               b.estimates[i].covariance.topLeftCorner<6, 6>())
+                  .cwiseAbs()
+                  .maxCoeff(),
+              kSameResult);
+    EXPECT_NEAR(b.estimates[i].covariance(kBiasX, kBiasX), 0.002 * 0.002, 1e-15);
+  }
+}
+
+TEST(PoseFilterCameraBias, KeepsACameraOnlyTracksVarianceAtLeastTheBiasVariance) {
+  // A still robot seen only by a camera whose error is 2 mm of bias and
+  // 0.1 mm of white noise: the frames cannot tell the bias from the
+  // position, so the position's variance stays near the bias's (4e-6 m^2;
+  // the filter gives the bias what varies faster than the robot can move,
+  // a few percent of it, hence a little below), where a white model
+  // averages the frames and shrinks it to about a third (measured 0.35).
+  PoseFilterOptions options;
+  options.camera_bias_sigma_m = 0.002;
+  PoseFilter filter{options};
+  Estimate e;
+  for (int k = 0; k < 300; ++k) {
+    const double t = k / 30.0;
+    Measurement m = CameraAt(t, 1.0, 1.0);
+    m.position_cov_m2 = Eigen::Matrix2d::Identity() * (0.0001 * 0.0001 + 0.002 * 0.002);
+    m.correlated_sigma_m = 0.002;
+    ASSERT_TRUE(Entered(filter.Add(m, UtimeAt(t), &e)));
+  }
+  EXPECT_GT(e.covariance(kX, kX), 0.8 * 0.002 * 0.002);
+  EXPECT_LT(e.covariance(kX, kX), 1.1 * (0.002 * 0.002 + 0.0001 * 0.0001));
+  PoseFilter white{PoseFilterOptions()};
+  for (int k = 0; k < 300; ++k) {
+    const double t = k / 30.0;
+    Measurement m = CameraAt(t, 1.0, 1.0);
+    m.position_cov_m2 = Eigen::Matrix2d::Identity() * (0.0001 * 0.0001 + 0.002 * 0.002);
+    ASSERT_TRUE(Entered(white.Add(m, UtimeAt(t), &e)));
+  }
+  EXPECT_LT(e.covariance(kX, kX), 0.5 * 0.002 * 0.002);
+}
+
 TEST(PoseFilterOptions, RefusesNonPositiveNoiseAndGates) {
   std::string error;
   EXPECT_TRUE(PoseFilterOptions().IsValid(&error)) << error;

@@ -32,6 +32,20 @@ struct StreamOptions {
   double camera_sigma_m = 0.001;
   double camera_heading_sigma_rad = 0.02;
   double camera_latency_s = 0.040;
+  // The camera's correlated error (a robot's tilt: docs/fusion.md,
+  // "Correlated camera error"): a bias on both axes, a first-order
+  // Gauss-Markov process of stationary sigma camera_bias_sigma_m per axis
+  // and correlation time camera_bias_time_s, plus a constant lean of
+  // camera_bias_lean_m in a random direction (a still robot's tilt, which
+  // never decorrelates). Every camera position carries it; the reported
+  // covariance is camera_sigma_m^2 + camera_bias_sigma_m^2 +
+  // camera_bias_lean_m^2 / 2 per axis (what camera_proc reports: its tilt
+  // term), and Measurement::correlated_sigma_m says the correlated part, as
+  // fusion_proc does from the site. Drawn from their own generator, so the
+  // other noise does not depend on them.
+  double camera_bias_sigma_m = 0.0;
+  double camera_bias_time_s = 1.0;
+  double camera_bias_lean_m = 0.0;
 
   // The ultrasound: firing rate, true noise, the sigma the trilateration
   // reports (calibrated, as trilat_proc's covariance is: set it lower for an
@@ -89,9 +103,30 @@ inline std::vector<StreamItem> MakeStream(const Trajectory& trajectory, const St
   std::vector<StreamItem> items;
   auto in = [](double t, double a, double b) { return a >= 0.0 && t >= a && t < b; };
 
+  // The bias's own generator and distributions (a normal distribution keeps
+  // a spare draw, which must not pass between the generators).
+  std::mt19937 bias_rng(o.seed + 7919u);
+  std::normal_distribution<double> bias_normal(0.0, 1.0);
+  std::uniform_real_distribution<double> bias_uniform(0.0, 1.0);
+  const double lean_angle = 2.0 * 3.14159265358979 * bias_uniform(bias_rng);
+  const Eigen::Vector2d lean =
+      o.camera_bias_lean_m * Eigen::Vector2d(std::cos(lean_angle), std::sin(lean_angle));
+  Eigen::Vector2d bias;
+  bias.x() = o.camera_bias_sigma_m * bias_normal(bias_rng);  // one draw per line: a fixed order
+  bias.y() = o.camera_bias_sigma_m * bias_normal(bias_rng);
+  const double bias_decay =
+      o.camera_bias_time_s > 0.0 ? std::exp(-1.0 / (o.camera_hz * o.camera_bias_time_s)) : 0.0;
+  const double bias_step_sigma_m = o.camera_bias_sigma_m * std::sqrt(1.0 - bias_decay * bias_decay);
+  const double correlated_var_m2 = o.camera_bias_sigma_m * o.camera_bias_sigma_m +
+                                   0.5 * o.camera_bias_lean_m * o.camera_bias_lean_m;
   const int frames = static_cast<int>(o.duration_s * o.camera_hz);
   for (int k = 0; k < frames; ++k) {
     const double t = k / o.camera_hz;
+    if (k > 0) {
+      const double step_x = bias_normal(bias_rng);
+      const double step_y = bias_normal(bias_rng);
+      bias = bias_decay * bias + bias_step_sigma_m * Eigen::Vector2d(step_x, step_y);
+    }
     const double cam_n1 = normal(rng), cam_n2 = normal(rng), cam_n3 = normal(rng);
     if (in(t, o.camera_outage_start_s, o.camera_outage_end_s)) continue;
     const GroundTruthPose truth = TruthAt(trajectory, o, t);
@@ -103,6 +138,11 @@ inline std::vector<StreamItem> MakeStream(const Trajectory& trajectory, const St
     m.seq = k;
     m.position_m = {truth.x_m + o.camera_sigma_m * cam_n1, truth.y_m + o.camera_sigma_m * cam_n2};
     m.position_cov_m2 = Eigen::Matrix2d::Identity() * o.camera_sigma_m * o.camera_sigma_m;
+    if (correlated_var_m2 > 0.0) {
+      m.position_m += bias + lean;
+      m.position_cov_m2 += Eigen::Matrix2d::Identity() * correlated_var_m2;
+      m.correlated_sigma_m = std::sqrt(correlated_var_m2);
+    }
     m.heading_rad = WrapAngle(truth.heading_rad + o.camera_heading_sigma_rad * cam_n3);
     m.heading_var_rad2 = o.camera_heading_sigma_rad * o.camera_heading_sigma_rad;
     item.recv_utime = m.utime + std::llround(o.camera_latency_s * 1e6);
