@@ -85,7 +85,14 @@ TEST_F(FusionProcess, FusedIsNoWorseThanTheCameraAndRidesOutEachSensorsOutage) {
                     "0.01", "--log-level", "warn"});
   ChildProcess trilat({BinDir() + "/trilat_proc", "--config", DemoSite(), "--method", "robust",
                        "--log-level", "warn"});
-  ChildProcess fusion({BinDir() + "/fusion_proc", "--config", DemoSite(), "--log-level", "warn"});
+  // The idealised camera (sim:reference_circle) renders no tilt, while the
+  // demo site states the webcam robot's 0.55 degrees: with its bias model
+  // fusion would rightly let the ultrasound move the track by that much
+  // (0.3 mm against the camera's 0.13), so this test, which compares the
+  // fused track with an ideal camera's, tells fusion the camera's errors
+  // are white, as they are here (docs/fusion.md, "Correlated camera error").
+  ChildProcess fusion({BinDir() + "/fusion_proc", "--config", DemoSite(), "--camera-bias-time", "0",
+                       "--log-level", "warn"});
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
   ChildProcess camera({BinDir() + "/camera_proc", "--config", DemoSite(), "--device",
                        "sim:reference_circle", "--log-level", "warn"});
