@@ -52,6 +52,23 @@ struct TrackerOptions {
   // radially towards the image's edge (down to 0.6 of the tangential scale
   // at the 6 x 4 m room's corners), which moves the ratio by up to +-35 %.
   double heading_offset_tolerance = 0.45;
+  // A blob is *clipped* when its disc, its equivalent radius times
+  // clip_radius_factor plus clip_margin_px around its centroid, reaches past
+  // the edge of the image, or of the window it was searched in when the
+  // frame had no full-frame search. A marker cut by an edge is measured
+  // small, with its centroid moved inwards (by 0.42 of its radius for a half
+  // disc), yet the cut still lies within that reach: a disc's segment has
+  // its centroid nearer the chord than its equivalent radius (a half disc:
+  // 0.42 R against 0.71 R; a disc missing a cap of height h: R - h against
+  // R - O(h^1.5)). The factor covers a fisheye's elongation: an ellipse of
+  // radial squeeze 0.66 (a 120-degree lens's corners) reaches at most 1.10
+  // equivalent radii towards a 4:3 image's top edge; the margin covers the
+  // mask's blur. A clipped blob never identifies a robot nor gives it a pose
+  // (its size decides its role, its centroid is biased): see UpdateByCode.
+  double clip_radius_factor = 1.1;
+  double clip_margin_px = 2.0;
+
+  bool IsValid(std::string* error) const;
 };
 
 enum class TrackState {
@@ -82,9 +99,11 @@ struct RobotObservation {
   // Candidates that fitted (kAmbiguous lists them all); for messages.
   int num_candidates = 0;
   std::string note;  // why not found / why ambiguous, one line
-  // Marker code only: why this frame's identification is in doubt, as a
-  // STATUS counter name (empty when it is not): "interleaved_markers",
-  // "code_seen_twice" or "impossible_jump" (UpdateByCode states the rule).
+  // Why this frame's identification is in doubt, as a STATUS counter name
+  // (empty when it is not): with a marker code "interleaved_markers",
+  // "code_seen_twice" or "impossible_jump" (UpdateByCode states the rule);
+  // in both modes "marker_clipped" (its markers were seen only cut by the
+  // image's or a window's edge: no identity, no pose from them).
   std::string identity_problem;
 };
 
@@ -157,9 +176,31 @@ class RobotTracker {
   //  - no pair: a lone blob of its position class, of the last position
   //    blob's size, inside the gate and in no pair is taken when it is the
   //    only one, degraded (no heading), as the demo does.
+  // A pair with a clipped blob (TrackerOptions::clip_radius_factor) is
+  // evidence, never an identification: it counts in the rules above as a
+  // sighting of its code (and its blobs as used, for interleaving), but a
+  // robot whose code is seen only in clipped pairs is not published from
+  // them ("marker_clipped"; the lone-blob rule may still publish it
+  // degraded from a whole position blob in its gate). A clipped blob is
+  // never a lone position blob either.
+  // Per blob handed in (the full-frame list, then each window list): is it
+  // clipped (TrackerOptions::clip_radius_factor)?
+  struct ClipFlags {
+    std::vector<bool> full;
+    std::vector<std::vector<bool>> windows;
+  };
+  ClipFlags FindClipped(const std::vector<SearchPlan>& plans,
+                        const std::vector<Blob>& full_frame_blobs,
+                        const std::vector<std::vector<Blob>>& window_blobs) const;
   std::vector<RobotObservation> UpdateByCode(int64_t utime, const std::vector<SearchPlan>& plans,
                                              const std::vector<Blob>& full_frame_blobs,
-                                             const std::vector<std::vector<Blob>>& window_blobs);
+                                             const std::vector<std::vector<Blob>>& window_blobs,
+                                             const ClipFlags& clipped);
+  // Update without a code (a robot is its two classes), on blobs of which
+  // the clipped ones were left out.
+  std::vector<RobotObservation> UpdateByClasses(int64_t utime, const std::vector<SearchPlan>& plans,
+                                                const std::vector<Blob>& full_frame_blobs,
+                                                const std::vector<std::vector<Blob>>& window_blobs);
   // Velocities, states and last positions from a frame's observations.
   void Bookkeep(int64_t utime, const std::vector<bool>& from_full_frame,
                 const std::vector<bool>& ambiguous, std::vector<RobotObservation>* obs);

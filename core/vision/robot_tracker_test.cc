@@ -313,7 +313,8 @@ TEST(RobotTracker, MarkerLeavingTheImageIsLostAfterLostAfterS) {
   options.lost_after_s = 0.5;
   RobotTracker tracker({Spec(1)}, options, kWidthPx, kHeightPx);
   int64_t t = kStartUs;
-  ASSERT_TRUE(Step(&tracker, t, Robot(1900, 500)).obs[0].found);
+  // Heading marker on the image's side: a marker beyond the edge is clipped.
+  ASSERT_TRUE(Step(&tracker, t, Robot(1900, 500, kOrange, kGreen, -kHeadingOffsetPx)).obs[0].found);
   const int64_t last_seen = t;
   const int frames_until_lost = static_cast<int>(std::ceil(options.lost_after_s / kFramePeriodS));
   for (int k = 1; k < frames_until_lost; ++k) {
@@ -681,7 +682,82 @@ TEST(RobotTrackerCode, AMarkerCutByAWindowEdgeIsOneMarkerNotTwo) {
   EXPECT_TRUE(f.obs[2].identity_problem.empty()) << f.obs[2].identity_problem;
 }
 
+// The hall's incident: robot 3 (yellow big, blue small) enters at the image's
+// left edge with its yellow marker cut to a sliver. The sliver measures
+// smaller than the blue marker and two blue radii from it: as blobs, the
+// pair reads blue-big, yellow-small, robot 4's code.
+std::vector<Blob> CutAtTheLeftEdge() {
+  const double sliver_u = 3.0, sliver_radius = 0.6 * kHeadRadiusPx;
+  return {MakeBlob(kYellow, sliver_u, 400, sliver_radius),
+          MakeBlob(kBlue, sliver_u + 2.0 * kHeadRadiusPx, 400, kHeadRadiusPx)};
+}
+
+TEST(RobotTrackerCode, AMarkerCutByTheImageEdgeNeverNamesItsSwapPartner) {
+  RobotTracker tracker(SwappedPairRobots(), CodeOptions(), kWidthPx, kHeightPx);
+  const Frame f = Step(&tracker, kStartUs, CutAtTheLeftEdge());
+  EXPECT_FALSE(f.obs[3].found) << "robot 4 read from robot 3's cut marker";
+  EXPECT_EQ(f.obs[3].identity_problem, "marker_clipped");
+  EXPECT_FALSE(f.obs[2].found);
+  // Without the clip rule the same blobs are robot 4 with a heading: the
+  // scene is the failure it guards against, not a harmless one.
+  TrackerOptions unguarded = CodeOptions();
+  unguarded.clip_margin_px = -1e9;  // no blob can reach an edge
+  RobotTracker old_rule(SwappedPairRobots(), unguarded, kWidthPx, kHeightPx);
+  const Frame g = Step(&old_rule, kStartUs, CutAtTheLeftEdge());
+  EXPECT_TRUE(g.obs[3].found && g.obs[3].has_heading);
+}
+
+TEST(RobotTrackerCode, ARobotLeavingTheImageIsNotPublishedOnceAMarkerTouchesTheEdge) {
+  RobotTracker tracker(SwappedPairRobots(), CodeOptions(), kWidthPx, kHeightPx);
+  // Robot 3 drives left, heading marker trailing on the image's side; from
+  // the frame its position marker's disc (1.1 radii and 2 px) reaches the
+  // edge it is not published, neither as itself nor as robot 4.
+  int published = 0, withheld = 0;
+  for (int k = 0; k < 40; ++k) {
+    const double u = 60.0 - 2.0 * k;
+    const Frame f =
+        Step(&tracker, kStartUs + k * kFramePeriodUs, Coded(kYellow, kBlue, u, 400, 0.0));
+    EXPECT_FALSE(f.obs[3].found) << "frame " << k;
+    const bool reaches = u - 1.1 * kPosRadiusPx - 2.0 < -0.5;
+    if (f.obs[2].found) {
+      ++published;
+      EXPECT_FALSE(reaches) << "frame " << k << " u " << u;
+    } else {
+      ++withheld;
+      EXPECT_TRUE(reaches) << "frame " << k << " u " << u << ": " << f.obs[2].note;
+    }
+  }
+  EXPECT_GT(published, 0);
+  EXPECT_GT(withheld, 0);
+}
+
 }  // namespace code
+
+TEST(RobotTrackerClasses, AClippedPositionMarkerIsNotFoundAndSaysWhy) {
+  RobotTracker tracker({Spec(1)}, TrackerOptions{}, kWidthPx, kHeightPx);
+  // Position marker cut by the top edge, heading marker inside.
+  const Frame f = Step(&tracker, kStartUs, Robot(600, 5, kOrange, kGreen, 0.0, kHeadingOffsetPx));
+  EXPECT_FALSE(f.obs[0].found);
+  EXPECT_EQ(f.obs[0].identity_problem, "marker_clipped");
+  // Whole, a frame later: found.
+  const Frame g = Step(&tracker, kStartUs + kFramePeriodUs,
+                       Robot(600, 30, kOrange, kGreen, 0.0, kHeadingOffsetPx));
+  EXPECT_TRUE(g.obs[0].found) << g.obs[0].note;
+  EXPECT_TRUE(g.obs[0].identity_problem.empty());
+}
+
+TEST(TrackerOptions, IsValidNamesTheBadField) {
+  std::string error;
+  EXPECT_TRUE(TrackerOptions{}.IsValid(&error)) << error;
+  TrackerOptions o;
+  o.clip_radius_factor = 0.9;
+  EXPECT_FALSE(o.IsValid(&error));
+  EXPECT_NE(error.find("clip_radius_factor"), std::string::npos) << error;
+  o = TrackerOptions{};
+  o.lost_after_s = 0.0;
+  EXPECT_FALSE(o.IsValid(&error));
+  EXPECT_NE(error.find("lost_after_s"), std::string::npos) << error;
+}
 
 }  // namespace
 }  // namespace roomfix::vision
