@@ -51,7 +51,7 @@ std::vector<cv::Rect> ListAreas(const std::vector<SearchPlan>& plans, size_t lis
   const bool per_plan = lists == plans.size();
   size_t next = 0;
   for (size_t p = 0; p < plans.size(); ++p) {
-    if (plans[p].full_frame) continue;
+    if (plans[p].full_frame || (!per_plan && plans[p].window.empty())) continue;
     const size_t k = per_plan ? p : next++;
     if (k < lists) areas[k] = plans[p].window;
   }
@@ -143,6 +143,14 @@ bool TrackerOptions::IsValid(std::string* error) const {
       !non_negative(clip_margin_px, "clip_margin_px")) {
     return false;
   }
+  if (absent_search_period_frames < 1 || absent_search_period_frames > 300) {
+    *error = "absent_search_period_frames must lie in [1, 300]";
+    return false;
+  }
+  if (max_blobs < 2) {
+    *error = "max_blobs must be at least 2 (one robot's markers)";
+    return false;
+  }
   if (!(heading_size_ratio > 0.0 && heading_size_ratio < 1.0)) {
     *error = "heading_size_ratio must lie in (0, 1)";
     return false;
@@ -166,6 +174,8 @@ RobotTracker::RobotTracker(std::vector<TrackedRobotSpec> robots, TrackerOptions 
 std::vector<SearchPlan> RobotTracker::Plan(int64_t utime) const {
   std::vector<SearchPlan> plans;
   plans.reserve(robots_.size());
+  const bool absent_due = updates_since_full_ < 0 || full_requested_ ||
+                          updates_since_full_ + 1 >= options_.absent_search_period_frames;
   const cv::Rect image(0, 0, width_px_, height_px_);
   for (size_t i = 0; i < robots_.size(); ++i) {
     const TrackedRobotSpec& spec = robots_[i];
@@ -194,8 +204,16 @@ std::vector<SearchPlan> RobotTracker::Plan(int64_t utime) const {
       plan.window = cv::Rect(x0, y0, x1 - x0, y1 - y0) & image;
       plan.full_frame = plan.window.empty();
       if (plan.full_frame) plan.window = cv::Rect();
+    } else if ((t.state == TrackState::kSearching || t.state == TrackState::kLost) && !absent_due) {
+      plan.full_frame = false;  // out of view: no search in this frame
     }
     plans.push_back(plan);
+  }
+  // A full-frame search for one robot serves the others out of view.
+  if (std::any_of(plans.begin(), plans.end(), [](const SearchPlan& p) { return p.full_frame; })) {
+    for (SearchPlan& p : plans) {
+      if (!p.full_frame && p.window.empty()) p.full_frame = true;
+    }
   }
   return plans;
 }
@@ -211,14 +229,17 @@ RobotTracker::ClipFlags RobotTracker::FindClipped(
       std::any_of(plans.begin(), plans.end(), [](const SearchPlan& p) { return p.full_frame; });
   const std::vector<cv::Rect> areas = ListAreas(plans, window_blobs.size(), image);
   const double factor = options_.clip_radius_factor, margin = options_.clip_margin_px;
+  const bool refuse = options_.refuse_clipped;
   ClipFlags flags;
-  for (const Blob& b : full_frame_blobs)
-    flags.full.push_back(ReachesEdge(b, image, factor, margin));
+  for (const Blob& b : full_frame_blobs) {
+    flags.full.push_back(refuse && ReachesEdge(b, image, factor, margin));
+  }
   flags.windows.resize(window_blobs.size());
   for (size_t k = 0; k < window_blobs.size(); ++k) {
     for (const Blob& b : window_blobs[k]) {
-      flags.windows[k].push_back(ReachesEdge(b, image, factor, margin) ||
-                                 (!any_full && ReachesEdge(b, areas[k], factor, margin)));
+      flags.windows[k].push_back(refuse &&
+                                 (ReachesEdge(b, image, factor, margin) ||
+                                  (!any_full && ReachesEdge(b, areas[k], factor, margin))));
     }
   }
   return flags;
@@ -227,6 +248,36 @@ RobotTracker::ClipFlags RobotTracker::FindClipped(
 std::vector<RobotObservation> RobotTracker::Update(
     int64_t utime, const std::vector<SearchPlan>& plans, const std::vector<Blob>& full_frame_blobs,
     const std::vector<std::vector<Blob>>& window_blobs) {
+  const bool any_full =
+      std::any_of(plans.begin(), plans.end(), [](const SearchPlan& p) { return p.full_frame; });
+  full_requested_ = false;
+  std::vector<RobotObservation> obs = Identify(utime, plans, full_frame_blobs, window_blobs);
+  updates_since_full_ = any_full ? 0 : updates_since_full_ + 1;
+  return obs;
+}
+
+std::vector<RobotObservation> RobotTracker::Identify(
+    int64_t utime, const std::vector<SearchPlan>& plans, const std::vector<Blob>& full_frame_blobs,
+    const std::vector<std::vector<Blob>>& window_blobs) {
+  pairing_checks_ = 0;
+  size_t handed_in = full_frame_blobs.size();
+  for (const auto& list : window_blobs) handed_in += list.size();
+  if (handed_in > static_cast<size_t>(options_.max_blobs)) {
+    // Too cluttered to judge: no identity at all rather than a guess on part
+    // of the evidence, and none of the quadratic work.
+    const size_t n = robots_.size();
+    std::vector<RobotObservation> obs(n);
+    for (size_t i = 0; i < n; ++i) {
+      obs[i].robot_id = robots_[i].robot_id;
+      obs[i].identity_problem = "too_many_blobs";
+      obs[i].note = std::to_string(handed_in) + " blobs in the frame, over the limit of " +
+                    std::to_string(options_.max_blobs) + ": no robot identified";
+    }
+    const bool any_full =
+        std::any_of(plans.begin(), plans.end(), [](const SearchPlan& p) { return p.full_frame; });
+    Bookkeep(utime, std::vector<bool>(n, any_full), std::vector<bool>(n, false), &obs);
+    return obs;
+  }
   const ClipFlags clipped = FindClipped(plans, full_frame_blobs, window_blobs);
   if (options_.identify_by_code) {
     return UpdateByCode(utime, plans, full_frame_blobs, window_blobs, clipped);
@@ -280,7 +331,7 @@ std::vector<RobotObservation> RobotTracker::UpdateByClasses(
   for (size_t i = 0; i < n; ++i) index_of_id[robots_[i].robot_id] = i;
   for (size_t p = 0; p < plans.size(); ++p) {
     const std::vector<Blob>* list = nullptr;
-    if (!plans[p].full_frame) {
+    if (!plans[p].full_frame && (per_plan_lists || !plans[p].window.empty())) {
       const size_t k = per_plan_lists ? p : next_window_list++;
       if (k < window_blobs.size()) list = &window_blobs[k];
     }
@@ -346,6 +397,9 @@ std::vector<RobotObservation> RobotTracker::UpdateByClasses(
       if (c.has_heading) taken.Add(c.heading);
       Fill(c, &obs[i]);
       if (!c.has_heading) obs[i].note = "no heading marker beside the position marker";
+    } else if (plan_of[i].window.empty()) {
+      obs[i].note = "out of view: looked for by a full-frame search every " +
+                    std::to_string(options_.absent_search_period_frames) + " frames";
     } else {
       const cv::Rect& w = plan_of[i].window;
       obs[i].note = "no free class " + std::to_string(robots_[i].position_class) +
@@ -630,12 +684,25 @@ std::vector<RobotObservation> RobotTracker::UpdateByCode(
     bool clipped = false;  // a blob of it reaches an edge: evidence only
   };
   std::vector<Pair> pairs;
+  // A sweep along u: a heading blob lies within offset_hi position radii of
+  // its position blob, so only blobs in that band of u are compared. Blobs
+  // of a frame do not overlap, which bounds how many fit in the band.
+  std::vector<size_t> by_u(pool.size());
+  for (size_t k = 0; k < pool.size(); ++k) by_u[k] = k;
+  std::sort(by_u.begin(), by_u.end(), [&pool](size_t x, size_t y) {
+    return pool[x].u_px < pool[y].u_px || (pool[x].u_px == pool[y].u_px && x < y);
+  });
   for (size_t a = 0; a < pool.size(); ++a) {
     const Blob& p = pool[a];
     if (!(p.radius_px > 0.0)) continue;
-    for (size_t b = 0; b < pool.size(); ++b) {
+    const double reach = offset_hi * p.radius_px;
+    auto first = std::lower_bound(by_u.begin(), by_u.end(), p.u_px - reach,
+                                  [&pool](size_t k, double u) { return pool[k].u_px < u; });
+    for (auto it_b = first; it_b != by_u.end() && pool[*it_b].u_px <= p.u_px + reach; ++it_b) {
+      const size_t b = *it_b;
       const Blob& h = pool[b];
       if (a == b) continue;
+      ++pairing_checks_;
       const auto it = robot_of_code.find({p.class_index, h.class_index});
       if (it == robot_of_code.end()) continue;
       const double ratio = h.radius_px / p.radius_px;
@@ -691,10 +758,26 @@ std::vector<RobotObservation> RobotTracker::UpdateByCode(
     in_a_pair[pr.position] = true;
     in_a_pair[pr.heading] = true;
   }
+  const bool any_full =
+      std::any_of(plans.begin(), plans.end(), [](const SearchPlan& p) { return p.full_frame; });
   for (size_t i = 0; i < n; ++i) {
     RobotObservation& o = obs[i];
     o.robot_id = robots_[i].robot_id;
     o.num_candidates = inside[i];
+    if (!gated[i] && !any_full) {
+      // Out of view until now, and this frame was searched in windows only:
+      // a code is unique only if the whole frame shows it once.
+      if (inside[i] > 0) {
+        full_requested_ = true;
+        o.note =
+            "its code is seen in another robot's window: identified at the next full-frame "
+            "search";
+      } else {
+        o.note = "out of view: looked for by a full-frame search every " +
+                 std::to_string(options_.absent_search_period_frames) + " frames";
+      }
+      continue;
+    }
     if (interleaved[i]) {
       ambiguous[i] = true;
       o.identity_problem = "interleaved_markers";
