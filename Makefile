@@ -7,6 +7,10 @@
 #                                a new build folder is configured without tests
 #                                and Java, an existing one keeps its settings
 #             [DEMO_CAMERA=0]    ... without the ceiling camera: ultrasound alone
+#             [DEMO_SITE=FILE]   ... another site, e.g. config/sites/hall.yaml
+#                                (four cameras, two radios, eight robots)
+#             [DEMO_CAMERA_FPS=N] ... cameras at N fps (default: the site's,
+#                                10 with fewer than 2 cores per camera)
 #   make test [SANITIZE=1]       the whole suite through ctest (ASan+UBSan build);
 #                                warnings are errors (ROOMFIX_WERROR); turns
 #                                the tests and the Java jar on in the build folder
@@ -67,7 +71,8 @@ demo: DEPS_SET = demo
 demo: CMAKE_FLAGS += $(if $(wildcard $(BUILD_DIR)/CMakeCache.txt),,-DBUILD_TESTING=OFF -DROOMFIX_JAVA=OFF)
 demo: configure
 	@cmake --build $(BUILD_DIR) -j $(JOBS) --target demo -- --no-print-directory
-	@DEMO_CAMERA=$(DEMO_CAMERA) scripts/demo.sh $(BUILD_DIR) $(DEMO_SECONDS)
+	@DEMO_CAMERA=$(DEMO_CAMERA) DEMO_SITE=$(DEMO_SITE) DEMO_CAMERA_FPS=$(DEMO_CAMERA_FPS) \
+	  scripts/demo.sh $(BUILD_DIR) $(DEMO_SECONDS)
 
 package: BUILD_DIR = $(RELEASE_DIR)
 package: BUILD_TYPE = Release

@@ -453,10 +453,19 @@ TEST_F(CameraNodeTest, ARobotOutOfViewIsLost) {
     EXPECT_EQ(p.status, pose2d_t::STATUS_LOST);
     EXPECT_TRUE(std::isnan(p.x_m));
   }
-  for (const marker_pixels_t& m : run.pixels) {
-    EXPECT_EQ(m.num_markers, 0);
-    EXPECT_EQ(m.search_mode, marker_pixels_t::SEARCH_FULL_FRAME);
+  // Out of view: searched in full once every absent_search_period_frames,
+  // from the first frame on; nothing is searched in between.
+  const size_t period = static_cast<size_t>(CameraNodeOptions{}.absent_search_period_frames);
+  ASSERT_GT(period, 1u);
+  for (size_t k = 0; k < run.pixels.size(); ++k) {
+    EXPECT_EQ(run.pixels[k].num_markers, 0);
+    EXPECT_EQ(run.pixels[k].search_mode, k % period == 0
+                                             ? marker_pixels_t::SEARCH_FULL_FRAME
+                                             : marker_pixels_t::SEARCH_REGION_OF_INTEREST)
+        << "frame " << k;
   }
+  EXPECT_EQ(run.node->status().counter("full_searches"),
+            static_cast<int64_t>((run.pixels.size() + period - 1) / period));
 }
 
 // The entry point for recorded pixels (roomfix replay --nodes camera) runs

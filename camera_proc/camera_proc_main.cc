@@ -55,6 +55,7 @@ int main(int argc, char** argv) {
   int sim_jpeg_quality = 90;
   double duration_s = 0.0;
   double reopen_max_s = 2.0;
+  double fps = 0.0;
   CLI::App app{
       "camera_proc: finds the robots' coloured markers in the ceiling camera's frames and "
       "publishes MARKER_PIXELS and, with a calibration, POSE_CAMERA"};
@@ -74,6 +75,9 @@ int main(int argc, char** argv) {
   app.add_option("--full-search-scale", options.full_search_scale,
                  "Reduction of the full-frame search (1, 2, 4, 8)")
       ->capture_default_str();
+  app.add_option("--absent-search-period", options.absent_search_period_frames,
+                 "Robots out of view: a full-frame search once in this many frames")
+      ->check(CLI::Range(1, 300));
   app.add_option("--max-speed", options.max_speed_mps, "Robots' top speed, m/s (sizes windows)")
       ->capture_default_str();
   app.add_option("--start-utime", start_utime,
@@ -98,6 +102,13 @@ int main(int argc, char** argv) {
                  "Longest wait between attempts to reopen a lost "
                  "camera, s")
       ->capture_default_str();
+  // A machine too small for several cameras at full rate (scripts/demo.sh on
+  // 2 cores, docs/operations.md "A hall") runs them slower; the site keeps
+  // the installation's rate.
+  app.add_option("--fps", fps,
+                 "Frame rate to request (a device) or render (sim:), at most the site camera's "
+                 "(default: the site's)")
+      ->check(CLI::PositiveNumber);
   app.add_option("--duration", duration_s, "Stop after this many seconds (0: until a signal)")
       ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
@@ -120,6 +131,17 @@ int main(int argc, char** argv) {
     std::cerr << "camera_proc: " << process.config_path << " has no camera"
               << (camera_id >= 0 ? " with id " + std::to_string(camera_id) : "") << "\n";
     return 1;
+  }
+  // The node keeps a reference to its camera: this copy lives to the end.
+  roomfix::Camera camera_at_rate = *camera;
+  if (fps > 0.0) {
+    if (fps > camera->fps) {
+      std::cerr << "camera_proc: --fps " << fps << " is over camera " << camera->id << "'s "
+                << camera->fps << " fps\n";
+      return 1;
+    }
+    camera_at_rate.fps = fps;
+    camera = &camera_at_rate;
   }
   if (device.empty()) device = camera->device;
   if (calibration_path.empty()) calibration_path = camera->calibration_file;

@@ -13,6 +13,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <limits>
 #include <map>
 #include <memory>
 #include <opencv2/imgcodecs.hpp>
@@ -87,6 +88,10 @@ struct Tally {
   // [published id][true id] (0: no robot within kSameRobotM).
   std::map<int, std::map<int, int>> confusion;
   std::map<std::string, int64_t> counters;
+  // With `shadow_old_rule`: the same frames' MARKER_PIXELS through a node
+  // with the clip rule off (the replay path), scored the same way.
+  int published_before = 0;
+  int wrong_before = 0;
 };
 
 std::string EnvOr(const char* name, const std::string& fallback) {
@@ -94,7 +99,8 @@ std::string EnvOr(const char* name, const std::string& fallback) {
   return v != nullptr && *v != '\0' ? std::string(v) : fallback;
 }
 
-Tally Measure(const Site& site, const std::string& scenario_name, double seconds) {
+Tally Measure(const Site& site, const std::string& scenario_name, double seconds,
+              bool shadow_old_rule = false) {
   Tally tally;
   const Camera& camera = site.cameras.front();
   const calib::CameraModel lens = calib::NominalCamera(
@@ -126,6 +132,14 @@ Tally Measure(const Site& site, const std::string& scenario_name, double seconds
   options.preview_hz = 0.0;
   CameraNode node(site, camera, calibration, &bus, options, kStartUtime);
   EXPECT_TRUE(node.ok(&error)) << error;
+  LoopbackBus old_bus;
+  std::vector<pose2d_t> old_poses;
+  old_bus.Subscribe<pose2d_t>(
+      kCameraPoseChannel,
+      [&old_poses](const pose2d_t& p, const MessageInfo&) { old_poses.push_back(p); });
+  CameraNodeOptions old_options = options;
+  old_options.refuse_clipped_markers = false;
+  CameraNode old_node(site, camera, calibration, &old_bus, old_options, kStartUtime);
   const int frames = static_cast<int>(std::lround(seconds * camera.fps));
   for (int f = 0; f < frames; ++f) {
     camera::Frame frame;
@@ -157,7 +171,19 @@ Tally Measure(const Site& site, const std::string& scenario_name, double seconds
     const std::vector<sim::RobotState> truth =
         renderer->SimulatedRobots(static_cast<double>(frame.seq) / camera.fps);
     poses.clear();
+    old_poses.clear();
     node.OnFrame(&frame, frame.capture_utime + 1000);
+    if (shadow_old_rule) old_node.OnMarkerPixels(node.last_marker_pixels(), frame.capture_utime);
+    for (const pose2d_t& p : old_poses) {
+      if (p.status == pose2d_t::STATUS_LOST) continue;
+      ++tally.published_before;
+      bool right = false;
+      for (const sim::RobotState& r : truth) {
+        right |=
+            r.robot_id == p.robot_id && std::hypot(r.x_m - p.x_m, r.y_m - p.y_m) <= kSameRobotM;
+      }
+      if (!right) ++tally.wrong_before;
+    }
     if (std::getenv("ROOMFIX_IDENTITY_DEBUG") != nullptr) {
       bool doubt = false;
       for (const auto& o : node.last_observations()) doubt |= !o.identity_problem.empty();
@@ -190,8 +216,9 @@ Tally Measure(const Site& site, const std::string& scenario_name, double seconds
       ++(nearest == p.robot_id ? tally.correct : tally.wrong);
     }
   }
-  for (const char* name : {"interleaved_markers", "code_seen_twice", "impossible_jump",
-                           "ambiguous_frames", "full_searches", "window_searches"}) {
+  for (const char* name :
+       {"interleaved_markers", "code_seen_twice", "impossible_jump", "marker_clipped",
+        "ambiguous_frames", "full_searches", "window_searches"}) {
     tally.counters[name] = node.status().counter(name);
   }
   return tally;
@@ -243,6 +270,195 @@ TEST(EightRobots, EveryPoseCarriesTheRightIdentityUnderTheWebcamScenario) {
   ASSERT_GT(t.robot_frames, 0);
   EXPECT_LE(static_cast<double>(t.wrong) / std::max(1, t.published), kMaxWrongIdentityRate);
   EXPECT_LE(static_cast<double>(t.missed) / t.robot_frames, kMaxMissedRate);
+}
+
+// --- A robot at the image's edge: a misidentification is never silent ----
+
+// The hall site with its first codes, swapped pairs as the eight-robot
+// site's (red/green beside green/red, ...), which its camera 0 read wrong at
+// an image edge before the clip rule: robot 3 (yellow/blue) as robot 4.
+Site HallWithSwappedPairs() {
+  Site site;
+  std::string error;
+  EXPECT_TRUE(LoadSite(testing::SourceDir() + "/config/sites/hall.yaml", &site, &error)) << error;
+  const std::map<int, std::pair<std::string, std::string>> swapped = {
+      {1, {"red", "green"}},   {2, {"green", "red"}},  {3, {"yellow", "blue"}},
+      {4, {"blue", "yellow"}}, {5, {"red", "yellow"}}, {6, {"yellow", "red"}},
+      {7, {"green", "blue"}},  {8, {"blue", "green"}}};
+  for (Camera& camera : site.cameras) {
+    for (CameraRobot& r : camera.robots) {
+      r.position_marker = swapped.at(r.robot_id).first;
+      r.heading_marker = swapped.at(r.robot_id).second;
+    }
+  }
+  return site;
+}
+
+// A pose of another robot than the one in view (published, any status).
+struct EdgeTally {
+  int frames = 0;
+  int published = 0;
+  int wrong = 0;     // published with another robot's id
+  int wrong_ok = 0;  // ... and status ok
+  int clipped = 0;   // STATUS marker_clipped (robot-frames refused)
+};
+
+void Score(const std::vector<pose2d_t>& poses, int true_id, EdgeTally* t) {
+  for (const pose2d_t& p : poses) {
+    if (p.status == pose2d_t::STATUS_LOST) continue;
+    ++t->published;
+    if (p.robot_id != true_id) {
+      ++t->wrong;
+      if (p.status == pose2d_t::STATUS_OK) ++t->wrong_ok;
+    }
+  }
+}
+
+// The floor point (at `height_m`) from below the lens towards the image's
+// left edge (axis 0) or top edge (axis 1) whose image has that coordinate
+// `target_px`: bisection along the floor direction that moves the image
+// point fastest towards that edge.
+Eigen::Vector2d TowardsEdge(const calib::CameraModel& lens, int axis, double height_m,
+                            Eigen::Vector2d* direction) {
+  const Eigen::Vector2d origin = lens.pose.position_m.head<2>();
+  double best = std::numeric_limits<double>::infinity();
+  for (const Eigen::Vector2d& d : {Eigen::Vector2d(1, 0), Eigen::Vector2d(-1, 0),
+                                   Eigen::Vector2d(0, 1), Eigen::Vector2d(0, -1)}) {
+    double u = 0, v = 0;
+    const Eigen::Vector2d p = origin + 0.5 * d;
+    if (!lens.ProjectToPixel(Eigen::Vector3d(p.x(), p.y(), height_m), &u, &v)) continue;
+    const double c = axis == 0 ? u : v;
+    if (c < best) {
+      best = c;
+      *direction = d;
+    }
+  }
+  return origin;
+}
+
+Eigen::Vector2d FloorAtImageCoordinate(const calib::CameraModel& lens, int axis, double height_m,
+                                       double target_px, Eigen::Vector2d* direction) {
+  const Eigen::Vector2d origin = TowardsEdge(lens, axis, height_m, direction);
+  auto coordinate = [&](double s) {
+    const Eigen::Vector2d p = origin + s * *direction;
+    double u = 0, v = 0;
+    lens.ProjectToPixel(Eigen::Vector3d(p.x(), p.y(), height_m), &u, &v);
+    return axis == 0 ? u : v;
+  };
+  double lo = 0.0, hi = 1.0;
+  while (coordinate(hi) > target_px && hi < 30.0) hi *= 1.5;
+  for (int k = 0; k < 60; ++k) {
+    const double mid = 0.5 * (lo + hi);
+    (coordinate(mid) > target_px ? lo : hi) = mid;
+  }
+  return origin + 0.5 * (lo + hi) * *direction;
+}
+
+// The hall camera 0's swapped pairs under the webcam scenario: one robot
+// placed with its position marker's centre (radius about 11 px) from 13 px
+// outside the left (top) edge to 17 px inside, its heading marker pointing into the image or along
+// the edge, each seen by a camera_proc that never saw it before (as the hall's camera that read
+// robot 3 as robot 4). The same frames' MARKER_PIXELS go through a node with the clip rule off, to
+// show the scene is the failure.
+TEST(EdgeOfTheImage, ARobotHalfOutOfTheWebcamFrameIsNeverItsSwapPartner) {
+  const Site site = HallWithSwappedPairs();
+  std::string error;
+  const Camera& camera = site.cameras.front();
+  const calib::CameraModel lens = calib::NominalCamera(
+      camera.mount_position_m, camera.field_of_view_deg, camera.width_px, camera.height_px);
+  sim::SimScenario scenario;
+  ASSERT_TRUE(sim::ParseSimScenario("webcam", site, &scenario, &error)) << error;
+  const sim::SyntheticCamera renderer(site, camera, lens, scenario);
+  calib::Calibration calibration;
+  calibration.model = calib::Calibration::Model::kFull;
+  calibration.camera = renderer.model();
+  EdgeTally now, before;
+  int64_t seq = 0;
+  // Robot 3 (yellow/blue; robot 4 is blue/yellow) and robot 2 (green/red;
+  // robot 1 is red/green).
+  for (const int robot_id : {3, 2}) {
+    for (const int axis : {0, 1}) {
+      for (const double along_deg : {0.0, 90.0}) {
+        for (double target_px = -13.0; target_px <= 17.0; target_px += 2.0) {
+          Eigen::Vector2d direction;
+          const Eigen::Vector2d at =
+              FloorAtImageCoordinate(renderer.model(), axis, 0.20, target_px, &direction);
+          // Heading into the image (back along `direction`), or along the edge.
+          const double inwards = std::atan2(-direction.y(), -direction.x());
+          sim::RobotState robot;
+          robot.robot_id = robot_id;
+          robot.x_m = at.x();
+          robot.y_m = at.y();
+          robot.heading_rad = inwards + along_deg * M_PI / 180.0;
+          cv::Mat bgr;
+          renderer.Render(0.0, seq, {robot}, &bgr);
+          std::vector<uint8_t> bytes;
+          ASSERT_TRUE(renderer.Encode(bgr, 80, &bytes));
+          camera::Frame frame;
+          frame.seq = seq;
+          frame.capture_utime = kStartUtime + seq * 33'333;
+          frame.image = camera::MakeJpegImage(std::move(bytes), &error);
+          ASSERT_NE(frame.image, nullptr) << error;
+          ++seq;
+          for (const bool refuse : {true, false}) {
+            LoopbackBus bus;
+            std::vector<pose2d_t> poses;
+            bus.Subscribe<pose2d_t>(
+                kCameraPoseChannel,
+                [&poses](const pose2d_t& p, const MessageInfo&) { poses.push_back(p); });
+            CameraNodeOptions options;
+            options.preview_hz = 0.0;
+            options.refuse_clipped_markers = refuse;
+            CameraNode node(site, camera, calibration, &bus, options, kStartUtime);
+            ASSERT_TRUE(node.ok(&error)) << error;
+            node.OnFrame(&frame, frame.capture_utime + 1000);
+            EdgeTally& t = refuse ? now : before;
+            ++t.frames;
+            Score(poses, robot_id, &t);
+            t.clipped += static_cast<int>(node.status().counter("marker_clipped"));
+            if (refuse) {
+              for (const pose2d_t& p : poses) {
+                EXPECT_FALSE(p.status != pose2d_t::STATUS_LOST && p.robot_id != robot_id)
+                    << "robot " << robot_id << " published as robot " << p.robot_id
+                    << " with its marker's centre at " << target_px << " px from the "
+                    << (axis == 0 ? "left" : "top") << " edge, heading " << along_deg;
+              }
+            }
+          }
+        }
+      }
+    }
+  }
+  std::printf(
+      "edge: %d frames; clip rule on: %d published, %d wrong (%d ok), %d marker_clipped; "
+      "off: %d published, %d wrong (%d ok)\n",
+      now.frames, now.published, now.wrong, now.wrong_ok, now.clipped, before.published,
+      before.wrong, before.wrong_ok);
+  EXPECT_EQ(now.wrong, 0);
+  EXPECT_GT(now.clipped, 0);
+  // The same frames without the rule: the failure the rule prevents (one
+  // position of robot 3 read as robot 4, status ok, in 128 frames).
+  EXPECT_GT(before.wrong_ok, 0);
+  // Whole robots near the edge are still published: the positions from
+  // 13 px inside on (1.1 radii and the margin) are, in each of the 8 series.
+  EXPECT_GE(now.published, 8 * 2);
+}
+
+// The hall's camera 0 with the hall's first codes (swapped pairs, as the
+// eight-robot site): eight robots driving across its borders for
+// ROOMFIX_HALL_EDGE_SECONDS (default 20) of the hall's own `clean` frames.
+// A pose is scored against the robot within 10 cm of it (kSameRobotM).
+TEST(EdgeOfTheImage, HallCameraWithSwappedPairsNeverNamesARobotsSwapPartner) {
+  const Site site = HallWithSwappedPairs();
+  const std::string scenario = EnvOr("ROOMFIX_HALL_EDGE_SCENARIO", "clean");
+  const double seconds = std::stod(EnvOr("ROOMFIX_HALL_EDGE_SECONDS", "20"));
+  const Tally t = Measure(site, scenario, seconds, /*shadow_old_rule=*/true);
+  Print(site, scenario, seconds, t);
+  std::printf("clip rule off (the same pixels): published %d, wrong identity %d\n",
+              t.published_before, t.wrong_before);
+  EXPECT_EQ(t.wrong, 0);
+  EXPECT_GT(t.published, 0);
+  EXPECT_GT(t.counters.at("marker_clipped"), 0) << "no robot crossed the image's edge";
 }
 
 }  // namespace

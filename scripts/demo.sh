@@ -3,10 +3,16 @@
 # default site (config/sites/demo_room.yaml), records everything with
 # roomfix_logger, and summarises the log.
 #
-#   [DEMO_CAMERA=0] scripts/demo.sh BUILD_DIR SECONDS
+#   [DEMO_CAMERA=0] [DEMO_SITE=FILE] [DEMO_CAMERA_FPS=N] scripts/demo.sh BUILD_DIR SECONDS
 #
 # DEMO_CAMERA=0 runs the ultrasound path alone, as a lab with no ceiling
 # camera would: no camera_proc, so fusion_proc has only POSE_ULTRASOUND.
+# DEMO_SITE runs another site (config/sites/hall.yaml: four cameras, two
+# radios, eight robots): one camera_proc per camera (--camera ID), one
+# zigbee_bridge per radio (--radio ID) on the simulator's pseudo-terminal for
+# it. On a machine with fewer than two cores per camera the cameras run at
+# DEMO_CAMERA_FPS (default 10; the site's rate when enough cores), and the
+# summary says so (docs/operations.md, "A hall").
 #
 # Runs inside a private network namespace when this machine allows one, so the
 # multicast traffic stays private; otherwise on the host-only LCM default
@@ -21,10 +27,28 @@ if [[ "$camera" != 0 && "$camera" != 1 ]]; then
 fi
 export DEMO_CAMERA=$camera
 here=$(cd "$(dirname "$0")/.." && pwd)
-site=$here/config/sites/demo_room.yaml
+site=${DEMO_SITE:-$here/config/sites/demo_room.yaml}
+[[ "$site" == /* ]] || site=$PWD/$site
+if [[ ! -f "$site" ]]; then
+  echo "demo.sh: DEMO_SITE: no file $site" >&2
+  exit 2
+fi
+export DEMO_SITE=$site
 out=$here/build/demo
 bin=$build/bin
 [[ "$bin" == /* ]] || bin=$here/$bin
+# The site's cameras and radios (ids, one per line; none: an empty list).
+mapfile -t camera_ids < <("$bin/roomfix" check-config --ids cameras "$site")
+mapfile -t radio_ids < <("$bin/roomfix" check-config --ids radios "$site")
+((camera)) || camera_ids=()
+# Every camera_proc renders and searches its own frames: measured (roomfix
+# bench capacity) a 1280 x 960 synthetic camera at 30 fps takes most of a
+# core, so with fewer than two cores per camera they run slower.
+camera_fps=${DEMO_CAMERA_FPS:-}
+if [[ -z "$camera_fps" ]] && ((${#camera_ids[@]} > 1 && $(nproc) < 2 * ${#camera_ids[@]})); then
+  camera_fps=10
+fi
+export DEMO_CAMERA_FPS=$camera_fps
 
 if [[ "${3:-}" == "--inner" ]]; then
   log=$out/demo.lcm
@@ -37,10 +61,21 @@ if [[ "${3:-}" == "--inner" ]]; then
   trap cleanup EXIT
   "$bin/roomfix_logger" "$log" --force --log-level warn 2>"$out/roomfix_logger.txt" &
   pids+=($!)
-  "$bin/trilat_proc" --config "$site" --method robust --log-level info 2>"$out/trilat_proc.txt" &
+  # Several radios: a firing's parts come through different bridges; a
+  # loaded machine can hold one back past the default 0.1 s.
+  trilat_args=()
+  ((${#radio_ids[@]} < 2)) || trilat_args+=(--merge-deadline 0.5)
+  "$bin/trilat_proc" --config "$site" --method robust --log-level info "${trilat_args[@]}" \
+    2>"$out/trilat_proc.txt" &
   pids+=($!)
   if [[ -x "$bin/fusion_proc" ]]; then
-    "$bin/fusion_proc" --config "$site" --log-level info 2>"$out/fusion_proc.txt" &
+    # Several cameras: each calibration's error (about 1 mm for the hall's
+    # fits) widens its poses so that two cameras agree through the gate in an
+    # overlap (docs/fusion.md, "Several cameras").
+    fusion_args=()
+    ((${#camera_ids[@]} < 2)) || fusion_args+=(--camera-calibration-sigma 0.001)
+    "$bin/fusion_proc" --config "$site" --log-level info "${fusion_args[@]}" \
+      2>"$out/fusion_proc.txt" &
     pids+=($!)
   fi
   # The viewer: a window when there is a display, else headless, saving the
@@ -59,12 +94,20 @@ if [[ "${3:-}" == "--inner" ]]; then
   # latency and jitter; docs/synthetic_camera.md) renders the robot at
   # 1920 x 1080 and 30 fps through its own lens, whose calibration
   # demo_room_webcam.yaml is (the site's names the nominal lens).
-  if ((camera)); then
-    "$bin/camera_proc" --config "$site" --start-utime "$start_utime" --log-level info \
-      --calibration "$here/config/calibration/demo_room_webcam.yaml" \
-      2>"$out/camera_proc.txt" &
-    pids+=($!)
+  # The demo room's webcam renders through its own lens, whose fit is
+  # demo_room_webcam.yaml; other sites' cameras use their own calibration.
+  camera_args=()
+  if [[ "$site" == "$here/config/sites/demo_room.yaml" ]]; then
+    camera_args+=(--calibration "$here/config/calibration/demo_room_webcam.yaml")
   fi
+  [[ -z "$camera_fps" ]] || camera_args+=(--fps "$camera_fps")
+  for id in "${camera_ids[@]}"; do
+    name=camera_proc
+    ((${#camera_ids[@]} == 1)) || name=camera_proc_$id
+    "$bin/camera_proc" --config "$site" --camera "$id" --start-utime "$start_utime" \
+      --log-level info "${camera_args[@]}" 2>"$out/$name.txt" &
+    pids+=($!)
+  done
   # The simulator publishes the true poses and plays the beacon and the wall
   # receivers on a pseudo-terminal, with a radio that buffers, reorders,
   # duplicates, loses and corrupts, and a neighbour's module on the air;
@@ -79,18 +122,34 @@ if [[ "${3:-}" == "--inner" ]]; then
     --corrupt-byte 0.0002 --garbage 0.01 \
     > "$out/roomfix_sim.path" 2> >(sed 's/^/  /') &
   sim=$!
-  for _ in $(seq 100); do [[ -e "$radio" ]] && break; sleep 0.05; done
-  "$bin/zigbee_bridge" --config "$site" --port "$radio" --log-level info \
-    2> >(sed 's/^/  /') &
-  bridge=$!
-  pids+=("$bridge" "$sim")
+  # One coordinator (the site names no radios) or one per radio, each on
+  # its own pseudo-terminal RADIO-ID.
+  ports=("$radio")
+  bridge_args=("")
+  if ((${#radio_ids[@]})); then
+    ports=()
+    bridge_args=()
+    for id in "${radio_ids[@]}"; do
+      ports+=("$radio-$id")
+      bridge_args+=("$id")
+    done
+  fi
+  bridges=()
+  for i in "${!ports[@]}"; do
+    for _ in $(seq 100); do [[ -e "${ports[$i]}" ]] && break; sleep 0.05; done
+    args=(--config "$site" --port "${ports[$i]}" --log-level info)
+    [[ -z "${bridge_args[$i]}" ]] || args+=(--radio "${bridge_args[$i]}")
+    "$bin/zigbee_bridge" "${args[@]}" 2> >(sed 's/^/  /') &
+    bridges+=($!)
+  done
+  pids+=("${bridges[@]}" "$sim")
   sleep "$seconds"
   kill -INT "$viewer" 2>/dev/null || true
   wait "$viewer" 2>/dev/null || true
   # The bridge stops before its device goes away, so its last word is a
   # clean summary rather than a lost device.
-  kill -INT "$bridge"
-  wait "$bridge" || true
+  for bridge in "${bridges[@]}"; do kill -INT "$bridge"; done
+  for bridge in "${bridges[@]}"; do wait "$bridge" || true; done
   kill -INT "$sim"
   wait "$sim" || true
   sleep 0.3  # let the last messages reach the logger
@@ -102,6 +161,11 @@ fi
 mkdir -p "$out"
 echo "roomfix demo: ${seconds} s on the simulator, site $site"
 ((camera)) || echo "  without the ceiling camera (DEMO_CAMERA=0): the ultrasound path alone"
+if [[ -n "$camera_fps" ]]; then
+  echo "  ${#camera_ids[@]} cameras at $camera_fps fps, below the site's rate: $(nproc) cores" \
+    "carry fewer than 2 per camera (DEMO_CAMERA_FPS sets it; full rate: docs/operations.md, \"A hall\")"
+fi
+((${#radio_ids[@]} < 2)) || echo "  ${#radio_ids[@]} radios: one zigbee_bridge each (--radio ID)"
 "$bin/roomfix" check-config "$site" | sed 's/^/  /'
 rc=0
 "$here/scripts/netns_run" "$0" "$build" "$seconds" --inner 2>/dev/null || rc=$?
@@ -129,3 +193,6 @@ echo "  log:     $out/demo.lcm (replay: lcm-logplayer $out/demo.lcm)"
 echo "  report:  $out/analysis/report.md (figures in $out/analysis/)"
 echo "  viewer:  $out/viewer.png"
 echo "  summary: $out/summary.json"
+if [[ -n "$camera_fps" ]]; then
+  echo "  cameras: ${#camera_ids[@]} at $camera_fps fps (reduced for this machine's $(nproc) cores)"
+fi

@@ -27,6 +27,7 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
   AddBenchViewerCommand(bench, exit_code);
   AddBenchCameraCommand(bench, exit_code);
   AddBenchReplayCommand(bench, exit_code);
+  AddBenchCapacityCommand(bench, exit_code);
 }
 
 }  // namespace roomfix

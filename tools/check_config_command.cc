@@ -39,8 +39,14 @@ void AddCheckConfigCommand(CLI::App* app, int* exit_code) {
       "Validate site files and the calibration files they name; one line each, the error naming "
       "file, line and key");
   auto files = std::make_shared<std::vector<std::string>>();
+  auto ids = std::make_shared<std::string>();
   cmd->add_option("FILE", *files, "Site files (YAML)")->required();
-  cmd->callback([files, exit_code] {
+  // For scripts that start one process per camera or radio (scripts/demo.sh,
+  // the hall test): the ids alone, one per line, instead of the summary.
+  cmd->add_option("--ids", *ids,
+                  "Print only the ids of the valid site's cameras or radios, one per line")
+      ->check(CLI::IsMember({"cameras", "radios"}));
+  cmd->callback([files, ids, exit_code] {
     *exit_code = 0;
     for (const std::string& path : *files) {
       Site site;
@@ -57,6 +63,14 @@ void AddCheckConfigCommand(CLI::App* app, int* exit_code) {
       if (!problem.empty()) {
         std::cerr << path << ": " << problem << "\n";
         *exit_code = 1;
+        continue;
+      }
+      if (*ids == "cameras") {
+        for (const Camera& c : site.cameras) std::cout << c.id << "\n";
+        continue;
+      }
+      if (*ids == "radios") {
+        for (const RadioNetwork& r : site.radios) std::cout << r.id << "\n";
         continue;
       }
       std::cout << path << ": ok: site '" << site.name << "', " << site.room.size_x_m << " x "

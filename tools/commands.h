@@ -33,6 +33,9 @@ void AddBenchViewerCommand(CLI::App* bench, int* exit_code);
 void AddBenchCameraCommand(CLI::App* bench, int* exit_code);
 // Adds `replay` under the `bench` subcommand.
 void AddBenchReplayCommand(CLI::App* bench, int* exit_code);
+// roomfix bench capacity: cameras, range sets, robots and messages per core
+// (tools/bench_capacity.cc).
+void AddBenchCapacityCommand(CLI::App* bench, int* exit_code);
 
 }  // namespace roomfix
 

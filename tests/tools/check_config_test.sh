@@ -61,6 +61,17 @@ for cmd in "map --calibration $source/config/calibration/demo_room_camera.yaml" 
   fi
 done
 
+# --ids: what scripts/demo.sh and the hall test start one process per.
+ids=$("$roomfix" check-config --ids cameras "$source/config/sites/hall.yaml" | tr '\n' ' ')
+radios=$("$roomfix" check-config --ids radios "$source/config/sites/hall.yaml" | tr '\n' ' ')
+none=$("$roomfix" check-config --ids radios "$source/config/sites/demo_room.yaml")
+if [[ "$ids" != "0 1 2 3 " || "$radios" != "1 2 " || -n "$none" ]]; then
+  echo "FAIL: check-config --ids: cameras '$ids', radios '$radios', demo room radios '$none'"
+  failures=$((failures + 1))
+else
+  echo "ok: check-config --ids: hall cameras $ids, radios $radios; demo room no radios"
+fi
+
 # camera_proc refuses the same calibration check-config refuses: a stored
 # fit residual over tolerance.
 bad_fit=$source/tests/data/broken_calibration_sites/calibrations/fit_32px.yaml
