@@ -148,6 +148,10 @@ enum class Outcome {
   kInitialised,
   // The gate reopened: consecutive rejections re-initialised the track here.
   kReinitialised,
+  // A camera position, inside the gate, of a track that no camera had
+  // updated for lost_after_s (held by the ultrasound alone): the track
+  // restarts from it instead of being updated (PoseFilter::Apply says why).
+  kCameraTakeover,
   // Inconsistent with the track: not used.
   kGated,
   // Older than the history: dropped.
