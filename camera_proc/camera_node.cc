@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 #include <opencv2/imgcodecs.hpp>
+#include <unordered_map>
 #include <utility>
 
 #include "core/calib/marker_projection.h"
@@ -53,14 +54,45 @@ double ImageRadiusPx(const calib::CameraModel& lens, double x_m, double y_m, dou
   return n > 0 ? sum / n : 0.0;
 }
 
-// Appends `b` unless a blob of its class lies within a pixel of it (the
-// same marker measured by two searches).
-void AddIfUnseen(const vision::Blob& b, std::vector<vision::Blob>* all) {
-  const bool seen = std::any_of(all->begin(), all->end(), [&](const vision::Blob& a) {
-    return a.class_index == b.class_index && std::hypot(a.u_px - b.u_px, a.v_px - b.v_px) < 1.0;
-  });
-  if (!seen) all->push_back(b);
-}
+// A frame's blobs, each marker once: a blob within a pixel of an earlier one
+// of its class is the same marker measured by two searches (the earlier is
+// kept). Blobs are hashed by class and 1-px cell, and a new one is compared
+// with the 3 x 3 cells around it only, so a frame of thousands of coloured
+// specks costs time linear in their number.
+class UniqueBlobs {
+ public:
+  void Add(const vision::Blob& b) {
+    const int64_t cu = static_cast<int64_t>(std::floor(b.u_px));
+    const int64_t cv = static_cast<int64_t>(std::floor(b.v_px));
+    for (int64_t du = -1; du <= 1; ++du) {
+      for (int64_t dv = -1; dv <= 1; ++dv) {
+        const auto it = cells_.find(Key(b.class_index, cu + du, cv + dv));
+        if (it == cells_.end()) continue;
+        for (const size_t k : it->second) {
+          const vision::Blob& a = blobs_[k];
+          if (a.class_index == b.class_index &&
+              std::hypot(a.u_px - b.u_px, a.v_px - b.v_px) < 1.0) {
+            return;
+          }
+        }
+      }
+    }
+    cells_[Key(b.class_index, cu, cv)].push_back(blobs_.size());
+    blobs_.push_back(b);
+  }
+  std::vector<vision::Blob> Take() { return std::move(blobs_); }
+
+ private:
+  // Class and cell in one key; cells are offset so that any pixel of an
+  // image up to 2^20 px across maps to a distinct non-negative pair.
+  static int64_t Key(int class_index, int64_t cu, int64_t cv) {
+    constexpr int64_t kOffset = 1 << 20;
+    return ((static_cast<int64_t>(class_index) * (2 * kOffset) + (cu + kOffset)) * (2 * kOffset)) +
+           (cv + kOffset);
+  }
+  std::vector<vision::Blob> blobs_;
+  std::unordered_map<int64_t, std::vector<size_t>> cells_;
+};
 
 }  // namespace
 
@@ -88,6 +120,14 @@ bool CameraNodeOptions::IsValid(std::string* error) const {
   }
   if (!(blur_sigma_px >= 0.0)) {
     *error = "blur sigma must not be negative";
+    return false;
+  }
+  if (max_blobs_per_frame < 2) {
+    *error = "max blobs per frame must be at least 2";
+    return false;
+  }
+  if (absent_search_period_frames < 1 || absent_search_period_frames > 300) {
+    *error = "absent search period must lie in [1, 300] frames";
     return false;
   }
   if (device_timing && !device_timing->IsValid(error)) {
@@ -175,7 +215,10 @@ bool MakeCameraSetup(const Room& room, const Camera& camera, const calib::Camera
     px_per_m = ImageRadiusPx(lens, mount.x(), mount.y(), h, 0.1) / 0.1;
   }
   setup->tracker.max_speed_px_per_s = std::max(50.0, options.max_speed_mps * px_per_m);
-  return true;
+  setup->tracker.refuse_clipped = options.refuse_clipped_markers;
+  setup->tracker.absent_search_period_frames = options.absent_search_period_frames;
+  setup->tracker.max_blobs = options.max_blobs_per_frame;
+  return setup->tracker.IsValid(error);
 }
 
 CameraNode::CameraNode(const Site& site, const Camera& camera,
@@ -397,11 +440,12 @@ void CameraNode::OnFrame(camera::Frame* frame, int64_t now_utime) {
   // full-frame search of the same frame. A window's own measurement is kept
   // (windows first), so the tracker gets the same blob for a tracked robot
   // whether it reads the lists made here or the published MARKER_PIXELS.
-  std::vector<vision::Blob> all;
+  UniqueBlobs unique;
   for (const auto& list : window_blobs) {
-    for (const vision::Blob& b : list) AddIfUnseen(b, &all);
+    for (const vision::Blob& b : list) unique.Add(b);
   }
-  for (const vision::Blob& b : full_blobs) AddIfUnseen(b, &all);
+  for (const vision::Blob& b : full_blobs) unique.Add(b);
+  const std::vector<vision::Blob> all = unique.Take();
   Track(frame->capture_utime, plans, all, now_utime);
 
   marker_pixels_t msg{};

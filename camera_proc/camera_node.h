@@ -54,6 +54,19 @@ struct CameraNodeOptions {
   // Remove the centroid's perspective bias (calib/marker_projection.h);
   // full camera model only.
   bool correct_disc_centroid = true;
+  // Robots out of view (never found, or lost) are looked for by a
+  // full-frame search once in this many frames
+  // (vision::TrackerOptions::absent_search_period_frames: a robot entering
+  // the view is acquired within this many frames). 1: every frame.
+  int absent_search_period_frames = 4;
+  // A frame with more blobs than this identifies no robot
+  // (vision::TrackerOptions::max_blobs; STATUS too_many_blobs per
+  // robot-frame).
+  int max_blobs_per_frame = 512;
+  // A marker cut by the image's edge never identifies a robot nor gives it
+  // a pose (vision::TrackerOptions::clip_radius_factor). False only to
+  // measure what that prevents (tests, benchmarks).
+  bool refuse_clipped_markers = true;
   // Search the full frame in every frame, as the reference did (for the
   // benchmark and for comparison; never needed in operation).
   bool always_full_search = false;

@@ -75,6 +75,9 @@ int main(int argc, char** argv) {
   app.add_option("--full-search-scale", options.full_search_scale,
                  "Reduction of the full-frame search (1, 2, 4, 8)")
       ->capture_default_str();
+  app.add_option("--absent-search-period", options.absent_search_period_frames,
+                 "Robots out of view: a full-frame search once in this many frames")
+      ->check(CLI::Range(1, 300));
   app.add_option("--max-speed", options.max_speed_mps, "Robots' top speed, m/s (sizes windows)")
       ->capture_default_str();
   app.add_option("--start-utime", start_utime,

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <limits>
 #include <map>
+#include <set>
 #include <utility>
 
 namespace roomfix::vision {
@@ -30,6 +31,31 @@ std::string Pixel(double u, double v) {
   char text[48];
   std::snprintf(text, sizeof(text), "(%.1f, %.1f)", u, v);
   return text;
+}
+
+// Whether the clip reach around `b` (TrackerOptions::clip_radius_factor)
+// leaves `area`. Pixel centres are integers, so a rectangle of pixels spans
+// [x - 0.5, x + width - 0.5] and likewise in v.
+bool ReachesEdge(const Blob& b, const cv::Rect& area, double factor, double margin_px) {
+  const double reach = factor * b.radius_px + margin_px;
+  return b.u_px - reach < area.x - 0.5 || b.u_px + reach > area.x + area.width - 0.5 ||
+         b.v_px - reach < area.y - 0.5 || b.v_px + reach > area.y + area.height - 0.5;
+}
+
+// The rectangle each window list was searched in (the image for a list no
+// window plan owns). `window_blobs` holds one list per plan, or one per
+// window plan (a plan with a window) in order.
+std::vector<cv::Rect> ListAreas(const std::vector<SearchPlan>& plans, size_t lists,
+                                const cv::Rect& image) {
+  std::vector<cv::Rect> areas(lists, image);
+  const bool per_plan = lists == plans.size();
+  size_t next = 0;
+  for (size_t p = 0; p < plans.size(); ++p) {
+    if (plans[p].full_frame || (!per_plan && plans[p].window.empty())) continue;
+    const size_t k = per_plan ? p : next++;
+    if (k < lists) areas[k] = plans[p].window;
+  }
+  return areas;
 }
 
 // Blobs already given to a robot in this frame.
@@ -96,6 +122,47 @@ const char* TrackStateName(TrackState state) {
   return "unknown";
 }
 
+bool TrackerOptions::IsValid(std::string* error) const {
+  auto positive = [error](double value, const char* name) {
+    if (value > 0.0 && std::isfinite(value)) return true;
+    *error = std::string(name) + " must be positive";
+    return false;
+  };
+  auto non_negative = [error](double value, const char* name) {
+    if (value >= 0.0 && std::isfinite(value)) return true;
+    *error = std::string(name) + " must not be negative";
+    return false;
+  };
+  if (!positive(max_speed_px_per_s, "max_speed_px_per_s") ||
+      !non_negative(window_margin_px, "window_margin_px") ||
+      !non_negative(window_radius_factor, "window_radius_factor") ||
+      !positive(heading_search_radii, "heading_search_radii") ||
+      !positive(lost_after_s, "lost_after_s") || !non_negative(hint_max_age_s, "hint_max_age_s") ||
+      !positive(heading_offset_radii, "heading_offset_radii") ||
+      !non_negative(heading_offset_tolerance, "heading_offset_tolerance") ||
+      !non_negative(clip_margin_px, "clip_margin_px")) {
+    return false;
+  }
+  if (absent_search_period_frames < 1 || absent_search_period_frames > 300) {
+    *error = "absent_search_period_frames must lie in [1, 300]";
+    return false;
+  }
+  if (max_blobs < 2) {
+    *error = "max_blobs must be at least 2 (one robot's markers)";
+    return false;
+  }
+  if (!(heading_size_ratio > 0.0 && heading_size_ratio < 1.0)) {
+    *error = "heading_size_ratio must lie in (0, 1)";
+    return false;
+  }
+  // Below 1 a disc just inside the edge is not seen as touching it.
+  if (!(clip_radius_factor >= 1.0) || !std::isfinite(clip_radius_factor)) {
+    *error = "clip_radius_factor must be at least 1";
+    return false;
+  }
+  return true;
+}
+
 RobotTracker::RobotTracker(std::vector<TrackedRobotSpec> robots, TrackerOptions options,
                            int width_px, int height_px)
     : robots_(std::move(robots)),
@@ -107,6 +174,8 @@ RobotTracker::RobotTracker(std::vector<TrackedRobotSpec> robots, TrackerOptions 
 std::vector<SearchPlan> RobotTracker::Plan(int64_t utime) const {
   std::vector<SearchPlan> plans;
   plans.reserve(robots_.size());
+  const bool absent_due = updates_since_full_ < 0 || full_requested_ ||
+                          updates_since_full_ + 1 >= options_.absent_search_period_frames;
   const cv::Rect image(0, 0, width_px_, height_px_);
   for (size_t i = 0; i < robots_.size(); ++i) {
     const TrackedRobotSpec& spec = robots_[i];
@@ -135,16 +204,121 @@ std::vector<SearchPlan> RobotTracker::Plan(int64_t utime) const {
       plan.window = cv::Rect(x0, y0, x1 - x0, y1 - y0) & image;
       plan.full_frame = plan.window.empty();
       if (plan.full_frame) plan.window = cv::Rect();
+    } else if ((t.state == TrackState::kSearching || t.state == TrackState::kLost) && !absent_due) {
+      plan.full_frame = false;  // out of view: no search in this frame
     }
     plans.push_back(plan);
   }
+  // A full-frame search for one robot serves the others out of view.
+  if (std::any_of(plans.begin(), plans.end(), [](const SearchPlan& p) { return p.full_frame; })) {
+    for (SearchPlan& p : plans) {
+      if (!p.full_frame && p.window.empty()) p.full_frame = true;
+    }
+  }
   return plans;
+}
+
+RobotTracker::ClipFlags RobotTracker::FindClipped(
+    const std::vector<SearchPlan>& plans, const std::vector<Blob>& full_frame_blobs,
+    const std::vector<std::vector<Blob>>& window_blobs) const {
+  const cv::Rect image(0, 0, width_px_, height_px_);
+  // In a frame with a full-frame search every marker is also measured whole
+  // there (the pool keeps the larger measurement of one marker), so only the
+  // image's edge cuts; without one, a window's edge cuts what it crosses.
+  const bool any_full =
+      std::any_of(plans.begin(), plans.end(), [](const SearchPlan& p) { return p.full_frame; });
+  const std::vector<cv::Rect> areas = ListAreas(plans, window_blobs.size(), image);
+  const double factor = options_.clip_radius_factor, margin = options_.clip_margin_px;
+  const bool refuse = options_.refuse_clipped;
+  ClipFlags flags;
+  for (const Blob& b : full_frame_blobs) {
+    flags.full.push_back(refuse && ReachesEdge(b, image, factor, margin));
+  }
+  flags.windows.resize(window_blobs.size());
+  for (size_t k = 0; k < window_blobs.size(); ++k) {
+    for (const Blob& b : window_blobs[k]) {
+      flags.windows[k].push_back(refuse &&
+                                 (ReachesEdge(b, image, factor, margin) ||
+                                  (!any_full && ReachesEdge(b, areas[k], factor, margin))));
+    }
+  }
+  return flags;
 }
 
 std::vector<RobotObservation> RobotTracker::Update(
     int64_t utime, const std::vector<SearchPlan>& plans, const std::vector<Blob>& full_frame_blobs,
     const std::vector<std::vector<Blob>>& window_blobs) {
-  if (options_.identify_by_code) return UpdateByCode(utime, plans, full_frame_blobs, window_blobs);
+  const bool any_full =
+      std::any_of(plans.begin(), plans.end(), [](const SearchPlan& p) { return p.full_frame; });
+  full_requested_ = false;
+  std::vector<RobotObservation> obs = Identify(utime, plans, full_frame_blobs, window_blobs);
+  updates_since_full_ = any_full ? 0 : updates_since_full_ + 1;
+  return obs;
+}
+
+std::vector<RobotObservation> RobotTracker::Identify(
+    int64_t utime, const std::vector<SearchPlan>& plans, const std::vector<Blob>& full_frame_blobs,
+    const std::vector<std::vector<Blob>>& window_blobs) {
+  pairing_checks_ = 0;
+  size_t handed_in = full_frame_blobs.size();
+  for (const auto& list : window_blobs) handed_in += list.size();
+  if (handed_in > static_cast<size_t>(options_.max_blobs)) {
+    // Too cluttered to judge: no identity at all rather than a guess on part
+    // of the evidence, and none of the quadratic work.
+    const size_t n = robots_.size();
+    std::vector<RobotObservation> obs(n);
+    for (size_t i = 0; i < n; ++i) {
+      obs[i].robot_id = robots_[i].robot_id;
+      obs[i].identity_problem = "too_many_blobs";
+      obs[i].note = std::to_string(handed_in) + " blobs in the frame, over the limit of " +
+                    std::to_string(options_.max_blobs) + ": no robot identified";
+    }
+    const bool any_full =
+        std::any_of(plans.begin(), plans.end(), [](const SearchPlan& p) { return p.full_frame; });
+    Bookkeep(utime, std::vector<bool>(n, any_full), std::vector<bool>(n, false), &obs);
+    return obs;
+  }
+  const ClipFlags clipped = FindClipped(plans, full_frame_blobs, window_blobs);
+  if (options_.identify_by_code) {
+    return UpdateByCode(utime, plans, full_frame_blobs, window_blobs, clipped);
+  }
+  // By classes: a clipped blob is left out before anything is decided, so
+  // a cut position marker is not found (its centroid is biased, and beside
+  // a robot of the swapped classes its size could not tell the roles) and a
+  // cut heading marker leaves the pose degraded.
+  std::vector<Blob> full_kept;
+  std::vector<std::vector<Blob>> windows_kept(window_blobs.size());
+  std::set<int> clipped_classes;
+  for (size_t k = 0; k < full_frame_blobs.size(); ++k) {
+    if (clipped.full[k]) {
+      clipped_classes.insert(full_frame_blobs[k].class_index);
+    } else {
+      full_kept.push_back(full_frame_blobs[k]);
+    }
+  }
+  for (size_t w = 0; w < window_blobs.size(); ++w) {
+    for (size_t k = 0; k < window_blobs[w].size(); ++k) {
+      if (clipped.windows[w][k]) {
+        clipped_classes.insert(window_blobs[w][k].class_index);
+      } else {
+        windows_kept[w].push_back(window_blobs[w][k]);
+      }
+    }
+  }
+  std::vector<RobotObservation> obs = UpdateByClasses(utime, plans, full_kept, windows_kept);
+  for (size_t i = 0; i < obs.size(); ++i) {
+    if (obs[i].found || clipped_classes.count(robots_[i].position_class) == 0) continue;
+    obs[i].identity_problem = "marker_clipped";
+    obs[i].note += std::string(obs[i].note.empty() ? "" : "; ") + "a class " +
+                   std::to_string(robots_[i].position_class) +
+                   " blob cut by the image's or a window's edge is not taken";
+  }
+  return obs;
+}
+
+std::vector<RobotObservation> RobotTracker::UpdateByClasses(
+    int64_t utime, const std::vector<SearchPlan>& plans, const std::vector<Blob>& full_frame_blobs,
+    const std::vector<std::vector<Blob>>& window_blobs) {
   const size_t n = robots_.size();
   std::vector<RobotObservation> obs(n);
   // Per robot: its plan (default full frame) and the blobs it may look at.
@@ -157,7 +331,7 @@ std::vector<RobotObservation> RobotTracker::Update(
   for (size_t i = 0; i < n; ++i) index_of_id[robots_[i].robot_id] = i;
   for (size_t p = 0; p < plans.size(); ++p) {
     const std::vector<Blob>* list = nullptr;
-    if (!plans[p].full_frame) {
+    if (!plans[p].full_frame && (per_plan_lists || !plans[p].window.empty())) {
       const size_t k = per_plan_lists ? p : next_window_list++;
       if (k < window_blobs.size()) list = &window_blobs[k];
     }
@@ -223,6 +397,9 @@ std::vector<RobotObservation> RobotTracker::Update(
       if (c.has_heading) taken.Add(c.heading);
       Fill(c, &obs[i]);
       if (!c.has_heading) obs[i].note = "no heading marker beside the position marker";
+    } else if (plan_of[i].window.empty()) {
+      obs[i].note = "out of view: looked for by a full-frame search every " +
+                    std::to_string(options_.absent_search_period_frames) + " frames";
     } else {
       const cv::Rect& w = plan_of[i].window;
       obs[i].note = "no free class " + std::to_string(robots_[i].position_class) +
@@ -445,29 +622,40 @@ void RobotTracker::Bookkeep(int64_t utime, const std::vector<bool>& from_full_fr
 
 std::vector<RobotObservation> RobotTracker::UpdateByCode(
     int64_t utime, const std::vector<SearchPlan>& plans, const std::vector<Blob>& full_frame_blobs,
-    const std::vector<std::vector<Blob>>& window_blobs) {
+    const std::vector<std::vector<Blob>>& window_blobs, const ClipFlags& clip_flags) {
   const size_t n = robots_.size();
   std::vector<RobotObservation> obs(n);
   // Every blob searched, once. Windows are searched for every class, so a
   // neighbour's marker that a window's edge cuts shows there as a smaller
   // blob a few pixels off the whole one (measured in its own window or the
   // full frame): two blobs of one class whose centres lie within the larger
-  // one's radius are one marker, and the larger measurement is kept.
+  // one's radius are one marker, and a whole measurement is kept over a
+  // clipped one, else the larger.
   std::vector<Blob> pool;
-  auto add = [&pool](const Blob& b) {
-    for (Blob& p : pool) {
+  std::vector<bool> clipped;
+  auto add = [&pool, &clipped](const Blob& b, bool b_clipped) {
+    for (size_t k = 0; k < pool.size(); ++k) {
+      Blob& p = pool[k];
       if (p.class_index == b.class_index && Distance(p.u_px, p.v_px, b.u_px, b.v_px) <
                                                 std::max({p.radius_px, b.radius_px, kSameBlobPx})) {
-        if (b.area_px > p.area_px) p = b;
+        if (clipped[k] != b_clipped ? clipped[k] : b.area_px > p.area_px) {
+          p = b;
+          clipped[k] = b_clipped;
+        }
         return;
       }
     }
     pool.push_back(b);
+    clipped.push_back(b_clipped);
   };
-  for (const auto& list : window_blobs) {
-    for (const Blob& b : list) add(b);
+  for (size_t w = 0; w < window_blobs.size(); ++w) {
+    for (size_t k = 0; k < window_blobs[w].size(); ++k) {
+      add(window_blobs[w][k], clip_flags.windows[w][k]);
+    }
   }
-  for (const Blob& b : full_frame_blobs) add(b);
+  for (size_t k = 0; k < full_frame_blobs.size(); ++k) {
+    add(full_frame_blobs[k], clip_flags.full[k]);
+  }
 
   std::map<std::pair<int, int>, size_t> robot_of_code;
   for (size_t i = 0; i < n; ++i) {
@@ -493,20 +681,34 @@ std::vector<RobotObservation> RobotTracker::UpdateByCode(
   struct Pair {
     size_t position, heading, robot;
     bool in_gate = true;
+    bool clipped = false;  // a blob of it reaches an edge: evidence only
   };
   std::vector<Pair> pairs;
+  // A sweep along u: a heading blob lies within offset_hi position radii of
+  // its position blob, so only blobs in that band of u are compared. Blobs
+  // of a frame do not overlap, which bounds how many fit in the band.
+  std::vector<size_t> by_u(pool.size());
+  for (size_t k = 0; k < pool.size(); ++k) by_u[k] = k;
+  std::sort(by_u.begin(), by_u.end(), [&pool](size_t x, size_t y) {
+    return pool[x].u_px < pool[y].u_px || (pool[x].u_px == pool[y].u_px && x < y);
+  });
   for (size_t a = 0; a < pool.size(); ++a) {
     const Blob& p = pool[a];
     if (!(p.radius_px > 0.0)) continue;
-    for (size_t b = 0; b < pool.size(); ++b) {
+    const double reach = offset_hi * p.radius_px;
+    auto first = std::lower_bound(by_u.begin(), by_u.end(), p.u_px - reach,
+                                  [&pool](size_t k, double u) { return pool[k].u_px < u; });
+    for (auto it_b = first; it_b != by_u.end() && pool[*it_b].u_px <= p.u_px + reach; ++it_b) {
+      const size_t b = *it_b;
       const Blob& h = pool[b];
       if (a == b) continue;
+      ++pairing_checks_;
       const auto it = robot_of_code.find({p.class_index, h.class_index});
       if (it == robot_of_code.end()) continue;
       const double ratio = h.radius_px / p.radius_px;
       const double offset = Distance(p.u_px, p.v_px, h.u_px, h.v_px) / p.radius_px;
       if (ratio > ratio_lo && ratio < ratio_hi && offset >= offset_lo && offset <= offset_hi) {
-        pairs.push_back({a, b, it->second});
+        pairs.push_back({a, b, it->second, true, clipped[a] || clipped[b]});
       }
     }
   }
@@ -525,7 +727,7 @@ std::vector<RobotObservation> RobotTracker::UpdateByCode(
                  robots_[i].position_radius_px * options_.window_radius_factor +
                  options_.max_speed_px_per_s * dt;
   }
-  std::vector<int> inside(n, 0), outside(n, 0);
+  std::vector<int> inside(n, 0), outside(n, 0), clipped_inside(n, 0);
   for (Pair& pr : pairs) {
     const size_t i = pr.robot;
     if (gated[i]) {
@@ -533,6 +735,7 @@ std::vector<RobotObservation> RobotTracker::UpdateByCode(
       pr.in_gate = Distance(gate_u[i], gate_v[i], p.u_px, p.v_px) <= gate_px[i];
     }
     ++(pr.in_gate ? inside[i] : outside[i]);
+    if (pr.in_gate && pr.clipped) ++clipped_inside[i];
   }
   // Interleaved: a blob in two pairs that are each some robot's code.
   std::vector<int> uses(pool.size(), 0);
@@ -547,16 +750,34 @@ std::vector<RobotObservation> RobotTracker::UpdateByCode(
   }
 
   std::vector<bool> ambiguous(n, false);
+  // Blobs a whole pair claims (a clipped pair's whole blob may still be a
+  // robot's lone position marker below).
   std::vector<bool> in_a_pair(pool.size(), false);
   for (const Pair& pr : pairs) {
-    if (!pr.in_gate) continue;
+    if (!pr.in_gate || pr.clipped) continue;
     in_a_pair[pr.position] = true;
     in_a_pair[pr.heading] = true;
   }
+  const bool any_full =
+      std::any_of(plans.begin(), plans.end(), [](const SearchPlan& p) { return p.full_frame; });
   for (size_t i = 0; i < n; ++i) {
     RobotObservation& o = obs[i];
     o.robot_id = robots_[i].robot_id;
     o.num_candidates = inside[i];
+    if (!gated[i] && !any_full) {
+      // Out of view until now, and this frame was searched in windows only:
+      // a code is unique only if the whole frame shows it once.
+      if (inside[i] > 0) {
+        full_requested_ = true;
+        o.note =
+            "its code is seen in another robot's window: identified at the next full-frame "
+            "search";
+      } else {
+        o.note = "out of view: looked for by a full-frame search every " +
+                 std::to_string(options_.absent_search_period_frames) + " frames";
+      }
+      continue;
+    }
     if (interleaved[i]) {
       ambiguous[i] = true;
       o.identity_problem = "interleaved_markers";
@@ -570,7 +791,7 @@ std::vector<RobotObservation> RobotTracker::UpdateByCode(
                (gated[i] ? " inside its gate" : "") + ": not published";
       continue;
     }
-    if (inside[i] == 1) {
+    if (inside[i] == 1 && clipped_inside[i] == 0) {
       const auto pr = std::find_if(pairs.begin(), pairs.end(),
                                    [&](const Pair& x) { return x.robot == i && x.in_gate; });
       Candidate c;
@@ -587,37 +808,47 @@ std::vector<RobotObservation> RobotTracker::UpdateByCode(
       }
       continue;
     }
-    if (outside[i] > 0) {
+    if (inside[i] == 1) {
+      // Its only sighting is cut by an edge: a marker cut small can read as
+      // the other role (a swapped pair's robot), and its centroid is off.
+      o.identity_problem = "marker_clipped";
+      o.note =
+          "its code is seen only with a marker cut by the image's or a window's edge: "
+          "not taken";
+    } else if (outside[i] > 0) {
       o.identity_problem = "impossible_jump";
       o.note = "its code is seen only beyond where it can be after its last find: not published";
       continue;
     }
-    // No pair: a lone position-class blob of the last find's size inside
-    // the gate, which no pair claims, when it is the only one.
+    // No whole pair: a lone whole position-class blob of the last find's
+    // size inside the gate, which no whole pair claims, when it is the only
+    // one.
     if (!gated[i]) {
-      o.note = "no pair of blobs shows its marker code";
+      if (o.identity_problem.empty()) o.note = "no pair of blobs shows its marker code";
       continue;
     }
     int lone = 0;
     const Blob* taken = nullptr;
     for (size_t k = 0; k < pool.size(); ++k) {
       const Blob& b = pool[k];
-      if (in_a_pair[k] || b.class_index != robots_[i].position_class) continue;
+      if (in_a_pair[k] || clipped[k] || b.class_index != robots_[i].position_class) continue;
       const double size = tracks_[i].radius_px > 0.0 ? b.radius_px / tracks_[i].radius_px : 1.0;
       if (size <= ratio_hi || size >= 1.0 / ratio_hi) continue;
       if (Distance(gate_u[i], gate_v[i], b.u_px, b.v_px) > gate_px[i]) continue;
       ++lone;
       taken = &b;
     }
+    const std::string clipped_note = o.identity_problem.empty() ? "" : o.note + "; ";
     if (lone == 1) {
       Candidate c;
       c.position = *taken;
       Fill(c, &o);
-      o.note = "no heading marker beside the position marker";
+      o.note = clipped_note + "no heading marker beside the position marker";
     } else {
-      o.note = lone == 0 ? "no pair of blobs shows its code inside its gate"
-                         : std::to_string(lone) +
-                               " lone position-class blobs inside its gate: none taken";
+      o.note = clipped_note + (lone == 0 ? "no pair of blobs shows its code inside its gate"
+                                         : std::to_string(lone) +
+                                               " lone position-class blobs inside its gate: none "
+                                               "taken");
     }
   }
   std::vector<bool> from_full_frame(n, false);

@@ -52,6 +52,48 @@ struct TrackerOptions {
   // radially towards the image's edge (down to 0.6 of the tangential scale
   // at the 6 x 4 m room's corners), which moves the ratio by up to +-35 %.
   double heading_offset_tolerance = 0.45;
+  // A blob is *clipped* when its disc, its equivalent radius times
+  // clip_radius_factor plus clip_margin_px around its centroid, reaches past
+  // the edge of the image, or of the window it was searched in when the
+  // frame had no full-frame search. A marker cut by an edge is measured
+  // small, with its centroid moved inwards (by 0.42 of its radius for a half
+  // disc), yet the cut still lies within that reach: a disc's segment has
+  // its centroid nearer the chord than its equivalent radius (a half disc:
+  // 0.42 R against 0.71 R; a disc missing a cap of height h: R - h against
+  // R - O(h^1.5)). The factor covers a fisheye's elongation: an ellipse of
+  // radial squeeze 0.66 (a 120-degree lens's corners) reaches at most 1.10
+  // equivalent radii towards a 4:3 image's top edge; the margin covers the
+  // mask's blur. A clipped blob never identifies a robot nor gives it a pose
+  // (its size decides its role, its centroid is biased): see UpdateByCode.
+  double clip_radius_factor = 1.1;
+  double clip_margin_px = 2.0;
+  // Robots out of view (never found, or lost: kSearching, kLost) are looked
+  // for by a full-frame search once in this many frames (Update calls), not
+  // in every one: a camera in a hall always has robots out of its view, and
+  // a full search costs 5 to 10 times a frame of windows. A robot that
+  // enters the view whole is acquired within this many frames (at 30 fps,
+  // 4 frames: 0.13 s, 4 cm at 0.3 m/s, while an overlap between cameras is
+  // metres wide). A tracked robot whose window missed (within lost_after_s)
+  // and a kAmbiguous robot still get a full-frame search in the next frame,
+  // and a frame searched in full for any robot serves every robot. With a
+  // marker code a robot out of view is identified only from a full-frame
+  // search (its code must be seen once in the whole frame); its code seen
+  // in another robot's window asks for one in the next frame. 1: every
+  // frame, as before this option.
+  int absent_search_period_frames = 4;
+  // Most blobs one frame may hand in (all lists together). A frame with more
+  // (a hostile or cluttered view: thousands of coloured specks) identifies
+  // no robot: every robot is not found, "too_many_blobs". Bounds the work:
+  // merging the lists is quadratic in the count (at most 512^2 / 2
+  // comparisons), pairing near-linear (a sweep along u). A hall camera
+  // sees 2 blobs per robot in view; a marker's area filter keeps specks of
+  // a few pixels out.
+  int max_blobs = 512;
+  // False only to measure what the clip rule prevents (tests, benchmarks):
+  // every blob is then taken as whole, as before the rule.
+  bool refuse_clipped = true;
+
+  bool IsValid(std::string* error) const;
 };
 
 enum class TrackState {
@@ -82,9 +124,11 @@ struct RobotObservation {
   // Candidates that fitted (kAmbiguous lists them all); for messages.
   int num_candidates = 0;
   std::string note;  // why not found / why ambiguous, one line
-  // Marker code only: why this frame's identification is in doubt, as a
-  // STATUS counter name (empty when it is not): "interleaved_markers",
-  // "code_seen_twice" or "impossible_jump" (UpdateByCode states the rule).
+  // Why this frame's identification is in doubt, as a STATUS counter name
+  // (empty when it is not): with a marker code "interleaved_markers",
+  // "code_seen_twice" or "impossible_jump" (UpdateByCode states the rule);
+  // in both modes "marker_clipped" (its markers were seen only cut by the
+  // image's or a window's edge: no identity, no pose from them).
   std::string identity_problem;
 };
 
@@ -108,8 +152,11 @@ class RobotTracker {
   // (same order as Plan() returned). Returns one observation per robot, in
   // the order of the specs.
   //
-  // `window_blobs` may hold one list per plan (empty for full-frame plans)
-  // or one per window plan only; both are accepted. A tracking robot's
+  // `window_blobs` may hold one list per plan (empty for full-frame plans
+  // and plans with no search) or one per window plan (a plan with a
+  // non-empty window) only; both are accepted. A plan that is neither full
+  // frame nor has a window searches nothing for its robot (out of view,
+  // between full-frame searches: absent_search_period_frames). A tracking robot's
   // position marker must have its centroid inside its window (blobs outside
   // are ignored even when handed in); its heading marker may lie anywhere
   // within heading_search_radii * position_radius_px of it. A full-frame
@@ -133,6 +180,8 @@ class RobotTracker {
   void SetHint(int robot_id, double u_px, double v_px, double radius_px, int64_t utime);
 
   const std::vector<TrackedRobotSpec>& robots() const { return robots_; }
+  // The last Update's work in marker-code pairing: blob pairs compared.
+  int64_t last_pairing_checks() const { return pairing_checks_; }
 
  private:
   // Update for identify_by_code. Every blob handed in (windows and full
@@ -157,9 +206,35 @@ class RobotTracker {
   //  - no pair: a lone blob of its position class, of the last position
   //    blob's size, inside the gate and in no pair is taken when it is the
   //    only one, degraded (no heading), as the demo does.
+  // A pair with a clipped blob (TrackerOptions::clip_radius_factor) is
+  // evidence, never an identification: it counts in the rules above as a
+  // sighting of its code (and its blobs as used, for interleaving), but a
+  // robot whose code is seen only in clipped pairs is not published from
+  // them ("marker_clipped"; the lone-blob rule may still publish it
+  // degraded from a whole position blob in its gate). A clipped blob is
+  // never a lone position blob either.
+  // Update's work, before the search bookkeeping.
+  std::vector<RobotObservation> Identify(int64_t utime, const std::vector<SearchPlan>& plans,
+                                         const std::vector<Blob>& full_frame_blobs,
+                                         const std::vector<std::vector<Blob>>& window_blobs);
+  // Per blob handed in (the full-frame list, then each window list): is it
+  // clipped (TrackerOptions::clip_radius_factor)?
+  struct ClipFlags {
+    std::vector<bool> full;
+    std::vector<std::vector<bool>> windows;
+  };
+  ClipFlags FindClipped(const std::vector<SearchPlan>& plans,
+                        const std::vector<Blob>& full_frame_blobs,
+                        const std::vector<std::vector<Blob>>& window_blobs) const;
   std::vector<RobotObservation> UpdateByCode(int64_t utime, const std::vector<SearchPlan>& plans,
                                              const std::vector<Blob>& full_frame_blobs,
-                                             const std::vector<std::vector<Blob>>& window_blobs);
+                                             const std::vector<std::vector<Blob>>& window_blobs,
+                                             const ClipFlags& clipped);
+  // Update without a code (a robot is its two classes), on blobs of which
+  // the clipped ones were left out.
+  std::vector<RobotObservation> UpdateByClasses(int64_t utime, const std::vector<SearchPlan>& plans,
+                                                const std::vector<Blob>& full_frame_blobs,
+                                                const std::vector<std::vector<Blob>>& window_blobs);
   // Velocities, states and last positions from a frame's observations.
   void Bookkeep(int64_t utime, const std::vector<bool>& from_full_frame,
                 const std::vector<bool>& ambiguous, std::vector<RobotObservation>* obs);
@@ -183,6 +258,11 @@ class RobotTracker {
   int width_px_;
   int height_px_;
   std::vector<Track> tracks_;
+  int64_t pairing_checks_ = 0;
+  // Updates since the last one with a full-frame search (-1: none yet).
+  int updates_since_full_ = -1;
+  // A robot out of view showed its code in a window: search in full next.
+  bool full_requested_ = false;
 };
 
 }  // namespace roomfix::vision

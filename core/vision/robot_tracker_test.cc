@@ -32,6 +32,14 @@ constexpr double kTolPx = 1e-9;
 // Angles from atan2 of exact offsets.
 constexpr double kTolRad = 1e-12;
 
+// Options that search the full frame for robots out of view in every frame,
+// for tests of what a full-frame search decides (absent_search_period_frames
+// has its own tests).
+TrackerOptions EveryFrame(TrackerOptions o = TrackerOptions{}) {
+  o.absent_search_period_frames = 1;
+  return o;
+}
+
 Blob MakeBlob(int class_index, double u, double v, double radius = kRadiusPx) {
   Blob b;
   b.class_index = class_index;
@@ -311,9 +319,10 @@ TEST(RobotTracker, LookalikeAfterABriefOcclusionDoesNotBlockReacquisitionNearby)
 TEST(RobotTracker, MarkerLeavingTheImageIsLostAfterLostAfterS) {
   TrackerOptions options;
   options.lost_after_s = 0.5;
-  RobotTracker tracker({Spec(1)}, options, kWidthPx, kHeightPx);
+  RobotTracker tracker({Spec(1)}, EveryFrame(options), kWidthPx, kHeightPx);
   int64_t t = kStartUs;
-  ASSERT_TRUE(Step(&tracker, t, Robot(1900, 500)).obs[0].found);
+  // Heading marker on the image's side: a marker beyond the edge is clipped.
+  ASSERT_TRUE(Step(&tracker, t, Robot(1900, 500, kOrange, kGreen, -kHeadingOffsetPx)).obs[0].found);
   const int64_t last_seen = t;
   const int frames_until_lost = static_cast<int>(std::ceil(options.lost_after_s / kFramePeriodS));
   for (int k = 1; k < frames_until_lost; ++k) {
@@ -411,8 +420,7 @@ TEST(RobotTracker, TwoLookalikeRobotsWithTwoCandidatesAreAmbiguousAtStartUp) {
 }
 
 TEST(RobotTracker, LookalikeRobotsNeverTakeTheSameBlob) {
-  TrackerOptions options;
-  RobotTracker tracker({Spec(1), Spec(2)}, options, kWidthPx, kHeightPx);
+  RobotTracker tracker({Spec(1), Spec(2)}, EveryFrame(), kWidthPx, kHeightPx);
   // Robot 1 alone at first (look-alikes enter in spec order), then robot 2
   // drives in.
   int64_t t = kStartUs;
@@ -435,7 +443,7 @@ TEST(RobotTracker, LookalikeRobotsNeverTakeTheSameBlob) {
 }
 
 TEST(RobotTracker, SharedBlobGoesToTheRobotWhosePredictionIsNearest) {
-  RobotTracker tracker({Spec(1), Spec(2)}, TrackerOptions{}, kWidthPx, kHeightPx);
+  RobotTracker tracker({Spec(1), Spec(2)}, EveryFrame(), kWidthPx, kHeightPx);
   constexpr double kU1 = 400.0, kU2 = 470.0, kV = 400.0;  // windows overlap
   int64_t t = kStartUs;
   ASSERT_TRUE(
@@ -488,6 +496,131 @@ TEST(RobotTracker, HeadingMarkerFartherThanTheSearchRadiusIsNotPaired) {
 }
 
 // --- Identification by marker code (ordered colour pairs, roles by size) ---
+// absent_search_period_frames: a robot out of view costs a full-frame search
+// only every N frames; one that enters whole is found within N frames
+// whatever the phase; one tracked and missed is searched in full at once.
+TEST(AbsentSearch, ARobotEnteringTheViewIsAcquiredWithinThePeriod) {
+  constexpr int kPeriod = 4;
+  for (int enter = 0; enter < 3 * kPeriod; ++enter) {
+    TrackerOptions options;
+    options.absent_search_period_frames = kPeriod;
+    RobotTracker tracker({Spec(1)}, options, kWidthPx, kHeightPx);
+    int full_searches = 0, found_at = -1;
+    for (int k = 0; k < enter + 2 * kPeriod && found_at < 0; ++k) {
+      const Frame f = Step(&tracker, kStartUs + k * kFramePeriodUs,
+                           k >= enter ? Robot(900, 500) : std::vector<Blob>{});
+      full_searches += f.plans[0].full_frame ? 1 : 0;
+      if (f.obs[0].found) found_at = k;
+    }
+    ASSERT_GE(found_at, enter);
+    EXPECT_LE(found_at - enter, kPeriod - 1) << "entered at frame " << enter;
+    // Out of view, one frame in kPeriod was searched in full.
+    EXPECT_LE(full_searches, enter / kPeriod + 2) << "entered at frame " << enter;
+  }
+}
+
+TEST(AbsentSearch, ATrackedRobotThatMissesItsWindowGetsAFullSearchAtOnce) {
+  TrackerOptions options;
+  options.absent_search_period_frames = 8;
+  RobotTracker tracker({Spec(1)}, options, kWidthPx, kHeightPx);
+  int64_t t = kStartUs;
+  ASSERT_TRUE(Step(&tracker, t, Robot(900, 500)).obs[0].found);
+  t += kFramePeriodUs;
+  // Hidden for a frame: the window misses...
+  const Frame miss = Step(&tracker, t, {});
+  EXPECT_FALSE(miss.plans[0].full_frame);
+  EXPECT_FALSE(miss.obs[0].found);
+  t += kFramePeriodUs;
+  // ... and the next frame is searched in full, where it is found far away.
+  const Frame back = Step(&tracker, t, Robot(1500, 300));
+  EXPECT_TRUE(back.plans[0].full_frame);
+  EXPECT_TRUE(back.obs[0].found);
+}
+
+TEST(AbsentSearch, OneRobotsFullSearchServesTheRobotsOutOfView) {
+  TrackerOptions options;
+  options.absent_search_period_frames = 100;
+  RobotTracker tracker({Spec(1), Spec(2, kBlue, kPink)}, options, kWidthPx, kHeightPx);
+  int64_t t = kStartUs;
+  ASSERT_TRUE(Step(&tracker, t, Robot(900, 500)).obs[0].found);
+  t += kFramePeriodUs;
+  ASSERT_FALSE(Step(&tracker, t, {}).obs[0].found);  // robot 1's window misses
+  t += kFramePeriodUs;
+  // Robot 1's full-frame search finds robot 2, which entered meanwhile.
+  const Frame f = Step(&tracker, t, Join(Robot(900, 505), Robot(300, 300, kBlue, kPink)));
+  EXPECT_TRUE(f.plans[1].full_frame);
+  EXPECT_TRUE(f.obs[1].found) << f.obs[1].note;
+}
+
+TEST(AbsentSearch, AnOutOfViewRobotIsNeverIdentifiedFromWindowsAlone) {
+  // Marker code: robot 2 has never been seen; robot 1's window shows a pair
+  // with robot 2's code. Unique in the window is not unique in the frame:
+  // robot 2 is taken only at the full-frame search this asks for.
+  TrackerOptions options;
+  options.identify_by_code = true;
+  options.heading_offset_radii = 2.0;
+  options.heading_size_ratio = 0.5;
+  options.absent_search_period_frames = 100;
+  RobotTracker tracker({Spec(1, kOrange, kGreen), Spec(2, kBlue, kPink)}, options, kWidthPx,
+                       kHeightPx);
+  auto robot = [](int p, int h, double u, double v) {
+    return std::vector<Blob>{MakeBlob(p, u, v, 15.0), MakeBlob(h, u + 30.0, v, 7.5)};
+  };
+  int64_t t = kStartUs;
+  ASSERT_TRUE(Step(&tracker, t, robot(kOrange, kGreen, 900, 500)).obs[0].found);
+  t += kFramePeriodUs;
+  const std::vector<Blob> both =
+      Join(robot(kOrange, kGreen, 902, 500), robot(kBlue, kPink, 900, 560));
+  const Frame f = Step(&tracker, t, both);
+  ASSERT_FALSE(f.plans[0].full_frame);
+  EXPECT_TRUE(f.obs[0].found);
+  EXPECT_FALSE(f.obs[1].found) << "identified from a window";
+  t += kFramePeriodUs;
+  const Frame g = Step(&tracker, t, both);
+  EXPECT_TRUE(g.plans[1].full_frame);
+  EXPECT_TRUE(g.obs[1].found) << g.obs[1].note;
+}
+
+TEST(TooManyBlobs, AFrameOfFiveThousandSpecksIdentifiesNoRobotAndDoesNoPairing) {
+  TrackerOptions options;
+  options.identify_by_code = true;
+  options.heading_offset_radii = 2.0;
+  options.heading_size_ratio = 0.5;
+  RobotTracker tracker({Spec(1, kOrange, kGreen), Spec(2, kBlue, kPink)}, options, kWidthPx,
+                       kHeightPx);
+  // 5000 coloured dots on a grid, radius 3 px, every class, plus robot 1.
+  std::vector<Blob> scene = {MakeBlob(kOrange, 900, 500, 15.0), MakeBlob(kGreen, 930, 500, 7.5)};
+  for (int k = 0; k < 5000; ++k) {
+    scene.push_back(MakeBlob(k % 4, 10 + 19 * (k % 100), 20 + 19 * (k / 100), 3.0));
+  }
+  const Frame f = Step(&tracker, kStartUs, scene);
+  EXPECT_FALSE(f.obs[0].found);
+  EXPECT_EQ(f.obs[0].identity_problem, "too_many_blobs");
+  EXPECT_EQ(tracker.last_pairing_checks(), 0);
+}
+
+TEST(TooManyBlobs, PairingWorkGrowsLinearlyWithTheSpecksUnderTheCap) {
+  TrackerOptions options;
+  options.identify_by_code = true;
+  options.heading_offset_radii = 2.0;
+  options.heading_size_ratio = 0.5;
+  // Specks of one size spread over the frame: with 500 of them a sweep
+  // compares each with the few in its band of u, where all against all
+  // would be 500 x 499.
+  for (const int specks : {100, 500}) {
+    RobotTracker tracker({Spec(1, kOrange, kGreen)}, options, kWidthPx, kHeightPx);
+    std::vector<Blob> scene = {MakeBlob(kOrange, 900, 500, 15.0), MakeBlob(kGreen, 930, 500, 7.5)};
+    for (int k = 0; k < specks; ++k) {
+      scene.push_back(MakeBlob(kBlue + k % 2, 10 + (1900.0 * k) / specks, 20 + 37 * (k % 28), 3.0));
+    }
+    const Frame f = Step(&tracker, kStartUs, scene);
+    EXPECT_TRUE(f.obs[0].found) << f.obs[0].note;
+    // Each speck's band is 2.9 x 3 px either side: a handful of specks.
+    EXPECT_LE(tracker.last_pairing_checks(), 10 * static_cast<int64_t>(scene.size()))
+        << specks << " specks";
+  }
+}
+
 namespace code {
 
 // Four colours; every class may be either marker.
@@ -681,7 +814,82 @@ TEST(RobotTrackerCode, AMarkerCutByAWindowEdgeIsOneMarkerNotTwo) {
   EXPECT_TRUE(f.obs[2].identity_problem.empty()) << f.obs[2].identity_problem;
 }
 
+// The hall's incident: robot 3 (yellow big, blue small) enters at the image's
+// left edge with its yellow marker cut to a sliver. The sliver measures
+// smaller than the blue marker and two blue radii from it: as blobs, the
+// pair reads blue-big, yellow-small, robot 4's code.
+std::vector<Blob> CutAtTheLeftEdge() {
+  const double sliver_u = 3.0, sliver_radius = 0.6 * kHeadRadiusPx;
+  return {MakeBlob(kYellow, sliver_u, 400, sliver_radius),
+          MakeBlob(kBlue, sliver_u + 2.0 * kHeadRadiusPx, 400, kHeadRadiusPx)};
+}
+
+TEST(RobotTrackerCode, AMarkerCutByTheImageEdgeNeverNamesItsSwapPartner) {
+  RobotTracker tracker(SwappedPairRobots(), CodeOptions(), kWidthPx, kHeightPx);
+  const Frame f = Step(&tracker, kStartUs, CutAtTheLeftEdge());
+  EXPECT_FALSE(f.obs[3].found) << "robot 4 read from robot 3's cut marker";
+  EXPECT_EQ(f.obs[3].identity_problem, "marker_clipped");
+  EXPECT_FALSE(f.obs[2].found);
+  // Without the clip rule the same blobs are robot 4 with a heading: the
+  // scene is the failure it guards against, not a harmless one.
+  TrackerOptions unguarded = CodeOptions();
+  unguarded.refuse_clipped = false;
+  RobotTracker old_rule(SwappedPairRobots(), unguarded, kWidthPx, kHeightPx);
+  const Frame g = Step(&old_rule, kStartUs, CutAtTheLeftEdge());
+  EXPECT_TRUE(g.obs[3].found && g.obs[3].has_heading) << g.obs[3].note;
+}
+
+TEST(RobotTrackerCode, ARobotLeavingTheImageIsNotPublishedOnceAMarkerTouchesTheEdge) {
+  RobotTracker tracker(SwappedPairRobots(), CodeOptions(), kWidthPx, kHeightPx);
+  // Robot 3 drives left, heading marker trailing on the image's side; from
+  // the frame its position marker's disc (1.1 radii and 2 px) reaches the
+  // edge it is not published, neither as itself nor as robot 4.
+  int published = 0, withheld = 0;
+  for (int k = 0; k < 40; ++k) {
+    const double u = 60.0 - 2.0 * k;
+    const Frame f =
+        Step(&tracker, kStartUs + k * kFramePeriodUs, Coded(kYellow, kBlue, u, 400, 0.0));
+    EXPECT_FALSE(f.obs[3].found) << "frame " << k;
+    const bool reaches = u - 1.1 * kPosRadiusPx - 2.0 < -0.5;
+    if (f.obs[2].found) {
+      ++published;
+      EXPECT_FALSE(reaches) << "frame " << k << " u " << u;
+    } else {
+      ++withheld;
+      EXPECT_TRUE(reaches) << "frame " << k << " u " << u << ": " << f.obs[2].note;
+    }
+  }
+  EXPECT_GT(published, 0);
+  EXPECT_GT(withheld, 0);
+}
+
 }  // namespace code
+
+TEST(RobotTrackerClasses, AClippedPositionMarkerIsNotFoundAndSaysWhy) {
+  RobotTracker tracker({Spec(1)}, EveryFrame(), kWidthPx, kHeightPx);
+  // Position marker cut by the top edge, heading marker inside.
+  const Frame f = Step(&tracker, kStartUs, Robot(600, 5, kOrange, kGreen, 0.0, kHeadingOffsetPx));
+  EXPECT_FALSE(f.obs[0].found);
+  EXPECT_EQ(f.obs[0].identity_problem, "marker_clipped");
+  // Whole, a frame later: found.
+  const Frame g = Step(&tracker, kStartUs + kFramePeriodUs,
+                       Robot(600, 30, kOrange, kGreen, 0.0, kHeadingOffsetPx));
+  EXPECT_TRUE(g.obs[0].found) << g.obs[0].note;
+  EXPECT_TRUE(g.obs[0].identity_problem.empty());
+}
+
+TEST(TrackerOptions, IsValidNamesTheBadField) {
+  std::string error;
+  EXPECT_TRUE(TrackerOptions{}.IsValid(&error)) << error;
+  TrackerOptions o;
+  o.clip_radius_factor = 0.9;
+  EXPECT_FALSE(o.IsValid(&error));
+  EXPECT_NE(error.find("clip_radius_factor"), std::string::npos) << error;
+  o = TrackerOptions{};
+  o.lost_after_s = 0.0;
+  EXPECT_FALSE(o.IsValid(&error));
+  EXPECT_NE(error.find("lost_after_s"), std::string::npos) << error;
+}
 
 }  // namespace
 }  // namespace roomfix::vision
