@@ -117,6 +117,7 @@ bool PoseFilterOptions::IsValid(std::string* error) const {
       {degraded_sigma_m, "degraded_sigma_m", false},
       {heading_unknown_sigma_rad, "heading_unknown_sigma_rad", false},
       {history_s, "history_s", true},
+      {reopen_after_s, "reopen_after_s", true},
       {max_future_s, "max_future_s", true},
   };
   for (const Check& c : checks) {
@@ -472,8 +473,12 @@ Outcome PoseFilter::Apply(const Measurement& m, State* state) const {
     }
     return Outcome::kAccepted;
   }
-  ++state->consecutive_rejections[src];
-  if (state->consecutive_rejections[src] >= options_.reopen_after_rejections &&
+  if (state->consecutive_rejections[src]++ == 0) state->first_rejection_utime[src] = m.utime;
+  const bool long_enough = options_.reopen_after_s > 0.0 &&
+                           state->consecutive_rejections[src] >= 2 &&
+                           static_cast<double>(m.utime - state->first_rejection_utime[src]) >=
+                               Micros(options_.reopen_after_s);
+  if ((state->consecutive_rejections[src] >= options_.reopen_after_rejections || long_enough) &&
       (camera || camera_silent)) {
     Initialise(m, state);
     return Outcome::kReinitialised;

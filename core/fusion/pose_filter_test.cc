@@ -343,6 +343,29 @@ TEST(PoseFilter, TheCameraTakesOverATrackTheUltrasoundStarted) {
   EXPECT_NEAR(e.state[kVx], kSpeed_mps, 0.01);
 }
 
+// At 10 fps five rejected frames are half a second (more with dropped
+// frames): the gate reopens once two or more consecutive rejections span
+// reopen_after_s (0.15 s), here at the third frame; with the count alone at
+// the fifth.
+TEST(PoseFilter, ReopensTheGateAfterRejectionsSpanningReopenAfterS) {
+  for (const double reopen_after_s : {0.15, 0.0}) {
+    PoseFilterOptions options;
+    options.reopen_after_s = reopen_after_s;
+    PoseFilter filter{options};
+    for (int k = 0; k < 20; ++k) {
+      ASSERT_TRUE(Entered(filter.Add(CameraAt(0.1 * k, 1.0, 1.0), UtimeAt(0.1 * k))));
+    }
+    int reopened_at = -1;
+    for (int k = 1; k <= 6 && reopened_at < 0; ++k) {
+      const double t = 1.9 + 0.1 * k;
+      if (filter.Add(CameraAt(t, 3.0, 1.0), UtimeAt(t)) == Outcome::kReinitialised) {
+        reopened_at = k;
+      }
+    }
+    EXPECT_EQ(reopened_at, reopen_after_s > 0.0 ? 3 : 5) << "reopen_after_s " << reopen_after_s;
+  }
+}
+
 // Takeover happens inside the gate only: a camera position far from a track
 // the ultrasound holds (a misidentified robot) is gated as before.
 TEST(PoseFilter, TheCameraDoesNotTakeOverFromOutsideTheGate) {
