@@ -116,13 +116,16 @@ logger=$!
 on_host solver "$bin/trilat_proc" --config "$site" --lcm-url "$url" --method robust \
   --merge-deadline 0.5 --log-level warn 2>"$work/trilat_proc.err" &
 trilat=$!
-# --q-turn 1: the figures of eight turn at up to 1.9 rad/s at their ends and
-# straighten within half a second, which the default (0.3, tuned on the
-# demo's gentle circle) cannot follow at the hall's 3 to 10 camera frames a
-# second: the prediction curved off and the next frames were gated
-# (docs/fusion.md, "The hall").
+# --q-turn 1 --q-accel 0.1: the figures of eight turn at up to 1.9 rad/s at
+# their ends, straighten within half a second and accelerate at 0.23 m/s²,
+# which the defaults (0.3 and 0.03, tuned on the demo's gentle circle at
+# 30 fps) cannot follow at the hall's 3 to 10 camera frames a second, nor
+# through a stall of the shared machine: the prediction curved off, grew
+# overconfident, and gated the next fixes and frames (docs/fusion.md,
+# "The hall").
 on_host solver "$bin/fusion_proc" --config "$site" --lcm-url "$url" \
-  --camera-calibration-sigma 0.001 --q-turn 1 --log-level warn 2>"$work/fusion_proc.err" &
+  --camera-calibration-sigma 0.001 --q-turn 1 --q-accel 0.1 --log-level warn \
+  2>"$work/fusion_proc.err" &
 fusion=$!
 pids+=("$logger" "$trilat" "$fusion")
 sleep 0.5  # the logger joins the group before anything publishes
