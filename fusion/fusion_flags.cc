@@ -50,6 +50,10 @@ void AddFusionFlags(CLI::App* app, const std::string& prefix, FusionNodeOptions*
   app->add_option(name("reopen-after"), filter.reopen_after_rejections,
                   "Consecutive rejections after which the gate reopens")
       ->capture_default_str();
+  app->add_option(name("reopen-after-time"), filter.reopen_after_s,
+                  "Or after two or more consecutive rejections spanning this long, s (0: the "
+                  "count alone)")
+      ->capture_default_str();
   app->add_option(name("history"), filter.history_s,
                   "How far back a late measurement is still applied at its time, s")
       ->capture_default_str();

@@ -151,6 +151,9 @@ void FusionNode::OnPose(const pose2d_t& pose, const MessageInfo& info, fusion::S
   }
   Track& track = it->second;
   track.last_recv_utime = info.recv_utime;
+  const auto src = static_cast<size_t>(source);
+  track.delay_us[src] = std::max<int64_t>(0, SaturatingDifferenceUs(info.recv_utime, pose.utime));
+  track.delay_recv_utime[src] = info.recv_utime;
   const bool was_initialised = track.filter.initialised();
   fusion::Estimate estimate;
   const fusion::Outcome outcome = track.filter.Add(m, info.recv_utime, &estimate);
@@ -162,6 +165,9 @@ void FusionNode::OnPose(const pose2d_t& pose, const MessageInfo& info, fusion::S
       break;
     case fusion::Outcome::kReinitialised:
       status_.Count("reinitialised");
+      break;
+    case fusion::Outcome::kCameraTakeover:
+      status_.Count("camera_takeover");
       break;
     case fusion::Outcome::kGated:
       status_.Reject("gated_" + name);
@@ -235,6 +241,18 @@ void FusionNode::Publish(int32_t robot_id, const fusion::Estimate& e, double z_m
   }
 }
 
+int64_t FusionNode::JudgedUtime(const Track& track, int64_t now_utime) const {
+  const auto window_us = static_cast<int64_t>(options_.filter.lost_after_s * 1e6);
+  int64_t delay_us = 0;
+  for (size_t i = 0; i < track.delay_us.size(); ++i) {
+    if (track.delay_recv_utime[i] != 0 &&
+        SaturatingDifferenceUs(now_utime, track.delay_recv_utime[i]) <= window_us) {
+      delay_us = std::max(delay_us, track.delay_us[i]);
+    }
+  }
+  return now_utime - std::min(delay_us, window_us);
+}
+
 void FusionNode::Tick(int64_t now_utime) {
   bool rate_tick = false;
   if (options_.rate_hz > 0.0 && now_utime >= next_rate_utime_) {
@@ -254,6 +272,10 @@ void FusionNode::Tick(int64_t now_utime) {
   for (auto& [robot_id, track] : tracks_) {
     if (!track.filter.initialised()) continue;
     fusion::Estimate e = track.filter.Predict(now_utime);
+    // Lost and degraded are judged on the measurement clock: a frame that
+    // spent 0.7 s in a loaded camera_proc has not yet had its chance to be
+    // accepted (docs/fusion.md, "Lost").
+    e.status = track.filter.Predict(JudgedUtime(track, now_utime)).status;
     const bool lost = e.status == fusion::TrackStatus::kLost;
     if (lost && !track.lost_reported) {
       track.lost_reported = true;

@@ -1,6 +1,7 @@
 #ifndef ROOMFIX_FUSION_FUSION_NODE_H_
 #define ROOMFIX_FUSION_FUSION_NODE_H_
 
+#include <array>
 #include <cstdint>
 #include <map>
 #include <set>
@@ -75,7 +76,17 @@ class FusionNode {
     bool lost_reported = false;
     double z_m = 0.0;
     int64_t last_recv_utime = 0;
+    // Per source, the newest measurement's delay (receive time minus
+    // measurement time, us, at least 0) and when it arrived: Tick judges
+    // the track on the measurement clock (JudgedUtime).
+    std::array<int64_t, fusion::kNumSources> delay_us{};
+    std::array<int64_t, fusion::kNumSources> delay_recv_utime{};
   };
+
+  // The time, on the measurement clock, at which a track's status is judged
+  // at receive time now: now less the largest delay of a source heard from
+  // within lost_after_s (docs/fusion.md, "Lost").
+  int64_t JudgedUtime(const Track& track, int64_t now_utime) const;
 
   void OnPose(const pose2d_t& pose, const MessageInfo& info, fusion::Source source);
   void Publish(int32_t robot_id, const fusion::Estimate& estimate, double z_m, int64_t now_utime);

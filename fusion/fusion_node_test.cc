@@ -222,6 +222,59 @@ TEST_F(FusionNodeTest, PublishesLostAtEveryTickAfterASilenceThenReinitialises) {
   EXPECT_EQ(fused_[0].x_m, 1.0);
 }
 
+// The hall test on a loaded machine: a camera_proc 0.75 s behind that drops
+// two frames in three (a frame every 0.3 s) while the robot is under that
+// camera alone. Judged on the receive clock the track was lost 1 s after
+// its last accepted frame's capture, before the next frame could arrive;
+// judged on the measurement clock it never is, and a silence still loses
+// it, the delay later.
+TEST_F(FusionNodeTest, KeepsARobotWhoseFramesArriveLateAndSparseButLosesASilentOne) {
+  FusionNodeOptions options;
+  options.rate_hz = 10.0;
+  FusionNode node(site_, &bus_, options, fusion::synthetic::kStartUtime);
+  constexpr double kDelay_s = 0.75, kFramePeriod_s = 0.3, kSpeed_mps = 0.2;
+  auto frame = [&](double t) {
+    pose2d_t p{};
+    p.utime = UtimeAt(t);
+    p.source = pose2d_t::SOURCE_CAMERA;
+    p.camera_id = 0;
+    p.robot_id = 1;
+    p.x_m = 1.0 + kSpeed_mps * t;
+    p.y_m = 1.0;
+    p.z_m = 0.3;
+    p.heading_rad = 0.0;
+    for (auto& row : p.covariance) {
+      for (double& v : row) v = 0.0;
+    }
+    p.covariance[0][0] = p.covariance[1][1] = 1e-6;
+    p.covariance[2][2] = 1e-4;
+    p.status = pose2d_t::STATUS_OK;
+    return p;
+  };
+  double t = 0.0;
+  for (double now = kDelay_s; now < 10.0; now += 0.01) {
+    if (t + kDelay_s <= now + 1e-9) {
+      Deliver(frame(t), UtimeAt(now));
+      t += kFramePeriod_s;
+    }
+    node.Tick(UtimeAt(now));
+  }
+  for (const pose2d_t& p : fused_) ASSERT_NE(p.status, pose2d_t::STATUS_LOST) << p.utime;
+  EXPECT_EQ(node.status().counter("lost"), 0);
+  EXPECT_EQ(node.status().rejected("gated_camera"), 0);
+
+  // The camera stops: lost once, lost_after_s after the last frame's
+  // capture plus its delay (the receive clock's 10 ms ticks).
+  const double last_frame_s = t - kFramePeriod_s;
+  double lost_at_s = -1.0;
+  for (double now = 10.0; now < 13.0; now += 0.01) {
+    node.Tick(UtimeAt(now));
+    if (lost_at_s < 0.0 && node.status().counter("lost") == 1) lost_at_s = now;
+  }
+  EXPECT_EQ(node.status().counter("lost"), 1);
+  EXPECT_NEAR(lost_at_s, last_frame_s + options.filter.lost_after_s + kDelay_s, 0.02);
+}
+
 TEST_F(FusionNodeTest, PublishesOneLostPoseWithoutAFixedRate) {
   FusionNode node(site_, &bus_, FusionNodeOptions(), fusion::synthetic::kStartUtime);
   StreamOptions stream_options;

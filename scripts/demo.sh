@@ -71,9 +71,12 @@ if [[ "${3:-}" == "--inner" ]]; then
   if [[ -x "$bin/fusion_proc" ]]; then
     # Several cameras: each calibration's error (about 1 mm for the hall's
     # fits) widens its poses so that two cameras agree through the gate in an
-    # overlap (docs/fusion.md, "Several cameras").
+    # overlap (docs/fusion.md, "Several cameras"); the hall's figures of
+    # eight turn and accelerate harder than the default process noise follows
+    # at the hall's reduced frame rate (docs/fusion.md, "The hall").
     fusion_args=()
-    ((${#camera_ids[@]} < 2)) || fusion_args+=(--camera-calibration-sigma 0.001)
+    ((${#camera_ids[@]} < 2)) ||
+      fusion_args+=(--camera-calibration-sigma 0.001 --q-turn 1 --q-accel 0.1)
     "$bin/fusion_proc" --config "$site" --log-level info "${fusion_args[@]}" \
       2>"$out/fusion_proc.txt" &
     pids+=($!)

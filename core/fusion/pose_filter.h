@@ -116,6 +116,12 @@ struct PoseFilterOptions {
   // of the ultrasound only when no camera measurement came for lost_after_s
   // (the camera is preferred).
   int reopen_after_rejections = 5;
+  // Or after at least two consecutive rejections of one source spanning
+  // this long (measurement time), whichever comes first: five frames are
+  // 0.13 s at 30 fps but 0.5 to 1.5 s at the 3 to 10 fps a loaded hall
+  // leaves (docs/fusion.md, "The hall"), long enough for the robot to be
+  // lost. 0: the count alone.
+  double reopen_after_s = 0.15;
   // The track is lost, and the next measurement re-initialises it, when no
   // measurement was accepted for lost_after_s or when the predicted position
   // standard deviation (largest axis) exceeds lost_sigma_m.
@@ -148,6 +154,10 @@ enum class Outcome {
   kInitialised,
   // The gate reopened: consecutive rejections re-initialised the track here.
   kReinitialised,
+  // A camera position, inside the gate, of a track that no camera had
+  // updated for lost_after_s (held by the ultrasound alone): the track
+  // restarts from it instead of being updated (PoseFilter::Apply says why).
+  kCameraTakeover,
   // Inconsistent with the track: not used.
   kGated,
   // Older than the history: dropped.
@@ -249,6 +259,8 @@ class PoseFilter {
     bool camera_seen = false;
     bool camera_accepted = false;
     std::array<int, kNumSources> consecutive_rejections{};
+    // Measurement time of the first of those rejections.
+    std::array<int64_t, kNumSources> first_rejection_utime{};
     int heading_rejections = 0;
     double innovation_m = std::numeric_limits<double>::quiet_NaN();
     int64_t seq = -1;

@@ -310,8 +310,71 @@ TEST(PoseFilter, IsLostAfterASilenceAndReinitialisesOnTheNextMeasurement) {
   EXPECT_EQ(filter.Add(UltrasoundAt(4.0, 3.0, 2.0), UtimeAt(4.0), &e), Outcome::kInitialised);
   EXPECT_NEAR(e.state[kX], 3.0, kSameResult);
   EXPECT_EQ(e.status, TrackStatus::kDegraded);  // Ultrasound only.
-  EXPECT_EQ(filter.Add(CameraAt(4.03, 3.0, 2.0), UtimeAt(4.03), &e), Outcome::kAccepted);
+  // The camera takes over the track the ultrasound started.
+  EXPECT_EQ(filter.Add(CameraAt(4.03, 3.0, 2.0), UtimeAt(4.03), &e), Outcome::kCameraTakeover);
   EXPECT_EQ(e.status, TrackStatus::kOk);
+  EXPECT_EQ(filter.Add(CameraAt(4.06, 3.0, 2.0), UtimeAt(4.06), &e), Outcome::kAccepted);
+}
+
+// The hall test's start (tests/netns/hall_test.sh): a track started by an
+// ultrasonic fix 7 cm off that reports 1 cm, then a camera at 10 fps on a
+// robot driving at 0.3 m/s. Updated by the first frame, the filter put the
+// 7 cm into a velocity it then believed to 2 cm/s and gated the next four
+// frames (0.5 s without a fix); the camera now restarts the track and every
+// frame is used.
+TEST(PoseFilter, TheCameraTakesOverATrackTheUltrasoundStarted) {
+  PoseFilter filter{PoseFilterOptions()};
+  constexpr double kSpeed_mps = 0.3;
+  Measurement fix = UltrasoundAt(0.0, 1.0 - 0.05, 1.0 + 0.05);
+  fix.position_cov_m2 = Eigen::Matrix2d::Identity() * 0.01 * 0.01;
+  ASSERT_EQ(filter.Add(fix, UtimeAt(0.0)), Outcome::kInitialised);
+  Estimate e;
+  EXPECT_EQ(filter.Add(CameraAt(0.16, 1.0 + kSpeed_mps * 0.16, 1.0), UtimeAt(0.16), &e),
+            Outcome::kCameraTakeover);
+  EXPECT_NEAR(e.state[kX], 1.0 + kSpeed_mps * 0.16, kSameResult);
+  // How far the ultrasound's track was from the frame (its velocity was 0).
+  EXPECT_NEAR(e.innovation_m, std::hypot(0.05 + kSpeed_mps * 0.16, 0.05), kSameResult);
+  for (int k = 1; k <= 20; ++k) {
+    const double t = 0.16 + 0.1 * k;
+    EXPECT_EQ(filter.Add(CameraAt(t, 1.0 + kSpeed_mps * t, 1.0), UtimeAt(t), &e),
+              Outcome::kAccepted)
+        << "frame " << k;
+  }
+  EXPECT_NEAR(e.state[kVx], kSpeed_mps, 0.01);
+}
+
+// At 10 fps five rejected frames are half a second (more with dropped
+// frames): the gate reopens once two or more consecutive rejections span
+// reopen_after_s (0.15 s), here at the third frame; with the count alone at
+// the fifth.
+TEST(PoseFilter, ReopensTheGateAfterRejectionsSpanningReopenAfterS) {
+  for (const double reopen_after_s : {0.15, 0.0}) {
+    PoseFilterOptions options;
+    options.reopen_after_s = reopen_after_s;
+    PoseFilter filter{options};
+    for (int k = 0; k < 20; ++k) {
+      ASSERT_TRUE(Entered(filter.Add(CameraAt(0.1 * k, 1.0, 1.0), UtimeAt(0.1 * k))));
+    }
+    int reopened_at = -1;
+    for (int k = 1; k <= 6 && reopened_at < 0; ++k) {
+      const double t = 1.9 + 0.1 * k;
+      if (filter.Add(CameraAt(t, 3.0, 1.0), UtimeAt(t)) == Outcome::kReinitialised) {
+        reopened_at = k;
+      }
+    }
+    EXPECT_EQ(reopened_at, reopen_after_s > 0.0 ? 3 : 5) << "reopen_after_s " << reopen_after_s;
+  }
+}
+
+// Takeover happens inside the gate only: a camera position far from a track
+// the ultrasound holds (a misidentified robot) is gated as before.
+TEST(PoseFilter, TheCameraDoesNotTakeOverFromOutsideTheGate) {
+  PoseFilter filter{PoseFilterOptions()};
+  for (int k = 0; k < 5; ++k) {
+    ASSERT_TRUE(Entered(filter.Add(UltrasoundAt(0.1 * k, 1.0, 1.0), UtimeAt(0.1 * k))));
+  }
+  EXPECT_EQ(filter.Add(CameraAt(0.45, 5.0, 1.0), UtimeAt(0.45)), Outcome::kGated);
+  EXPECT_NEAR(filter.Latest().state[kX], 1.0, 0.01);
 }
 
 TEST(PoseFilter, FollowsARobotCarriedAwayOnceTheGateReopens) {

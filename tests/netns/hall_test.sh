@@ -12,7 +12,7 @@
 #
 # After ROOMFIX_HALL_SECONDS (default 60) everything stops with SIGINT and the
 # solver host's log must show, for every robot: camera poses on the truth
-# (p95 under kCameraP95 below) with no gap longer than max_gap_us (so no
+# (p95 under kCameraP95 below) with no more than max_missed frames in a row without it from the cameras around it (so no
 # robot was lost while handed from one camera to the next), ultrasonic fixes
 # on the truth (p95 under kUltrasoundP95), fused poses never lost; and the
 # logger must have written everything it received, and every MARKER_PIXELS
@@ -42,12 +42,14 @@ kCameraP95=0.010
 kUltrasoundP95=0.10
 # The filter between camera fixes: within the camera's figure plus motion.
 kFusedP95=0.020
-# No robot may go unseen by every camera for more than five frame periods
-# while it drives through the overlaps, after a 2 s warm-up (nine processes
-# starting at once on two cores). On a loaded machine camera_proc drops a
-# frame that is already two periods old (counted in its STATUS): three in a
-# row were seen at 10 fps; fusion_proc bridges half a second.
-max_gap_us=$((5 * 1000000 / fps))
+# No robot may go unseen for more than four frames in a row that the cameras
+# around it processed (the frames either side of the miss that had a pose
+# of it: a handover that drops the robot), after a 2 s warm-up (nine
+# processes starting at once on two cores). Frames a loaded camera_proc
+# dropped as stale (two periods old, counted in its STATUS; up to a second's
+# worth in a stall of the shared machine) were never looked at and do not
+# count (tests/netns/hall_handover.py).
+max_missed=4
 
 skip() {
   echo "hall_test: skipped: $*" >&2
@@ -114,8 +116,16 @@ logger=$!
 on_host solver "$bin/trilat_proc" --config "$site" --lcm-url "$url" --method robust \
   --merge-deadline 0.5 --log-level warn 2>"$work/trilat_proc.err" &
 trilat=$!
+# --q-turn 1 --q-accel 0.1: the figures of eight turn at up to 1.9 rad/s at
+# their ends, straighten within half a second and accelerate at 0.23 m/s²,
+# which the defaults (0.3 and 0.03, tuned on the demo's gentle circle at
+# 30 fps) cannot follow at the hall's 3 to 10 camera frames a second, nor
+# through a stall of the shared machine: the prediction curved off, grew
+# overconfident, and gated the next fixes and frames (docs/fusion.md,
+# "The hall").
 on_host solver "$bin/fusion_proc" --config "$site" --lcm-url "$url" \
-  --camera-calibration-sigma 0.001 --log-level warn 2>"$work/fusion_proc.err" &
+  --camera-calibration-sigma 0.001 --q-turn 1 --q-accel 0.1 --log-level warn \
+  2>"$work/fusion_proc.err" &
 fusion=$!
 pids+=("$logger" "$trilat" "$fusion")
 sleep 0.5  # the logger joins the group before anything publishes
@@ -202,10 +212,10 @@ first=$(sort -n -k2,2 "$work/camera_poses.txt" | awk 'NR == 1 { print $2 }')
 gaps=$(awk -v from=$((first + 2000000)) '$4 != 2 && $2 >= from {
               if ($1 == r && $2 - t > g[r]) g[r] = $2 - t; r = $1; t = $2 }
             END { for (k in g) print k, g[k] }' "$work/camera_poses.txt" | sort -n)
+# Printed, not checked: a machine stall (a camera_proc dropping every frame
+# for a second as stale, counted in its STATUS) shows here too. The check is
+# hall_handover.py's: frames the cameras around a robot processed without it.
 echo "  longest gap between camera poses per robot (us): $(echo $gaps)"
-while read -r robot gap; do
-  ((gap <= max_gap_us)) || fail "robot $robot unseen by every camera for $gap us (over $max_gap_us)"
-done <<<"$gaps"
 for id in 0 1 2 3; do
   processed=$(sed -n 's/.*stopped: \([0-9]*\) frames processed.*/\1/p' "$work/camera_proc_$id.err")
   logged=$(grep '"channel":"MARKER_PIXELS"' "$work/log.jsonl" | grep -c "\"camera_id\":$id," || true)
@@ -213,6 +223,14 @@ for id in 0 1 2 3; do
   [[ -n "$processed" ]] || fail "camera_proc $id gave no summary"
   ((logged == processed)) || fail "camera $id: $processed frames, $logged MARKER_PIXELS in the log"
 done
+# Handovers: the largest step of the fused error at a camera's first or last
+# frame of a stretch (the issue's bound: 1 cm), the longest gap between
+# fused poses, and the fused covariance's coverage.
+python3 "$src/tests/netns/hall_handover.py" "$work/log.jsonl" --warmup-s 2 --max-step-m 0.01 \
+  --max-missed "$max_missed" ||
+  fail "a handover moved a fused pose 1 cm or more, lost a robot for more than $max_missed frames, or a robot was never handed over"
+grep '"process":"fusion_proc"' "$work/log.jsonl" | tail -1 |
+  grep -o '"rejected":{[^}]*},"counters":{[^}]*}' | sed 's/^/  fusion_proc: /'
 "$bin/roomfix" bench capacity --latency-only \
   --log "$log" | grep 'POSE_FUSED' | sed 's/^/ /'
 echo "hall_test: passed"
