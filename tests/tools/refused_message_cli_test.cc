@@ -88,16 +88,17 @@ TEST(RoomfixListen, RefusesHostileMessagesInALogAndCountsThemByReason) {
       << run.err;
 }
 
-// A channel name is the publisher's: quotes, backslashes, control bytes and
-// bytes that are not UTF-8 still give lines of valid JSON that read back to
-// the name (U+FFFD for what is not UTF-8); an ordinary line keeps its bytes.
+// A channel name is the publisher's: quotes, backslashes, control bytes
+// (not NUL: no log holds it) and bytes that are not UTF-8 still give lines
+// of valid JSON that read back to the name (U+FFFD for what is not UTF-8);
+// an ordinary line keeps its bytes.
 TEST(RoomfixListen, EscapesEveryChannelNameIntoValidJson) {
   TempDir dir;
   const std::string path = dir.File("names.lcm");
   const std::vector<uint8_t> pose =
       testing::Encode(testing::MakeTestPose(1700000000000000, 1, 1.0, 2.0));
   const std::vector<std::string> names = {"POSE_GROUND_TRUTH", "say \"hi\"", "back\\slash",
-                                          std::string("nul\0bell\a\x1f", 10), "bad \xff\xfe utf8"};
+                                          "bell\a\x1f\x7f tab\t", "bad \xff\xfe utf8"};
   {
     std::string error;
     auto log = LogWriter::Create(path, true, &error);
