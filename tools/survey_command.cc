@@ -26,6 +26,7 @@
 #include "msgio/wire_check.h"
 #include "roomfix/range_set_t.hpp"
 #include "tools/commands.h"
+#include "tools/flag_checks.h"
 #include "tools/tool_site.h"
 
 namespace roomfix {
@@ -379,7 +380,8 @@ void AddSurveyCommand(CLI::App* app, int* exit_code) {
   cmd->add_flag("--no-reference", a->no_reference,
                 "Self-calibration: beacon positions unknown, two receivers pinned");
   cmd->add_option("--pin", a->pin, "With --no-reference: ids of two surveyed receivers, ID,ID");
-  cmd->add_option("--block", a->block_s, "Held-out split: block length, seconds");
+  cmd->add_option("--block", a->block_s, "Held-out split: block length, seconds")
+      ->check(FiniteAbove(0.0, "seconds > 0"));
   cmd->add_option("--period", a->period, "Held-out split: every N-th block is held out")
       ->check(CLI::Range(2, 100));
   cmd->add_option("--out", a->out, "Write the receivers as a site-file fragment (YAML)");
