@@ -154,6 +154,8 @@ std::string Quoted(const std::string& text) {
   return ordered_json(text).dump(-1, ' ', false, ordered_json::error_handler_t::replace);
 }
 
+// What ordered_json::dump() writes, but for doubles (JsonLine in the
+// header says why); objects keep their keys' insertion order.
 void AppendLine(const ordered_json& v, std::string* out) {
   switch (v.type()) {
     case ordered_json::value_t::object: {
