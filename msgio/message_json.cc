@@ -1,8 +1,8 @@
 #include "msgio/message_json.h"
 
+#include <charconv>
 #include <cmath>
-#include <cstring>
-#include <sstream>
+#include <nlohmann/json.hpp>
 
 #include "msgio/wire_check.h"
 #include "roomfix/image_t.hpp"
@@ -15,72 +15,7 @@
 namespace roomfix {
 namespace {
 
-// A minimal JSON writer: enough for flat objects, arrays and numbers.
-class Json {
- public:
-  Json& Key(const char* key) {
-    Comma();
-    String(key);
-    out_ << ':';
-    fresh_ = true;
-    return *this;
-  }
-  Json& Num(double v) {
-    Comma();
-    if (std::isfinite(v)) {
-      out_.precision(17);
-      out_ << v;
-    } else {
-      out_ << "null";
-    }
-    return *this;
-  }
-  Json& Int(int64_t v) {
-    Comma();
-    out_ << v;
-    return *this;
-  }
-  Json& Str(const std::string& v) {
-    Comma();
-    String(v);
-    return *this;
-  }
-  Json& Open(char c) {
-    Comma();
-    out_ << c;
-    fresh_ = true;
-    return *this;
-  }
-  Json& Close(char c) {
-    out_ << c;
-    fresh_ = false;
-    return *this;
-  }
-  std::string str() const { return out_.str(); }
-
- private:
-  void Comma() {
-    if (!fresh_) out_ << ',';
-    fresh_ = false;
-  }
-  void String(const std::string& v) {
-    out_ << '"';
-    for (unsigned char c : v) {
-      if (c == '"' || c == '\\') {
-        out_ << '\\' << c;
-      } else if (c < 0x20) {
-        char buffer[8];
-        std::snprintf(buffer, sizeof(buffer), "\\u%04x", c);
-        out_ << buffer;
-      } else {
-        out_ << c;
-      }
-    }
-    out_ << '"';
-  }
-  std::ostringstream out_;
-  bool fresh_ = true;
-};
+using nlohmann::ordered_json;
 
 int64_t FingerprintOf(const void* data, int size) {
   if (size < 8) return 0;
@@ -90,104 +25,183 @@ int64_t FingerprintOf(const void* data, int size) {
   return static_cast<int64_t>(v);
 }
 
-void Counters(Json* j, const char* key, const std::vector<counter_t>& counters) {
-  j->Key(key).Open('{');
-  for (const auto& c : counters) j->Key(c.name.c_str()).Int(c.count);
-  j->Close('}');
+// A counter list as one object, name: count. Two counters of one name (a
+// malformed status) keep the first's place and the last's count, as any
+// JSON reader would have read the repeated key.
+ordered_json Counters(const std::vector<counter_t>& counters) {
+  ordered_json out = ordered_json::object();
+  for (const auto& c : counters) out[c.name] = c.count;
+  return out;
 }
 
-std::string ToJson(const pose2d_t& m) {
-  Json j;
-  j.Open('{').Key("type").Str("roomfix.pose2d_t").Key("utime").Int(m.utime);
-  j.Key("source").Int(m.source).Key("camera_id").Int(m.camera_id);
-  j.Key("robot_id").Int(m.robot_id).Key("measurement_seq").Int(m.measurement_seq);
-  j.Key("x_m").Num(m.x_m).Key("y_m").Num(m.y_m).Key("z_m").Num(m.z_m);
-  j.Key("heading_rad").Num(m.heading_rad).Key("covariance").Open('[');
+ordered_json ToJson(const pose2d_t& m) {
+  ordered_json covariance = ordered_json::array();
   for (const auto& row : m.covariance) {
-    for (double v : row) j.Num(v);
+    for (double v : row) covariance.push_back(v);
   }
-  j.Close(']').Key("residual_m").Num(m.residual_m);
-  j.Key("num_measurements").Int(m.num_measurements).Key("status").Int(m.status);
-  j.Key("latency_us").Int(m.latency_us).Close('}');
-  return j.str();
+  return {{"type", "roomfix.pose2d_t"},
+          {"utime", m.utime},
+          {"source", m.source},
+          {"camera_id", m.camera_id},
+          {"robot_id", m.robot_id},
+          {"measurement_seq", m.measurement_seq},
+          {"x_m", m.x_m},
+          {"y_m", m.y_m},
+          {"z_m", m.z_m},
+          {"heading_rad", m.heading_rad},
+          {"covariance", covariance},
+          {"residual_m", m.residual_m},
+          {"num_measurements", m.num_measurements},
+          {"status", m.status},
+          {"latency_us", m.latency_us}};
 }
 
-std::string ToJson(const marker_pixels_t& m) {
-  Json j;
-  j.Open('{').Key("type").Str("roomfix.marker_pixels_t").Key("utime").Int(m.utime);
-  j.Key("camera_id").Int(m.camera_id).Key("frame_seq").Int(m.frame_seq);
-  j.Key("width_px").Int(m.width_px).Key("height_px").Int(m.height_px);
-  j.Key("search_mode").Int(m.search_mode).Key("processing_time_us").Int(m.processing_time_us);
-  j.Key("markers").Open('[');
+ordered_json ToJson(const marker_pixels_t& m) {
+  ordered_json markers = ordered_json::array();
   for (const auto& k : m.markers) {
-    j.Open('{').Key("colour_class").Str(k.colour_class).Key("robot_id").Int(k.robot_id);
-    j.Key("role").Int(k.role).Key("u_px").Num(k.u_px).Key("v_px").Num(k.v_px);
-    j.Key("radius_px").Num(k.radius_px).Key("circularity").Num(k.circularity);
-    j.Key("area_px").Num(k.area_px).Close('}');
+    markers.push_back({{"colour_class", k.colour_class},
+                       {"robot_id", k.robot_id},
+                       {"role", k.role},
+                       {"u_px", k.u_px},
+                       {"v_px", k.v_px},
+                       {"radius_px", k.radius_px},
+                       {"circularity", k.circularity},
+                       {"area_px", k.area_px}});
   }
-  j.Close(']').Close('}');
-  return j.str();
+  return {{"type", "roomfix.marker_pixels_t"},
+          {"utime", m.utime},
+          {"camera_id", m.camera_id},
+          {"frame_seq", m.frame_seq},
+          {"width_px", m.width_px},
+          {"height_px", m.height_px},
+          {"search_mode", m.search_mode},
+          {"processing_time_us", m.processing_time_us},
+          {"markers", markers}};
 }
 
-std::string ToJson(const range_set_t& m) {
-  Json j;
-  j.Open('{').Key("type").Str("roomfix.range_set_t").Key("utime").Int(m.utime);
-  j.Key("beacon_id").Int(m.beacon_id).Key("firing_seq").Int(m.firing_seq);
-  j.Key("speed_of_sound_mps").Num(m.speed_of_sound_mps).Key("temperature_c").Num(m.temperature_c);
-  j.Key("num_expected").Int(m.num_expected).Key("ranges").Open('[');
+ordered_json ToJson(const range_set_t& m) {
+  ordered_json ranges = ordered_json::array();
   for (const auto& r : m.ranges) {
-    j.Open('{').Key("receiver_id").Int(r.receiver_id).Key("receiver_position_m").Open('[');
-    for (double v : r.receiver_position_m) j.Num(v);
-    j.Close(']').Key("time_of_flight_us").Num(r.time_of_flight_us);
-    j.Key("range_m").Num(r.range_m).Key("arrival_utime").Int(r.arrival_utime).Close('}');
+    ranges.push_back({{"receiver_id", r.receiver_id},
+                      {"receiver_position_m", r.receiver_position_m},
+                      {"time_of_flight_us", r.time_of_flight_us},
+                      {"range_m", r.range_m},
+                      {"arrival_utime", r.arrival_utime}});
   }
-  j.Close(']').Close('}');
-  return j.str();
+  return {{"type", "roomfix.range_set_t"},
+          {"utime", m.utime},
+          {"beacon_id", m.beacon_id},
+          {"firing_seq", m.firing_seq},
+          {"speed_of_sound_mps", m.speed_of_sound_mps},
+          {"temperature_c", m.temperature_c},
+          {"num_expected", m.num_expected},
+          {"ranges", ranges}};
 }
 
-std::string ToJson(const process_status_t& m) {
-  Json j;
-  j.Open('{').Key("type").Str("roomfix.process_status_t").Key("utime").Int(m.utime);
-  j.Key("process").Str(m.process).Key("host").Str(m.host).Key("pid").Int(m.pid);
-  j.Key("uptime_us").Int(m.uptime_us).Key("state").Int(m.state);
-  j.Key("inputs").Int(m.inputs).Key("outputs").Int(m.outputs).Key("dropped").Int(m.dropped);
-  Counters(&j, "rejected", m.rejected);
-  Counters(&j, "counters", m.counters);
-  j.Key("last_error").Str(m.last_error).Key("last_error_utime").Int(m.last_error_utime);
-  j.Close('}');
-  return j.str();
+ordered_json ToJson(const process_status_t& m) {
+  return {{"type", "roomfix.process_status_t"},
+          {"utime", m.utime},
+          {"process", m.process},
+          {"host", m.host},
+          {"pid", m.pid},
+          {"uptime_us", m.uptime_us},
+          {"state", m.state},
+          {"inputs", m.inputs},
+          {"outputs", m.outputs},
+          {"dropped", m.dropped},
+          {"rejected", Counters(m.rejected)},
+          {"counters", Counters(m.counters)},
+          {"last_error", m.last_error},
+          {"last_error_utime", m.last_error_utime}};
 }
 
 // The image bytes are summarised, not dumped: a preview is tens of KB.
-std::string ToJson(const image_t& m) {
-  Json j;
-  j.Open('{').Key("type").Str("roomfix.image_t").Key("utime").Int(m.utime);
-  j.Key("camera_id").Int(m.camera_id).Key("frame_seq").Int(m.frame_seq);
-  j.Key("width_px").Int(m.width_px).Key("height_px").Int(m.height_px);
-  j.Key("source_width_px").Int(m.source_width_px).Key("source_height_px").Int(m.source_height_px);
-  j.Key("format").Str(m.format).Key("num_bytes").Int(m.num_bytes).Close('}');
-  return j.str();
+ordered_json ToJson(const image_t& m) {
+  return {{"type", "roomfix.image_t"},
+          {"utime", m.utime},
+          {"camera_id", m.camera_id},
+          {"frame_seq", m.frame_seq},
+          {"width_px", m.width_px},
+          {"height_px", m.height_px},
+          {"source_width_px", m.source_width_px},
+          {"source_height_px", m.source_height_px},
+          {"format", m.format},
+          {"num_bytes", m.num_bytes}};
 }
 
 // The texts are summarised by size: the site and its files are kilobytes,
 // and `content_hash` names them exactly.
-std::string ToJson(const site_t& m) {
-  Json j;
-  j.Open('{').Key("type").Str("roomfix.site_t").Key("utime").Int(m.utime);
-  j.Key("site_name").Str(m.site_name).Key("site_path").Str(m.site_path);
-  j.Key("site_text_bytes").Int(static_cast<int64_t>(m.site_text.size())).Key("files").Open('[');
-  for (const auto& f : m.files) {
-    j.Open('{').Key("name").Str(f.name).Key("bytes").Int(static_cast<int64_t>(f.text.size()));
-    j.Close('}');
+ordered_json ToJson(const site_t& m) {
+  ordered_json files = ordered_json::array();
+  for (const auto& f : m.files) files.push_back({{"name", f.name}, {"bytes", f.text.size()}});
+  return {{"type", "roomfix.site_t"},
+          {"utime", m.utime},
+          {"site_name", m.site_name},
+          {"site_path", m.site_path},
+          {"site_text_bytes", m.site_text.size()},
+          {"files", files},
+          {"missing", m.missing},
+          {"content_hash", m.content_hash},
+          {"roomfix_version", m.roomfix_version},
+          {"process", m.process},
+          {"host", m.host},
+          {"pid", m.pid}};
+}
+
+// A string or key as nlohmann escapes it; bytes that are not UTF-8 (a
+// publisher's choice) become U+FFFD, so the line stays valid JSON.
+std::string Quoted(const std::string& text) {
+  return ordered_json(text).dump(-1, ' ', false, ordered_json::error_handler_t::replace);
+}
+
+// What ordered_json::dump() writes, but for doubles (JsonLine in the
+// header says why); objects keep their keys' insertion order.
+void AppendLine(const ordered_json& v, std::string* out) {
+  switch (v.type()) {
+    case ordered_json::value_t::object: {
+      out->push_back('{');
+      for (auto it = v.begin(); it != v.end(); ++it) {
+        if (it != v.begin()) out->push_back(',');
+        *out += Quoted(it.key());
+        out->push_back(':');
+        AppendLine(it.value(), out);
+      }
+      out->push_back('}');
+      return;
+    }
+    case ordered_json::value_t::array: {
+      out->push_back('[');
+      for (auto it = v.begin(); it != v.end(); ++it) {
+        if (it != v.begin()) out->push_back(',');
+        AppendLine(*it, out);
+      }
+      out->push_back(']');
+      return;
+    }
+    case ordered_json::value_t::number_float: {
+      const double d = v.get<double>();
+      if (!std::isfinite(d)) {
+        *out += "null";
+        return;
+      }
+      // "%.17g" in the C locale: 17 significant digits always read back to
+      // the same double; an integral value has no ".0".
+      char text[32];
+      const auto end = std::to_chars(text, text + sizeof(text), d, std::chars_format::general, 17);
+      out->append(text, end.ptr);
+      return;
+    }
+    case ordered_json::value_t::string:
+      *out += Quoted(v.get_ref<const std::string&>());
+      return;
+    default:  // integers, booleans, null
+      *out += v.dump();
+      return;
   }
-  j.Close(']').Key("missing").Str(m.missing).Key("content_hash").Str(m.content_hash);
-  j.Key("roomfix_version").Str(m.roomfix_version).Key("process").Str(m.process);
-  j.Key("host").Str(m.host).Key("pid").Int(m.pid).Close('}');
-  return j.str();
 }
 
 template <class Msg>
-bool Decode(const void* data, int size, std::string* json, std::string* error,
+bool Decode(const void* data, int size, ordered_json* json, std::string* error,
             std::string* reason) {
   Msg m{};
   std::string detail;
@@ -223,8 +237,22 @@ int64_t RoomfixTypeFingerprint(const std::string& type_name) {
   return 0;
 }
 
+std::string JsonLine(const nlohmann::ordered_json& value) {
+  std::string line;
+  AppendLine(value, &line);
+  return line;
+}
+
 bool MessageToJson(const void* data, int size, std::string* json, std::string* error,
                    std::string* reason) {
+  ordered_json value;
+  if (!MessageToJsonValue(data, size, &value, error, reason)) return false;
+  *json = JsonLine(value);
+  return true;
+}
+
+bool MessageToJsonValue(const void* data, int size, nlohmann::ordered_json* json,
+                        std::string* error, std::string* reason) {
   const int64_t fp = FingerprintOf(data, size);
   if (fp == pose2d_t::getHash()) return Decode<pose2d_t>(data, size, json, error, reason);
   if (fp == marker_pixels_t::getHash()) {

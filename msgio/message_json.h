@@ -2,6 +2,7 @@
 #define ROOMFIX_MSGIO_MESSAGE_JSON_H_
 
 #include <cstdint>
+#include <nlohmann/json_fwd.hpp>
 #include <string>
 
 namespace roomfix {
@@ -24,6 +25,18 @@ inline constexpr char kUnknownTypeReason[] = "unknown_type";
 // wire_refusal::*); either may be null.
 bool MessageToJson(const void* data, int size, std::string* json, std::string* error,
                    std::string* reason = nullptr);
+
+// The same as a value (keys in the message's field order), for a caller
+// that wraps it in its own object (`roomfix listen`); write it with JsonLine.
+bool MessageToJsonValue(const void* data, int size, nlohmann::ordered_json* json,
+                        std::string* error, std::string* reason = nullptr);
+
+// One line of JSON. nlohmann escapes the strings and keys (bytes that are
+// not UTF-8 become U+FFFD, so the line always parses); numbers keep the
+// format roomfix has always printed: a double as "%.17g" (reads back to the
+// same bits, 4 not 4.0; nlohmann's own dump would print the shortest form,
+// 0.1 for 0.10000000000000001 and 4.0 for 4), NaN and infinities as null.
+std::string JsonLine(const nlohmann::ordered_json& value);
 
 }  // namespace roomfix
 

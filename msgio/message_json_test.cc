@@ -3,12 +3,17 @@
 #include <gtest/gtest.h>
 
 #include <climits>
+#include <limits>
+#include <nlohmann/json.hpp>
 
 #include "msgio/test_messages.h"
 #include "msgio/wire_test_messages.h"
+#include "roomfix/image_t.hpp"
 #include "roomfix/marker_pixels_t.hpp"
+#include "roomfix/pose2d_t.hpp"
 #include "roomfix/process_status_t.hpp"
 #include "roomfix/range_set_t.hpp"
+#include "roomfix/site_t.hpp"
 
 namespace roomfix {
 namespace {
@@ -67,10 +72,14 @@ TEST(MessageJson, WritesARangeSetWithItsRanges) {
       << json;
 }
 
+// Strings are a publisher's bytes: quotes, control bytes and bytes that are
+// not UTF-8 still give one line of valid JSON that reads back to the text
+// (with U+FFFD for the byte that is no UTF-8). The newline is written "\n"
+// (nlohmann's escape; the hand-written writer wrote "\u000a", the same JSON).
 TEST(MessageJson, EscapesStringsInAStatus) {
   process_status_t s{};
   s.process = "trilat_proc";
-  s.last_error = "bad \"range\"\n";
+  s.last_error = "bad \"range\"\n\x01 \xff";
   counter_t c{};
   c.name = "negative_range";
   c.count = 3;
@@ -80,7 +89,10 @@ TEST(MessageJson, EscapesStringsInAStatus) {
   std::string json, error;
   ASSERT_TRUE(MessageToJson(bytes.data(), static_cast<int>(bytes.size()), &json, &error));
   EXPECT_NE(json.find("\"rejected\":{\"negative_range\":3}"), std::string::npos) << json;
-  EXPECT_NE(json.find("\"last_error\":\"bad \\\"range\\\"\\u000a\""), std::string::npos) << json;
+  EXPECT_NE(json.find("\"last_error\":\"bad \\\"range\\\"\\n\\u0001 "), std::string::npos) << json;
+  EXPECT_EQ(json.find('\n'), std::string::npos) << "one line";
+  const auto parsed = nlohmann::json::parse(json);
+  EXPECT_EQ(parsed["last_error"], "bad \"range\"\n\x01 \xef\xbf\xbd");
 }
 
 TEST(MessageJson, RefusesUnknownAndCorruptPayloads) {
@@ -108,6 +120,154 @@ TEST(MessageJson, RefusesAStatusWithAStringLengthOfInt32Min) {
   EXPECT_EQ(error, "refused: process_status_t.process length -2147483648 at byte 20 of " +
                        std::to_string(bytes.size()));
   EXPECT_TRUE(json.empty());
+}
+
+// The doubles the bytes of a line depend on: short and long decimals,
+// integers, powers of ten both ways, a negative zero, the smallest
+// subnormal, and the non-finite values that become null.
+constexpr double kAwkwardDoubles[] = {0.1,
+                                      1.0 / 3.0,
+                                      4.0,
+                                      -2.5,
+                                      1e-7,
+                                      1e20,
+                                      -0.0,
+                                      4.9406564584124654e-324,
+                                      1e300,
+                                      123456789.125,
+                                      std::numeric_limits<double>::quiet_NaN(),
+                                      -std::numeric_limits<double>::infinity()};
+
+template <class Msg>
+std::string JsonOf(const Msg& m) {
+  const auto bytes = Encode(m);
+  std::string json, error;
+  EXPECT_TRUE(MessageToJson(bytes.data(), static_cast<int>(bytes.size()), &json, &error)) << error;
+  return json;
+}
+
+// One line per type, byte for byte as `roomfix listen` printed it before
+// the writer became nlohmann's (these strings are that writer's output):
+// tools and scripts reading the lines see no change, numbers included
+// (every double to 17 significant digits, "%.17g", so it reads back to the
+// same bits; integers without ".0").
+TEST(MessageJson, KeepsEveryTypesBytes) {
+  pose2d_t pose = testing::MakeTestPose(1700000000000001, 3, 0.1, 1.0 / 3.0);
+  pose.camera_id = 2;
+  pose.z_m = 4.0;
+  pose.heading_rad = -2.5;
+  for (int k = 0; k < 9; ++k) pose.covariance[k / 3][k % 3] = kAwkwardDoubles[k];
+  pose.residual_m = kAwkwardDoubles[9];
+  EXPECT_EQ(
+      JsonOf(pose),
+      R"({"type":"roomfix.pose2d_t","utime":1700000000000001,"source":2,"camera_id":2,"robot_id":3,"measurement_seq":17000000000,"x_m":0.10000000000000001,"y_m":0.33333333333333331,"z_m":4,"heading_rad":-2.5,"covariance":[0.10000000000000001,0.33333333333333331,4,-2.5,9.9999999999999995e-08,1e+20,-0,4.9406564584124654e-324,1.0000000000000001e+300],"residual_m":123456789.125,"num_measurements":4,"status":0,"latency_us":1500})");
+
+  marker_pixels_t pixels{};
+  pixels.utime = 5;
+  pixels.camera_id = 1;
+  pixels.frame_seq = 99;
+  pixels.width_px = 640;
+  pixels.height_px = 480;
+  pixels.search_mode = marker_pixels_t::SEARCH_REGION_OF_INTEREST;
+  pixels.processing_time_us = 1234;
+  marker_t marker{};
+  marker.colour_class = "red";
+  marker.robot_id = 7;
+  marker.role = marker_t::ROLE_HEADING;
+  marker.u_px = kAwkwardDoubles[0];
+  marker.v_px = kAwkwardDoubles[9];
+  marker.radius_px = kAwkwardDoubles[10];
+  marker.circularity = kAwkwardDoubles[11];
+  marker.area_px = kAwkwardDoubles[7];
+  pixels.markers = {marker, marker};
+  pixels.num_markers = 2;
+  EXPECT_EQ(
+      JsonOf(pixels),
+      R"({"type":"roomfix.marker_pixels_t","utime":5,"camera_id":1,"frame_seq":99,"width_px":640,"height_px":480,"search_mode":1,"processing_time_us":1234,"markers":[{"colour_class":"red","robot_id":7,"role":2,"u_px":0.10000000000000001,"v_px":123456789.125,"radius_px":null,"circularity":null,"area_px":4.9406564584124654e-324},{"colour_class":"red","robot_id":7,"role":2,"u_px":0.10000000000000001,"v_px":123456789.125,"radius_px":null,"circularity":null,"area_px":4.9406564584124654e-324}]})");
+
+  range_set_t set{};
+  set.utime = 10;
+  set.beacon_id = 2;
+  set.firing_seq = 77;
+  set.speed_of_sound_mps = 343.21;
+  set.temperature_c = kAwkwardDoubles[6];
+  set.num_expected = 4;
+  range_t r{};
+  r.receiver_id = 3;
+  r.receiver_position_m[0] = kAwkwardDoubles[4];
+  r.receiver_position_m[1] = kAwkwardDoubles[5];
+  r.receiver_position_m[2] = kAwkwardDoubles[8];
+  r.range_m = 2.5;
+  r.time_of_flight_us = 2.5 / 343.21 * 1e6;
+  r.arrival_utime = 11;
+  set.ranges = {r};
+  set.num_ranges = 1;
+  EXPECT_EQ(
+      JsonOf(set),
+      R"({"type":"roomfix.range_set_t","utime":10,"beacon_id":2,"firing_seq":77,"speed_of_sound_mps":343.20999999999998,"temperature_c":-0,"num_expected":4,"ranges":[{"receiver_id":3,"receiver_position_m":[9.9999999999999995e-08,1e+20,1.0000000000000001e+300],"time_of_flight_us":7284.170041665453,"range_m":2.5,"arrival_utime":11}]})");
+
+  process_status_t status{};
+  status.utime = 12;
+  status.process = "trilat_proc";
+  status.host = "solver";
+  status.pid = 4321;
+  status.uptime_us = 1000000;
+  status.state = 1;
+  status.inputs = 10;
+  status.outputs = 9;
+  status.dropped = 1;
+  counter_t c{};
+  c.name = "negative_range";
+  c.count = 3;
+  status.rejected = {c};
+  status.num_rejected = 1;
+  c.name = "heartbeats";
+  c.count = 40;
+  status.counters = {c};
+  c.name = "ranges_in";
+  c.count = 41;
+  status.counters.push_back(c);
+  status.num_counters = 2;
+  status.last_error = "range 7 refused";
+  status.last_error_utime = 11;
+  EXPECT_EQ(
+      JsonOf(status),
+      R"({"type":"roomfix.process_status_t","utime":12,"process":"trilat_proc","host":"solver","pid":4321,"uptime_us":1000000,"state":1,"inputs":10,"outputs":9,"dropped":1,"rejected":{"negative_range":3},"counters":{"heartbeats":40,"ranges_in":41},"last_error":"range 7 refused","last_error_utime":11})");
+
+  image_t image{};
+  image.utime = 13;
+  image.camera_id = 1;
+  image.frame_seq = 8;
+  image.width_px = 320;
+  image.height_px = 240;
+  image.source_width_px = 640;
+  image.source_height_px = 480;
+  image.format = "jpeg";
+  image.data.assign(5, 0xff);
+  image.num_bytes = 5;
+  EXPECT_EQ(
+      JsonOf(image),
+      R"({"type":"roomfix.image_t","utime":13,"camera_id":1,"frame_seq":8,"width_px":320,"height_px":240,"source_width_px":640,"source_height_px":480,"format":"jpeg","num_bytes":5})");
+
+  site_t site{};
+  site.utime = 14;
+  site.site_name = "demo";
+  site.site_path = "/etc/roomfix/demo.yaml";
+  site.site_text = "name: demo\n";
+  site_file_t file{};
+  file.name = "camera0.yaml";
+  file.text = "model: full\n";
+  site.files = {file};
+  site.num_files = 1;
+  site.missing = "";
+  site.content_hash = "abc123";
+  site.roomfix_version = "0.9.0";
+  site.process = "trilat_proc";
+  site.host = "solver";
+  site.pid = 4321;
+  EXPECT_EQ(
+      JsonOf(site),
+      R"({"type":"roomfix.site_t","utime":14,"site_name":"demo","site_path":"/etc/roomfix/demo.yaml","site_text_bytes":11,"files":[{"name":"camera0.yaml","bytes":12}],"missing":"","content_hash":"abc123","roomfix_version":"0.9.0","process":"trilat_proc","host":"solver","pid":4321})");
 }
 
 }  // namespace

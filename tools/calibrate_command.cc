@@ -33,6 +33,7 @@
 #include "core/world/site.h"
 #include "tools/calibrate_neighbour.h"
 #include "tools/commands.h"
+#include "tools/flag_checks.h"
 
 namespace roomfix {
 namespace {
@@ -294,9 +295,8 @@ void AddChessboards(const Flags& f, std::vector<Correspondence>* points, std::ve
   const BoardSize board = ParseBoard(f.board);
   const bool fitting = !f.out.empty();
   if (fitting) {
-    if (!(f.square_m > 0.0) || !std::isfinite(f.square_m)) {
-      throw Refusal("--square: expected the square size in metres (> 0)");
-    }
+    // Unset (0): its value, when given, was checked with the flags.
+    if (f.square_m == 0.0) throw Refusal("--square: expected the square size in metres (> 0)");
     if (f.board_origins.size() != f.chessboards.size()) {
       throw Refusal("--board-origin: expected one per --chessboard (" +
                     std::to_string(f.chessboards.size()) + "), got " +
@@ -305,9 +305,6 @@ void AddChessboards(const Flags& f, std::vector<Correspondence>* points, std::ve
     if (!ParseBoardAxes(f.board_axes, nullptr)) {
       throw Refusal("--board-axes: expected x, y or a signed pair such as +x-y, got '" +
                     f.board_axes + "'");
-    }
-    if (!(f.board_height_m >= 0.0) || !std::isfinite(f.board_height_m)) {
-      throw Refusal("--board-height: expected metres >= 0");
     }
   }
   // Written whole at the end, every step checked (WriteOutputFile).
@@ -558,12 +555,6 @@ std::string Fixed(double v, int digits) {
 }
 
 void Run(const Flags& f) {
-  if (f.model != "full" && f.model != "regions") {
-    throw Refusal("--model: expected full or regions, got '" + f.model + "'");
-  }
-  if (!(f.max_rms_px > 0.0) || !std::isfinite(f.max_rms_px)) {
-    throw Refusal("--max-rms-px: expected a positive number of pixels");
-  }
   if (f.points.empty() && f.chessboards.empty() && f.marker_images.empty() &&
       f.shared_images.empty()) {
     throw Refusal("no points: give --points CSV, --chessboard IMAGE and/or --marker-images CSV");
@@ -820,7 +811,8 @@ void AddCalibrateCommand(CLI::App* app, int* exit_code) {
   cmd->add_option("--chessboard", f->chessboards,
                   "Image of one chessboard lying flat on the floor (repeatable)");
   cmd->add_option("--board", f->board, "Chessboard inner corners COLSxROWS, e.g. 9x6");
-  cmd->add_option("--square", f->square_m, "Chessboard square size in metres");
+  cmd->add_option("--square", f->square_m, "Chessboard square size in metres")
+      ->check(FiniteAbove(0.0, "the square size in metres (> 0)"));
   cmd->add_option("--board-origin", f->board_origins,
                   "Room X,Y (m) of the board's first detected corner, one per --chessboard");
   cmd->add_option("--board-axes", f->board_axes,
@@ -830,6 +822,7 @@ void AddCalibrateCommand(CLI::App* app, int* exit_code) {
       ->capture_default_str();
   cmd->add_option("--board-height", f->board_height_m,
                   "Height of the board's top surface above the floor (m)")
+      ->check(FiniteAtLeast(0.0, "metres >= 0"))
       ->capture_default_str();
   cmd->add_option("--corners-csv", f->corners_csv,
                   "Write the detected corners (image,i,j,u_px,v_px); with --chessboard and "
@@ -846,6 +839,7 @@ void AddCalibrateCommand(CLI::App* app, int* exit_code) {
                   "marker)");
   cmd->add_option("--out", f->out, "Calibration YAML to write (required unless only detecting)");
   cmd->add_option("--model", f->model, "full (the fisheye model) or regions (the reference's 9)")
+      ->check(CLI::IsMember({"full", "regions"}))
       ->capture_default_str();
   cmd->add_option("--site", f->site,
                   "Site file: camera size, field of view, mount (a prior) and room; optional "
@@ -856,10 +850,12 @@ void AddCalibrateCommand(CLI::App* app, int* exit_code) {
                   "starts from the points alone, the mount is a prior on the camera's position");
   cmd->add_option("--mount-sigma", f->mount_sigma_m,
                   "How well the mount is known (m): the prior's standard deviation")
+      ->check(FiniteAbove(0.0, "a positive number of metres"))
       ->capture_default_str();
   cmd->add_option("--fov", f->fov_deg,
                   "Nominal field of view across the width, degrees (default: the site's, else "
-                  "120); only the fit's start, which searches 0.6-1.67 times its focal length");
+                  "120); only the fit's start, which searches 0.6-1.67 times its focal length")
+      ->check(FiniteAtLeast(0.0, "degrees >= 0 (0: the site's)"));
   cmd->add_option("--distortion-terms", f->distortion_terms,
                   "Fisheye distortion terms fitted, k1..kN (1 to 4)")
       ->check(CLI::Range(1, 4))
@@ -868,14 +864,18 @@ void AddCalibrateCommand(CLI::App* app, int* exit_code) {
   cmd->add_option("--image", f->image, "Camera image to draw the fit on");
   cmd->add_option("--png", f->png, "PNG to write (default: --out with .png)");
   cmd->add_option("--outlier-px", f->outlier_px, "Residual above which a point is an outlier")
+      ->check(FiniteAbove(0.0, "a positive number of pixels"))
       ->capture_default_str();
   cmd->add_option("--pixel-sigma", f->pixel_sigma_px, "Expected pixel noise (weights the prior)")
+      ->check(FiniteAbove(0.0, "a positive number of pixels"))
       ->capture_default_str();
   cmd->add_option("--max-iterations", f->max_iterations, "Fit iterations before giving up")
+      ->check(CLI::Range(1, 100000))
       ->capture_default_str();
   cmd->add_option("--max-rms-px", f->max_rms_px,
                   "Refuse (exit 1, nothing written) a fit whose RMS residual over its points "
                   "exceeds this many pixels; camera_proc refuses files over 2 px")
+      ->check(FiniteAbove(0.0, "a positive number of pixels"))
       ->capture_default_str();
   cmd->callback([f, exit_code] {
     if (f->png.empty()) {

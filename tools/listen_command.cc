@@ -76,29 +76,26 @@ class LiveSiteWatch {
   SiteListing listing_{nullptr};
 };
 
-// A channel name is whatever a publisher chose (quotes, control bytes,
-// invalid UTF-8): nlohmann escapes it and replaces what is not UTF-8, so
-// every line stays valid JSON.
-std::string JsonString(const std::string& text) {
-  return nlohmann::json(text).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
-}
-
 // One message as one JSON line; a message refused before decoding is a line
-// with its reason, counted in *refused for the warning at exit.
+// with its reason, counted in *refused for the warning at exit. A channel
+// name is whatever a publisher chose (quotes, control bytes, bytes that are
+// not UTF-8): JsonLine escapes it like every other string, so each line
+// stays valid JSON.
 void PrintMessage(const std::string& channel, int64_t recv_utime, const void* data, int size,
                   std::map<std::string, int64_t>* refused) {
-  std::string json;
+  nlohmann::ordered_json message;
   std::string why;
   std::string reason;
-  if (MessageToJson(data, size, &json, &why, &reason)) {
-    std::printf("{\"channel\":%s,\"recv_utime\":%lld,\"message\":%s}\n",
-                JsonString(channel).c_str(), static_cast<long long>(recv_utime), json.c_str());
+  nlohmann::ordered_json line = {{"channel", channel}, {"recv_utime", recv_utime}};
+  if (MessageToJsonValue(data, size, &message, &why, &reason)) {
+    line["message"] = std::move(message);
   } else {
     ++(*refused)[reason];
-    std::printf("{\"channel\":%s,\"recv_utime\":%lld,\"size\":%d,\"refused\":%s,\"error\":%s}\n",
-                JsonString(channel).c_str(), static_cast<long long>(recv_utime), size,
-                JsonString(reason).c_str(), JsonString(why).c_str());
+    line["size"] = size;
+    line["refused"] = reason;
+    line["error"] = why;
   }
+  std::printf("%s\n", JsonLine(line).c_str());
   std::fflush(stdout);
 }
 

@@ -30,7 +30,22 @@ int main(int argc, char** argv) {
   roomfix::AddRenderCameraCommand(&app, &exit_code);
   roomfix::AddSurveyCommand(&app, &exit_code);
   roomfix::AddReplayCommand(&app, &exit_code);
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ValidationError& e) {
+    // A flag's value refused by its check (tools/flag_checks.h, CLI11's
+    // IsMember or Range): one line naming the command and exit 1, as a
+    // command's own refusals.
+    std::string command = "roomfix";
+    for (const CLI::App* a = &app; !a->get_subcommands().empty();) {
+      a = a->get_subcommands().front();
+      command += " " + a->get_name();
+    }
+    std::cerr << command << ": " << e.what() << "\n";
+    return 1;
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
   // Standard output is an output like any file (bench --json, frames,
   // map): a command whose output was lost (`> /dev/full`, a full disk)
   // has failed, whatever it computed.

@@ -4,6 +4,8 @@
 // surveyed receivers pinned. Prints site value, estimate, 1-sigma and change
 // per receiver, the held-out trilateration error before and after, and
 // writes a site-file fragment. The maths is in core/survey and docs/survey.md.
+#include <yaml-cpp/yaml.h>
+
 #include <CLI/CLI.hpp>
 #include <cmath>
 #include <cstdio>
@@ -24,6 +26,7 @@
 #include "msgio/wire_check.h"
 #include "roomfix/range_set_t.hpp"
 #include "tools/commands.h"
+#include "tools/flag_checks.h"
 #include "tools/tool_site.h"
 
 namespace roomfix {
@@ -73,6 +76,39 @@ bool ParsePins(const std::string& text, std::vector<int>* ids) {
     }
   }
   return !ids->empty();
+}
+
+// Millimetres: the survey's 1-sigma is a few of them, so four decimals in
+// metres say all it knows ("%.4f", written as the scalar's text).
+std::string Metres(double v) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%.4f", v);
+  return text;
+}
+
+// One receiver as a flow map on one line, in the site file's keys, with its
+// range scale (no site-file key) as a comment beside it.
+void EmitReceiver(const Receiver& r, const survey::ReceiverEstimate& e, YAML::Emitter* out) {
+  *out << YAML::Flow << YAML::BeginMap << YAML::Key << "id" << YAML::Value << r.id;
+  *out << YAML::Key << "address" << YAML::Value << YAML::DoubleQuoted
+       << FormatRadioAddress(r.address);
+  if (r.short_address.has_value()) {
+    char text[16];
+    std::snprintf(text, sizeof(text), "0x%04X", *r.short_address);
+    *out << YAML::Key << "short_address" << YAML::Value << text;
+  }
+  *out << YAML::Key << "position_m" << YAML::Value << YAML::Flow << YAML::BeginSeq
+       << Metres(e.position_m.x()) << Metres(e.position_m.y()) << Metres(e.position_m.z())
+       << YAML::EndSeq;
+  *out << YAML::Key << "range_offset_m" << YAML::Value << Metres(e.range_offset_m) << YAML::EndMap;
+  if (e.scale_estimated) {
+    char text[160];
+    std::snprintf(text, sizeof(text),
+                  "range scale %.5f +- %.5f (not a site-file key: correct the speed of sound or "
+                  "the receiver's clock)",
+                  e.range_scale, e.range_scale_sigma);
+    *out << YAML::Comment(text);
+  }
 }
 
 int Run(const SurveyArgs& a) {
@@ -282,36 +318,21 @@ int Run(const SurveyArgs& a) {
 
   if (!a.out.empty()) {
     // Written whole at the end with every step checked (file_io.h).
-    std::ostringstream f;
-    f << "# roomfix survey of " << a.log << " ("
-      << (a.no_reference ? "no reference, pinned " + a.pin : "reference " + a.reference) << ", "
-      << result.firings_used << " firings, residual rms " << result.residual_rms_m
-      << " m).\n# Paste over the site file's receivers.\nreceivers:\n";
-    char line[512];
+    std::ostringstream header;
+    header << "roomfix survey of " << a.log << " ("
+           << (a.no_reference ? "no reference, pinned " + a.pin : "reference " + a.reference)
+           << ", " << result.firings_used << " firings, residual rms " << result.residual_rms_m
+           << " m).\nPaste over the site file's receivers.";
+    YAML::Emitter fragment;
+    fragment << YAML::Comment(header.str()) << YAML::BeginMap << YAML::Key << "receivers"
+             << YAML::Value << YAML::BeginSeq;
     for (const Receiver& r : site.receivers) {
       const survey::ReceiverEstimate* e = result.Find(r.id);
-      if (e == nullptr) continue;
-      std::string shrt;
-      if (r.short_address.has_value()) {
-        char buffer[32];
-        std::snprintf(buffer, sizeof(buffer), ", short_address: 0x%04X", *r.short_address);
-        shrt = buffer;
-      }
-      std::snprintf(line, sizeof(line),
-                    "  - {id: %d, address: \"%s\"%s, position_m: [%.4f, %.4f, %.4f], "
-                    "range_offset_m: %.4f}\n",
-                    r.id, FormatRadioAddress(r.address).c_str(), shrt.c_str(), e->position_m.x(),
-                    e->position_m.y(), e->position_m.z(), e->range_offset_m);
-      f << line;
-      if (e->scale_estimated) {
-        std::snprintf(line, sizeof(line),
-                      "    # range scale %.5f +- %.5f (not a site-file key: correct the speed of "
-                      "sound or the receiver's clock)\n",
-                      e->range_scale, e->range_scale_sigma);
-        f << line;
-      }
+      if (e != nullptr) EmitReceiver(r, *e, &fragment);
     }
-    if (!WriteOutputFile(a.out, f.str(), &error)) {
+    fragment << YAML::EndSeq << YAML::EndMap;
+    const std::string f = std::string(fragment.c_str()) + "\n";
+    if (!WriteOutputFile(a.out, f, &error)) {
       std::cerr << "roomfix survey: " << error << "\n";
       return 1;
     }
@@ -359,7 +380,8 @@ void AddSurveyCommand(CLI::App* app, int* exit_code) {
   cmd->add_flag("--no-reference", a->no_reference,
                 "Self-calibration: beacon positions unknown, two receivers pinned");
   cmd->add_option("--pin", a->pin, "With --no-reference: ids of two surveyed receivers, ID,ID");
-  cmd->add_option("--block", a->block_s, "Held-out split: block length, seconds");
+  cmd->add_option("--block", a->block_s, "Held-out split: block length, seconds")
+      ->check(FiniteAbove(0.0, "seconds > 0"));
   cmd->add_option("--period", a->period, "Held-out split: every N-th block is held out")
       ->check(CLI::Range(2, 100));
   cmd->add_option("--out", a->out, "Write the receivers as a site-file fragment (YAML)");

@@ -1,13 +1,14 @@
 #include "core/analysis/circle_fit.h"
 
 #include <gsl/gsl_blas.h>
-#include <gsl/gsl_errno.h>
 #include <gsl/gsl_matrix.h>
 #include <gsl/gsl_multifit_nlinear.h>
 #include <gsl/gsl_vector.h>
 
 #include <cmath>
 #include <functional>
+
+#include "core/world/gsl_errors.h"
 
 namespace roomfix::analysis {
 namespace {
@@ -56,7 +57,6 @@ Solution Solve(Model* model, const std::vector<double>& start) {
       gsl_multifit_nlinear_alloc(gsl_multifit_nlinear_trust, &params, n, p);
   gsl_vector* x0 = gsl_vector_alloc(p);
   for (size_t k = 0; k < p; ++k) gsl_vector_set(x0, k, start[k]);
-  gsl_error_handler_t* old_handler = gsl_set_error_handler_off();
   int info = 0;
   int status = gsl_multifit_nlinear_init(x0, &fdf, w);
   if (status == GSL_SUCCESS) {
@@ -82,7 +82,6 @@ Solution Solve(Model* model, const std::vector<double>& start) {
     if (!s.ok) s.message = "degenerate: the points do not determine every parameter";
     gsl_matrix_free(covar);
   }
-  gsl_set_error_handler(old_handler);
   gsl_vector_free(x0);
   gsl_multifit_nlinear_free(w);
   return s;

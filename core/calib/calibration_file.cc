@@ -257,55 +257,92 @@ std::string CheckFitResidual(const Calibration& calibration, double max_rms_px) 
          Px(max_rms_px) + " px tolerance (recalibrate: check the points and the mount)";
 }
 
-std::string FormatCalibration(const Calibration& c, const std::string& header_comment) {
-  std::ostringstream s;
-  std::istringstream header(header_comment);
-  std::string line;
-  while (std::getline(header, line)) s << (line.empty() ? "#" : "# " + line) << "\n";
-  if (c.fit_rms_px >= 0.0) s << "fit_rms_px: " << Px(c.fit_rms_px) << "\n";
-  if (c.pixel_sigma_px > 0.0) s << "pixel_sigma_px: " << Px(c.pixel_sigma_px) << "\n";
-  if (c.model == Calibration::Model::kFull) {
-    const FisheyeIntrinsics& i = c.camera.intrinsics;
-    const Eigen::Matrix3d& R = c.camera.pose.R_room_from_camera;
-    const Eigen::Vector3d& p = c.camera.pose.position_m;
-    s << "model: full\n"
-      << "intrinsics:\n"
-      << "  width_px: " << i.width_px << "\n"
-      << "  height_px: " << i.height_px << "\n"
-      << "  fx_px: " << G(i.fx_px) << "\n"
-      << "  fy_px: " << G(i.fy_px) << "\n"
-      << "  cx_px: " << G(i.cx_px) << "\n"
-      << "  cy_px: " << G(i.cy_px) << "\n"
-      << "  k: [" << G(i.k[0]) << ", " << G(i.k[1]) << ", " << G(i.k[2]) << ", " << G(i.k[3])
-      << "]\n"
-      << "pose:\n"
-      << "  position_m: [" << G(p.x()) << ", " << G(p.y()) << ", " << G(p.z()) << "]\n"
-      << "  # room from camera: p_room = R p_camera + position_m\n"
-      << "  rotation_matrix:\n";
-    for (int row = 0; row < 3; ++row) {
-      s << "    - [" << G(R(row, 0)) << ", " << G(R(row, 1)) << ", " << G(R(row, 2)) << "]\n";
-    }
-    return s.str();
-  }
-  const RegionModel& m = c.regions;
-  s << "model: regions\n"
-    << "length_unit: m\n"
-    << "width_px: " << m.width_px << "\n"
-    << "height_px: " << m.height_px << "\n"
-    << "calibration_height_m: " << G(m.calibration_height_m) << "\n"
-    << "u_boundaries_px: [" << G(m.u_boundaries_px[0]) << ", " << G(m.u_boundaries_px[1]) << "]\n"
-    << "v_boundaries_px: [" << G(m.v_boundaries_px[0]) << ", " << G(m.v_boundaries_px[1]) << "]\n"
-    << "# x_m = (u_px - os1) / C_calib + os2, y_m = (v_px - os1) / C_calib + os2\n"
-    << "regions:\n";
+namespace {
+
+// A flow sequence of doubles, [a, b, c]: a vector reads as one line.
+template <class... T>
+void FlowSeq(YAML::Emitter* out, T... values) {
+  *out << YAML::Flow << YAML::BeginSeq;
+  (*out << ... << values);
+  *out << YAML::EndSeq;
+}
+
+void EmitFull(const CameraModel& camera, YAML::Emitter* out) {
+  const FisheyeIntrinsics& i = camera.intrinsics;
+  const Eigen::Matrix3d& R = camera.pose.R_room_from_camera;
+  const Eigen::Vector3d& p = camera.pose.position_m;
+  *out << YAML::Key << "model" << YAML::Value << "full";
+  *out << YAML::Key << "intrinsics" << YAML::Value << YAML::BeginMap;
+  *out << YAML::Key << "width_px" << YAML::Value << i.width_px;
+  *out << YAML::Key << "height_px" << YAML::Value << i.height_px;
+  *out << YAML::Key << "fx_px" << YAML::Value << i.fx_px;
+  *out << YAML::Key << "fy_px" << YAML::Value << i.fy_px;
+  *out << YAML::Key << "cx_px" << YAML::Value << i.cx_px;
+  *out << YAML::Key << "cy_px" << YAML::Value << i.cy_px;
+  *out << YAML::Key << "k" << YAML::Value;
+  FlowSeq(out, i.k[0], i.k[1], i.k[2], i.k[3]);
+  *out << YAML::EndMap;
+  *out << YAML::Key << "pose" << YAML::Value << YAML::BeginMap;
+  *out << YAML::Key << "position_m" << YAML::Value;
+  FlowSeq(out, p.x(), p.y(), p.z());
+  // On its own line, as the files have always had it (errors name lines).
+  *out << YAML::Newline << YAML::Comment("room from camera: p_room = R p_camera + position_m");
+  *out << YAML::Key << "rotation_matrix" << YAML::Value << YAML::BeginSeq;
+  for (int row = 0; row < 3; ++row) FlowSeq(out, R(row, 0), R(row, 1), R(row, 2));
+  *out << YAML::EndSeq << YAML::EndMap;
+}
+
+void EmitRegions(const RegionModel& m, YAML::Emitter* out) {
+  *out << YAML::Key << "model" << YAML::Value << "regions";
+  *out << YAML::Key << "length_unit" << YAML::Value << "m";
+  *out << YAML::Key << "width_px" << YAML::Value << m.width_px;
+  *out << YAML::Key << "height_px" << YAML::Value << m.height_px;
+  *out << YAML::Key << "calibration_height_m" << YAML::Value << m.calibration_height_m;
+  *out << YAML::Key << "u_boundaries_px" << YAML::Value;
+  FlowSeq(out, m.u_boundaries_px[0], m.u_boundaries_px[1]);
+  *out << YAML::Key << "v_boundaries_px" << YAML::Value;
+  FlowSeq(out, m.v_boundaries_px[0], m.v_boundaries_px[1]);
+  *out << YAML::Newline
+       << YAML::Comment("x_m = (u_px - os1) / C_calib + os2, y_m = (v_px - os1) / C_calib + os2");
+  *out << YAML::Key << "regions" << YAML::Value << YAML::BeginSeq;
   for (int i = 0; i < 9; ++i) {
     const Region& r = m.regions[static_cast<size_t>(i)];
-    s << "  - row: " << i / 3 << "\n    col: " << i % 3 << "\n";
+    *out << YAML::BeginMap << YAML::Key << "row" << YAML::Value << i / 3;
+    *out << YAML::Key << "col" << YAML::Value << i % 3;
     for (auto [name, a] : {std::pair{"x", &r.x}, {"y", &r.y}}) {
-      s << "    " << name << ": {os1: " << G(a->os1_px) << ", C_calib: " << G(a->c_px_per_m)
-        << ", os2: " << G(a->os2_m) << "}\n";
+      *out << YAML::Key << name << YAML::Value << YAML::Flow << YAML::BeginMap;
+      *out << YAML::Key << "os1" << YAML::Value << a->os1_px;
+      *out << YAML::Key << "C_calib" << YAML::Value << a->c_px_per_m;
+      *out << YAML::Key << "os2" << YAML::Value << a->os2_m << YAML::EndMap;
     }
+    *out << YAML::EndMap;
   }
-  return s.str();
+  *out << YAML::EndSeq;
+}
+
+}  // namespace
+
+// yaml-cpp writes every double to 17 significant digits (its default
+// precision, std::numeric_limits<double>::max_digits10), so a file reads
+// back to the same bits; the two pixel errors are given to 4 digits, the
+// precision of a fit residual.
+std::string FormatCalibration(const Calibration& c, const std::string& header_comment) {
+  YAML::Emitter out;
+  if (!header_comment.empty()) out << YAML::Comment(header_comment);
+  out << YAML::BeginMap;
+  if (c.fit_rms_px >= 0.0) {
+    out << YAML::Key << "fit_rms_px" << YAML::Value << YAML::Precision(4) << c.fit_rms_px;
+  }
+  if (c.pixel_sigma_px > 0.0) {
+    out << YAML::Key << "pixel_sigma_px" << YAML::Value << YAML::Precision(4) << c.pixel_sigma_px;
+  }
+  if (c.model == Calibration::Model::kFull) {
+    EmitFull(c.camera, &out);
+  } else {
+    EmitRegions(c.regions, &out);
+  }
+  out << YAML::EndMap;
+  return std::string(out.c_str()) + "\n";
 }
 
 bool SaveCalibration(const std::string& path, const Calibration& calibration,

@@ -1,6 +1,5 @@
 #include "core/calib/camera_fit.h"
 
-#include <gsl/gsl_errno.h>
 #include <gsl/gsl_multifit_nlinear.h>
 #include <gsl/gsl_vector.h>
 
@@ -9,6 +8,8 @@
 #include <algorithm>
 #include <cmath>
 #include <sstream>
+
+#include "core/world/gsl_errors.h"
 
 namespace roomfix::calib {
 namespace {
@@ -116,14 +117,12 @@ SolveResult Solve(Problem* problem) {
       gsl_multifit_nlinear_alloc(gsl_multifit_nlinear_trust, &params, n, p);
   gsl_vector* x0 = gsl_vector_alloc(p);
   for (size_t j = 0; j < p; ++j) gsl_vector_set(x0, j, problem->full[problem->free[j]]);
-  gsl_error_handler_t* old_handler = gsl_set_error_handler_off();
   int info = 0;
   int status = gsl_multifit_nlinear_init(x0, &fdf, w);
   if (status == GSL_SUCCESS) {
     status = gsl_multifit_nlinear_driver(static_cast<size_t>(problem->options.max_iterations),
                                          1e-12, 1e-12, 0.0, nullptr, nullptr, &info, w);
   }
-  gsl_set_error_handler(old_handler);
   out.iterations = static_cast<int>(gsl_multifit_nlinear_niter(w));
   if (status != GSL_SUCCESS) {
     out.message = std::string("the fit did not converge: ") + gsl_strerror(status) + " after " +

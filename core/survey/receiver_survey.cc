@@ -1,5 +1,9 @@
 #include "core/survey/receiver_survey.h"
 
+#include <gsl/gsl_matrix.h>
+#include <gsl/gsl_multilarge_nlinear.h>
+#include <gsl/gsl_vector.h>
+
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -10,6 +14,7 @@
 #include <numeric>
 
 #include "core/trilat/trilateration.h"
+#include "core/world/gsl_errors.h"
 
 namespace roomfix::survey {
 namespace {
@@ -39,8 +44,7 @@ double Median(std::vector<double> v) {
 
 // The least-squares problem: receiver ("global") parameters first, then two
 // per firing when the beacon positions are unknown. Each residual touches
-// one firing, so J^T J's beacon block is block-diagonal (2x2) and the normal
-// equations are solved by the Schur complement on the receiver parameters.
+// one firing, so the beacons are eliminated firing by firing (Reduced).
 struct Problem {
   struct Obs {
     int firing = 0;
@@ -97,132 +101,275 @@ struct Problem {
     const ReceiverModel& m = rx[o.receiver];
     return m.range_scale * (m.position_m - beacon[o.firing]).norm() + m.range_offset_m - o.d;
   }
+};
 
-  double Cost() const {
-    double c = 0.0;
-    for (const Obs& o : obs) {
-      if (o.inlier) c += std::pow(Residual(o), 2);
+// The least-squares problem GSL sees: the receiver parameters only. With
+// free beacons, each firing's (x, y) is eliminated (variable projection):
+// for given receiver parameters it is the best fit to that firing's inlier
+// ranges (SolveBeacon), and the Jacobian is the receiver block projected
+// off the beacon directions, J = J_g - J_b (J_b^T J_b)^-1 J_b^T J_g per
+// firing (Kaufman's approximation). At a solution J_b^T r = 0, so
+// J^T r = J_g^T r: the same stationary points as the joint problem, which
+// GSL could only solve densely (600 firings: 1240 unknowns) where this is
+// a 40-column fit.
+struct Reduced {
+  Problem* p = nullptr;
+  std::vector<int> inliers;                 // obs indices, in residual order
+  std::vector<std::vector<int>> by_firing;  // inlier obs indices per firing
+};
+
+// The derivatives of observation o's residual: by the receiver parameters
+// (k entries at idx) and by the beacon's x, y (w).
+int ResidualGradient(const Problem& p, const Problem::Obs& o, std::array<int, 5>* idx,
+                     std::array<double, 5>* val, Vector2d* w) {
+  const ReceiverModel& m = p.rx[o.receiver];
+  const Vector3d delta = m.position_m - p.beacon[o.firing];
+  const double dist = std::max(delta.norm(), 1e-9);
+  const Vector3d u = delta / dist;
+  int k = 0;
+  for (int c = 0; c < 3; ++c) {
+    if (p.pos_idx[o.receiver][c] >= 0) {
+      (*idx)[k] = p.pos_idx[o.receiver][c];
+      (*val)[k++] = m.range_scale * u[c];
     }
-    return c;
   }
-};
+  if (p.off_idx[o.receiver] >= 0) {
+    (*idx)[k] = p.off_idx[o.receiver];
+    (*val)[k++] = 1.0;
+  }
+  if (p.scale_idx[o.receiver] >= 0) {
+    (*idx)[k] = p.scale_idx[o.receiver];
+    (*val)[k++] = dist;
+  }
+  *w = -m.range_scale * u.head<2>();
+  return k;
+}
 
-struct Normal {
-  MatrixXd hgg;
-  VectorXd gg;
-  std::vector<Eigen::Matrix<double, Eigen::Dynamic, 2>> hgb;
-  std::vector<Matrix2d> hbb;
-  std::vector<Vector2d> gb;
-};
+double FiringCost(const Problem& p, const std::vector<int>& obs) {
+  double c = 0.0;
+  for (int i : obs) c += std::pow(p.Residual(p.obs[i]), 2);
+  return c;
+}
 
-void BuildNormal(const Problem& p, Normal* n) {
-  const int ng = p.num_global;
-  n->hgg = MatrixXd::Zero(ng, ng);
-  n->gg = VectorXd::Zero(ng);
-  const size_t nf = p.free_beacons ? p.beacon.size() : 0;
-  n->hgb.assign(nf, Eigen::Matrix<double, Eigen::Dynamic, 2>::Zero(ng, 2));
-  n->hbb.assign(nf, Matrix2d::Zero());
-  n->gb.assign(nf, Vector2d::Zero());
+// Gauss-Newton on one firing's (x, y), from its last estimate, halving a
+// step that does not lower the cost. Stops when the step is below 1e-12 m
+// or no step helps; a beacon no range constrains keeps its position.
+void SolveBeacon(Problem* p, const std::vector<int>& obs, int firing) {
+  Vector3d& q = p->beacon[static_cast<size_t>(firing)];
   std::array<int, 5> idx{};
   std::array<double, 5> val{};
-  for (const Problem::Obs& o : p.obs) {
-    if (!o.inlier) continue;
-    const ReceiverModel& m = p.rx[o.receiver];
-    const Vector3d delta = m.position_m - p.beacon[o.firing];
-    const double dist = std::max(delta.norm(), 1e-9);
-    const Vector3d u = delta / dist;
-    const double e = m.range_scale * dist + m.range_offset_m - o.d;
-    int k = 0;
-    for (int c = 0; c < 3; ++c) {
-      if (p.pos_idx[o.receiver][c] >= 0) {
-        idx[k] = p.pos_idx[o.receiver][c];
-        val[k++] = m.range_scale * u[c];
+  for (int it = 0; it < 50; ++it) {
+    Matrix2d h = Matrix2d::Identity() * 1e-12;
+    Vector2d g = Vector2d::Zero();
+    for (int i : obs) {
+      Vector2d w;
+      ResidualGradient(*p, p->obs[i], &idx, &val, &w);
+      h += w * w.transpose();
+      g += w * p->Residual(p->obs[i]);
+    }
+    const Vector2d step = -h.ldlt().solve(g);
+    if (!step.allFinite()) return;
+    const double cost = FiringCost(*p, obs);
+    const Vector2d start = q.head<2>();
+    double t = 1.0;
+    for (; t > 1e-6; t *= 0.5) {
+      q.head<2>() = start + t * step;
+      if (FiringCost(*p, obs) <= cost) break;
+    }
+    if (t <= 1e-6) {
+      q.head<2>() = start;
+      return;
+    }
+    if (t * step.norm() < 1e-12) return;
+  }
+}
+
+double SquaredNorm(const gsl_vector* v) {
+  double sum = 0.0;
+  for (size_t i = 0; i < v->size; ++i) sum += gsl_vector_get(v, i) * gsl_vector_get(v, i);
+  return sum;
+}
+
+void SolveBeacons(Reduced* r) {
+  if (!r->p->free_beacons) return;
+  for (size_t f = 0; f < r->by_firing.size(); ++f) {
+    SolveBeacon(r->p, r->by_firing[f], static_cast<int>(f));
+  }
+}
+
+// The receiver parameters from GSL's x, then the beacons that fit them best.
+void SetGlobals(const gsl_vector* x, Reduced* r) {
+  Problem* p = r->p;
+  VectorXd full = p->Pack();
+  for (int i = 0; i < p->num_global; ++i) full[i] = gsl_vector_get(x, static_cast<size_t>(i));
+  p->Unpack(full);
+  SolveBeacons(r);
+}
+
+int ReducedF(const gsl_vector* x, void* params, gsl_vector* f) {
+  auto* r = static_cast<Reduced*>(params);
+  SetGlobals(x, r);
+  for (size_t i = 0; i < r->inliers.size(); ++i) {
+    gsl_vector_set(f, i, r->p->Residual(r->p->obs[static_cast<size_t>(r->inliers[i])]));
+  }
+  return GSL_SUCCESS;
+}
+
+// J u, J^T u and J^T J of the projected Jacobian without forming it (GSL's
+// multilarge interface): row i is g_i - w_i^T A_f^-1 C_f, with g_i the
+// receiver row (at most 5 entries), w_i the beacon row, A_f = sum w w^T and
+// C_f = sum w g^T over firing f's inliers. As the projection is idempotent,
+// J^T J = sum g g^T - sum_f C_f^T A_f^-1 C_f: the Schur complement the
+// normal equations had, a num_global-square matrix.
+struct Products {
+  MatrixXd jtj;            // J^T J, num_global square
+  VectorXd jtu;            // J^T u for u by observation (u_of)
+  std::vector<double> ju;  // J ug by observation
+};
+
+Products ReducedProducts(const Reduced& r, const std::vector<double>& u_of, const VectorXd& ug) {
+  const Problem& p = *r.p;
+  const Eigen::Index ng = p.num_global;
+  Products out{MatrixXd::Zero(ng, ng), VectorXd::Zero(ng), std::vector<double>(p.obs.size(), 0.0)};
+  std::array<int, 5> idx{};
+  std::array<double, 5> val{};
+  // With fixed beacons every observation is its own group, without projection.
+  const auto& groups = p.free_beacons ? r.by_firing : std::vector<std::vector<int>>{r.inliers};
+  for (const std::vector<int>& obs : groups) {
+    Matrix2d a = Matrix2d::Identity() * 1e-12;
+    Eigen::Matrix<double, 2, Eigen::Dynamic> c =
+        Eigen::Matrix<double, 2, Eigen::Dynamic>::Zero(2, ng);
+    Vector2d wu = Vector2d::Zero();
+    std::vector<Vector2d> ws;
+    for (int i : obs) {
+      Vector2d w;
+      const int k = ResidualGradient(p, p.obs[static_cast<size_t>(i)], &idx, &val, &w);
+      const double ui = u_of[static_cast<size_t>(i)];
+      double gu = 0.0;
+      for (int e = 0; e < k; ++e) {
+        out.jtu[idx[e]] += val[e] * ui;
+        gu += val[e] * ug[idx[e]];
+        for (int f = 0; f < k; ++f) out.jtj(idx[e], idx[f]) += val[e] * val[f];
+        c.col(idx[e]) += w * val[e];
+      }
+      out.ju[static_cast<size_t>(i)] = gu;
+      a += w * w.transpose();
+      wu += w * ui;
+      ws.push_back(w);
+    }
+    if (!p.free_beacons) continue;
+    const Eigen::Matrix<double, 2, Eigen::Dynamic> ainv_c = a.ldlt().solve(c);
+    out.jtj.noalias() -= c.transpose() * ainv_c;
+    out.jtu.noalias() -= ainv_c.transpose() * wu;
+    const Vector2d cu = ainv_c * ug;
+    for (size_t j = 0; j < obs.size(); ++j) out.ju[static_cast<size_t>(obs[j])] -= ws[j].dot(cu);
+  }
+  return out;
+}
+
+int ReducedDf(CBLAS_TRANSPOSE_t trans, const gsl_vector* x, const gsl_vector* u, void* params,
+              gsl_vector* v, gsl_matrix* jtj) {
+  auto* r = static_cast<Reduced*>(params);
+  SetGlobals(x, r);
+  const Problem& p = *r->p;
+  const Eigen::Index ng = p.num_global;
+  std::vector<double> u_of(p.obs.size(), 0.0);
+  VectorXd ug = VectorXd::Zero(ng);
+  if (trans == CblasTrans) {
+    for (size_t i = 0; i < r->inliers.size(); ++i) {
+      u_of[static_cast<size_t>(r->inliers[i])] = gsl_vector_get(u, i);
+    }
+  } else {
+    for (Eigen::Index j = 0; j < ng; ++j) ug[j] = gsl_vector_get(u, static_cast<size_t>(j));
+  }
+  const Products products = ReducedProducts(*r, u_of, ug);
+  if (trans == CblasTrans) {
+    for (Eigen::Index j = 0; j < ng; ++j) {
+      gsl_vector_set(v, static_cast<size_t>(j), products.jtu[j]);
+    }
+  } else {
+    for (size_t i = 0; i < r->inliers.size(); ++i) {
+      gsl_vector_set(v, i, products.ju[static_cast<size_t>(r->inliers[i])]);
+    }
+  }
+  if (jtj != nullptr) {
+    for (Eigen::Index i = 0; i < ng; ++i) {
+      for (Eigen::Index j = 0; j < ng; ++j) {
+        gsl_matrix_set(jtj, static_cast<size_t>(i), static_cast<size_t>(j), products.jtj(i, j));
       }
     }
-    if (p.off_idx[o.receiver] >= 0) {
-      idx[k] = p.off_idx[o.receiver];
-      val[k++] = 1.0;
-    }
-    if (p.scale_idx[o.receiver] >= 0) {
-      idx[k] = p.scale_idx[o.receiver];
-      val[k++] = dist;
-    }
-    for (int a = 0; a < k; ++a) {
-      n->gg[idx[a]] += val[a] * e;
-      for (int b = 0; b < k; ++b) n->hgg(idx[a], idx[b]) += val[a] * val[b];
-    }
-    if (p.free_beacons) {
-      const Vector2d w = -m.range_scale * u.head<2>();
-      const size_t f = static_cast<size_t>(o.firing);
-      n->hbb[f] += w * w.transpose();
-      n->gb[f] += w * e;
-      for (int a = 0; a < k; ++a) n->hgb[f].row(idx[a]) += val[a] * w.transpose();
-    }
   }
+  return GSL_SUCCESS;
 }
 
-// Solves (H + lambda diag(H)) dx = -g through the Schur complement. Also
-// returns the (undamped when lambda = 0) Schur complement S.
-VectorXd SolveStep(const Normal& n, double lambda, MatrixXd* schur) {
-  const Eigen::Index ng = n.gg.size();
-  MatrixXd s = n.hgg;
-  for (Eigen::Index i = 0; i < ng; ++i) s(i, i) += lambda * s(i, i) + 1e-12;
-  VectorXd rhs = -n.gg;
-  std::vector<Matrix2d> inv(n.hbb.size());
-  for (size_t f = 0; f < n.hbb.size(); ++f) {
-    Matrix2d a = n.hbb[f];
-    a(0, 0) += lambda * a(0, 0) + 1e-12;
-    a(1, 1) += lambda * a(1, 1) + 1e-12;
-    inv[f] = a.inverse();
-    s.noalias() -= n.hgb[f] * inv[f] * n.hgb[f].transpose();
-    rhs.noalias() += n.hgb[f] * (inv[f] * n.gb[f]);
+Reduced MakeReduced(Problem* p) {
+  Reduced r;
+  r.p = p;
+  r.by_firing.assign(p->beacon.size(), {});
+  for (size_t i = 0; i < p->obs.size(); ++i) {
+    if (!p->obs[i].inlier) continue;
+    r.inliers.push_back(static_cast<int>(i));
+    r.by_firing[static_cast<size_t>(p->obs[i].firing)].push_back(static_cast<int>(i));
   }
-  VectorXd dg = ng > 0 ? VectorXd(s.ldlt().solve(rhs)) : VectorXd();
-  VectorXd dx(ng + 2 * static_cast<Eigen::Index>(n.hbb.size()));
-  if (ng > 0) dx.head(ng) = dg;
-  for (size_t f = 0; f < n.hbb.size(); ++f) {
-    Vector2d rb = -n.gb[f];
-    if (ng > 0) rb -= n.hgb[f].transpose() * dg;
-    dx.segment<2>(ng + 2 * static_cast<Eigen::Index>(f)) = inv[f] * rb;
-  }
-  if (schur != nullptr) *schur = s;
-  return dx;
+  return r;
 }
 
-// Levenberg-Marquardt on the inliers. Returns the iterations used.
+// Levenberg-Marquardt on the inliers (GSL's trust-region solver over the
+// receiver parameters, beacons eliminated). Returns the iterations used;
+// a fit GSL cannot start (fewer ranges than parameters) or that stops
+// early keeps the best parameters reached, and the caller judges them by
+// their residuals and covariance.
 int Minimise(Problem* p, int max_iterations) {
-  double lambda = 1e-3;
-  double cost = p->Cost();
-  int it = 0;
-  Normal n;
-  for (; it < max_iterations; ++it) {
-    BuildNormal(*p, &n);
-    const VectorXd x = p->Pack();
-    bool accepted = false;
-    double new_cost = cost;
-    VectorXd dx;
-    while (lambda < 1e12) {
-      dx = SolveStep(n, lambda, nullptr);
-      if (!dx.allFinite()) {
-        lambda *= 10;
-        continue;
-      }
-      p->Unpack(x + dx);
-      new_cost = p->Cost();
-      if (new_cost < cost) {
-        accepted = true;
-        lambda = std::max(lambda * 0.2, 1e-10);
-        break;
-      }
-      p->Unpack(x);
-      lambda *= 10;
-    }
-    if (!accepted) break;
-    const double improvement = cost - new_cost;
-    cost = new_cost;
-    if (improvement <= 1e-14 * (cost + 1e-12) || dx.lpNorm<Eigen::Infinity>() < 1e-10) break;
+  Reduced r = MakeReduced(p);
+  const size_t n = r.inliers.size();
+  const size_t np = static_cast<size_t>(p->num_global);
+  if (np == 0 || n < np) {
+    if (np == 0) SolveBeacons(&r);
+    return 0;
   }
-  return it;
+  gsl_multilarge_nlinear_fdf fdf;
+  fdf.f = ReducedF;
+  fdf.df = ReducedDf;
+  fdf.fvv = nullptr;
+  fdf.n = n;
+  fdf.p = np;
+  fdf.params = &r;
+  fdf.nevalf = fdf.nevaldfu = fdf.nevaldf2 = fdf.nevalfvv = 0;
+  gsl_multilarge_nlinear_parameters params = gsl_multilarge_nlinear_default_parameters();
+  gsl_multilarge_nlinear_workspace* w =
+      gsl_multilarge_nlinear_alloc(gsl_multilarge_nlinear_trust, &params, n, np);
+  if (w == nullptr) return 0;
+  const VectorXd start = p->Pack();
+  gsl_vector* x0 = gsl_vector_alloc(np);
+  for (size_t j = 0; j < np; ++j) gsl_vector_set(x0, j, start[static_cast<Eigen::Index>(j)]);
+  int iterations = 0;
+  if (gsl_multilarge_nlinear_init(x0, &fdf, w) == GSL_SUCCESS) {
+    // Each iterate is one accepted step (GSL_ENOPROG: none lowers the cost).
+    // Converged when the cost falls by no more than 1e-14 of itself or no
+    // parameter moves by 1e-10 (0.1 nm on metres): GSL's own relative step
+    // test never passes for a parameter at 0, an offset say.
+    double cost = SquaredNorm(gsl_multilarge_nlinear_residual(w));
+    std::vector<double> last(np);
+    while (iterations < max_iterations) {
+      for (size_t j = 0; j < np; ++j)
+        last[j] = gsl_vector_get(gsl_multilarge_nlinear_position(w), j);
+      if (gsl_multilarge_nlinear_iterate(w) != GSL_SUCCESS) break;
+      ++iterations;
+      const double new_cost = SquaredNorm(gsl_multilarge_nlinear_residual(w));
+      double step = 0.0;
+      for (size_t j = 0; j < np; ++j) {
+        step = std::max(step,
+                        std::abs(gsl_vector_get(gsl_multilarge_nlinear_position(w), j) - last[j]));
+      }
+      const double improvement = cost - new_cost;
+      cost = new_cost;
+      if (improvement <= 1e-14 * (cost + 1e-12) || step < 1e-10) break;
+    }
+    SetGlobals(gsl_multilarge_nlinear_position(w), &r);
+  }
+  gsl_vector_free(x0);
+  gsl_multilarge_nlinear_free(w);
+  return iterations;
 }
 
 struct RobustFit {
@@ -286,10 +433,14 @@ void AssignIndices(Problem* p, const SurveyOptions& options, bool with_scale) {
 // Fills the result from a fitted problem.
 void Summarise(const Problem& p, const RobustFit& fit, const SurveyOptions& options,
                SurveyResult* result) {
-  Normal n;
-  BuildNormal(p, &n);
-  MatrixXd s;
-  SolveStep(n, 0.0, &s);
+  // S: J^T J of the receiver parameters with the beacons eliminated (the
+  // Schur complement of the full J^T J), regularised by 1e-12 as the fit's.
+  Problem copy = p;
+  const Reduced reduced = MakeReduced(&copy);
+  MatrixXd s =
+      ReducedProducts(reduced, std::vector<double>(p.obs.size(), 0.0), VectorXd::Zero(p.num_global))
+          .jtj;
+  s.diagonal().array() += 1e-12;
   const Eigen::Index ng = s.rows();
   // Column scaling so that the condition number is unit-free.
   VectorXd d(ng);

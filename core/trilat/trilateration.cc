@@ -1,7 +1,6 @@
 #include "core/trilat/trilateration.h"
 
 #include <gsl/gsl_cdf.h>
-#include <gsl/gsl_errno.h>
 #include <gsl/gsl_multimin.h>
 
 #include <Eigen/Dense>
@@ -9,6 +8,8 @@
 #include <cmath>
 #include <memory>
 #include <sstream>
+
+#include "core/world/gsl_errors.h"
 
 namespace roomfix::trilat {
 namespace {

@@ -210,6 +210,41 @@ TEST(RoomfixCalibrate, RefusesAFitOverTheResidualToleranceWithOneLine) {
       << r.out;
 }
 
+// Every numeric flag is checked while the command line is parsed (CLI11
+// validators, tools/flag_checks.h), NaN and infinities included: one line
+// naming the command and the flag, exit 1, nothing written.
+TEST(RoomfixCalibrate, RefusesAnOutOfRangeFlagWhileParsingWithOneLine) {
+  TempDir dir;
+  ASSERT_TRUE(WriteFile(dir.File("p.csv"), PointsCsv()));
+  const std::vector<std::string> base = {"calibrate",
+                                         "--points",
+                                         dir.File("p.csv"),
+                                         "--out",
+                                         dir.File("cal.yaml"),
+                                         "--site",
+                                         SourceDir() + "/config/sites/demo_room.yaml"};
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"--model", "pinhole"}, "roomfix calibrate: --model: pinhole not in {full,regions}"},
+      {{"--square", "nan"}, "roomfix calibrate: --square: expected the square size in metres"},
+      {{"--board-height", "-0.01"}, "roomfix calibrate: --board-height: expected metres >= 0"},
+      {{"--mount-sigma", "0"}, "roomfix calibrate: --mount-sigma: expected a positive number"},
+      {{"--outlier-px", "inf"}, "roomfix calibrate: --outlier-px: expected a positive number"},
+      {{"--pixel-sigma", "-1"}, "roomfix calibrate: --pixel-sigma: expected a positive number"},
+      {{"--fov", "nan"}, "roomfix calibrate: --fov: expected degrees >= 0"},
+      {{"--max-iterations", "0"},
+       "roomfix calibrate: --max-iterations: Value 0 not in range 1 to 100000"},
+  };
+  for (const auto& [extra, message] : cases) {
+    std::vector<std::string> args = base;
+    args.insert(args.end(), extra.begin(), extra.end());
+    const RunResult r = Roomfix(args, /*stderr_only=*/true);
+    EXPECT_EQ(r.exit_code, 1) << message;
+    EXPECT_EQ(r.out.rfind(message, 0), 0u) << r.out;
+    EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+    EXPECT_FALSE(std::filesystem::exists(dir.File("cal.yaml"))) << message;
+  }
+}
+
 // More outliers than a fit may leave out (20 % of the points): refused at
 // once instead of refitting once per outlier.
 TEST(RoomfixCalibrate, RefusesPointsWithMoreOutliersThanItMayLeaveOut) {

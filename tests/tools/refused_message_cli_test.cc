@@ -88,6 +88,53 @@ TEST(RoomfixListen, RefusesHostileMessagesInALogAndCountsThemByReason) {
       << run.err;
 }
 
+// A channel name is the publisher's: quotes, backslashes, control bytes
+// (not NUL: no log holds it) and bytes that are not UTF-8 still give lines
+// of valid JSON that read back to the name (U+FFFD for what is not UTF-8);
+// an ordinary line keeps its bytes.
+TEST(RoomfixListen, EscapesEveryChannelNameIntoValidJson) {
+  TempDir dir;
+  const std::string path = dir.File("names.lcm");
+  const std::vector<uint8_t> pose =
+      testing::Encode(testing::MakeTestPose(1700000000000000, 1, 1.0, 2.0));
+  const std::vector<std::string> names = {"POSE_GROUND_TRUTH", "say \"hi\"", "back\\slash",
+                                          "bell\a\x1f\x7f tab\t", "bad \xff\xfe utf8"};
+  {
+    std::string error;
+    auto log = LogWriter::Create(path, true, &error);
+    ASSERT_NE(log, nullptr) << error;
+    for (size_t i = 0; i < names.size(); ++i) {
+      ASSERT_TRUE(log->Write(1700000000000000 + static_cast<int64_t>(i), names[i], pose.data(),
+                             static_cast<int>(pose.size()), &error))
+          << error;
+    }
+    ASSERT_TRUE(log->Flush(&error)) << error;
+  }
+  const ToolRun run = RunRoomfix(dir, "listen --lcm-url 'file://" + path + "?speed=0'");
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  std::vector<std::string> lines;
+  std::istringstream out(run.out);
+  for (std::string line; std::getline(out, line);) lines.push_back(line);
+  ASSERT_EQ(lines.size(), names.size()) << run.out;
+  std::vector<std::string> read_back;
+  for (const std::string& line : lines) {
+    json parsed;
+    ASSERT_NO_THROW(parsed = json::parse(line)) << line;
+    EXPECT_EQ(parsed["message"]["x_m"], 1.0) << line;
+    read_back.push_back(parsed["channel"]);
+  }
+  EXPECT_EQ(read_back[0], names[0]);
+  EXPECT_EQ(read_back[1], names[1]);
+  EXPECT_EQ(read_back[2], names[2]);
+  EXPECT_EQ(read_back[3], names[3]);
+  EXPECT_EQ(read_back[4], "bad \xef\xbf\xbd\xef\xbf\xbd utf8");
+  EXPECT_EQ(lines[0].rfind(R"({"channel":"POSE_GROUND_TRUTH","recv_utime":1700000000000000,)"
+                           R"("message":{"type":"roomfix.pose2d_t","utime":1700000000000000,)",
+                           0),
+            0u)
+      << lines[0];
+}
+
 TEST(RoomfixAnalyze, ReportsARefusedPoseOnStderrAndReadsTheRest) {
   TempDir dir;
   WriteHostileLog(dir.File("hostile.lcm"));
