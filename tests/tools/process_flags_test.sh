@@ -7,15 +7,22 @@ build=$1 source=$2
 site=$source/config/sites/demo_room.yaml
 failures=0
 fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
+# Output is captured whole before it is searched: under pipefail,
+# `prog --help | grep -q X` fails at random, because grep exits at the first
+# match and prog, still writing, dies of SIGPIPE (status 141).
+has() {  # text pattern: whether a line of text matches the extended regex
+  grep -qE -- "$2" <<<"$1"
+}
 
 for bin in roomfix_sim trilat_proc fusion_proc zigbee_bridge roomfix_viewer camera_proc; do
   extra=()
   # --check validates the port's name, not the device: none is needed here.
   [[ $bin == zigbee_bridge ]] && extra=(--port /dev/ttyUSB0)
   [[ $bin == roomfix_viewer ]] && extra=(--headless --png /tmp/never_written.png)
-  "$build/bin/$bin" --help | grep -q -- '--lcm-url' || fail "$bin --help lacks --lcm-url"
-  "$build/bin/$bin" --help | grep -q -- '--config' || fail "$bin --help lacks --config"
-  "$build/bin/$bin" --help | grep -q -- '--log-color' || fail "$bin --help lacks --log-color"
+  help=$("$build/bin/$bin" --help)
+  has "$help" '--lcm-url' || fail "$bin --help lacks --lcm-url"
+  has "$help" '--config' || fail "$bin --help lacks --config"
+  has "$help" '--log-color' || fail "$bin --help lacks --log-color"
   out=$("$build/bin/$bin" "${extra[@]}" --config "$site" --check 2>/dev/null) || fail "$bin --check failed"
   [[ "$out" == *"ok"* ]] || fail "$bin --check printed '$out'"
   err=$("$build/bin/$bin" "${extra[@]}" --config "$source/tests/data/broken_sites/duplicate_address.yaml" 2>&1 >/dev/null)
@@ -41,15 +48,15 @@ err=$(env -u DISPLAY "$build/bin/roomfix_viewer" --config "$site" 2>&1 >/dev/nul
 (($? != 0)) && [[ "$err" == *"no display"* ]] || fail "roomfix_viewer without a display: '$err'"
 
 logger=$build/bin/roomfix_logger
-"$logger" --help | grep -q -- '--lcm-url' || fail "roomfix_logger --help lacks --lcm-url"
+has "$("$logger" --help)" '--lcm-url' || fail "roomfix_logger --help lacks --lcm-url"
 out=$("$logger" /tmp/never_written.lcm --check 2>/dev/null) || fail "roomfix_logger --check failed"
 [[ "$out" == *"ok"* ]] || fail "roomfix_logger --check printed '$out'"
 [[ ! -e /tmp/never_written.lcm ]] || fail "roomfix_logger --check wrote a file"
 err=$("$logger" /tmp/x.lcm --lcm-url "nonsense://" 2>&1 >/dev/null)
 (($? != 0)) && [[ "$err" == *"cannot start LCM"* ]] || fail "roomfix_logger on a bad URL: '$err'"
 
-"$build/bin/roomfix" version | grep -q '^roomfix ' || fail "roomfix version"
-"$build/bin/roomfix" --help | grep -q 'check-config' || fail "roomfix --help lacks check-config"
+has "$("$build/bin/roomfix" version)" '^roomfix ' || fail "roomfix version"
+has "$("$build/bin/roomfix" --help)" 'check-config' || fail "roomfix --help lacks check-config"
 out=$("$build/bin/roomfix" log-info "$source/tests/data/ground_truth_sample.lcm") || fail "log-info"
 grep -q 'POSE_GROUND_TRUTH.*roomfix.pose2d_t' <<<"$out" || fail "log-info did not list the poses: $out"
 
