@@ -33,6 +33,10 @@ void AddBenchViewerCommand(CLI::App* bench, int* exit_code);
 void AddBenchCameraCommand(CLI::App* bench, int* exit_code);
 // Adds `replay` under the `bench` subcommand.
 void AddBenchReplayCommand(CLI::App* bench, int* exit_code);
+// roomfix bench micro (bench_micro.cc): Google Benchmark timings of the
+// camera path's kernels against baselines in the same run; built only
+// with Google Benchmark (ROOMFIX_BENCH_MICRO).
+void AddBenchMicroCommand(CLI::App* bench, int* exit_code);
 
 }  // namespace roomfix
 
