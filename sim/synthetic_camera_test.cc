@@ -3,10 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <ctime>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -381,38 +379,6 @@ TEST(SyntheticCamera, SimulatedRobotsFollowTheSiteTrajectories) {
   EXPECT_DOUBLE_EQ(robots[0].x_m, pose.x_m);
   EXPECT_DOUBLE_EQ(robots[0].y_m, pose.y_m);
   EXPECT_DOUBLE_EQ(robots[0].heading_rad, pose.heading_rad);
-}
-
-TEST(SyntheticCamera, PrintsTheFrameCost) {
-  const Demo& d = DemoRoom();
-  for (const char* name : {"clean", "harsh", "webcam"}) {
-    SimScenario s;
-    ASSERT_TRUE(ParseSimScenario(name, &s, nullptr));
-    const auto t0 = std::chrono::steady_clock::now();
-    const SyntheticCamera camera(d.site, d.camera, d.model, s);
-    const auto t1 = std::chrono::steady_clock::now();
-    const std::clock_t c1 = std::clock();
-    cv::Mat image;
-    std::vector<MarkerTruth> truth;
-    constexpr int kFrames = 30;
-    for (int f = 0; f < kFrames; ++f) {
-      camera.Render(f / 30.0, f, camera.SimulatedRobots(f / 30.0), &image, &truth);
-    }
-    const auto t2 = std::chrono::steady_clock::now();
-    const std::clock_t c2 = std::clock();
-    // The camera's own JPEG (quality 90 as SimFrameSource's default; the
-    // webcam's 80).
-    std::vector<uint8_t> bytes;
-    for (int f = 0; f < kFrames; ++f) ASSERT_TRUE(camera.Encode(image, 90, &bytes));
-    const std::clock_t c3 = std::clock();
-    std::printf(
-        "%s: construction %.0f ms, frame %.2f ms wall, %.2f ms CPU (1920 x 1080, one "
-        "robot); JPEG q%d %.2f ms CPU, %.0f kB\n",
-        name, std::chrono::duration<double, std::milli>(t1 - t0).count(),
-        std::chrono::duration<double, std::milli>(t2 - t1).count() / kFrames,
-        1000.0 * static_cast<double>(c2 - c1) / CLOCKS_PER_SEC / kFrames, camera.JpegQuality(90),
-        1000.0 * static_cast<double>(c3 - c2) / CLOCKS_PER_SEC / kFrames, bytes.size() / 1024.0);
-  }
 }
 
 TEST(ParseSimScenario, KnowsTheScenarios) {
