@@ -3,7 +3,6 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cstdio>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
@@ -280,58 +279,6 @@ TEST(JpegImage, RefusesTruncatedHeader) {
   std::string error;
   EXPECT_EQ(MakeJpegImage(bytes, &error), nullptr);
   EXPECT_TRUE(MentionsTruncation(error)) << error;
-}
-
-double MedianMs(const std::function<void()>& fn, int runs) {
-  std::vector<double> ms;
-  for (int i = 0; i < runs; ++i) {
-    const auto t0 = std::chrono::steady_clock::now();
-    fn();
-    ms.push_back(
-        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
-  }
-  std::sort(ms.begin(), ms.end());
-  return ms[ms.size() / 2];
-}
-
-// Prints decode times for a 1920x1080 frame (no timed assertion).
-TEST(JpegImage, PrintsDecodeTimes) {
-  REQUIRE_SAMPLES();
-  for (const bool mosaic : {false, true}) {
-    const std::vector<uint8_t> bytes = mosaic ? HdMosaicJpeg() : HdJpeg();
-    constexpr int kRuns = 21;
-    std::printf("\n1920x1080 JPEG (%s), %zu bytes, median of %d runs, ms\n",
-                mosaic ? "mosaic of left01..09" : "smarties upscaled", bytes.size(), kRuns);
-    cv::Mat out;
-    const double imdecode_ms =
-        MedianMs([&] { out = cv::imdecode(bytes, cv::IMREAD_COLOR); }, kRuns);
-    std::printf("  cv::imdecode full: %.2f\n", imdecode_ms);
-    std::printf("  %-22s %7s %7s %7s %7s %8s %8s %8s\n", "dct / upsampling", "full", "1/2", "1/4",
-                "1/8", "roi mid", "roi bot", "roi top");
-    for (const bool fast : {true, false}) {
-      for (const bool fancy : {false, true}) {
-        auto image = MustMake(bytes, JpegDecodeOptions{fast, fancy});
-        ASSERT_NE(image, nullptr);
-        std::string error;
-        double ms[7];
-        for (int s = 0; s < 4; ++s) {
-          const int scale = 1 << s;
-          ms[s] = MedianMs([&] { ASSERT_TRUE(image->DecodeReduced(scale, &out, &error)) << error; },
-                           kRuns);
-        }
-        const cv::Rect rois[3] = {{860, 440, 200, 200}, {860, 860, 200, 200}, {860, 0, 200, 200}};
-        for (int r = 0; r < 3; ++r) {
-          ms[4 + r] = MedianMs(
-              [&] { ASSERT_TRUE(image->DecodeRegion(rois[r], &out, &error)) << error; }, kRuns);
-        }
-        std::printf(
-            "  %-22s %7.2f %7.2f %7.2f %7.2f %8.2f %8.2f %8.2f\n",
-            (std::string(fast ? "IFAST" : "ISLOW") + (fancy ? " / triangular" : " / replicate"))
-                .c_str(),
-            ms[0], ms[1], ms[2], ms[3], ms[4], ms[5], ms[6]);
-      }
-    }
-  }
 }
 
 TEST(DecodedImage, ViewsAndAreaReduction) {

@@ -9,6 +9,7 @@
 #include <chrono>
 #include <vector>
 
+#include "tests/testing/byte_reads.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -31,26 +32,6 @@ bool Exists(const std::string& path) {
 // pseudo-terminal must already be raw.
 int OpenSlave(const PseudoTerminal& pty) {
   return ::open(pty.device_path().c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
-}
-
-// Reads until `size` bytes came or timeout_ms passed.
-std::vector<uint8_t> ReadFor(int fd, size_t size, int timeout_ms) {
-  std::vector<uint8_t> out;
-  const Clock::time_point deadline = Clock::now() + std::chrono::milliseconds(timeout_ms);
-  while (out.size() < size && Clock::now() < deadline) {
-    pollfd p{fd, POLLIN, 0};
-    if (::poll(&p, 1, 10) <= 0) continue;
-    uint8_t buffer[512];
-    const ssize_t n = ::read(fd, buffer, sizeof(buffer));
-    if (n > 0) out.insert(out.end(), buffer, buffer + n);
-  }
-  return out;
-}
-
-std::vector<uint8_t> AllByteValues() {
-  std::vector<uint8_t> bytes(256);
-  for (int i = 0; i < 256; ++i) bytes[i] = static_cast<uint8_t>(i);
-  return bytes;
 }
 
 TEST(PseudoTerminal, CreatesTheSymlinkAndRemovesItWhenDestroyed) {
@@ -116,14 +97,14 @@ TEST(PseudoTerminal, PassesEveryByteValueUntouchedInBothDirections) {
   ASSERT_GE(slave, 0);
   // Includes XON/XOFF (0x11/0x13), CR/LF, ^C and ^D, which a cooked
   // terminal would act on or translate.
-  const std::vector<uint8_t> bytes = AllByteValues();
+  const std::vector<uint8_t> bytes = testing::AllByteValues();
   ASSERT_TRUE(pty->Write(bytes.data(), bytes.size(), &error)) << error;
-  EXPECT_EQ(ReadFor(slave, bytes.size(), 1000), bytes);
+  EXPECT_EQ(testing::ReadFdFor(slave, bytes.size(), 1000), bytes);
   // Nothing echoed back to the writer.
-  EXPECT_TRUE(ReadFor(pty->master_fd(), 1, 20).empty());
+  EXPECT_TRUE(testing::ReadFdFor(pty->master_fd(), 1, 20).empty());
 
   ASSERT_EQ(::write(slave, bytes.data(), bytes.size()), 256);
-  EXPECT_EQ(ReadFor(pty->master_fd(), bytes.size(), 1000), bytes);
+  EXPECT_EQ(testing::ReadFdFor(pty->master_fd(), bytes.size(), 1000), bytes);
   ::close(slave);
 }
 
@@ -136,7 +117,7 @@ TEST(PseudoTerminal, ReaderCanCloseAndReopenTheSlaveWithoutTheMasterHangingUp) {
   int slave = OpenSlave(*pty);
   ASSERT_GE(slave, 0);
   ASSERT_TRUE(pty->Write(first, sizeof(first), &error)) << error;
-  EXPECT_EQ(ReadFor(slave, 2, 1000), std::vector<uint8_t>(first, first + 2));
+  EXPECT_EQ(testing::ReadFdFor(slave, 2, 1000), std::vector<uint8_t>(first, first + 2));
   ::close(slave);
 
   // No reader: the master must not report a hang-up (a poll loop on it
@@ -148,7 +129,7 @@ TEST(PseudoTerminal, ReaderCanCloseAndReopenTheSlaveWithoutTheMasterHangingUp) {
 
   slave = OpenSlave(*pty);
   ASSERT_GE(slave, 0);
-  EXPECT_EQ(ReadFor(slave, 2, 1000), std::vector<uint8_t>(second, second + 2));
+  EXPECT_EQ(testing::ReadFdFor(slave, 2, 1000), std::vector<uint8_t>(second, second + 2));
   ::close(slave);
 }
 
@@ -189,7 +170,7 @@ TEST(PseudoTerminal, WritingToATerminalNobodyReadsGivesUpWithinTheBound) {
   // A reader arriving drains the queue and writes go through again.
   const int slave = OpenSlave(*pty);
   ASSERT_GE(slave, 0);
-  ReadFor(slave, 1 << 20, 100);
+  testing::ReadFdFor(slave, 1 << 20, 100);
   const uint8_t frame[] = {0x7E, 0x00, 0x01};
   EXPECT_TRUE(pty->Write(frame, sizeof(frame), &error)) << error;
   ::close(slave);

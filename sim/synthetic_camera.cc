@@ -879,6 +879,28 @@ bool ParseSimScenario(const std::string& text, const Site& site, SimScenario* sc
   return true;
 }
 
+WebcamSimulation WithoutWebcamEffects(WebcamSimulation w) {
+  w.psf_sigma_px = 0.0;
+  w.vignetting_corner_gain = 1.0;
+  w.lens_k = {0.0, 0.0, 0.0, 0.0};
+  w.lens_principal_offset_px = {0.0, 0.0};
+  w.exposure_s = 0.0;
+  w.readout_s = 0.0;
+  w.auto_exposure_drift = 0.0;
+  w.white_balance_drift = 0.0;
+  w.shot_noise = false;
+  w.read_noise_e = 0.0;
+  w.bayer = false;
+  w.tilt_static_deg = 0.0;
+  w.tilt_per_acceleration_deg_per_mps2 = 0.0;
+  w.tilt_rocking_deg = 0.0;
+  w.marker_wear = 0.0;
+  w.marker_sheen = 0.0;
+  w.timestamp_latency_s = 0.0;
+  w.timestamp_jitter_s = 0.0;
+  return w;
+}
+
 SyntheticCamera::SyntheticCamera(const Site& site, const Camera& camera,
                                  const calib::CameraModel& model, SimScenario scenario,
                                  SyntheticCameraOptions options)

@@ -69,6 +69,14 @@ bool ParseSimScenario(const std::string& text, SimScenario* scenario, std::strin
 bool ParseSimScenario(const std::string& text, const Site& site, SimScenario* scenario,
                       std::string* error);
 
+// `w` with every optical, timing, motion, noise and wear effect switched
+// off (no blur, vignetting, lens distortion, exposure, rolling shutter,
+// drift, shot or read noise, Bayer mosaic, tilt, wear, sheen, timestamp
+// delay); its tone curve (srgb_gamma) and MJPEG quality are kept. Tests and
+// `roomfix bench camera --error-budget` start from it and switch effects on
+// one at a time.
+WebcamSimulation WithoutWebcamEffects(WebcamSimulation w);
+
 // Where a robot is at the instant rendered.
 struct RobotState {
   int robot_id = 0;

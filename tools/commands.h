@@ -36,6 +36,10 @@ void AddBenchReplayCommand(CLI::App* bench, int* exit_code);
 // roomfix bench capacity: cameras, range sets, robots and messages per core
 // (tools/bench_capacity.cc).
 void AddBenchCapacityCommand(CLI::App* bench, int* exit_code);
+// roomfix bench micro (bench_micro.cc): Google Benchmark timings of the
+// camera path's kernels against baselines in the same run; built only
+// with Google Benchmark (ROOMFIX_BENCH_MICRO).
+void AddBenchMicroCommand(CLI::App* bench, int* exit_code);
 
 }  // namespace roomfix
 

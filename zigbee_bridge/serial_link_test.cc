@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "sim/pseudo_terminal.h"
+#include "tests/testing/byte_reads.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -28,22 +29,11 @@ SerialLinkOptions OptionsFor(const std::string& port) {
 // Reads through the link until `size` bytes came, the link reports the
 // device gone, or timeout_ms passed.
 std::vector<uint8_t> ReadFor(SerialLink* link, size_t size, int timeout_ms) {
-  std::vector<uint8_t> out;
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeout_ms);
-  while (out.size() < size && link->fd() >= 0 && std::chrono::steady_clock::now() < deadline) {
-    pollfd p{link->fd(), POLLIN, 0};
-    if (::poll(&p, 1, 10) <= 0) continue;
-    uint8_t buffer[100];
-    const int n = link->Read(buffer, sizeof(buffer), kT0);
-    if (n > 0) out.insert(out.end(), buffer, buffer + n);
-  }
-  return out;
-}
-
-std::vector<uint8_t> AllByteValues() {
-  std::vector<uint8_t> bytes(256);
-  for (int i = 0; i < 256; ++i) bytes[i] = static_cast<uint8_t>(i);
-  return bytes;
+  return testing::ReadFor([link] { return link->fd(); },
+                          [link](uint8_t* buffer, size_t capacity) -> ssize_t {
+                            return link->Read(buffer, capacity, kT0);
+                          },
+                          size, timeout_ms);
 }
 
 TEST(SerialLinkOptions, RejectsBadBaudAndBackoff) {
@@ -113,7 +103,7 @@ TEST(SerialLink, ReadsEveryByteValueWrittenToAPseudoTerminalUnchanged) {
 
   // Every value, including XON/XOFF (0x11/0x13), LF, CR and the ZigBee
   // API frame delimiter 0x7E, twice so that reads span buffer boundaries.
-  const std::vector<uint8_t> ascending = AllByteValues();
+  const std::vector<uint8_t> ascending = testing::AllByteValues();
   std::vector<uint8_t> bytes = ascending;
   bytes.insert(bytes.end(), ascending.rbegin(), ascending.rend());
   ASSERT_TRUE(pty->Write(bytes.data(), bytes.size(), &error)) << error;

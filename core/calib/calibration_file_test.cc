@@ -10,6 +10,18 @@
 namespace roomfix::calib {
 namespace {
 
+// Tolerances, each for its reason.
+// A calibration written and read back maps a pixel as the original does:
+// the file keeps every digit a double needs (17 significant), so only the
+// mapping's own rounding of metres (~1) is left.
+constexpr double kRoundTripM = 1e-12;
+// The comment's worked figure is printed to 6 decimals.
+constexpr double kWorkedFigurePx = 1e-6;
+// At N = 100000 the finite-sample factors (N / (2N - p), 1 + p / (2N))
+// still put sigma ~4e-5 px above the limit sqrt(1/2): approached, not
+// reached.
+constexpr double kLargeSampleLimitPx = 1e-4;
+
 Calibration FullExample() {
   Calibration c;
   c.model = Calibration::Model::kFull;
@@ -48,8 +60,8 @@ TEST(CalibrationFile, FullModelSurvivesAWriteAndReadToFullPrecision) {
   double x1, y1, x2, y2;
   ASSERT_TRUE(c.PixelToFloor(1700, 900, 0.2, &x1, &y1, &error)) << error;
   ASSERT_TRUE(back.PixelToFloor(1700, 900, 0.2, &x2, &y2, &error)) << error;
-  EXPECT_NEAR(x1, x2, 1e-12);
-  EXPECT_NEAR(y1, y2, 1e-12);
+  EXPECT_NEAR(x1, x2, kRoundTripM);
+  EXPECT_NEAR(y1, y2, kRoundTripM);
 }
 
 // Every calibration file in config/ reads the same after roomfix writes it
@@ -108,8 +120,8 @@ TEST(CalibrationFile, ReadsARotationVectorAsWellAsAMatrix) {
   ASSERT_TRUE(ParseCalibration(text, "mem", &c, &error)) << error;
   double x, y;
   ASSERT_TRUE(c.PixelToFloor(960, 540, 0.0, &x, &y, &error)) << error;
-  EXPECT_NEAR(x, 2.0, 1e-12);
-  EXPECT_NEAR(y, 1.5, 1e-12);
+  EXPECT_NEAR(x, 2.0, kRoundTripM);
+  EXPECT_NEAR(y, 1.5, kRoundTripM);
 }
 
 TEST(CalibrationFile, RegionTableInCentimetresIsTheSameAsInMetres) {
@@ -151,9 +163,9 @@ TEST(CalibrationFile, StatesItsPixelErrorAndRefusesANonPositiveOne) {
 TEST(PixelSigmaFromFit, AddsTheFitsLostDegreesOfFreedomAndItsOwnPredictionError) {
   // The demo's calibration: 35 points, 11 parameters, 0.0466 px RMS.
   // sigma^2 = 0.0466^2 * 35 / 59 = 0.0012882; times (1 + 11 / 70).
-  EXPECT_NEAR(PixelSigmaFromFit(0.0466, 35, 11), 0.038609, 1e-6);
+  EXPECT_NEAR(PixelSigmaFromFit(0.0466, 35, 11), 0.038609, kWorkedFigurePx);
   // Many points: the per-axis share of the residual norm, 1 / sqrt(2).
-  EXPECT_NEAR(PixelSigmaFromFit(1.0, 100000, 11), std::sqrt(0.5), 1e-4);
+  EXPECT_NEAR(PixelSigmaFromFit(1.0, 100000, 11), std::sqrt(0.5), kLargeSampleLimitPx);
   EXPECT_LT(PixelSigmaFromFit(0.1, 5, 11), 0.0);  // 10 residuals, 11 parameters
 }
 

@@ -13,6 +13,20 @@
 namespace roomfix::calib {
 namespace {
 
+// Tolerances, each for its reason.
+// cv::fisheye::undistortPoints and PixelToRay both invert the distortion
+// polynomial iteratively (OpenCV's default: at most 10 iterations or a step
+// under 1e-8), so they agree to their convergence, not to rounding. 1e-6 in
+// normalised coordinates (unit focal length) is ~6e-4 px at f ~ 611 px.
+constexpr double kUndistortAgreement = 1e-6;
+// The principal point's ray is the optical axis exactly: only rounding of
+// the mount's translation (metres ~1) is left.
+constexpr double kExactM = 1e-12;
+// f = half width / half field of view in radians: a division of doubles.
+constexpr double kClosedFormPx = 1e-9;
+// A rotation built from a straight-down orientation: det R = 1 to rounding.
+constexpr double kRotationDeterminant = 1e-12;
+
 // A ceiling camera at the centre of the 4 x 3 m floor, 3.1 m up, with a
 // 120-degree lens on a 1280 x 960 sensor, tilted a little and with the
 // distortion of a real fisheye: every term of the model is exercised.
@@ -65,8 +79,8 @@ TEST(FisheyeCamera, ProjectsLikeOpenCvsFisheyeModel) {
   for (size_t i = 0; i < room.size(); ++i) {
     Eigen::Vector3d ray;
     ASSERT_TRUE(m.PixelToRay(expected[i].x, expected[i].y, &ray));
-    EXPECT_NEAR(ray.x() / ray.z(), normalised[i].x, 1e-6) << i;
-    EXPECT_NEAR(ray.y() / ray.z(), normalised[i].y, 1e-6) << i;
+    EXPECT_NEAR(ray.x() / ray.z(), normalised[i].x, kUndistortAgreement) << i;
+    EXPECT_NEAR(ray.y() / ray.z(), normalised[i].y, kUndistortAgreement) << i;
   }
 }
 
@@ -106,15 +120,15 @@ TEST(FisheyeCamera, RejectsPointsBehindTheCamera) {
   EXPECT_FALSE(m.PixelToFloor(640, 960 + 10, 0.0, &x, &y));
   EXPECT_FALSE(m.PixelToFloor(std::nan(""), 480, 0.0, &x, &y));
   EXPECT_TRUE(m.PixelToFloor(m.intrinsics.cx_px, m.intrinsics.cy_px, 0.0, &x, &y));
-  EXPECT_NEAR(x, 2.0, 1e-12);  // the principal point looks straight down
-  EXPECT_NEAR(y, 1.5, 1e-12);
+  EXPECT_NEAR(x, 2.0, kExactM);  // the principal point looks straight down
+  EXPECT_NEAR(y, 1.5, kExactM);
 }
 
 TEST(FisheyeCamera, NominalCameraCoversTheFloorFromTheCeilingWithA120DegreeLens) {
   const CameraModel m = NominalCamera({2.0, 1.5, 3.1}, 120.0, 1280, 960);
   // f = 640 px / (60 degrees in radians).
-  EXPECT_NEAR(m.intrinsics.fx_px, 640.0 / (M_PI / 3), 1e-9);
-  EXPECT_NEAR(m.pose.R_room_from_camera.determinant(), 1.0, 1e-12);
+  EXPECT_NEAR(m.intrinsics.fx_px, 640.0 / (M_PI / 3), kClosedFormPx);
+  EXPECT_NEAR(m.pose.R_room_from_camera.determinant(), 1.0, kRotationDeterminant);
   // Looking down; image x along room x, image y along room -y.
   EXPECT_TRUE((m.pose.R_room_from_camera.col(2) - Eigen::Vector3d(0, 0, -1)).norm() < 1e-12);
   for (double x : {0.0, 4.0}) {

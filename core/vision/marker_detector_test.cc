@@ -2,7 +2,6 @@
 
 #include <gtest/gtest.h>
 
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -536,63 +535,6 @@ TEST(MarkerDetector, FindsOrangeAndGreenCandiesInSmartiesPhoto) {
     EXPECT_TRUE(is_label) << "unlabelled " << names[b.class_index] << " blob at " << b.u_px << ", "
                           << b.v_px;
   }
-}
-
-// Micro-benchmark (prints figures; no timed assertion).
-// Best of 5 batches: the machine is shared, and the best batch is the one
-// least disturbed by other work.
-template <typename F>
-double MsPerCall(F f, int calls) {
-  f();  // warm up
-  double best = 1e9;
-  for (int batch = 0; batch < 5; ++batch) {
-    const auto t0 = std::chrono::steady_clock::now();
-    for (int i = 0; i < calls; ++i) f();
-    const auto t1 = std::chrono::steady_clock::now();
-    best = std::min(best, std::chrono::duration<double, std::milli>(t1 - t0).count() / calls);
-  }
-  return best;
-}
-
-TEST(MarkerDetectorBenchmark, PrintsMillisecondsPerCall) {
-  std::mt19937 rng(8);
-  std::vector<Disc> discs;
-  const cv::Mat3b frame = SceneWithDiscs(cv::Size(960, 540), &discs, &rng, Lighting{}, 4);
-  const MarkerDetector fixed({Orange(), Green()}, Options(LightingMode::kFixed));
-  const MarkerDetector normalised({Orange(), Green()}, Options(LightingMode::kNormalised));
-  const cv::Rect win_rect(static_cast<int>(discs[0].u) - 60, static_cast<int>(discs[0].v) - 60, 120,
-                          120);
-  const cv::Mat3b window = frame(win_rect & cv::Rect(0, 0, 960, 540)).clone();
-  ImageWindow w;
-  w.offset_u_px = win_rect.x;
-  w.offset_v_px = win_rect.y;
-  size_t n = 0;
-  const double ms_fixed = MsPerCall([&] { n += fixed.Detect(frame, ImageWindow{}).size(); }, 30);
-  const double ms_norm =
-      MsPerCall([&] { n += normalised.Detect(frame, ImageWindow{}).size(); }, 30);
-  const double ms_win = MsPerCall([&] { n += normalised.Detect(window, w, {0}).size(); }, 200);
-  const double ms_ref = MsPerCall([&] { n += DetectReference(frame, fixed.classes()).size(); }, 10);
-  // A half-size decode searched whole, then Refine on a full-res window.
-  cv::Mat3b half_frame;
-  cv::resize(frame, half_frame, cv::Size(480, 270), 0, 0, cv::INTER_AREA);
-  ImageWindow half;
-  half.scale = 2;
-  const double ms_half = MsPerCall([&] { n += normalised.Detect(half_frame, half).size(); }, 30);
-  Blob coarse = normalised.Detect(half_frame, half, {0}).at(0);
-  const double ms_refine = MsPerCall(
-      [&] {
-        Blob b = coarse;
-        n += normalised.Refine(window, w, 0, &b) ? 1 : 0;
-      },
-      200);
-
-  std::printf("Detect 960x540, 2 classes: kFixed %.2f ms, kNormalised %.2f ms\n", ms_fixed,
-              ms_norm);
-  std::printf("Detect 120x120 window, 1 class, kNormalised: %.3f ms\n", ms_win);
-  std::printf("DetectReference 960x540, 2 classes: %.2f ms\n", ms_ref);
-  std::printf("Detect 480x270 (scale 2), 2 classes, kNormalised: %.2f ms\n", ms_half);
-  std::printf("Refine on a 120x120 full-res window: %.3f ms\n", ms_refine);
-  EXPECT_GT(n, 0u);
 }
 
 }  // namespace

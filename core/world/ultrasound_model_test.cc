@@ -9,6 +9,15 @@
 namespace roomfix {
 namespace {
 
+// Tolerances, each for its reason.
+// c(T) = 331.3 + 0.606 T m/s: at 0 degC the constant itself; at 20 degC a
+// product and a sum of doubles, rounding of ~3e2 (~6e-14) with a margin.
+constexpr double kExactMps = 1e-12;
+constexpr double kClosedFormMps = 1e-9;
+// Noise-free ranges and times of flight: a sqrt and a division of doubles.
+constexpr double kExactM = 1e-12;
+constexpr double kExactS = 1e-15;
+
 class UltrasoundModelTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -19,8 +28,8 @@ class UltrasoundModelTest : public ::testing::Test {
 };
 
 TEST(SpeedOfSound, Is343MetresPerSecondAt20Celsius) {
-  EXPECT_NEAR(SpeedOfSound(20.0), 343.42, 1e-9);
-  EXPECT_NEAR(SpeedOfSound(0.0), 331.3, 1e-12);
+  EXPECT_NEAR(SpeedOfSound(20.0), 343.42, kClosedFormMps);
+  EXPECT_NEAR(SpeedOfSound(0.0), 331.3, kExactMps);
 }
 
 TEST_F(UltrasoundModelTest, WithoutNoiseEachRangeIsTheTrueDistance) {
@@ -31,8 +40,8 @@ TEST_F(UltrasoundModelTest, WithoutNoiseEachRangeIsTheTrueDistance) {
   ASSERT_EQ(ranges.size(), 4u);
   // Receiver 1 at (0, 0, 2.5): sqrt(1 + 4 + 1.44).
   EXPECT_EQ(ranges[0].receiver_id, 1);
-  EXPECT_NEAR(ranges[0].measured_m, std::sqrt(6.44), 1e-12);
-  EXPECT_NEAR(ranges[0].time_of_flight_s, std::sqrt(6.44) / SpeedOfSound(20.0), 1e-15);
+  EXPECT_NEAR(ranges[0].measured_m, std::sqrt(6.44), kExactM);
+  EXPECT_NEAR(ranges[0].time_of_flight_s, std::sqrt(6.44) / SpeedOfSound(20.0), kExactS);
 }
 
 TEST_F(UltrasoundModelTest, NoiseHasTheConfiguredSpreadAndOutliersOnlyLengthen) {
@@ -48,8 +57,10 @@ TEST_F(UltrasoundModelTest, NoiseHasTheConfiguredSpreadAndOutliersOnlyLengthen) 
       ++n;
     }
   }
-  // 20000 samples: the standard deviation is known to about 0.5%.
-  EXPECT_NEAR(std::sqrt(sum2 / n), 0.02, 0.0005);
+  // 20000 samples: the standard deviation is known to about 0.5 %
+  // (sigma / sqrt(2 N)); 2.5 % of 0.02 m is five of those.
+  constexpr double kSampleSigmaM = 0.0005;
+  EXPECT_NEAR(std::sqrt(sum2 / n), 0.02, kSampleSigmaM);
 
   noise.sigma_m = 0.0;
   noise.nlos_probability = 1.0;

@@ -14,9 +14,6 @@ set -uo pipefail
 package_dir=$1 version=$2 source=$3
 failures=0
 fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
-# Under pipefail `cmd | grep -q` fails at random when grep's early exit kills
-# cmd with SIGPIPE, so pipelines count matches (grep -c reads all its input).
-matches() { [[ $(grep -c "$@") -gt 0 ]]; }
 
 arch=$(dpkg --print-architecture)
 deb=$package_dir/roomfix_${version}_${arch}.deb
@@ -34,11 +31,15 @@ programs=(camera_proc trilat_proc fusion_proc zigbee_bridge roomfix_logger roomf
 for p in "${programs[@]}"; do
   bin=$prefix/bin/$p
   if [[ ! -x "$bin" ]]; then fail "$p is not in the package"; continue; fi
-  if readelf -d "$bin" | matches -E 'R(UN)?PATH'; then
-    fail "$p has an RPATH/RUNPATH: $(readelf -d "$bin" | grep -E 'R(UN)?PATH')"
+  # Captured first: under pipefail `readelf | grep -q` fails when grep's
+  # early exit kills readelf with SIGPIPE.
+  dynamic=$(readelf -d "$bin")
+  if grep -qE 'R(UN)?PATH' <<<"$dynamic"; then
+    fail "$p has an RPATH/RUNPATH: $(grep -E 'R(UN)?PATH' <<<"$dynamic")"
   fi
-  if ldd "$bin" | matches 'not found'; then
-    fail "$p: libraries not found: $(ldd "$bin" | grep 'not found' | tr -s ' \t' ' ')"
+  libs=$(ldd "$bin")
+  if grep -q 'not found' <<<"$libs"; then
+    fail "$p: libraries not found: $(grep 'not found' <<<"$libs" | tr -s ' \t' ' ')"
   fi
   if ! help=$(env -u LD_LIBRARY_PATH "$bin" --help 2>&1) || [[ "$help" != *"$p"* ]]; then
     fail "$p --help: $help"
@@ -53,9 +54,9 @@ if ! out=$("$prefix/bin/roomfix" check-config "$site" 2>&1); then
 fi
 # The default site of `roomfix bench camera` is the packaged one, whatever
 # the current folder (CLI11 prints the default in --help).
-if ! "$prefix/bin/roomfix" bench camera --help | matches -F -- "$site"; then
-  fail "roomfix bench camera does not default to $site: $("$prefix/bin/roomfix" bench camera \
-    --help | grep -- --site)"
+bench_help=$("$prefix/bin/roomfix" bench camera --help)
+if ! grep -qF "$site" <<<"$bench_help"; then
+  fail "roomfix bench camera does not default to $site: $(grep -- --site <<<"$bench_help")"
 fi
 
 for f in include/roomfix/pose2d_t.hpp share/roomfix/lcmtypes/pose2d_t.lcm \
@@ -87,10 +88,12 @@ satisfied() {  # name [op version]
   if [[ -z "$have" ]]; then
     # A virtual package (libspdlog1.10-fmt9 is provided by libspdlog1.10):
     # an installed package or one in the apt lists must provide it.
-    dpkg-query -W -f='${Provides}\n' 2>/dev/null | tr ',' '\n' |
-      matches -E "^ *$name( |\$)" && return 0
-    apt-cache showpkg "$name" 2>/dev/null | sed -n '/^Reverse Provides:/,$p' |
-      sed 1d | matches . && return 0
+    # (Each list is captured before grep -q reads it: see SIGPIPE above.)
+    local provides reverse
+    provides=$(dpkg-query -W -f='${Provides}\n' 2>/dev/null | tr ',' '\n')
+    grep -qE "^ *$name( |\$)" <<<"$provides" && return 0
+    reverse=$(apt-cache showpkg "$name" 2>/dev/null | sed -n '/^Reverse Provides:/,$p' | sed 1d)
+    grep -q . <<<"$reverse" && return 0
     return 1
   fi
   [[ -z "$op" ]] && return 0

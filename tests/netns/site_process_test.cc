@@ -11,10 +11,10 @@
 #include <thread>
 #include <vector>
 
-#include "core/world/file_io.h"
 #include "msgio/log.h"
 #include "msgio/site_message.h"
 #include "msgio/wire_check.h"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -59,18 +59,11 @@ Recorded ReadLog(const std::string& path) {
 
 // The demo site with receiver 3 moved by 5 cm, beside its calibration.
 std::string MovedSite(const TempDir& dir) {
-  std::string text;
   std::string error;
-  EXPECT_TRUE(ReadConfigFile(SourceDir() + "/config/sites/demo_room.yaml", &text, &error));
-  const std::string from = "position_m: [4.0, 3.0, 2.5]";
-  text.replace(text.find(from), from.size(), "position_m: [4.05, 3.0, 2.5]");
-  EXPECT_EQ(::system(("mkdir -p '" + dir.File("sites") + "' '" + dir.File("calibration") +
-                      "' && cp '" + SourceDir() + "/config/calibration/demo_room_camera.yaml' '" +
-                      dir.File("calibration") + "/'")
-                         .c_str()),
-            0);
-  EXPECT_TRUE(testing::WriteFile(dir.File("sites/moved.yaml"), text));
-  return dir.File("sites/moved.yaml");
+  const std::string path = testing::WriteDemoSiteVariant(
+      dir, "moved", "position_m: [4.0, 3.0, 2.5]", "position_m: [4.05, 3.0, 2.5]", &error);
+  EXPECT_NE(path, "") << error;
+  return path;
 }
 
 TEST(SiteOnTheBus, ProcessesPublishTheirSiteAtStartAndEveryFiveSeconds) {

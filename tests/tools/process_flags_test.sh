@@ -3,24 +3,26 @@
 # and cannot-start cases end with one clear line and a non-zero exit.
 #   process_flags_test.sh BUILD_DIR SOURCE_DIR
 set -uo pipefail
-# `cmd | grep -q` is not used: grep -q exits at its first match, the writer then
-# dies of SIGPIPE, and pipefail turns that into a failure whenever the writer has
-# not finished writing (a race that made this test flaky). has OUTPUT PATTERN
-# reads the whole output first.
-has() { grep -q -- "$2" <<<"$1"; }
 build=$1 source=$2
 site=$source/config/sites/demo_room.yaml
 failures=0
 fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
+# Output is captured whole before it is searched: under pipefail,
+# `prog --help | grep -q X` fails at random, because grep exits at the first
+# match and prog, still writing, dies of SIGPIPE (status 141).
+has() {  # text pattern: whether a line of text matches the extended regex
+  grep -qE -- "$2" <<<"$1"
+}
 
 for bin in roomfix_sim trilat_proc fusion_proc zigbee_bridge roomfix_viewer camera_proc; do
   extra=()
   # --check validates the port's name, not the device: none is needed here.
   [[ $bin == zigbee_bridge ]] && extra=(--port /dev/ttyUSB0)
   [[ $bin == roomfix_viewer ]] && extra=(--headless --png /tmp/never_written.png)
-  has "$("$build/bin/$bin" --help)" '--lcm-url' || fail "$bin --help lacks --lcm-url"
-  has "$("$build/bin/$bin" --help)" '--config' || fail "$bin --help lacks --config"
-  has "$("$build/bin/$bin" --help)" '--log-color' || fail "$bin --help lacks --log-color"
+  help=$("$build/bin/$bin" --help)
+  has "$help" '--lcm-url' || fail "$bin --help lacks --lcm-url"
+  has "$help" '--config' || fail "$bin --help lacks --config"
+  has "$help" '--log-color' || fail "$bin --help lacks --log-color"
   out=$("$build/bin/$bin" "${extra[@]}" --config "$site" --check 2>/dev/null) || fail "$bin --check failed"
   [[ "$out" == *"ok"* ]] || fail "$bin --check printed '$out'"
   err=$("$build/bin/$bin" "${extra[@]}" --config "$source/tests/data/broken_sites/duplicate_address.yaml" 2>&1 >/dev/null)

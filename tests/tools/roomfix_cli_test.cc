@@ -385,5 +385,31 @@ TEST(RoomfixBenchRadio, PrintsThroughputLatencyAndTheGroupingComparisonAsJson) {
   EXPECT_GT(j["grouping"]["reference_mixed_sets"].get<int>(), 50);
 }
 
+// bench micro prints Google Benchmark's table and each benchmark's CPU time
+// against its group's baseline. Only that it runs and compares is asserted
+// here: a timing is a figure to read, never a test's verdict.
+TEST(RoomfixBenchMicro, PrintsEachKernelAgainstItsGroupsBaseline) {
+  int rc = -1;
+  const std::string help = RunRoomfix({"bench", "--help"}, &rc);
+  if (help.find("micro") == std::string::npos) {
+    GTEST_SKIP() << "roomfix was built without Google Benchmark (libbenchmark-dev)";
+  }
+  const std::string out =
+      RunRoomfix({"bench", "micro", "--site", testing::SourceDir() + "/config/sites/demo_room.yaml",
+                  "--filter", "detect/(reference|window)", "--min-time", "0.01"},
+                 &rc);
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("detect/window_120px_one_class"), std::string::npos) << out;
+  // The baseline against itself is exactly 1.
+  EXPECT_NE(out.find("detect/reference                            1.000"), std::string::npos)
+      << out;
+  EXPECT_NE(out.find("baseline of detect: detect/reference"), std::string::npos) << out;
+  // A filter that matches nothing is an error, not an empty table.
+  RunRoomfix({"bench", "micro", "--site", testing::SourceDir() + "/config/sites/demo_room.yaml",
+              "--filter", "no_such_benchmark"},
+             &rc);
+  EXPECT_EQ(rc, 1);
+}
+
 }  // namespace
 }  // namespace roomfix

@@ -9,8 +9,8 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "core/world/file_io.h"
 #include "msgio/site_message.h"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -42,7 +42,7 @@ ToolRun RunTool(const TempDir& dir, const std::string& program, const std::strin
 
 std::string SampleLog() { return SourceDir() + "/tests/data/site_sample.lcm"; }
 std::string OldLog() { return SourceDir() + "/tests/data/trilat_replay.lcm"; }
-std::string DemoSite() { return SourceDir() + "/config/sites/demo_room.yaml"; }
+std::string DemoSite() { return testing::DemoSitePath(); }
 
 // The line every tool prints: which site, its hash, version and publisher.
 std::string SampleSiteLine() {
@@ -56,18 +56,12 @@ std::string SampleSiteLine() {
 // A copy of the demo site with receiver 2's range offset changed, beside a
 // copy of its calibration so that it loads.
 std::string ShiftedSite(const TempDir& dir) {
-  std::string text;
   std::string error;
-  EXPECT_TRUE(ReadConfigFile(DemoSite(), &text, &error));
-  const std::string from = "position_m: [4.0, 0.0, 2.5], range_offset_m: 0.0}";
-  text.replace(text.find(from), from.size(), "position_m: [4.0, 0.0, 2.5], range_offset_m: 0.04}");
-  EXPECT_EQ(::system(("mkdir -p '" + dir.File("sites") + "' '" + dir.File("calibration") +
-                      "' && cp '" + SourceDir() + "/config/calibration/demo_room_camera.yaml' '" +
-                      dir.File("calibration") + "/'")
-                         .c_str()),
-            0);
-  EXPECT_TRUE(testing::WriteFile(dir.File("sites/shifted.yaml"), text));
-  return dir.File("sites/shifted.yaml");
+  const std::string path = testing::WriteDemoSiteVariant(
+      dir, "shifted", "position_m: [4.0, 0.0, 2.5], range_offset_m: 0.0}",
+      "position_m: [4.0, 0.0, 2.5], range_offset_m: 0.04}", &error);
+  EXPECT_NE(path, "") << error;
+  return path;
 }
 
 TEST(ToolSiteFromLog, TheLogRecordedBothPublishersWithTheSameSite) {
