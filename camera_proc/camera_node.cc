@@ -175,7 +175,7 @@ bool MakeCameraSetup(const Room& room, const Camera& camera, const calib::Camera
     px_per_m = ImageRadiusPx(lens, mount.x(), mount.y(), h, 0.1) / 0.1;
   }
   setup->tracker.max_speed_px_per_s = std::max(50.0, options.max_speed_mps * px_per_m);
-  return true;
+  return setup->tracker.IsValid(error);
 }
 
 CameraNode::CameraNode(const Site& site, const Camera& camera,
@@ -236,6 +236,7 @@ CameraNode::CameraNode(const Site& site, const Camera& camera,
   vision::DetectorOptions detector_options;
   detector_options.lighting = options_.lighting;
   detector_options.blur_sigma_px = options_.blur_sigma_px;
+  if (!detector_options.IsValid(&setup_error_)) return;
   detector_ = std::make_unique<vision::MarkerDetector>(setup_.classes, detector_options);
   tracker_ = std::make_unique<vision::RobotTracker>(setup_.robots, setup_.tracker, camera.width_px,
                                                     camera.height_px);

@@ -82,6 +82,31 @@ void Fill(const Candidate& c, RobotObservation* obs) {
 
 }  // namespace
 
+bool TrackerOptions::IsValid(std::string* error) const {
+  const std::pair<const char*, double> positive[] = {{"max_speed_px_per_s", max_speed_px_per_s},
+                                                     {"window_radius_factor", window_radius_factor},
+                                                     {"heading_search_radii", heading_search_radii},
+                                                     {"lost_after_s", lost_after_s},
+                                                     {"heading_offset_radii", heading_offset_radii},
+                                                     {"heading_size_ratio", heading_size_ratio}};
+  for (const auto& [name, value] : positive) {
+    if (!(value > 0.0) || !std::isfinite(value)) {
+      *error = std::string("tracker ") + name + " must be positive and finite";
+      return false;
+    }
+  }
+  if (!(window_margin_px >= 0.0) || !std::isfinite(window_margin_px) || !(hint_max_age_s >= 0.0) ||
+      !std::isfinite(hint_max_age_s)) {
+    *error = "tracker window_margin_px and hint_max_age_s must be >= 0 and finite";
+    return false;
+  }
+  if (!(heading_offset_tolerance >= 0.0 && heading_offset_tolerance < 1.0)) {
+    *error = "tracker heading_offset_tolerance must be in [0, 1)";
+    return false;
+  }
+  return true;
+}
+
 const char* TrackStateName(TrackState state) {
   switch (state) {
     case TrackState::kSearching:

@@ -52,6 +52,10 @@ struct TrackerOptions {
   // radially towards the image's edge (down to 0.6 of the tangential scale
   // at the 6 x 4 m room's corners), which moves the ratio by up to +-35 %.
   double heading_offset_tolerance = 0.45;
+
+  // False with a reason: a speed, size or time that is not positive and
+  // finite, a tolerance outside [0, 1).
+  bool IsValid(std::string* error) const;
 };
 
 enum class TrackState {
