@@ -61,9 +61,7 @@ bool IsSimDevice(const std::string& device) { return device.rfind("sim:", 0) == 
 
 bool ChooseCamera(const Site& site, const CameraProcOptions& options, CameraChoice* choice,
                   std::string* error) {
-  const Camera* camera = options.camera_id < 0
-                             ? (site.cameras.empty() ? nullptr : &site.cameras.front())
-                             : site.FindCamera(options.camera_id);
+  const Camera* camera = site.FindCameraOrFirst(options.camera_id);
   if (camera == nullptr) {
     *error = "the site has no camera" +
              (options.camera_id >= 0 ? " with id " + std::to_string(options.camera_id) : "");
