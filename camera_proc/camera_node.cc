@@ -279,6 +279,7 @@ CameraNode::CameraNode(const Site& site, const Camera& camera,
   vision::DetectorOptions detector_options;
   detector_options.lighting = options_.lighting;
   detector_options.blur_sigma_px = options_.blur_sigma_px;
+  if (!detector_options.IsValid(&setup_error_)) return;
   detector_ = std::make_unique<vision::MarkerDetector>(setup_.classes, detector_options);
   tracker_ = std::make_unique<vision::RobotTracker>(setup_.robots, setup_.tracker, camera.width_px,
                                                     camera.height_px);

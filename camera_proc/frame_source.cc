@@ -80,16 +80,19 @@ bool IsJpegBuffer(const cv::Mat& mat) {
 
 // JPEG bytes to a frame image; a buffer with no end-of-image marker is
 // refused before decoding (a truncated transfer or file).
-std::unique_ptr<FrameImage> WrapJpeg(std::vector<uint8_t> bytes, std::string* error) {
+std::unique_ptr<FrameImage> WrapJpeg(std::vector<uint8_t> bytes, std::string* error,
+                                     FrameProblem* problem) {
   if (bytes.empty()) {
     *error = "empty file";
+    *problem = FrameProblem::kEmpty;
     return nullptr;
   }
   if (!JpegHasEndMarker(bytes)) {
     *error = "truncated JPEG (premature end of data: no end-of-image marker)";
+    *problem = FrameProblem::kTruncated;
     return nullptr;
   }
-  return MakeJpegImage(std::move(bytes), error);
+  return MakeJpegImage(std::move(bytes), error, problem);
 }
 
 std::vector<uint8_t> MatBytes(const cv::Mat& mat) {
@@ -189,6 +192,7 @@ class V4l2Source : public FrameSource {
   void Close() override { capture_.release(); }
 
   ReadStatus Read(Frame* frame, std::string* error) override {
+    frame->problem = FrameProblem::kNone;
     if (!capture_.isOpened()) {
       *error = path_ + " is not open";
       return ReadStatus::kDeviceLost;
@@ -219,7 +223,7 @@ class V4l2Source : public FrameSource {
     }
     if (IsJpegBuffer(mat_)) {
       std::string reason;
-      frame->image = WrapJpeg(MatBytes(mat_), &reason);
+      frame->image = WrapJpeg(MatBytes(mat_), &reason, &frame->problem);
       if (frame->image == nullptr) {
         *error = path_ + " frame " + std::to_string(frame->seq) + ": " + reason;
         return ReadStatus::kBadFrame;
@@ -228,6 +232,7 @@ class V4l2Source : public FrameSource {
     }
     if (mat_.empty() || mat_.type() != CV_8UC3) {
       *error = path_ + " frame " + std::to_string(frame->seq) + ": empty or undecodable buffer";
+      frame->problem = FrameProblem::kEmpty;
       return ReadStatus::kBadFrame;
     }
     frame->image = MakeDecodedImage(mat_.clone());
@@ -280,6 +285,7 @@ class VideoFileSource : public FrameSource {
   }
 
   ReadStatus Read(Frame* frame, std::string* error) override {
+    frame->problem = FrameProblem::kNone;
     if (!capture_.isOpened()) {
       *error = "video " + path_ + " is not open";
       return ReadStatus::kEndOfStream;
@@ -309,12 +315,17 @@ class VideoFileSource : public FrameSource {
     frame->capture_utime = pacer_.Stamp(frame->seq);
     std::string reason;
     if (raw_) {
-      frame->image = IsJpegBuffer(mat_) ? WrapJpeg(MatBytes(mat_), &reason) : nullptr;
-      if (frame->image == nullptr && reason.empty()) reason = "packet is not a JPEG frame";
+      frame->image =
+          IsJpegBuffer(mat_) ? WrapJpeg(MatBytes(mat_), &reason, &frame->problem) : nullptr;
+      if (frame->image == nullptr && reason.empty()) {
+        reason = "packet is not a JPEG frame";
+        frame->problem = FrameProblem::kUnreadable;
+      }
     } else if (!mat_.empty()) {
       frame->image = MakeDecodedImage(mat_.clone());
     } else {
       reason = "empty frame";
+      frame->problem = FrameProblem::kEmpty;
     }
     if (frame->image == nullptr) {
       *error = path_ + " frame " + std::to_string(frame->seq) + ": " + reason;
@@ -417,6 +428,7 @@ class ImageFilesSource : public FrameSource {
   void Close() override {}
 
   ReadStatus Read(Frame* frame, std::string* error) override {
+    frame->problem = FrameProblem::kNone;
     if (files_.empty()) {
       *error = "no image files (not open)";
       return ReadStatus::kEndOfStream;
@@ -439,20 +451,23 @@ class ImageFilesSource : public FrameSource {
     // a forged header claiming 100000 x 100000 px costs nothing.
     ImageHeader header;
     if (!ReadImageBytes(path, &bytes, &reason)) {
+      frame->problem = FrameProblem::kUnreadable;
     } else if (bytes.empty()) {
       reason = "empty file";
-    } else if (!ReadImageHeader(bytes.data(), bytes.size(), &header, &reason)) {
+      frame->problem = FrameProblem::kEmpty;
+    } else if (!ReadImageHeader(bytes.data(), bytes.size(), &header, &reason, &frame->problem)) {
     } else if (header.width_px > settings_.width_px || header.height_px > settings_.height_px) {
+      frame->problem = FrameProblem::kWrongSize;
       reason = header.format + " of " + std::to_string(header.width_px) + " x " +
                std::to_string(header.height_px) + " px is " + kTooLargeText + " of the camera's " +
                std::to_string(settings_.width_px) + " x " + std::to_string(settings_.height_px) +
                " px (not decoded)";
     } else if (header.format == "JPEG") {
-      frame->image = WrapJpeg(std::move(bytes), &reason);
+      frame->image = WrapJpeg(std::move(bytes), &reason, &frame->problem);
     } else {
       cv::Mat bgr;
       if (DecodeImageChecked(bytes, settings_.width_px, settings_.height_px, cv::IMREAD_COLOR, &bgr,
-                             &reason)) {
+                             &reason, &frame->problem)) {
         frame->image = MakeDecodedImage(std::move(bgr));
       }
     }

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "camera_proc/frame_problem.h"
 #include "core/calib/camera_timing.h"
 
 namespace roomfix::camera {
@@ -45,8 +46,10 @@ std::unique_ptr<FrameImage> MakeDecodedImage(cv::Mat bgr);
 // empty, not a JPEG, or its header is corrupt or truncated. A frame whose
 // body is truncated or corrupt fails later, at DecodeRegion/DecodeReduced
 // (libjpeg-turbo's warnings, such as premature end of data, are errors here:
-// a grey half-frame must not be searched).
-std::unique_ptr<FrameImage> MakeJpegImage(std::vector<uint8_t> bytes, std::string* error);
+// a grey half-frame must not be searched). *problem, when given, says the
+// kind of a header failure (kEmpty, kTruncated or kUnreadable).
+std::unique_ptr<FrameImage> MakeJpegImage(std::vector<uint8_t> bytes, std::string* error,
+                                          FrameProblem* problem = nullptr);
 
 struct Frame {
   // Capture time (microseconds since the Unix epoch): the driver's buffer
@@ -60,11 +63,15 @@ struct Frame {
   // frames camera_proc dropped.
   int64_t source_skipped = 0;
   std::unique_ptr<FrameImage> image;
+  // With ReadStatus::kBadFrame, why the frame that arrived (it has its seq
+  // and capture_utime) has no image; the error text says the detail.
+  FrameProblem problem = FrameProblem::kNone;
 };
 
 enum class ReadStatus {
   kFrame,        // *frame holds a frame
-  kBadFrame,     // this frame was unreadable (counted, *error says why); go on
+  kBadFrame,     // this frame was unreadable: frame->problem says the kind,
+                 // *error the detail; go on
   kEndOfStream,  // a file or folder ran out
   kDeviceLost,   // the device went away; Close(), then Open() again later
 };

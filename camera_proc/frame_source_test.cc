@@ -398,6 +398,45 @@ TEST(ImageFilesSource, ReportsBadFilesAndGoesOn) {
   }
 }
 
+// camera_proc counts a bad frame under the kind the source reports with it
+// (Frame::problem), decided where the failure is seen: libjpeg's message
+// code, the header reader, the size check. A file's name never decides it.
+TEST(ImageFilesSource, SaysWhyAFrameIsBadAsAValue) {
+  REQUIRE_SAMPLES();
+  roomfix::testing::TempDir dir;
+  const std::vector<uint8_t> good = ReadBytes(SamplesDir() + "/left01.jpg");
+  std::vector<uint8_t> no_end_marker = good;
+  no_end_marker.resize(good.size() * 6 / 10);
+  // A header cut short, closed by an end marker: libjpeg runs out of data
+  // inside the header (JWRN_JPEG_EOF), not at the cheap end-marker check.
+  std::vector<uint8_t> header_cut(good.begin(), good.begin() + 100);
+  header_cut.push_back(0xFF);
+  header_cut.push_back(0xD9);
+  WriteBytes(dir.File("a_truncated_empty.png"), {'n', 'o', 't', ' ', 'a', 'n', ' ', 'i', 'm'});
+  WriteBytes(dir.File("b.jpg"), no_end_marker);
+  WriteBytes(dir.File("c.jpg"), header_cut);
+  WriteBytes(dir.File("d.jpg"), {});
+  // A PNG header stating 65536 x 65536 px, over the camera's 1920 x 1080.
+  WriteBytes(dir.File("e.png"),
+             {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n', 0, 0, 0, 13, 'I', 'H', 'D',
+              'R',  0,   1,   0,   0,    0,    1,    0,    0, 8, 2, 0,  0,   0});
+  WriteBytes(dir.File("f.png"), {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n', 0, 0, 0, 13});
+  CaptureSettings settings;
+  std::string error;
+  auto source = MakeFrameSource(dir.path(), settings, &error);
+  ASSERT_TRUE(source->Open(&error)) << error;
+  const std::vector<FrameProblem> expected = {FrameProblem::kUnreadable, FrameProblem::kTruncated,
+                                              FrameProblem::kTruncated,  FrameProblem::kEmpty,
+                                              FrameProblem::kWrongSize,  FrameProblem::kTruncated};
+  for (size_t i = 0; i < expected.size(); ++i) {
+    Frame frame;
+    ASSERT_EQ(source->Read(&frame, &error), ReadStatus::kBadFrame) << i;
+    EXPECT_EQ(frame.problem, expected[i]) << i << " " << error;
+  }
+  EXPECT_STREQ(FrameProblemCounter(FrameProblem::kWrongSize), "wrong_frame_size");
+  EXPECT_STREQ(FrameProblemCounter(FrameProblem::kTruncated), "truncated_frame");
+}
+
 TEST(ImageFilesSource, PacesInRealTime) {
   REQUIRE_SAMPLES();
   roomfix::testing::TempDir dir;

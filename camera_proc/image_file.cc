@@ -27,14 +27,21 @@ bool Fail(std::string* error, const std::string& text) {
   return false;
 }
 
+// Fail, saying the kind of failure as well as its text.
+bool Fail(std::string* error, FrameProblem* problem, FrameProblem kind, const std::string& text) {
+  if (problem != nullptr) *problem = kind;
+  return Fail(error, text);
+}
+
 // Sizes above INT32_MAX are reported as that: they are refused as too large
 // by the caller either way.
 int Clamp(uint64_t v) { return v > 0x7FFFFFFF ? 0x7FFFFFFF : static_cast<int>(v); }
 
-bool ReadPng(const uint8_t* d, size_t n, ImageHeader* h, std::string* error) {
+bool ReadPng(const uint8_t* d, size_t n, ImageHeader* h, std::string* error,
+             FrameProblem* problem) {
   // Signature (8), IHDR length (4), "IHDR" (4), width (4), height (4).
   if (n < 24 || std::memcmp(d + 12, "IHDR", 4) != 0) {
-    return Fail(error, "truncated PNG header (no IHDR chunk)");
+    return Fail(error, problem, FrameProblem::kTruncated, "truncated PNG header (no IHDR chunk)");
   }
   h->format = "PNG";
   h->width_px = Clamp(Be32(d + 16));
@@ -46,13 +53,15 @@ bool ReadPng(const uint8_t* d, size_t n, ImageHeader* h, std::string* error) {
 // CC) holds the height and width; segments before it are skipped by their
 // lengths.
 // libjpeg's own header parser, not a walk by hand: see ReadJpegSize.
-bool ReadJpeg(const uint8_t* d, size_t n, ImageHeader* h, std::string* error) {
+bool ReadJpeg(const uint8_t* d, size_t n, ImageHeader* h, std::string* error,
+              FrameProblem* problem) {
   h->format = "JPEG";
-  return ReadJpegSize(d, n, &h->width_px, &h->height_px, error);
+  return ReadJpegSize(d, n, &h->width_px, &h->height_px, error, problem);
 }
 
-bool ReadBmp(const uint8_t* d, size_t n, ImageHeader* h, std::string* error) {
-  if (n < 26) return Fail(error, "truncated BMP header");
+bool ReadBmp(const uint8_t* d, size_t n, ImageHeader* h, std::string* error,
+             FrameProblem* problem) {
+  if (n < 26) return Fail(error, problem, FrameProblem::kTruncated, "truncated BMP header");
   const uint32_t dib = Le32(d + 14);
   h->format = "BMP";
   if (dib == 12) {  // BITMAPCOREHEADER: 16-bit sizes
@@ -69,7 +78,8 @@ bool ReadBmp(const uint8_t* d, size_t n, ImageHeader* h, std::string* error) {
 }
 
 // "P6\n# comment\n640 480\n255\n": the first two numbers after the magic.
-bool ReadPnm(const uint8_t* d, size_t n, ImageHeader* h, std::string* error) {
+bool ReadPnm(const uint8_t* d, size_t n, ImageHeader* h, std::string* error,
+             FrameProblem* problem) {
   size_t i = 2;
   uint64_t values[2] = {0, 0};
   for (int k = 0; k < 2; ++k) {
@@ -81,10 +91,15 @@ bool ReadPnm(const uint8_t* d, size_t n, ImageHeader* h, std::string* error) {
       }
       break;
     }
-    if (i >= n || !std::isdigit(d[i])) return Fail(error, "truncated or corrupt PNM header");
+    if (i >= n || !std::isdigit(d[i])) {
+      return Fail(error, problem, FrameProblem::kTruncated, "truncated or corrupt PNM header");
+    }
     int digits = 0;
     while (i < n && std::isdigit(d[i])) {
-      if (++digits > 10) return Fail(error, "corrupt PNM header (size over 10 digits)");
+      if (++digits > 10) {
+        return Fail(error, problem, FrameProblem::kUnreadable,
+                    "corrupt PNM header (size over 10 digits)");
+      }
       values[k] = values[k] * 10 + static_cast<uint64_t>(d[i] - '0');
       ++i;
     }
@@ -97,25 +112,28 @@ bool ReadPnm(const uint8_t* d, size_t n, ImageHeader* h, std::string* error) {
 
 }  // namespace
 
-bool ReadImageHeader(const uint8_t* data, size_t size, ImageHeader* header, std::string* error) {
+bool ReadImageHeader(const uint8_t* data, size_t size, ImageHeader* header, std::string* error,
+                     FrameProblem* problem) {
   static const uint8_t kPng[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
   ImageHeader h;
   bool ok = false;
   if (size >= 8 && std::memcmp(data, kPng, 8) == 0) {
-    ok = ReadPng(data, size, &h, error);
+    ok = ReadPng(data, size, &h, error, problem);
   } else if (size >= 3 && data[0] == 0xFF && data[1] == 0xD8 && data[2] == 0xFF) {
-    ok = ReadJpeg(data, size, &h, error);
+    ok = ReadJpeg(data, size, &h, error, problem);
   } else if (size >= 2 && data[0] == 'B' && data[1] == 'M') {
-    ok = ReadBmp(data, size, &h, error);
+    ok = ReadBmp(data, size, &h, error, problem);
   } else if (size >= 2 && data[0] == 'P' && data[1] >= '1' && data[1] <= '6') {
-    ok = ReadPnm(data, size, &h, error);
+    ok = ReadPnm(data, size, &h, error, problem);
   } else {
-    return Fail(error, "not an image format read here (PNG, JPEG, BMP, PNM)");
+    return Fail(error, problem, FrameProblem::kUnreadable,
+                "not an image format read here (PNG, JPEG, BMP, PNM)");
   }
   if (!ok) return false;
   if (h.width_px <= 0 || h.height_px <= 0) {
-    return Fail(error, h.format + " header states " + std::to_string(h.width_px) + " x " +
-                           std::to_string(h.height_px) + " px");
+    return Fail(error, problem, FrameProblem::kUnreadable,
+                h.format + " header states " + std::to_string(h.width_px) + " x " +
+                    std::to_string(h.height_px) + " px");
   }
   *header = h;
   return true;
@@ -164,22 +182,27 @@ bool ReadImageBytes(const std::string& path, std::vector<uint8_t>* bytes, std::s
 }
 
 bool DecodeImageChecked(const std::vector<uint8_t>& bytes, int max_width_px, int max_height_px,
-                        int flags, cv::Mat* image, std::string* error) {
-  if (bytes.empty()) return Fail(error, "empty file");
+                        int flags, cv::Mat* image, std::string* error, FrameProblem* problem) {
+  if (bytes.empty()) return Fail(error, problem, FrameProblem::kEmpty, "empty file");
   ImageHeader h;
-  if (!ReadImageHeader(bytes.data(), bytes.size(), &h, error)) return false;
+  if (!ReadImageHeader(bytes.data(), bytes.size(), &h, error, problem)) return false;
   if (h.width_px > max_width_px || h.height_px > max_height_px) {
-    return Fail(error, h.format + " of " + std::to_string(h.width_px) + " x " +
-                           std::to_string(h.height_px) + " px is " + kTooLargeText + " of " +
-                           std::to_string(max_width_px) + " x " + std::to_string(max_height_px) +
-                           " px (not decoded)");
+    return Fail(error, problem, FrameProblem::kWrongSize,
+                h.format + " of " + std::to_string(h.width_px) + " x " +
+                    std::to_string(h.height_px) + " px is " + kTooLargeText + " of " +
+                    std::to_string(max_width_px) + " x " + std::to_string(max_height_px) +
+                    " px (not decoded)");
   }
   try {
     cv::Mat decoded = cv::imdecode(bytes, flags);
-    if (decoded.empty()) return Fail(error, "not a readable " + h.format + " image");
+    if (decoded.empty()) {
+      return Fail(error, problem, FrameProblem::kUnreadable,
+                  "not a readable " + h.format + " image");
+    }
     *image = std::move(decoded);
   } catch (const cv::Exception& e) {
-    return Fail(error, "not a readable " + h.format + " image: OpenCV: " + e.msg);
+    return Fail(error, problem, FrameProblem::kUnreadable,
+                "not a readable " + h.format + " image: OpenCV: " + e.msg);
   }
   return true;
 }

@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "camera_proc/frame_problem.h"
+
 namespace roomfix::camera {
 
 // Image files from outside (frame folders, calibration images) are checked
@@ -33,8 +35,10 @@ struct ImageHeader {
 // The format and pixel size from the first bytes of an image: PNG (IHDR),
 // JPEG (the first SOF marker), BMP (the DIB header), PNM (P1-P6). False with
 // a reason for any other format, or a header that is truncated or states a
-// size of zero or less.
-bool ReadImageHeader(const uint8_t* data, size_t size, ImageHeader* header, std::string* error);
+// size of zero or less; *problem (when given) says its kind (kTruncated for a
+// header cut short, kUnreadable otherwise).
+bool ReadImageHeader(const uint8_t* data, size_t size, ImageHeader* header, std::string* error,
+                     FrameProblem* problem = nullptr);
 
 // Reads a regular file of at most kMaxImageFileBytes (the cap enforced
 // while reading). False with a reason ("not a regular file (a FIFO)",
@@ -43,16 +47,18 @@ bool ReadImageBytes(const std::string& path, std::vector<uint8_t>* bytes, std::s
 
 // Decodes `bytes` with OpenCV (`flags` as for cv::imdecode) after checking
 // from the header that the image is at most max_width_px x max_height_px.
-// Whatever OpenCV throws is caught. False with a reason; a reason for an
-// image over the limits contains kTooLargeText.
+// Whatever OpenCV throws is caught. False with a reason and, when `problem`
+// is given, its kind (kWrongSize for an image over the limits; its reason
+// contains kTooLargeText).
 bool DecodeImageChecked(const std::vector<uint8_t>& bytes, int max_width_px, int max_height_px,
-                        int flags, cv::Mat* image, std::string* error);
+                        int flags, cv::Mat* image, std::string* error,
+                        FrameProblem* problem = nullptr);
 // ReadImageBytes then DecodeImageChecked; the reason is prefixed "PATH: ".
 bool ReadImageChecked(const std::string& path, int max_width_px, int max_height_px, int flags,
                       cv::Mat* image, std::string* error);
 
-// In a reason, marks an image refused for its size (camera_proc counts it as
-// wrong_frame_size rather than unreadable_frame).
+// In a reason, marks an image refused for its size, for a person reading it
+// (code uses FrameProblem::kWrongSize).
 inline constexpr char kTooLargeText[] = "larger than the limit";
 
 // Encodes `image` by the extension of `path` (cv::imencode, exceptions

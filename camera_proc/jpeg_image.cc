@@ -12,6 +12,8 @@
 #include "camera_proc/jpeg_image.h"
 
 #include <jpeglib.h>
+// After jpeglib.h: the message codes (JERR_*, JWRN_*).
+#include <jerror.h>
 
 #include <algorithm>
 #include <csetjmp>
@@ -33,16 +35,35 @@ struct ErrorManager {
   jpeg_error_mgr pub;  // first: libjpeg sees a jpeg_error_mgr*
   std::jmp_buf jump;
   char message[JMSG_LENGTH_MAX];
+  // The kind of the failure, from libjpeg's message code (not its text);
+  // kNone (zero, the Decompressor's memset) until one happens.
+  FrameProblem problem;
 };
 
 [[noreturn]] void Fail(ErrorManager* err, const char* message) {
   std::snprintf(err->message, sizeof(err->message), "%s", message);
+  err->problem = FrameProblem::kUnreadable;
   std::longjmp(err->jump, 1);
+}
+
+// Data that stops early: libjpeg's end of input in a header or the body
+// (JERR_INPUT_EOF, JWRN_JPEG_EOF) or a marker met inside entropy-coded data
+// (JWRN_HIT_MARKER, what a frame cut short and padded shows).
+FrameProblem ProblemOfCode(int msg_code) {
+  switch (msg_code) {
+    case JERR_INPUT_EOF:
+    case JWRN_JPEG_EOF:
+    case JWRN_HIT_MARKER:
+      return FrameProblem::kTruncated;
+    default:
+      return FrameProblem::kUnreadable;
+  }
 }
 
 [[noreturn]] void ErrorExit(j_common_ptr cinfo) {
   auto* err = reinterpret_cast<ErrorManager*>(cinfo->err);
   (*cinfo->err->format_message)(cinfo, err->message);
+  err->problem = ProblemOfCode(cinfo->err->msg_code);
   std::longjmp(err->jump, 1);
 }
 
@@ -72,6 +93,7 @@ class Decompressor {
   jpeg_decompress_struct* cinfo() { return &cinfo_; }
   ErrorManager* err() { return &err_; }
   const char* message() const { return err_.message; }
+  FrameProblem problem() const { return err_.problem; }
 
  private:
   jpeg_decompress_struct cinfo_;
@@ -334,30 +356,27 @@ std::unique_ptr<FrameImage> MakeDecodedImage(cv::Mat bgr) {
 
 std::unique_ptr<FrameImage> MakeJpegImageWithOptions(std::vector<uint8_t> bytes,
                                                      const JpegDecodeOptions& options,
-                                                     std::string* error) {
-  if (bytes.empty()) {
-    if (error != nullptr) *error = "empty JPEG data (0 bytes)";
+                                                     std::string* error, FrameProblem* problem) {
+  int width_px = 0;
+  int height_px = 0;
+  if (!ReadJpegSize(bytes.data(), bytes.size(), &width_px, &height_px, error, problem)) {
     return nullptr;
   }
-  Decompressor d;
-  HeaderJob job{&d, bytes.data(), bytes.size(), 0, 0};
-  if (!RunGuarded(d.err(), RunHeader, &job)) {
-    if (error != nullptr) *error = std::string("not a readable JPEG: ") + d.message();
-    return nullptr;
-  }
-  return std::make_unique<JpegImage>(std::move(bytes), job.width, job.height, options);
+  return std::make_unique<JpegImage>(std::move(bytes), width_px, height_px, options);
 }
 
 bool ReadJpegSize(const uint8_t* data, size_t size, int* width_px, int* height_px,
-                  std::string* error) {
+                  std::string* error, FrameProblem* problem) {
   if (size == 0) {
     if (error != nullptr) *error = "empty JPEG data (0 bytes)";
+    if (problem != nullptr) *problem = FrameProblem::kEmpty;
     return false;
   }
   Decompressor d;
   HeaderJob job{&d, data, size, 0, 0};
   if (!RunGuarded(d.err(), RunHeader, &job)) {
     if (error != nullptr) *error = std::string("not a readable JPEG: ") + d.message();
+    if (problem != nullptr) *problem = d.problem();
     return false;
   }
   *width_px = job.width;
@@ -365,8 +384,9 @@ bool ReadJpegSize(const uint8_t* data, size_t size, int* width_px, int* height_p
   return true;
 }
 
-std::unique_ptr<FrameImage> MakeJpegImage(std::vector<uint8_t> bytes, std::string* error) {
-  return MakeJpegImageWithOptions(std::move(bytes), JpegDecodeOptions{}, error);
+std::unique_ptr<FrameImage> MakeJpegImage(std::vector<uint8_t> bytes, std::string* error,
+                                          FrameProblem* problem) {
+  return MakeJpegImageWithOptions(std::move(bytes), JpegDecodeOptions{}, error, problem);
 }
 
 bool JpegHasEndMarker(const std::vector<uint8_t>& bytes) {

@@ -29,16 +29,18 @@ struct JpegDecodeOptions {
 // MakeJpegImage with explicit decode options.
 std::unique_ptr<FrameImage> MakeJpegImageWithOptions(std::vector<uint8_t> bytes,
                                                      const JpegDecodeOptions& options,
-                                                     std::string* error);
+                                                     std::string* error,
+                                                     FrameProblem* problem = nullptr);
 
 // The pixel size libjpeg itself will decode, read by libjpeg's own header
 // parser with its warnings taken as errors. A walk of the marker segments by
 // hand can be led astray (FF 00 and TEM have no length; libjpeg skips
 // extraneous bytes to the next marker), so a file can show such a walk a
 // small dummy frame header while the decoder reads a huge real one. False
-// with libjpeg's reason for anything libjpeg would not read cleanly.
+// with libjpeg's reason for anything libjpeg would not read cleanly, and
+// its kind in *problem when given (from libjpeg's message code).
 bool ReadJpegSize(const uint8_t* data, size_t size, int* width_px, int* height_px,
-                  std::string* error);
+                  std::string* error, FrameProblem* problem = nullptr);
 
 // Whether `bytes` end with a JPEG end-of-image marker (FF D9), ignoring zero
 // padding after it (some UVC cameras pad their buffers). A cheap check for a

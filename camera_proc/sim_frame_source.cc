@@ -107,10 +107,11 @@ void SimFrameSource::Encode(Rendered* out) const {
     std::vector<uint8_t> bytes;
     if (!camera_->Encode(out->bgr, options_.jpeg_quality, &bytes)) {
       out->error = "cannot encode synthetic frame " + std::to_string(out->frame.seq);
+      out->frame.problem = FrameProblem::kUnreadable;
       out->status = ReadStatus::kBadFrame;
       return;
     }
-    out->frame.image = MakeJpegImage(std::move(bytes), &out->error);
+    out->frame.image = MakeJpegImage(std::move(bytes), &out->error, &out->frame.problem);
     if (out->frame.image == nullptr) out->status = ReadStatus::kBadFrame;
   } else {
     out->frame.image = MakeDecodedImage(std::move(out->bgr));

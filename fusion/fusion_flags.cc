@@ -21,10 +21,10 @@ void AddFusionFlags(CLI::App* app, const std::string& prefix, FusionNodeOptions*
   app->add_option(name("lost-after"), filter.lost_after_s,
                   "A robot is lost when no measurement was accepted for this long, s")
       ->capture_default_str();
-  app->add_option(name("q-accel"), filter.q_accel_mps2,
+  app->add_option(name("q-accel"), filter.q_accel_m_per_s1_5,
                   "Process noise: white acceleration density, m/s^2/sqrt(Hz)")
       ->capture_default_str();
-  app->add_option(name("q-turn"), filter.q_turn_radps2,
+  app->add_option(name("q-turn"), filter.q_turn_rad_per_s1_5,
                   "Process noise: white angular acceleration density, rad/s^2/sqrt(Hz)")
       ->capture_default_str();
   app->add_option(name("ultrasound-sigma-floor"), filter.ultrasound_sigma_floor_m,

@@ -33,7 +33,8 @@ int main(int argc, char** argv) {
   if (process.check) {
     std::cout << "fusion_proc: ok: " << options.camera_channel << " + "
               << options.ultrasound_channel << " -> " << options.fused_channel << ", q_accel "
-              << filter.q_accel_mps2 << " m/s^2, lost after " << filter.lost_after_s << " s, "
+              << filter.q_accel_m_per_s1_5 << " m/s^1.5, lost after " << filter.lost_after_s
+              << " s, "
               << (options.rate_hz > 0.0 ? "rate " + std::to_string(options.rate_hz) + " Hz"
                                         : std::string("per measurement"))
               << ", on " << process.lcm_url << "\n";

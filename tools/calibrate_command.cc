@@ -352,10 +352,7 @@ void AddMarkerImages(const Flags& f, std::vector<Correspondence>* points, std::v
   Site site;
   std::string error;
   if (!LoadSite(f.site, &site, &error)) throw Refusal(error);
-  const roomfix::Camera* camera = nullptr;
-  for (const auto& c : site.cameras) {
-    if (f.camera_id < 0 ? camera == nullptr : c.id == f.camera_id) camera = &c;
-  }
+  const roomfix::Camera* camera = site.FindCameraOrFirst(f.camera_id);
   if (camera == nullptr) throw Refusal(f.site + ": no such camera");
   std::string class_name = f.marker_class;
   if (class_name.empty() && !camera->robots.empty()) {
@@ -588,10 +585,7 @@ void Run(const Flags& f) {
     Site site;
     std::string error;
     if (!LoadSite(f.site, &site, &error)) throw Refusal(error);
-    const roomfix::Camera* camera = nullptr;
-    for (const auto& c : site.cameras) {
-      if (f.camera_id < 0 ? camera == nullptr : c.id == f.camera_id) camera = &c;
-    }
+    const roomfix::Camera* camera = site.FindCameraOrFirst(f.camera_id);
     if (camera == nullptr) {
       throw Refusal(f.site + ": no camera " +
                     (f.camera_id < 0 ? std::string("at all") : std::to_string(f.camera_id)));

@@ -97,13 +97,7 @@ int RunRenderCamera(const RenderCameraFlags& f) {
     std::cerr << kName << error << "\n";
     return 1;
   }
-  const Camera* camera = nullptr;
-  for (const auto& c : site.cameras) {
-    if (!f.camera_id || c.id == *f.camera_id) {
-      camera = &c;
-      break;
-    }
-  }
+  const Camera* camera = f.camera_id ? site.FindCamera(*f.camera_id) : site.FindCameraOrFirst(-1);
   if (camera == nullptr) {
     std::cerr << kName << f.site << ": no camera"
               << (f.camera_id ? " with id " + std::to_string(*f.camera_id) : std::string()) << "\n";

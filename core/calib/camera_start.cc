@@ -103,6 +103,43 @@ bool SolveForFocal(const std::vector<Correspondence>& points, const CameraModel&
   return std::isfinite(*rms_px);
 }
 
+// The largest group of points at one height (within kSamePlaneM of one of
+// them).
+std::vector<Correspondence> LargestSameHeightGroup(const std::vector<Correspondence>& points) {
+  std::vector<Correspondence> plane;
+  for (const Correspondence& a : points) {
+    std::vector<Correspondence> group;
+    for (const Correspondence& b : points) {
+      if (std::abs(b.height_m - a.height_m) <= kSamePlaneM) group.push_back(b);
+    }
+    if (group.size() > plane.size()) plane = std::move(group);
+  }
+  return plane;
+}
+
+// The camera of the smallest reprojection RMS (px, returned; infinite when
+// no focal length gave a pose) over kSearchSteps focal lengths spaced
+// geometrically from kSearchLow to kSearchHigh times the nominal one.
+double SearchFocal(const std::vector<Correspondence>& used, const CameraModel& nominal, bool planar,
+                   double plane_height_m, CameraModel* best) {
+  double best_rms = INFINITY;
+  for (int k = 0; k < kSearchSteps; ++k) {
+    const double scale =
+        kSearchLow * std::pow(kSearchHigh / kSearchLow, k / static_cast<double>(kSearchSteps - 1));
+    CameraModel m;
+    double rms = 0.0;
+    if (!SolveForFocal(used, nominal, scale * nominal.intrinsics.fx_px, planar, plane_height_m, &m,
+                       &rms)) {
+      continue;
+    }
+    if (rms < best_rms) {
+      best_rms = rms;
+      *best = m;
+    }
+  }
+  return best_rms;
+}
+
 }  // namespace
 
 CameraStart FindCameraStart(const std::vector<Correspondence>& points, const CameraModel& nominal) {
@@ -160,14 +197,7 @@ CameraStart FindCameraStart(const std::vector<Correspondence>& points, const Cam
   // The start's points: the largest group at one height (within
   // kSamePlaneM) when it is enough for IPPE, so that one height entered
   // wrong cannot drag the start; else all points through SQPnP.
-  std::vector<Correspondence> plane;
-  for (const Correspondence& a : points) {
-    std::vector<Correspondence> group;
-    for (const Correspondence& b : points) {
-      if (std::abs(b.height_m - a.height_m) <= kSamePlaneM) group.push_back(b);
-    }
-    if (group.size() > plane.size()) plane = std::move(group);
-  }
+  const std::vector<Correspondence> plane = LargestSameHeightGroup(points);
   std::vector<Eigen::Vector2d> plane_xy;
   double plane_height_m = 0.0;
   for (const Correspondence& c : plane) {
@@ -178,20 +208,7 @@ CameraStart FindCameraStart(const std::vector<Correspondence>& points, const Cam
       static_cast<int>(plane.size()) >= kMinPnpPoints && SmallerSpread(plane_xy) >= 0.01;
   const std::vector<Correspondence>& used = planar ? plane : points;
 
-  double best_rms = INFINITY;
-  for (int k = 0; k < kSearchSteps; ++k) {
-    const double scale =
-        kSearchLow * std::pow(kSearchHigh / kSearchLow, k / static_cast<double>(kSearchSteps - 1));
-    CameraModel m;
-    double rms = 0.0;
-    if (!SolveForFocal(used, nominal, scale * in.fx_px, planar, plane_height_m, &m, &rms)) {
-      continue;
-    }
-    if (rms < best_rms) {
-      best_rms = rms;
-      s.model = m;
-    }
-  }
+  const double best_rms = SearchFocal(used, nominal, planar, plane_height_m, &s.model);
   if (!std::isfinite(best_rms)) {
     s.message =
         "no camera explains the points: the planar pose solver found none for focal "

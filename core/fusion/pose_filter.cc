@@ -97,8 +97,8 @@ bool PoseFilterOptions::IsValid(std::string* error) const {
     bool allow_zero;
   };
   const Check checks[] = {
-      {q_accel_mps2, "q_accel_mps2", false},
-      {q_turn_radps2, "q_turn_radps2", false},
+      {q_accel_m_per_s1_5, "q_accel_m_per_s1_5", false},
+      {q_turn_rad_per_s1_5, "q_turn_rad_per_s1_5", false},
       {camera_inflation, "camera_inflation", false},
       {camera_sigma_floor_m, "camera_sigma_floor_m", false},
       {camera_calibration_sigma_m, "camera_calibration_sigma_m", true},
@@ -320,8 +320,8 @@ void PoseFilter::PredictState(int64_t utime, State* state) const {
   Eigen::Matrix2d block;
   block << dt * dt * dt / 3.0, dt * dt / 2.0, dt * dt / 2.0, dt;
   StateCovariance q = StateCovariance::Zero();
-  const double qa = options_.q_accel_mps2 * options_.q_accel_mps2;
-  const double qt = options_.q_turn_radps2 * options_.q_turn_radps2;
+  const double qa = options_.q_accel_m_per_s1_5 * options_.q_accel_m_per_s1_5;
+  const double qt = options_.q_turn_rad_per_s1_5 * options_.q_turn_rad_per_s1_5;
   const int pairs[3][2] = {{kX, kVx}, {kY, kVy}, {kHeading, kTurnRate}};
   for (int k = 0; k < 3; ++k) {
     const double density = k < 2 ? qa : qt;

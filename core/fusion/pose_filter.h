@@ -55,8 +55,10 @@ struct PoseFilterOptions {
   // angular acceleration of density q_turn^2 (rad^2/s^3) on the heading.
   // Chosen on the reference circle and the live simulator (docs/fusion.md);
   // larger values follow sudden starts better and smooth the camera less.
-  double q_accel_mps2 = 0.03;
-  double q_turn_radps2 = 0.3;
+  // Units: a density of q^2 m^2/s^3 makes q itself m/s^1.5 (m/s^2/sqrt(Hz)),
+  // rad/s^1.5 for the turn; not an acceleration, whatever the flag says.
+  double q_accel_m_per_s1_5 = 0.03;
+  double q_turn_rad_per_s1_5 = 0.3;
 
   // Measurement noise. Each covariance is multiplied by the source's
   // inflation factor, then its eigenvalues are raised to at least the

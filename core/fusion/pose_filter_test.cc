@@ -509,7 +509,7 @@ TEST(PoseFilterOptions, RefusesNonPositiveNoiseAndGates) {
   std::string error;
   EXPECT_TRUE(PoseFilterOptions().IsValid(&error)) << error;
   PoseFilterOptions o;
-  o.q_accel_mps2 = 0.0;
+  o.q_accel_m_per_s1_5 = 0.0;
   EXPECT_FALSE(o.IsValid(&error));
   EXPECT_NE(error.find("q_accel"), std::string::npos);
   o = PoseFilterOptions();

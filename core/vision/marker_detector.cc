@@ -451,6 +451,18 @@ bool Measure(const cv::Mat& bgr, const cv::Mat1b& comp, const cv::Rect& roi, int
 
 }  // namespace
 
+bool DetectorOptions::IsValid(std::string* error) const {
+  if (!(blur_sigma_px >= 0.0) || !std::isfinite(blur_sigma_px)) {
+    *error = "detector blur_sigma_px must be >= 0 and finite";
+    return false;
+  }
+  if (!(background_v_ref > 0.0 && background_v_ref <= 255.0)) {
+    *error = "detector background_v_ref must be in (0, 255] (HSV value)";
+    return false;
+  }
+  return true;
+}
+
 MarkerDetector::MarkerDetector(std::vector<ColourClass> classes, DetectorOptions options)
     : classes_(std::move(classes)), options_(options), stats_(classes_.size()) {
   // HSV of every LUT cell's centre colour, once.

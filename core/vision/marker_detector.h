@@ -59,6 +59,10 @@ struct DetectorOptions {
   // lighting the class ranges were tuned in. Each pixel is scaled by
   // background_v_ref / (local floor V) before its class is looked up.
   double background_v_ref = 128.0;
+
+  // False with a reason: a negative or non-finite blur, a reference V
+  // outside (0, 255].
+  bool IsValid(std::string* error) const;
 };
 
 // Finds coloured blobs. Stateless apart from its options and classes; one

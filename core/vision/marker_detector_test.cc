@@ -537,5 +537,21 @@ TEST(MarkerDetector, FindsOrangeAndGreenCandiesInSmartiesPhoto) {
   }
 }
 
+TEST(DetectorOptions, RefusesANegativeBlurOrAReferenceOutsideTheValueRange) {
+  std::string error;
+  EXPECT_TRUE(DetectorOptions{}.IsValid(&error)) << error;
+  DetectorOptions o;
+  o.blur_sigma_px = -0.5;
+  EXPECT_FALSE(o.IsValid(&error));
+  EXPECT_NE(error.find("blur_sigma_px"), std::string::npos) << error;
+  o = DetectorOptions{};
+  o.background_v_ref = 0.0;
+  EXPECT_FALSE(o.IsValid(&error));
+  o.background_v_ref = 256.0;
+  EXPECT_FALSE(o.IsValid(&error));
+  o.background_v_ref = 255.0;
+  EXPECT_TRUE(o.IsValid(&error)) << error;
+}
+
 }  // namespace
 }  // namespace roomfix::vision

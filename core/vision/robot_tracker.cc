@@ -151,6 +151,10 @@ bool TrackerOptions::IsValid(std::string* error) const {
     *error = "max_blobs must be at least 2 (one robot's markers)";
     return false;
   }
+  if (!(heading_offset_tolerance < 1.0)) {
+    *error = "heading_offset_tolerance must lie in [0, 1)";
+    return false;
+  }
   if (!(heading_size_ratio > 0.0 && heading_size_ratio < 1.0)) {
     *error = "heading_size_ratio must lie in (0, 1)";
     return false;

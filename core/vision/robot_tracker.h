@@ -93,6 +93,8 @@ struct TrackerOptions {
   // every blob is then taken as whole, as before the rule.
   bool refuse_clipped = true;
 
+  // False with a reason: a speed, size or time that is not positive and
+  // finite, a tolerance outside [0, 1), a search period outside [1, 300].
   bool IsValid(std::string* error) const;
 };
 

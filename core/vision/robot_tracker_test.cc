@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -889,6 +890,22 @@ TEST(TrackerOptions, IsValidNamesTheBadField) {
   o.lost_after_s = 0.0;
   EXPECT_FALSE(o.IsValid(&error));
   EXPECT_NE(error.find("lost_after_s"), std::string::npos) << error;
+TEST(TrackerOptions, RefusesNonPositiveSizesAndTimesAndATolerancePastOne) {
+  std::string error;
+  EXPECT_TRUE(TrackerOptions{}.IsValid(&error)) << error;
+  TrackerOptions o;
+  o.lost_after_s = 0.0;
+  EXPECT_FALSE(o.IsValid(&error));
+  EXPECT_NE(error.find("lost_after_s"), std::string::npos) << error;
+  o = TrackerOptions{};
+  o.max_speed_px_per_s = std::numeric_limits<double>::infinity();
+  EXPECT_FALSE(o.IsValid(&error));
+  o = TrackerOptions{};
+  o.window_margin_px = -1.0;
+  EXPECT_FALSE(o.IsValid(&error));
+  o = TrackerOptions{};
+  o.heading_offset_tolerance = 1.0;
+  EXPECT_FALSE(o.IsValid(&error));
 }
 
 }  // namespace

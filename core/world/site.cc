@@ -362,6 +362,95 @@ std::string DescribeOverlap(const MarkerClass& a, const MarkerClass& b) {
   return s.str();
 }
 
+// cameras[i].robots: each robot's two marker classes (known to the camera,
+// different, a code no other robot has, and without a marker code each class
+// in one role only), marker height and tilt.
+void ParseCameraRobots(const Reader& r, const YAML::Node& node, const std::string& key,
+                       const std::string& code_key, const Site& site, Camera* cam) {
+  auto has_class = [&](const std::string& name) {
+    return std::any_of(cam->marker_classes.begin(), cam->marker_classes.end(),
+                       [&](const MarkerClass& mc) { return mc.name == name; });
+  };
+  const YAML::Node robots = r.Required(node, key, "robots");
+  r.ExpectSequence(robots, key + ".robots");
+  std::set<int> robot_ids;
+  // Per class: the first robot using it as a position and as a heading
+  // marker (for the role check without a code); per code: its robot.
+  std::map<std::string, size_t> position_user, heading_user;
+  std::map<std::pair<std::string, std::string>, size_t> code_user;
+  for (size_t k = 0; k < robots.size(); ++k) {
+    const YAML::Node rn = robots[k];
+    const std::string rkey = K::Index(key + ".robots", k);
+    r.ExpectMap(rn, rkey);
+    r.OnlyKeys(
+        rn, rkey,
+        {"robot_id", "position_marker", "heading_marker", "marker_height_m", "tilt_sigma_deg"});
+    CameraRobot cr;
+    const YAML::Node rid = r.Required(rn, rkey, "robot_id");
+    cr.robot_id = r.Int(rid, rkey + ".robot_id");
+    if (site.FindRobot(cr.robot_id) == nullptr) {
+      r.Fail(rid, rkey + ".robot_id", "no robot with id " + std::to_string(cr.robot_id));
+    }
+    if (!robot_ids.insert(cr.robot_id).second) {
+      r.Fail(rid, rkey + ".robot_id", "robot listed twice for this camera");
+    }
+    for (auto [field, out] : {std::make_pair("position_marker", &cr.position_marker),
+                              std::make_pair("heading_marker", &cr.heading_marker)}) {
+      const YAML::Node m = r.Required(rn, rkey, field);
+      *out = r.String(m, rkey + "." + field);
+      if (!has_class(*out)) {
+        r.Fail(m, rkey + "." + field, "no marker class named '" + *out + "'");
+      }
+    }
+    if (cr.position_marker == cr.heading_marker) {
+      // With a code the sizes would tell the roles apart, but the two
+      // markers' gap (a few pixels at the far corners) blurs shut and the
+      // pair reads as one blob.
+      r.Fail(rn, rkey + ".heading_marker",
+             "must differ from position_marker (two markers of one colour side by side merge "
+             "into one blob)");
+    }
+    const auto code = std::make_pair(cr.position_marker, cr.heading_marker);
+    if (const auto it = code_user.find(code); it != code_user.end()) {
+      r.Fail(rn, rkey,
+             "code " + cr.position_marker + "/" + cr.heading_marker + " is already robot " +
+                 std::to_string(cam->robots[it->second].robot_id) + "'s (" +
+                 K::Index(key + ".robots", it->second) +
+                 "): the camera could not tell the two robots apart");
+    }
+    code_user[code] = k;
+    if (!cam->marker_code.enabled()) {
+      // Without a code a blob's role comes from its class alone.
+      const auto pos = heading_user.find(cr.position_marker);
+      const auto head = position_user.find(cr.heading_marker);
+      if (pos != heading_user.end() || head != position_user.end()) {
+        const bool as_pos = pos != heading_user.end();
+        const std::string& cls = as_pos ? cr.position_marker : cr.heading_marker;
+        const size_t other = as_pos ? pos->second : head->second;
+        r.Fail(rn, rkey + (as_pos ? ".position_marker" : ".heading_marker"),
+               "class '" + cls + "' is robot " + std::to_string(cam->robots[other].robot_id) +
+                   "'s " + (as_pos ? "heading" : "position") +
+                   " marker: a class serves one role unless " + code_key +
+                   " sizes the roles (docs/camera.md, \"Many robots\")");
+      }
+      position_user.emplace(cr.position_marker, k);
+      heading_user.emplace(cr.heading_marker, k);
+    }
+    const YAML::Node h = r.Required(rn, rkey, "marker_height_m");
+    cr.marker_height_m = r.Double(h, rkey + ".marker_height_m");
+    if (cr.marker_height_m < 0.0 || cr.marker_height_m >= site.room.height_m) {
+      r.Fail(h, rkey + ".marker_height_m", "must be between the floor and the ceiling");
+    }
+    if (const YAML::Node tilt = rn["tilt_sigma_deg"]) {
+      cr.tilt_sigma_deg = r.Double(tilt, rkey + ".tilt_sigma_deg");
+      if (cr.tilt_sigma_deg < 0.0 || cr.tilt_sigma_deg > 30.0) {
+        r.Fail(tilt, rkey + ".tilt_sigma_deg", "must be between 0 and 30 degrees");
+      }
+    }
+    cam->robots.push_back(cr);
+  }
+}
+
 void ParseCameras(const Reader& r, const YAML::Node& root, const std::string& base_dir,
                   Site* site) {
   const YAML::Node cameras = root["cameras"];
@@ -459,88 +548,7 @@ void ParseCameras(const Reader& r, const YAML::Node& root, const std::string& ba
       }
       cam.marker_classes.push_back(mc);
     }
-    auto has_class = [&](const std::string& name) {
-      return std::any_of(cam.marker_classes.begin(), cam.marker_classes.end(),
-                         [&](const MarkerClass& mc) { return mc.name == name; });
-    };
-    const YAML::Node robots = r.Required(node, key, "robots");
-    r.ExpectSequence(robots, key + ".robots");
-    std::set<int> robot_ids;
-    // Per class: the first robot using it as a position and as a heading
-    // marker (for the role check without a code); per code: its robot.
-    std::map<std::string, size_t> position_user, heading_user;
-    std::map<std::pair<std::string, std::string>, size_t> code_user;
-    for (size_t k = 0; k < robots.size(); ++k) {
-      const YAML::Node rn = robots[k];
-      const std::string rkey = K::Index(key + ".robots", k);
-      r.ExpectMap(rn, rkey);
-      r.OnlyKeys(
-          rn, rkey,
-          {"robot_id", "position_marker", "heading_marker", "marker_height_m", "tilt_sigma_deg"});
-      CameraRobot cr;
-      const YAML::Node rid = r.Required(rn, rkey, "robot_id");
-      cr.robot_id = r.Int(rid, rkey + ".robot_id");
-      if (site->FindRobot(cr.robot_id) == nullptr) {
-        r.Fail(rid, rkey + ".robot_id", "no robot with id " + std::to_string(cr.robot_id));
-      }
-      if (!robot_ids.insert(cr.robot_id).second) {
-        r.Fail(rid, rkey + ".robot_id", "robot listed twice for this camera");
-      }
-      for (auto [field, out] : {std::make_pair("position_marker", &cr.position_marker),
-                                std::make_pair("heading_marker", &cr.heading_marker)}) {
-        const YAML::Node m = r.Required(rn, rkey, field);
-        *out = r.String(m, rkey + "." + field);
-        if (!has_class(*out)) {
-          r.Fail(m, rkey + "." + field, "no marker class named '" + *out + "'");
-        }
-      }
-      if (cr.position_marker == cr.heading_marker) {
-        // With a code the sizes would tell the roles apart, but the two
-        // markers' gap (a few pixels at the far corners) blurs shut and the
-        // pair reads as one blob.
-        r.Fail(rn, rkey + ".heading_marker",
-               "must differ from position_marker (two markers of one colour side by side merge "
-               "into one blob)");
-      }
-      const auto code = std::make_pair(cr.position_marker, cr.heading_marker);
-      if (const auto it = code_user.find(code); it != code_user.end()) {
-        r.Fail(rn, rkey,
-               "code " + cr.position_marker + "/" + cr.heading_marker + " is already robot " +
-                   std::to_string(cam.robots[it->second].robot_id) + "'s (" +
-                   K::Index(key + ".robots", it->second) +
-                   "): the camera could not tell the two robots apart");
-      }
-      code_user[code] = k;
-      if (!cam.marker_code.enabled()) {
-        // Without a code a blob's role comes from its class alone.
-        const auto pos = heading_user.find(cr.position_marker);
-        const auto head = position_user.find(cr.heading_marker);
-        if (pos != heading_user.end() || head != position_user.end()) {
-          const bool as_pos = pos != heading_user.end();
-          const std::string& cls = as_pos ? cr.position_marker : cr.heading_marker;
-          const size_t other = as_pos ? pos->second : head->second;
-          r.Fail(rn, rkey + (as_pos ? ".position_marker" : ".heading_marker"),
-                 "class '" + cls + "' is robot " + std::to_string(cam.robots[other].robot_id) +
-                     "'s " + (as_pos ? "heading" : "position") +
-                     " marker: a class serves one role unless " + code_key +
-                     " sizes the roles (docs/camera.md, \"Many robots\")");
-        }
-        position_user.emplace(cr.position_marker, k);
-        heading_user.emplace(cr.heading_marker, k);
-      }
-      const YAML::Node h = r.Required(rn, rkey, "marker_height_m");
-      cr.marker_height_m = r.Double(h, rkey + ".marker_height_m");
-      if (cr.marker_height_m < 0.0 || cr.marker_height_m >= site->room.height_m) {
-        r.Fail(h, rkey + ".marker_height_m", "must be between the floor and the ceiling");
-      }
-      if (const YAML::Node tilt = rn["tilt_sigma_deg"]) {
-        cr.tilt_sigma_deg = r.Double(tilt, rkey + ".tilt_sigma_deg");
-        if (cr.tilt_sigma_deg < 0.0 || cr.tilt_sigma_deg > 30.0) {
-          r.Fail(tilt, rkey + ".tilt_sigma_deg", "must be between 0 and 30 degrees");
-        }
-      }
-      cam.robots.push_back(cr);
-    }
+    ParseCameraRobots(r, node, key, code_key, *site, &cam);
     site->cameras.push_back(cam);
   }
 }
@@ -866,6 +874,11 @@ const Robot* Site::FindRobot(int id) const {
 
 const Camera* Site::FindCamera(int id) const {
   return FindIf(cameras, [id](const Camera& c) { return c.id == id; });
+}
+
+const Camera* Site::FindCameraOrFirst(int id) const {
+  if (id >= 0) return FindCamera(id);
+  return cameras.empty() ? nullptr : &cameras.front();
 }
 
 double PositionMarkerDiameterM(const Camera& camera, const CameraRobot& robot) {

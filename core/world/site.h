@@ -284,6 +284,9 @@ struct Site {
   const RadioNetwork* RadioOfReceiver(int receiver_id) const;
   // The camera with this id (cameras[].id), nullptr when there is none.
   const Camera* FindCamera(int id) const;
+  // As FindCamera, but id < 0 (a tool's or process's --camera left out)
+  // means the site's first camera; nullptr when there is none.
+  const Camera* FindCameraOrFirst(int id) const;
 };
 
 // Reads and validates a site file. On failure returns false and sets *error

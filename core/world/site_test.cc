@@ -417,5 +417,19 @@ TEST(RadioAddress, RejectsWrongLengthAndNonHex) {
   EXPECT_FALSE(ParseRadioAddress("", &a));
 }
 
+// A process or tool whose --camera is left out takes the site's first
+// camera; a given id must exist.
+TEST(SiteFinders, FindCameraOrFirstTakesTheFirstCameraWhenNoIdIsGiven) {
+  Site site;
+  std::string error;
+  ASSERT_TRUE(LoadSite(SourceDir() + "/config/sites/two_cameras.yaml", &site, &error)) << error;
+  ASSERT_EQ(site.cameras.size(), 2u);
+  EXPECT_EQ(site.FindCameraOrFirst(-1), &site.cameras.front());
+  EXPECT_EQ(site.FindCameraOrFirst(site.cameras.back().id), &site.cameras.back());
+  EXPECT_EQ(site.FindCamera(site.cameras.back().id), &site.cameras.back());
+  EXPECT_EQ(site.FindCameraOrFirst(99), nullptr);
+  EXPECT_EQ(Site{}.FindCameraOrFirst(-1), nullptr);
+}
+
 }  // namespace
 }  // namespace roomfix

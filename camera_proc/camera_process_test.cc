@@ -1,0 +1,202 @@
+#include "camera_proc/camera_process.h"
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+#include <thread>
+#include <vector>
+
+#include "msgio/process.h"
+#include "roomfix/process_status_t.hpp"
+#include "tests/testing/test_paths.h"
+
+namespace roomfix {
+namespace {
+
+void WriteBytes(const std::string& path, const std::vector<uint8_t>& bytes) {
+  std::ofstream out(path, std::ios::binary);
+  out.write(reinterpret_cast<const char*>(bytes.data()),
+            static_cast<std::streamsize>(bytes.size()));
+}
+
+class CameraProcessTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string error;
+    ASSERT_TRUE(LoadSite(testing::SourceDir() + "/config/sites/demo_room.yaml", &site_, &error))
+        << error;
+    ASSERT_FALSE(site_.cameras.empty());
+  }
+  Site site_;
+};
+
+TEST_F(CameraProcessTest, ChoosesTheSiteCameraAndItsCalibration) {
+  CameraProcOptions options;
+  CameraChoice choice;
+  std::string error;
+  ASSERT_TRUE(ChooseCamera(site_, options, &choice, &error)) << error;
+  EXPECT_EQ(choice.camera.id, site_.cameras.front().id);
+  EXPECT_EQ(choice.device, "sim:webcam");
+  // The demo site names a calibration file, which is loaded and checked.
+  ASSERT_TRUE(choice.calibration.has_value());
+  EXPECT_EQ(choice.calibration->width_px(), choice.camera.width_px);
+
+  options.calibration_path = "none";
+  options.device = "/dev/video7";
+  ASSERT_TRUE(ChooseCamera(site_, options, &choice, &error)) << error;
+  EXPECT_FALSE(choice.calibration.has_value());
+  EXPECT_EQ(choice.device, "/dev/video7");
+}
+
+TEST_F(CameraProcessTest, RefusesAnUnknownCameraOrAMissingCalibration) {
+  CameraProcOptions options;
+  options.camera_id = 99;
+  CameraChoice choice;
+  std::string error;
+  EXPECT_FALSE(ChooseCamera(site_, options, &choice, &error));
+  EXPECT_EQ(error, "the site has no camera with id 99");
+
+  options.camera_id = site_.cameras.front().id;
+  options.calibration_path = "/nonexistent/calibration.yaml";
+  error.clear();
+  EXPECT_FALSE(ChooseCamera(site_, options, &choice, &error));
+  EXPECT_NE(error.find("/nonexistent/calibration.yaml"), std::string::npos) << error;
+}
+
+TEST_F(CameraProcessTest, ChecksASyntheticSourceWithoutBuildingIt) {
+  CameraProcOptions options;
+  options.calibration_path = "none";
+  CameraChoice choice;
+  std::string error;
+  ASSERT_TRUE(ChooseCamera(site_, options, &choice, &error)) << error;
+  std::unique_ptr<camera::FrameSource> source;
+  std::string summary;
+  ASSERT_TRUE(MakeCameraSource(site_, choice, options, /*start_utime=*/1, /*check_only=*/true,
+                               &source, &summary, &error))
+      << error;
+  EXPECT_EQ(source, nullptr);
+  EXPECT_EQ(summary, "camera " + std::to_string(choice.camera.id) + ", synthetic webcam, " +
+                         std::to_string(choice.camera.robots.size()) + " robots, pixels only");
+
+  choice.device = "sim:no_such_scenario";
+  EXPECT_FALSE(
+      MakeCameraSource(site_, choice, options, 1, /*check_only=*/true, &source, &summary, &error));
+  EXPECT_NE(error.find("no_such_scenario"), std::string::npos) << error;
+}
+
+// A folder of frames, some bad: each good one is processed, each bad one is
+// counted under the kind its source reported (not guessed from its text),
+// and the loop ends at the end of the folder with 0.
+TEST_F(CameraProcessTest, RunsAFolderCountingBadFramesByKind) {
+  testing::TempDir dir;
+  const Camera& camera = site_.cameras.front();
+  std::vector<uint8_t> jpeg;
+  ASSERT_TRUE(cv::imencode(
+      ".jpg", cv::Mat(camera.height_px, camera.width_px, CV_8UC3, cv::Scalar(90, 90, 90)), jpeg));
+  WriteBytes(dir.File("a.jpg"), jpeg);
+  std::vector<uint8_t> cut(jpeg.begin(), jpeg.begin() + static_cast<long>(jpeg.size() / 2));
+  WriteBytes(dir.File("b.jpg"), cut);
+  WriteBytes(dir.File("c.jpg"), {});
+  WriteBytes(dir.File("d.png"),
+             {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n', 0, 0, 0, 13, 'I', 'H', 'D',
+              'R',  0,   1,   0,   0,    0,    1,    0,    0, 8, 2, 0,  0,   0});
+  WriteBytes(dir.File("e.png"), {'n', 'o', 't', ' ', 'a', 'n', ' ', 'i', 'm', 'a', 'g', 'e'});
+  WriteBytes(dir.File("f.jpg"), jpeg);
+
+  CameraProcOptions options;
+  options.device = dir.path();
+  options.calibration_path = "none";
+  CameraChoice choice;
+  std::string error;
+  ASSERT_TRUE(ChooseCamera(site_, options, &choice, &error)) << error;
+  std::unique_ptr<camera::FrameSource> source;
+  std::string summary;
+  ASSERT_TRUE(MakeCameraSource(site_, choice, options, 1'700'000'000'000'000, false, &source,
+                               &summary, &error))
+      << error;
+  LoopbackBus bus;
+  std::vector<process_status_t> statuses;
+  bus.Subscribe<process_status_t>(
+      kStatusChannel,
+      [&](const process_status_t& s, const MessageInfo&) { statuses.push_back(s); });
+  CameraNode node(site_, camera, std::nullopt, &bus, CameraNodeOptions{}, NowUtime());
+  ASSERT_TRUE(node.ok(&error)) << error;
+  CameraLoopOptions loop;
+  loop.duration_s = 30.0;  // a bound should the end never come; it comes at once
+  EXPECT_EQ(RunCameraSource(source.get(), &node, &bus, loop, &error), 0) << error;
+  EXPECT_EQ(node.frames_processed(), 2);
+  EXPECT_EQ(node.status().rejected("truncated_frame"), 1);
+  EXPECT_EQ(node.status().rejected("empty_frame"), 1);
+  EXPECT_EQ(node.status().rejected("wrong_frame_size"), 1);
+  EXPECT_EQ(node.status().rejected("unreadable_frame"), 1);
+  ASSERT_FALSE(statuses.empty());
+  EXPECT_EQ(statuses.back().state, process_status_t::STATE_STOPPING);
+}
+
+TEST_F(CameraProcessTest, AFileSourceThatCannotOpenEndsWithItsReason) {
+  testing::TempDir dir;
+  CameraProcOptions options;
+  options.device = dir.path() + "/*.jpg";  // matches nothing
+  options.calibration_path = "none";
+  CameraChoice choice;
+  std::string error;
+  ASSERT_TRUE(ChooseCamera(site_, options, &choice, &error)) << error;
+  std::unique_ptr<camera::FrameSource> source;
+  std::string summary;
+  ASSERT_TRUE(MakeCameraSource(site_, choice, options, 1, false, &source, &summary, &error))
+      << error;
+  LoopbackBus bus;
+  CameraNode node(site_, site_.cameras.front(), std::nullopt, &bus, CameraNodeOptions{},
+                  NowUtime());
+  EXPECT_EQ(RunCameraSource(source.get(), &node, &bus, CameraLoopOptions{}, &error), 1);
+  EXPECT_NE(error.find("no image files match"), std::string::npos) << error;
+}
+
+// roomfix_sim's t = 0 is its STATUS time minus its uptime; other processes'
+// heartbeats are not its clock.
+TEST(WaitForSimClock, TakesRoomfixSimsStartFromItsHeartbeat) {
+  std::string error;
+  auto bus = OpenBus("memq://", &error);
+  ASSERT_NE(bus, nullptr) << error;
+  process_status_t other{};
+  other.process = "trilat_proc";
+  other.utime = 5'000'000;
+  other.uptime_us = 1'000'000;
+  process_status_t sim{};
+  sim.process = "roomfix_sim";
+  sim.utime = 1'700'000'010'000'000;
+  sim.uptime_us = 10'000'000;
+  // Published once the wait has subscribed, as a heartbeat comes.
+  std::thread heartbeats([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    bus->Publish(kStatusChannel, other);
+    bus->Publish(kStatusChannel, sim);
+  });
+  const int64_t start_utime = WaitForSimClock(bus.get(), 5.0);
+  heartbeats.join();
+  EXPECT_EQ(start_utime, 1'700'000'000'000'000);
+}
+
+TEST(WaitForSimClock, GivesZeroWhenNoSimulatorIsHeard) {
+  std::string error;
+  auto bus = OpenBus("memq://", &error);
+  ASSERT_NE(bus, nullptr) << error;
+  EXPECT_EQ(WaitForSimClock(bus.get(), 0.2), 0);
+}
+
+TEST(CameraProcOptions, RefusesAQualityOrWaitOutOfRange) {
+  CameraProcOptions options;
+  std::string error;
+  EXPECT_TRUE(options.IsValid(&error)) << error;
+  options.sim_jpeg_quality = 101;
+  EXPECT_FALSE(options.IsValid(&error));
+  options = CameraProcOptions{};
+  options.reopen_max_s = 0.0;
+  EXPECT_FALSE(options.IsValid(&error));
+  EXPECT_NE(error.find("reopen"), std::string::npos) << error;
+}
+
+}  // namespace
+}  // namespace roomfix
