@@ -12,6 +12,7 @@
 
 #include "core/calib/marker_projection.h"
 #include "core/calib/pose_covariance.h"
+#include "msgio/message_conversions.h"
 #include "msgio/time_limits.h"
 #include "msgio/wire_check.h"
 
@@ -452,29 +453,28 @@ void CameraNode::OnFrame(camera::Frame* frame, int64_t now_utime) {
   const std::vector<vision::Blob> all = unique.Take();
   Track(frame->capture_utime, plans, all, now_utime);
 
-  marker_pixels_t msg{};
+  MarkerPixels msg;
   msg.utime = frame->capture_utime;
   msg.camera_id = camera_.id;
   msg.frame_seq = frame->seq;
   msg.width_px = image->width_px();
   msg.height_px = image->height_px();
-  msg.search_mode =
-      full ? marker_pixels_t::SEARCH_FULL_FRAME : marker_pixels_t::SEARCH_REGION_OF_INTEREST;
+  msg.search_mode = full ? SearchMode::kFullFrame : SearchMode::kRegionOfInterest;
   for (const vision::Blob& b : all) {
-    marker_t m{};
+    PixelMarker m;
     m.colour_class = setup_.classes[static_cast<size_t>(b.class_index)].name;
     m.robot_id = -1;
-    m.role = marker_t::ROLE_NONE;
+    m.role = MarkerRole::kNone;
     for (const vision::RobotObservation& o : observations_) {
       auto same = [&](const vision::Blob& x) {
         return x.class_index == b.class_index && std::hypot(x.u_px - b.u_px, x.v_px - b.v_px) < 1.0;
       };
       if (o.found && same(o.position)) {
         m.robot_id = o.robot_id;
-        m.role = marker_t::ROLE_POSITION;
+        m.role = MarkerRole::kPosition;
       } else if (o.found && o.has_heading && same(o.heading)) {
         m.robot_id = o.robot_id;
-        m.role = marker_t::ROLE_HEADING;
+        m.role = MarkerRole::kHeading;
       }
     }
     m.u_px = b.u_px;
@@ -489,12 +489,11 @@ void CameraNode::OnFrame(camera::Frame* frame, int64_t now_utime) {
   // those go first, and what does not fit is counted, not sent.
   if (msg.markers.size() > static_cast<size_t>(wire_cap::kMarkersPerFrame)) {
     std::stable_partition(msg.markers.begin(), msg.markers.end(),
-                          [](const marker_t& m) { return m.robot_id >= 0; });
+                          [](const PixelMarker& m) { return m.robot_id >= 0; });
     status_.Count("markers_not_published",
                   static_cast<int64_t>(msg.markers.size()) - wire_cap::kMarkersPerFrame);
     msg.markers.resize(static_cast<size_t>(wire_cap::kMarkersPerFrame));
   }
-  msg.num_markers = static_cast<int32_t>(msg.markers.size());
   for (const vision::RobotObservation& o : observations_) {
     if (!o.found) continue;
     detector_->ObserveTracked(o.position);
@@ -507,7 +506,7 @@ void CameraNode::OnFrame(camera::Frame* frame, int64_t now_utime) {
       std::clamp<int64_t>(std::max<int64_t>(0, now_utime - frame->capture_utime) + elapsed_us, 0,
                           std::numeric_limits<int32_t>::max()));
   status_.SetCounter("last_frame_us", elapsed_us);
-  if (bus_->Publish(kMarkerPixelsChannel, msg)) status_.AddOutputs();
+  if (bus_->Publish(kMarkerPixelsChannel, ToMessage(msg))) status_.AddOutputs();
   // The pose's latency is the recorded processing time, so a replay from
   // MARKER_PIXELS (OnMarkerPixels) gives the same number.
   if (calibration_) PublishPoses(msg.utime, msg.frame_seq, msg.processing_time_us);
@@ -634,7 +633,7 @@ void CameraNode::MaybePublishPreview(const camera::Frame& frame) {
   cv::Mat small;
   std::string error;
   if (!frame.image->DecodeReduced(4, &small, &error)) return;
-  image_t preview{};
+  PreviewImage preview;
   preview.utime = frame.capture_utime;
   preview.camera_id = camera_.id;
   preview.frame_seq = frame.seq;
@@ -646,8 +645,7 @@ void CameraNode::MaybePublishPreview(const camera::Frame& frame) {
   std::vector<uint8_t> bytes;
   if (!cv::imencode(".jpg", small, bytes, {cv::IMWRITE_JPEG_QUALITY, 70})) return;
   preview.data.assign(bytes.begin(), bytes.end());
-  preview.num_bytes = static_cast<int32_t>(preview.data.size());
-  bus_->Publish(kCameraPreviewChannel, preview);
+  bus_->Publish(kCameraPreviewChannel, ToMessage(preview));
 }
 
 bool CameraNode::MapMarker(const vision::Blob& blob, double radius_m, double height_m, double* x_m,
@@ -705,9 +703,9 @@ void CameraNode::PublishPoses(int64_t capture_utime, int64_t frame_seq, int64_t 
   for (size_t i = 0; i < observations_.size(); ++i) {
     const vision::RobotObservation& o = observations_[i];
     const double height_m = setup_.marker_height_m[i];
-    pose2d_t p{};
+    Pose2d p;
     p.utime = capture_utime;
-    p.source = pose2d_t::SOURCE_CAMERA;
+    p.source = PoseSource::kCamera;
     p.camera_id = camera_.id;
     p.robot_id = o.robot_id;
     p.measurement_seq = frame_seq;
@@ -716,7 +714,7 @@ void CameraNode::PublishPoses(int64_t capture_utime, int64_t frame_seq, int64_t 
     for (auto& row : p.covariance) {
       for (double& c : row) c = kNaN;
     }
-    p.status = pose2d_t::STATUS_LOST;
+    p.status = PoseStatus::kLost;
     double x = 0, y = 0;
     std::string error;
     if (o.found && MapMarker(o.position, setup_.position_radius_m[i], height_m, &x, &y)) {
@@ -760,7 +758,7 @@ void CameraNode::PublishPoses(int64_t capture_utime, int64_t frame_seq, int64_t 
       for (int r = 0; r < 2; ++r) {
         for (int c = 0; c < 2; ++c) p.covariance[r][c] = cov(r, c);
       }
-      p.status = pose2d_t::STATUS_DEGRADED;
+      p.status = PoseStatus::kDegraded;
       double hx = 0, hy = 0;
       if (o.has_heading && MapMarker(o.heading, setup_.heading_radius_m[i], height_m, &hx, &hy)) {
         // Under a rolling shutter the heading marker was seen at its own
@@ -778,7 +776,7 @@ void CameraNode::PublishPoses(int64_t capture_utime, int64_t frame_seq, int64_t 
         if (d2 > 1e-6) {
           p.heading_rad = std::atan2(dy, dx);
           p.num_measurements = 2;
-          p.status = pose2d_t::STATUS_OK;
+          p.status = PoseStatus::kOk;
           // Both centroids move by about sigma * |J| each, perpendicular to
           // the baseline: var(heading) = 2 sigma_m^2 / d^2, from the errors
           // that differ between the two markers (not the tilt, not the time).
@@ -799,7 +797,7 @@ void CameraNode::PublishPoses(int64_t capture_utime, int64_t frame_seq, int64_t 
       recent_poses_[i].clear();
     }
     p.latency_us = latency_us;
-    if (bus_->Publish(kCameraPoseChannel, p)) status_.Count("poses");
+    if (bus_->Publish(kCameraPoseChannel, ToMessage(p))) status_.Count("poses");
   }
 }
 

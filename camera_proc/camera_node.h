@@ -17,10 +17,9 @@
 #include "core/vision/robot_tracker.h"
 #include "core/world/site.h"
 #include "msgio/bus.h"
+#include "msgio/lcm_types_fwd.h"
+#include "msgio/messages.h"
 #include "msgio/process.h"
-#include "roomfix/image_t.hpp"
-#include "roomfix/marker_pixels_t.hpp"
-#include "roomfix/pose2d_t.hpp"
 
 namespace roomfix {
 
@@ -152,7 +151,7 @@ class CameraNode {
   int64_t frames_processed() const { return frames_processed_; }
   // The last frame's results, for tests and the benchmark.
   const std::vector<vision::RobotObservation>& last_observations() const { return observations_; }
-  const marker_pixels_t& last_marker_pixels() const { return last_pixels_; }
+  const MarkerPixels& last_marker_pixels() const { return last_pixels_; }
   bool calibrated() const { return calibration_.has_value(); }
   // The timing each marker's time is computed with (options.device_timing
   // when given, else the site camera's keys).
@@ -190,7 +189,7 @@ class CameraNode {
   std::unique_ptr<vision::RobotTracker> tracker_;
   std::vector<vision::RobotObservation> observations_;
   std::vector<int> last_states_;
-  marker_pixels_t last_pixels_{};
+  MarkerPixels last_pixels_;
   int64_t last_seq_ = -1;
   int64_t bad_since_last_ = 0;
   int64_t last_preview_utime_ = 0;

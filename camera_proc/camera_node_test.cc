@@ -13,6 +13,7 @@
 
 #include "camera_proc/sim_frame_source.h"
 #include "core/calib/camera_timing.h"
+#include "roomfix/image_t.hpp"
 #include "roomfix/marker_pixels_t.hpp"
 #include "roomfix/pose2d_t.hpp"
 #include "sim/synthetic_camera.h"

@@ -190,7 +190,7 @@ Tally Measure(const Site& site, const std::string& scenario_name, double seconds
       if (doubt) {
         for (const auto& m : node.last_marker_pixels().markers) {
           std::printf("f%d %s r%d role%d (%.1f, %.1f) rad %.2f\n", f, m.colour_class.c_str(),
-                      m.robot_id, m.role, m.u_px, m.v_px, m.radius_px);
+                      m.robot_id, static_cast<int>(m.role), m.u_px, m.v_px, m.radius_px);
         }
       }
     }

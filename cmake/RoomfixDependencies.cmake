@@ -9,6 +9,29 @@ find_package(spdlog REQUIRED)
 find_package(fmt REQUIRED)
 # SHA-256 of the site texts (msgio/site_message.h).
 find_package(OpenSSL REQUIRED COMPONENTS Crypto)
+find_package(Eigen3 3.4 REQUIRED NO_MODULE)
+find_package(GSL REQUIRED)
+# camera_proc's JPEG frames (libjpeg-turbo: DCT scaling, cropped scanlines).
+find_package(JPEG REQUIRED)
+find_package(nlohmann_json 3 REQUIRED)
+# zigbee_bridge's serial port.
+find_package(PkgConfig REQUIRED)
+pkg_check_modules(SERIALPORT REQUIRED IMPORTED_TARGET libserialport)
+
+# OpenCV: every module roomfix uses, and highgui (the viewer's window, below)
+# if it is there. Debian's OpenCV targets carry no include directory, so it
+# is added to them here: a target that links a module then gets OpenCV's
+# headers, as system headers (those of an imported target are), which keeps
+# project warnings (-Wshadow, -Wpedantic) off them; and it gets them only as
+# far as it links the module (PRIVATE stays private).
+find_package(OpenCV 4 REQUIRED COMPONENTS core imgproc imgcodecs videoio calib3d features2d
+             OPTIONAL_COMPONENTS highgui)
+foreach(module IN LISTS OpenCV_LIBS)
+  if(TARGET ${module})
+    set_property(TARGET ${module} APPEND PROPERTY INTERFACE_INCLUDE_DIRECTORIES
+                 ${OpenCV_INCLUDE_DIRS})
+  endif()
+endforeach()
 
 find_path(LCM_INCLUDE_DIR lcm/lcm-cpp.hpp REQUIRED)
 find_library(LCM_LIBRARY lcm REQUIRED)
@@ -51,9 +74,9 @@ endif()
 
 # The viewer's window (OpenCV's highgui, which brings GTK); without it the
 # viewer still renders headless to PNG and video.
-find_package(OpenCV 4 QUIET COMPONENTS highgui)
-option(ROOMFIX_VIEWER_WINDOW "roomfix_viewer can open a window (OpenCV highgui)" ${OpenCV_FOUND})
-if(ROOMFIX_VIEWER_WINDOW AND NOT OpenCV_FOUND)
+option(ROOMFIX_VIEWER_WINDOW "roomfix_viewer can open a window (OpenCV highgui)"
+       ${OpenCV_highgui_FOUND})
+if(ROOMFIX_VIEWER_WINDOW AND NOT OpenCV_highgui_FOUND)
   message(FATAL_ERROR "ROOMFIX_VIEWER_WINDOW is on but OpenCV's highgui is missing: "
                       "apt-get install libopencv-highgui-dev, or -DROOMFIX_VIEWER_WINDOW=OFF")
 endif()

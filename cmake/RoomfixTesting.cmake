@@ -21,7 +21,7 @@ function(roomfix_add_gtest name)
   endif()
   cmake_parse_arguments(ARG "" "" "SOURCES;LIBS" ${ARGN})
   add_executable(${name} ${ARG_SOURCES})
-  target_link_libraries(${name} PRIVATE ${ARG_LIBS} roomfix_testing GTest::gtest_main)
+  target_link_libraries(${name} PRIVATE ${ARG_LIBS} roomfix::testing GTest::gtest_main)
   gtest_discover_tests(${name}
     DISCOVERY_TIMEOUT 60
     PROPERTIES TIMEOUT 300)

@@ -6,6 +6,7 @@
 #include <limits>
 #include <string>
 
+#include "msgio/message_conversions.h"
 #include "msgio/time_limits.h"
 
 namespace roomfix {
@@ -13,16 +14,16 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-int8_t StatusOf(fusion::TrackStatus status) {
+PoseStatus StatusOf(fusion::TrackStatus status) {
   switch (status) {
     case fusion::TrackStatus::kOk:
-      return pose2d_t::STATUS_OK;
+      return PoseStatus::kOk;
     case fusion::TrackStatus::kDegraded:
-      return pose2d_t::STATUS_DEGRADED;
+      return PoseStatus::kDegraded;
     case fusion::TrackStatus::kLost:
       break;
   }
-  return pose2d_t::STATUS_LOST;
+  return PoseStatus::kLost;
 }
 
 }  // namespace
@@ -198,26 +199,26 @@ void FusionNode::OnPose(const pose2d_t& pose, const MessageInfo& info, fusion::S
 
 void FusionNode::Publish(int32_t robot_id, const fusion::Estimate& e, double z_m,
                          int64_t now_utime) {
-  pose2d_t p{};
+  Pose2d p;
   p.utime = e.utime;
-  p.source = pose2d_t::SOURCE_FUSED;
+  p.source = PoseSource::kFused;
   p.camera_id = kNoCameraId;
   p.robot_id = robot_id;
   p.measurement_seq = e.seq;
   p.z_m = z_m;
-  p.status = e.valid ? StatusOf(e.status) : pose2d_t::STATUS_LOST;
+  p.status = e.valid ? StatusOf(e.status) : PoseStatus::kLost;
   p.num_measurements = e.num_measurements;
   p.latency_us = SaturatingDifferenceUs(now_utime, e.utime);
   p.residual_m = std::isfinite(e.innovation_m) ? e.innovation_m : kNaN;
   // The filter only ever takes finite input, but its state is arithmetic on
   // it: an estimate that overflowed is not a position.
-  if (p.status != pose2d_t::STATUS_LOST &&
+  if (p.status != PoseStatus::kLost &&
       !(std::isfinite(e.state[fusion::kX]) && std::isfinite(e.state[fusion::kY]) &&
         e.covariance.topLeftCorner<2, 2>().allFinite())) {
     status_.Count("non_finite_estimate");
-    p.status = pose2d_t::STATUS_LOST;
+    p.status = PoseStatus::kLost;
   }
-  if (p.status == pose2d_t::STATUS_LOST) {
+  if (p.status == PoseStatus::kLost) {
     p.x_m = p.y_m = p.heading_rad = kNaN;
     for (auto& row : p.covariance) {
       for (double& v : row) v = kNaN;
@@ -234,7 +235,7 @@ void FusionNode::Publish(int32_t robot_id, const fusion::Estimate& e, double z_m
       }
     }
   }
-  if (bus_->Publish(options_.fused_channel, p)) {
+  if (bus_->Publish(options_.fused_channel, ToMessage(p))) {
     status_.AddOutputs();
   } else {
     status_.AddDropped();

@@ -11,8 +11,8 @@
 #include "core/fusion/pose_filter.h"
 #include "core/world/site.h"
 #include "msgio/bus.h"
+#include "msgio/lcm_types_fwd.h"
 #include "msgio/process.h"
-#include "roomfix/pose2d_t.hpp"
 
 namespace roomfix {
 

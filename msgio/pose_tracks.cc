@@ -6,25 +6,10 @@
 #include <cmath>
 
 #include "msgio/log.h"
+#include "msgio/message_conversions.h"
 #include "msgio/wire_check.h"
-#include "roomfix/pose2d_t.hpp"
 
 namespace roomfix {
-
-const char* PoseSourceName(int8_t source) {
-  switch (source) {
-    case pose2d_t::SOURCE_CAMERA:
-      return "camera";
-    case pose2d_t::SOURCE_ULTRASOUND:
-      return "ultrasound";
-    case pose2d_t::SOURCE_FUSED:
-      return "fused";
-    case pose2d_t::SOURCE_GROUND_TRUTH:
-      return "ground_truth";
-    default:
-      return "unknown";
-  }
-}
 
 std::vector<analysis::TimedPosition> PoseTrack::Positions() const {
   std::vector<analysis::TimedPosition> out;
@@ -62,17 +47,18 @@ PoseLogs ReadPoseLogs(const std::vector<std::string>& paths,
       }
       if (e.channel.rfind("POSE_", 0) != 0) continue;
       ++report.pose_events;
-      pose2d_t p{};
+      pose2d_t msg{};
       std::string reason;
-      if (!DecodeChecked(e.data.data(), static_cast<int>(e.data.size()), &p, &reason)) {
+      if (!DecodeChecked(e.data.data(), static_cast<int>(e.data.size()), &msg, &reason)) {
         ++report.undecodable;
         ++report.refused[reason];
         continue;
       }
+      const Pose2d p = FromMessage(msg);
       PoseTrack& track = out.tracks[{PoseSourceName(p.source), p.robot_id}];
       track.source = PoseSourceName(p.source);
       track.robot_id = p.robot_id;
-      if (p.status == pose2d_t::STATUS_LOST || !std::isfinite(p.x_m) || !std::isfinite(p.y_m)) {
+      if (p.status == PoseStatus::kLost || !std::isfinite(p.x_m) || !std::isfinite(p.y_m)) {
         ++track.lost;
         continue;
       }
@@ -83,7 +69,7 @@ PoseLogs ReadPoseLogs(const std::vector<std::string>& paths,
       s.heading_rad = p.heading_rad;
       s.latency_us = p.latency_us;
       s.recv_utime = e.utime;
-      s.degraded = p.status == pose2d_t::STATUS_DEGRADED;
+      s.degraded = p.status == PoseStatus::kDegraded;
       s.cov_xx_m2 = p.covariance[0][0];
       s.cov_xy_m2 = 0.5 * (p.covariance[0][1] + p.covariance[1][0]);
       s.cov_yy_m2 = p.covariance[1][1];

@@ -79,8 +79,6 @@ struct PoseLogs {
 PoseLogs ReadPoseLogs(const std::vector<std::string>& paths,
                       const std::function<void(double fraction)>& progress = {});
 
-const char* PoseSourceName(int8_t source);
-
 }  // namespace roomfix
 
 #endif  // ROOMFIX_MSGIO_POSE_TRACKS_H_

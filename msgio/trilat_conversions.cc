@@ -1,9 +1,7 @@
 #include "msgio/trilat_conversions.h"
 
-#include <cmath>
-#include <limits>
-
 #include "core/world/site.h"
+#include "msgio/message_conversions.h"
 #include "msgio/time_limits.h"
 
 namespace roomfix {
@@ -21,36 +19,34 @@ void RangesFromMessage(const range_set_t& set, std::vector<trilat::RangeMeasurem
 
 pose2d_t PoseFromFix(const trilat::Fix& fix, const range_set_t& set, int32_t robot_id,
                      int64_t publish_utime) {
-  constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-  pose2d_t p{};
+  Pose2d p;
   p.utime = set.utime;
-  p.source = pose2d_t::SOURCE_ULTRASOUND;
+  p.source = PoseSource::kUltrasound;
   p.camera_id = kNoCameraId;
   p.robot_id = robot_id;
   p.measurement_seq = set.firing_seq;
   p.x_m = fix.position_m.x();
   p.y_m = fix.position_m.y();
   p.z_m = fix.position_m.z();
-  p.heading_rad = kNaN;
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c)
-      p.covariance[r][c] = (r < 2 && c < 2) ? fix.covariance_m2(r, c) : kNaN;
+  // The heading, and its rows and columns of the covariance, stay unknown.
+  for (int r = 0; r < 2; ++r) {
+    for (int c = 0; c < 2; ++c) p.covariance[r][c] = fix.covariance_m2(r, c);
   }
   p.residual_m = fix.residual_rms_m;
   p.num_measurements = static_cast<int32_t>(fix.used.size());
   switch (fix.status) {
     case trilat::FixStatus::kOk:
-      p.status = pose2d_t::STATUS_OK;
+      p.status = PoseStatus::kOk;
       break;
     case trilat::FixStatus::kDegraded:
-      p.status = pose2d_t::STATUS_DEGRADED;
+      p.status = PoseStatus::kDegraded;
       break;
     case trilat::FixStatus::kFailed:
-      p.status = pose2d_t::STATUS_LOST;
+      p.status = PoseStatus::kLost;
       break;
   }
   p.latency_us = SaturatingDifferenceUs(publish_utime, set.utime);
-  return p;
+  return ToMessage(p);
 }
 
 }  // namespace roomfix

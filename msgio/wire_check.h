@@ -19,18 +19,9 @@
 #include <map>
 #include <string>
 
-namespace roomfix {
+#include "msgio/lcm_types_fwd.h"
 
-class counter_t;
-class image_t;
-class marker_pixels_t;
-class marker_t;
-class pose2d_t;
-class process_status_t;
-class range_set_t;
-class range_t;
-class site_file_t;
-class site_t;
+namespace roomfix {
 
 // Why an encoded message was refused; names are lower_case_with_underscores
 // and appear in STATUS as `rejected[]` entries `<CHANNEL>.<reason>`.

@@ -3,7 +3,7 @@
 #include <cmath>
 #include <limits>
 
-#include "roomfix/pose2d_t.hpp"
+#include "msgio/message_conversions.h"
 
 namespace roomfix {
 
@@ -35,9 +35,9 @@ void GroundTruthNode::Tick(int64_t now_utime) {
     const double t_s = (utime - options_.start_utime) * 1e-6;
     for (const SimulatedRobot& robot : site_.simulation.robots) {
       const GroundTruthPose truth = robot.trajectory->PoseAt(t_s);
-      pose2d_t msg{};
+      Pose2d msg;
       msg.utime = utime;
-      msg.source = pose2d_t::SOURCE_GROUND_TRUTH;
+      msg.source = PoseSource::kGroundTruth;
       msg.camera_id = kNoCameraId;
       msg.robot_id = robot.robot_id;
       msg.measurement_seq = k;
@@ -51,9 +51,9 @@ void GroundTruthNode::Tick(int64_t now_utime) {
       }
       msg.residual_m = 0.0;
       msg.num_measurements = 0;
-      msg.status = pose2d_t::STATUS_OK;
+      msg.status = PoseStatus::kOk;
       msg.latency_us = now_utime - utime;
-      if (bus_->Publish(kGroundTruthChannel, msg)) {
+      if (bus_->Publish(kGroundTruthChannel, ToMessage(msg))) {
         status_.AddOutputs();
       } else {
         status_.AddDropped();

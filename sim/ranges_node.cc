@@ -2,7 +2,7 @@
 
 #include <cmath>
 
-#include "roomfix/range_set_t.hpp"
+#include "msgio/radio_conversions.h"
 
 namespace roomfix {
 
@@ -81,20 +81,22 @@ void SimRangesNode::Tick(int64_t now_utime) {
       own_tof_s[static_cast<size_t>(r - site_.receivers.data())] = s.time_of_flight_s;
     }
     const std::vector<Detection> detections = air_.Detect(firing, own_tof_s);
-    range_set_t set{};
-    set.utime = fire_utime;
+    // As the bridge assembles a firing from the radio, so that one
+    // conversion makes every RANGES message.
+    radio::AssembledSet set;
+    set.fire_utime = fire_utime;
     set.beacon_id = f.beacon->id;
     set.firing_seq = f.next_seq;
     set.speed_of_sound_mps = c;
     set.temperature_c = site_.simulation.temperature_c;
-    set.num_expected = static_cast<int32_t>(site_.receivers.size());
+    set.num_expected = static_cast<int>(site_.receivers.size());
     for (size_t i = 0; i < site_.receivers.size(); ++i) {
       const Detection& d = detections[i];
       if (d.kind != Detection::Kind::kOwn && d.kind != Detection::Kind::kEarly) continue;
       const Receiver& r = site_.receivers[i];
       // The timer reads the flight plus the receiver's own offset.
       const double measured_m = d.time_of_flight_s * c + r.range_offset_m;
-      range_t out{};
+      radio::AssembledRange out;
       out.receiver_id = r.id;
       for (int k = 0; k < 3; ++k) out.receiver_position_m[k] = r.position_m[k];
       out.time_of_flight_us = measured_m / c * 1e6;
@@ -102,8 +104,7 @@ void SimRangesNode::Tick(int64_t now_utime) {
       out.arrival_utime = fire_utime + static_cast<int64_t>(out.time_of_flight_us) + 5000;
       set.ranges.push_back(out);
     }
-    set.num_ranges = static_cast<int32_t>(set.ranges.size());
-    bus_->Publish("RANGES", set);
+    bus_->Publish("RANGES", RangeSetFromAssembled(set));
     ++f.next_seq;
     ++firings_;
   }

@@ -23,6 +23,7 @@
 #include "core/vision/marker_detector.h"
 #include "msgio/bus.h"
 #include "msgio/install_paths.h"
+#include "roomfix/pose2d_t.hpp"
 #include "sim/synthetic_camera.h"
 #include "tools/commands.h"
 

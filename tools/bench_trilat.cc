@@ -17,6 +17,7 @@
 #include "core/world/ultrasound_model.h"
 #include "msgio/bus.h"
 #include "msgio/process.h"
+#include "msgio/radio_conversions.h"
 #include "roomfix/pose2d_t.hpp"
 #include "roomfix/range_set_t.hpp"
 #include "trilat_proc/trilat_node.h"
@@ -178,22 +179,22 @@ json NodeThroughput(int n, uint64_t seed) {
   for (int k = 0; k < distinct; ++k) {
     const double t = k * 0.1;
     const std::array<double, 3> p = {2.0 + std::cos(t), 1.5 + std::sin(t), 1.3};
-    range_set_t set{};
-    set.utime = first_utime + k * 100000;
+    radio::AssembledSet set;
+    set.fire_utime = first_utime + k * 100000;
     set.beacon_id = 1;
     set.firing_seq = k;
     set.num_expected = 4;
     for (const SimulatedRange& s : SimulateRanges(site, p, 20.0, noise, &rng)) {
-      range_t r{};
+      radio::AssembledRange r;
       r.receiver_id = s.receiver_id;
       const Receiver* rc = site.FindReceiver(s.receiver_id);
       for (int i = 0; i < 3; ++i) r.receiver_position_m[i] = rc->position_m[i];
       r.range_m = s.measured_m;
       set.ranges.push_back(r);
     }
-    set.num_ranges = static_cast<int32_t>(set.ranges.size());
-    std::vector<uint8_t> bytes(set.getEncodedSize());
-    set.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+    const range_set_t msg = RangeSetFromAssembled(set);
+    std::vector<uint8_t> bytes(msg.getEncodedSize());
+    msg.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
     encoded.push_back(bytes);
   }
   const int batch = 500;

@@ -8,6 +8,7 @@
 #include "msgio/time_limits.h"
 #include "msgio/trilat_conversions.h"
 #include "roomfix/pose2d_t.hpp"
+#include "roomfix/range_set_t.hpp"
 
 namespace roomfix {
 

@@ -11,8 +11,8 @@
 #include "core/trilat/trilateration.h"
 #include "core/world/site.h"
 #include "msgio/bus.h"
+#include "msgio/lcm_types_fwd.h"
 #include "msgio/process.h"
-#include "roomfix/range_set_t.hpp"
 #include "trilat_proc/range_set_merger.h"
 
 namespace roomfix {

@@ -7,6 +7,7 @@
 #include <map>
 #include <set>
 
+#include "roomfix/range_set_t.hpp"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {

@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "roomfix/range_set_t.hpp"
+#include "msgio/lcm_types_fwd.h"
 #include "sim/wall_devices.h"
 
 namespace roomfix {

@@ -1,0 +1,29 @@
+#ifndef ROOMFIX_MSGIO_MESSAGE_CONVERSIONS_H_
+#define ROOMFIX_MSGIO_MESSAGE_CONVERSIONS_H_
+
+// The one conversion per message type between msgio/messages.h's structs and
+// the generated types. ToMessage copies every field and sets the counts from
+// the vectors; FromMessage copies every field of a message DecodeChecked
+// accepted (an enum field keeps whatever int8 the sender put there: a reader
+// compares it with the values it knows). Neither checks values: a producer
+// states what it measured, a consumer refuses what it cannot use.
+
+#include "msgio/messages.h"
+#include "roomfix/image_t.hpp"
+#include "roomfix/marker_pixels_t.hpp"
+#include "roomfix/pose2d_t.hpp"
+
+namespace roomfix {
+
+pose2d_t ToMessage(const Pose2d& pose);
+Pose2d FromMessage(const pose2d_t& msg);
+
+marker_pixels_t ToMessage(const MarkerPixels& pixels);
+MarkerPixels FromMessage(const marker_pixels_t& msg);
+
+image_t ToMessage(const PreviewImage& image);
+PreviewImage FromMessage(const image_t& msg);
+
+}  // namespace roomfix
+
+#endif  // ROOMFIX_MSGIO_MESSAGE_CONVERSIONS_H_
