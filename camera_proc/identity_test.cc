@@ -24,6 +24,8 @@
 #include "camera_proc/camera_node.h"
 #include "camera_proc/frame_source.h"
 #include "camera_proc/sim_frame_source.h"
+#include "msgio/message_conversions.h"
+#include "roomfix/marker_pixels_t.hpp"
 #include "roomfix/pose2d_t.hpp"
 #include "sim/synthetic_camera.h"
 #include "tests/testing/test_paths.h"
@@ -173,7 +175,7 @@ Tally Measure(const Site& site, const std::string& scenario_name, double seconds
     poses.clear();
     old_poses.clear();
     node.OnFrame(&frame, frame.capture_utime + 1000);
-    if (shadow_old_rule) old_node.OnMarkerPixels(node.last_marker_pixels(), frame.capture_utime);
+    if (shadow_old_rule) old_node.OnMarkerPixels(ToMessage(node.last_marker_pixels()), frame.capture_utime);
     for (const pose2d_t& p : old_poses) {
       if (p.status == pose2d_t::STATUS_LOST) continue;
       ++tally.published_before;

@@ -890,6 +890,8 @@ TEST(TrackerOptions, IsValidNamesTheBadField) {
   o.lost_after_s = 0.0;
   EXPECT_FALSE(o.IsValid(&error));
   EXPECT_NE(error.find("lost_after_s"), std::string::npos) << error;
+}
+
 TEST(TrackerOptions, RefusesNonPositiveSizesAndTimesAndATolerancePastOne) {
   std::string error;
   EXPECT_TRUE(TrackerOptions{}.IsValid(&error)) << error;
