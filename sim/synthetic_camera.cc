@@ -66,6 +66,33 @@ struct Disc {
   int truth_index = -1;
 };
 
+// One disc composited into an image: each touched pixel becomes
+// coverage * colour + (1 - coverage) * what was there, and the coverage's
+// moments give the disc's true area (its sum) and centroid (the moments over
+// the sum), which is what a perfect detector would measure.
+struct DiscCoverage {
+  double sum = 0.0, sum_u = 0.0, sum_v = 0.0;
+
+  void Blend(int i, int j, double coverage, const cv::Vec3f& bgr, cv::Vec3b* out) {
+    sum += coverage;
+    sum_u += coverage * i;
+    sum_v += coverage * j;
+    for (int c = 0; c < 3; ++c) {
+      (*out)[c] = cv::saturate_cast<uchar>(coverage * bgr[c] + (1.0 - coverage) * (*out)[c]);
+    }
+  }
+  // Visible only when the whole rim projects inside the image (`inside`):
+  // a disc cut by the edge has no true centroid to score against.
+  void FillTruth(bool inside, MarkerTruth* truth) const {
+    truth->area_px = sum;
+    if (sum > 0) {
+      truth->centroid_u_px = sum_u / sum;
+      truth->centroid_v_px = sum_v / sum;
+    }
+    truth->visible = inside && sum > 0;
+  }
+};
+
 // A uniform draw in [0, 1) from a seed and two keys.
 double Uniform(uint64_t seed, uint64_t a, uint64_t b) {
   const uint64_t x = SplitMix64(seed ^ SplitMix64(a ^ SplitMix64(b + 0x51ED2701ull)));
@@ -493,7 +520,7 @@ cv::Rect SyntheticCamera::Impl::DrawMovingDisc(const MovingDisc& disc, double t_
       3, static_cast<int>(std::lround(disc.supersample / std::sqrt(static_cast<double>(samples)))));
   const double r2 = disc.r * disc.r;
   std::vector<Eigen::Vector3d> centres(static_cast<size_t>(samples));
-  double sum = 0, sum_u = 0, sum_v = 0;
+  DiscCoverage cover;
   for (int j = j0; j <= j1; ++j) {
     const double t_read = j * row_s;
     for (int k = 0; k < samples; ++k) {
@@ -528,22 +555,11 @@ cv::Rect SyntheticCamera::Impl::DrawMovingDisc(const MovingDisc& disc, double t_
       }
       if (full == 0 && hits == 0) continue;
       const double coverage = (full + static_cast<double>(hits) / (s * s)) / samples;
-      sum += coverage;
-      sum_u += coverage * i;
-      sum_v += coverage * j;
-      cv::Vec3b& out = row[i];
-      for (int c = 0; c < 3; ++c) {
-        out[c] = cv::saturate_cast<uchar>(coverage * disc.bgr[c] + (1.0 - coverage) * out[c]);
-      }
+      cover.Blend(i, j, coverage, disc.bgr, &row[i]);
     }
   }
   if (truth) {
-    truth->area_px = sum;
-    if (sum > 0) {
-      truth->centroid_u_px = sum_u / sum;
-      truth->centroid_v_px = sum_v / sum;
-    }
-    truth->visible = inside && sum > 0;
+    cover.FillTruth(inside, truth);
     const double row = std::isfinite(truth->centroid_v_px) ? truth->centroid_v_px : truth->v_px;
     const double tau = (std::isfinite(row) ? row * row_s : 0.0) - 0.5 * exposure;
     truth->exposure_mid_t_s = t_s + tau;
@@ -790,7 +806,7 @@ void SyntheticCamera::Impl::DrawDisc(const Disc& disc, cv::Mat* image, MarkerTru
   const int s = std::max(1, options.supersample);
   const double depth = disc.z - pz;  // plane point = camera + depth * (a, b)
   const double r2 = disc.r * disc.r;
-  double sum = 0, sum_u = 0, sum_v = 0;
+  DiscCoverage cover;
   for (int j = j0; j <= j1; ++j) {
     cv::Vec3b* row = image->ptr<cv::Vec3b>(j);
     for (int i = i0; i <= i1; ++i) {
@@ -817,22 +833,11 @@ void SyntheticCamera::Impl::DrawDisc(const Disc& disc, cv::Mat* image, MarkerTru
         if (hits == 0) continue;
         coverage = static_cast<double>(hits) / (s * s);
       }
-      sum += coverage;
-      sum_u += coverage * i;
-      sum_v += coverage * j;
-      cv::Vec3b& out = row[i];
-      for (int c = 0; c < 3; ++c) {
-        out[c] = cv::saturate_cast<uchar>(coverage * disc.bgr[c] + (1.0 - coverage) * out[c]);
-      }
+      cover.Blend(i, j, coverage, disc.bgr, &row[i]);
     }
   }
   if (truth) {
-    truth->area_px = sum;
-    if (sum > 0) {
-      truth->centroid_u_px = sum_u / sum;
-      truth->centroid_v_px = sum_v / sum;
-    }
-    truth->visible = inside && sum > 0;
+    cover.FillTruth(inside, truth);
   }
 }
 

@@ -51,62 +51,12 @@ kFusedP95=0.020
 # count (tests/netns/hall_handover.py).
 max_missed=4
 
-skip() {
-  echo "hall_test: skipped: $*" >&2
-  exit 77
-}
-fail() {
-  echo "hall_test: FAILED: $*" >&2
-  exit 1
-}
-
-if [[ "${ROOMFIX_HALL_INNER:-}" != "1" ]]; then
-  unshare -rnmu true 2>/dev/null ||
-    skip "cannot create user + network + mount + UTS namespaces (unshare -rnmu failed)"
-  exec unshare -rnmu env ROOMFIX_HALL_INNER=1 "$0" "$@"
-fi
-
-work=$(mktemp -d "${TMPDIR:-/tmp}/roomfix_hall.XXXXXX")
-pids=()
-cleanup() {
-  local rc=$? pid
-  for pid in "${pids[@]}"; do kill -KILL "$pid" 2>/dev/null || true; done
-  wait 2>/dev/null || true
-  if [[ "${ROOMFIX_KEEP_TEMP:-}" == "1" ]] || ((rc != 0 && rc != 77)); then
-    echo "hall_test: kept $work" >&2
-  else
-    rm -rf "$work"
-  fi
-}
-trap cleanup EXIT
-
-mount -t tmpfs roomfix_run /run 2>/dev/null || skip "cannot mount a private /run"
-mkdir -p /run/netns
-ip link set lo up
-ip link add br0 type bridge 2>/dev/null || skip "cannot create a bridge (no bridge module?)"
-ip link set br0 up
-hosts=(camera-a camera-b radio-a radio-b solver)
-n=1
-for h in "${hosts[@]}"; do
-  ip netns add "$h" 2>/dev/null || skip "ip netns add failed"
-  ip link add "v-$h" type veth peer name "lan-$h" 2>/dev/null || skip "cannot create veth pairs"
-  ip link set "v-$h" master br0
-  ip link set "v-$h" up
-  ip link set "lan-$h" netns "$h"
-  ip -n "$h" link set lo up
-  ip -n "$h" link set "lan-$h" name eth0
-  ip -n "$h" addr add "10.78.0.$n/24" dev eth0
-  ip -n "$h" link set eth0 up
-  ip -n "$h" link set eth0 multicast on
-  ip -n "$h" route add 224.0.0.0/4 dev eth0
-  n=$((n + 1))
-done
-
-on_host() {
-  local h=$1
-  shift
-  exec ip netns exec "$h" unshare -u sh -c 'hostname "$0"; exec "$@"' "roomfix-$h" "$@"
-}
+test_name=hall_test
+# shellcheck source=tests/netns/bridged_hosts.sh
+source "$(dirname "$0")/bridged_hosts.sh"
+enter_private_namespaces "$@"
+make_work_dir
+make_bridged_hosts 10.78.0 camera-a camera-b radio-a radio-b solver
 
 log=$work/solver.lcm
 radio=$work/radio

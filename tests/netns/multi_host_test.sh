@@ -26,72 +26,13 @@ seconds=${3:-8}
 site=$src/config/sites/demo_room.yaml
 url='udpm://239.255.76.67:7667?ttl=1'
 
-skip() {
-  echo "multi_host_test: skipped: $*" >&2
-  exit 77
-}
-fail() {
-  echo "multi_host_test: FAILED: $*" >&2
-  exit 1
-}
-
-if [[ "${ROOMFIX_MULTI_HOST_INNER:-}" != "1" ]]; then
-  unshare -rnmu true 2>/dev/null ||
-    skip "cannot create user + network + mount + UTS namespaces (unshare -rnmu failed)"
-  exec unshare -rnmu env ROOMFIX_MULTI_HOST_INNER=1 "$0" "$@"
-fi
-
+test_name=multi_host_test
+# shellcheck source=tests/netns/bridged_hosts.sh
+source "$(dirname "$0")/bridged_hosts.sh"
+enter_private_namespaces "$@"
 # --- Inside: root of a private user namespace, in the "LAN" namespace. ------
-work=$(mktemp -d "${TMPDIR:-/tmp}/roomfix_multi_host.XXXXXX")
-pids=()
-# The processes' stderr and the log stay in $work when the test fails (or
-# with ROOMFIX_KEEP_TEMP=1).
-cleanup() {
-  local rc=$? pid
-  for pid in "${pids[@]}"; do kill -KILL "$pid" 2>/dev/null || true; done
-  wait 2>/dev/null || true
-  if [[ "${ROOMFIX_KEEP_TEMP:-}" == "1" ]] || ((rc != 0 && rc != 77)); then
-    echo "multi_host_test: kept $work" >&2
-  else
-    rm -rf "$work"
-  fi
-}
-trap cleanup EXIT
-
-# `ip netns add` needs a writable /run/netns: a private tmpfs on /run (this
-# mount namespace only).
-mount -t tmpfs roomfix_run /run 2>/dev/null || skip "cannot mount a private /run"
-mkdir -p /run/netns
-ip link set lo up
-ip link add br0 type bridge 2>/dev/null || skip "cannot create a bridge (no bridge module?)"
-ip link set br0 up
-
-hosts=(camera radio solver)
-declare -A addr=([camera]=10.77.0.1 [radio]=10.77.0.2 [solver]=10.77.0.3)
-for h in "${hosts[@]}"; do
-  ip netns add "$h" 2>/dev/null || skip "ip netns add failed"
-  ip link add "v-$h" type veth peer name "lan-$h" 2>/dev/null || skip "cannot create veth pairs"
-  ip link set "v-$h" master br0
-  ip link set "v-$h" up
-  ip link set "lan-$h" netns "$h"
-  ip -n "$h" link set lo up
-  ip -n "$h" link set "lan-$h" name eth0
-  ip -n "$h" addr add "${addr[$h]}/24" dev eth0
-  ip -n "$h" link set eth0 up
-  ip -n "$h" link set eth0 multicast on
-  # What a real host without a default route needs: the multicast route on
-  # the LAN interface.
-  ip -n "$h" route add 224.0.0.0/4 dev eth0
-done
-
-# Runs a command on host $1 with that host's name. Call it in the background
-# (`on_host H CMD... &`): the subshell becomes the command, so $! is its pid
-# and signals reach it.
-on_host() {
-  local h=$1
-  shift
-  exec ip netns exec "$h" unshare -u sh -c 'hostname "$0"; exec "$@"' "roomfix-$h" "$@"
-}
+make_work_dir
+make_bridged_hosts 10.77.0 camera radio solver
 
 start=$(( $(date +%s%N) / 1000 ))
 log=$work/solver.lcm
