@@ -152,12 +152,20 @@ void FusionNode::OnPose(const pose2d_t& pose, const MessageInfo& info, fusion::S
   }
   Track& track = it->second;
   track.last_recv_utime = info.recv_utime;
-  const auto src = static_cast<size_t>(source);
-  track.delay_us[src] = std::max<int64_t>(0, SaturatingDifferenceUs(info.recv_utime, pose.utime));
-  track.delay_recv_utime[src] = info.recv_utime;
   const bool was_initialised = track.filter.initialised();
   fusion::Estimate estimate;
   const fusion::Outcome outcome = track.filter.Add(m, info.recv_utime, &estimate);
+  // Only a measurement the filter took says how late this source runs: a
+  // refused one (too late, from the future, invalid, gated) may be a stale
+  // log replayed onto the bus or a hostile datagram, and would stretch or
+  // erase the delay that "lost" is judged by (JudgedUtime).
+  if (outcome != fusion::Outcome::kGated && outcome != fusion::Outcome::kTooLate &&
+      outcome != fusion::Outcome::kFromFuture && outcome != fusion::Outcome::kInvalid) {
+    const auto src = static_cast<size_t>(source);
+    track.delay_us[src] =
+        std::max<int64_t>(0, SaturatingDifferenceUs(info.recv_utime, pose.utime));
+    track.delay_recv_utime[src] = info.recv_utime;
+  }
   switch (outcome) {
     case fusion::Outcome::kAccepted:
       break;

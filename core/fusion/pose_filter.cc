@@ -4,6 +4,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 namespace roomfix {
 namespace fusion {
@@ -124,6 +125,20 @@ bool PoseFilterOptions::IsValid(std::string* error) const {
     if (!std::isfinite(c.value) || c.value < 0.0 || (!c.allow_zero && c.value == 0.0)) {
       *error = std::string(c.name) + " must be finite and " +
                (c.allow_zero ? "not negative" : "positive");
+      return false;
+    }
+  }
+  // Times are turned into microseconds in int64_t: beyond a day they serve
+  // no purpose and, near 9e12 s, would overflow.
+  constexpr double kLongestTime_s = 86400.0;
+  for (const auto& [value, name] : {std::pair{lost_after_s, "lost_after_s"},
+                                    std::pair{degraded_after_s, "degraded_after_s"},
+                                    std::pair{history_s, "history_s"},
+                                    std::pair{reopen_after_s, "reopen_after_s"},
+                                    std::pair{max_future_s, "max_future_s"},
+                                    std::pair{camera_bias_time_s, "camera_bias_time_s"}}) {
+    if (value > kLongestTime_s) {
+      *error = std::string(name) + " must be at most a day (86400 s)";
       return false;
     }
   }
@@ -474,8 +489,16 @@ Outcome PoseFilter::Apply(const Measurement& m, State* state) const {
     return Outcome::kAccepted;
   }
   if (state->consecutive_rejections[src]++ == 0) state->first_rejection_utime[src] = m.utime;
+  // The time rule holds only for a run that no accepted measurement of any
+  // source has interrupted: otherwise one stray camera pose gated long ago
+  // and another now (misidentified or reflected, while the ultrasound holds
+  // the track) would span reopen_after_s and restart the track on the
+  // second. The count rule keeps counting across the other source's fixes,
+  // as the camera's gate must reopen at a corner while the looser
+  // ultrasound is still accepted.
   const bool long_enough = options_.reopen_after_s > 0.0 &&
                            state->consecutive_rejections[src] >= 2 &&
+                           state->last_accept_utime < state->first_rejection_utime[src] &&
                            static_cast<double>(m.utime - state->first_rejection_utime[src]) >=
                                Micros(options_.reopen_after_s);
   if ((state->consecutive_rejections[src] >= options_.reopen_after_rejections || long_enough) &&

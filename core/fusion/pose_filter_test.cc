@@ -366,6 +366,33 @@ TEST(PoseFilter, ReopensTheGateAfterRejectionsSpanningReopenAfterS) {
   }
 }
 
+// The runs that reopen the gate are consecutive in the track's history: a
+// stray camera pose gated once, then seconds of accepted ultrasound, then
+// another stray pose is two separate rejections, not a run spanning
+// reopen_after_s (which would restart the track on the stray pose).
+TEST(PoseFilter, RejectionsSeparatedByAcceptedMeasurementsDoNotReopenTheGate) {
+  PoseFilter filter{PoseFilterOptions()};
+  for (int k = 0; k < 20; ++k) {
+    ASSERT_TRUE(Entered(filter.Add(CameraAt(0.1 * k, 1.0, 1.0), UtimeAt(0.1 * k))));
+  }
+  ASSERT_EQ(filter.Add(CameraAt(2.0, 3.0, 1.0), UtimeAt(2.0)), Outcome::kGated);
+  // The camera then falls silent past lost_after_s; the ultrasound holds on.
+  for (int k = 1; k <= 10; ++k) {
+    const double t = 2.0 + 0.5 * k;
+    ASSERT_TRUE(Entered(filter.Add(UltrasoundAt(t, 1.0, 1.0), UtimeAt(t))));
+  }
+  EXPECT_EQ(filter.Add(CameraAt(7.2, 3.0, 1.0), UtimeAt(7.2)), Outcome::kGated);
+  EXPECT_NEAR(filter.Latest().state[kX], 1.0, 0.01);
+}
+
+TEST(PoseFilterOptions, RefusesTimesBeyondADay) {
+  std::string error;
+  PoseFilterOptions options;
+  options.lost_after_s = 1e13;
+  EXPECT_FALSE(options.IsValid(&error));
+  EXPECT_NE(error.find("lost_after_s"), std::string::npos) << error;
+}
+
 // Takeover happens inside the gate only: a camera position far from a track
 // the ultrasound holds (a misidentified robot) is gated as before.
 TEST(PoseFilter, TheCameraDoesNotTakeOverFromOutsideTheGate) {
