@@ -68,8 +68,8 @@ struct CameraChoice {
 
 // Picks the site camera, fills device and calibration path from it where the
 // options leave them empty, and loads the calibration. False with a reason:
-// no such camera, a rate over the camera's, an unreadable calibration, one for another frame size or
-// one whose fit residual is too large (calib::CheckFitResidual).
+// no such camera, a rate over the camera's, an unreadable calibration, one for another frame size
+// or one whose fit residual is too large (calib::CheckFitResidual).
 bool ChooseCamera(const Site& site, const CameraProcOptions& options, CameraChoice* choice,
                   std::string* error);
 

@@ -175,7 +175,8 @@ Tally Measure(const Site& site, const std::string& scenario_name, double seconds
     poses.clear();
     old_poses.clear();
     node.OnFrame(&frame, frame.capture_utime + 1000);
-    if (shadow_old_rule) old_node.OnMarkerPixels(ToMessage(node.last_marker_pixels()), frame.capture_utime);
+    if (shadow_old_rule)
+      old_node.OnMarkerPixels(ToMessage(node.last_marker_pixels()), frame.capture_utime);
     for (const pose2d_t& p : old_poses) {
       if (p.status == pose2d_t::STATUS_LOST) continue;
       ++tally.published_before;

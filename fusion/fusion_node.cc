@@ -162,8 +162,7 @@ void FusionNode::OnPose(const pose2d_t& pose, const MessageInfo& info, fusion::S
   if (outcome != fusion::Outcome::kGated && outcome != fusion::Outcome::kTooLate &&
       outcome != fusion::Outcome::kFromFuture && outcome != fusion::Outcome::kInvalid) {
     const auto src = static_cast<size_t>(source);
-    track.delay_us[src] =
-        std::max<int64_t>(0, SaturatingDifferenceUs(info.recv_utime, pose.utime));
+    track.delay_us[src] = std::max<int64_t>(0, SaturatingDifferenceUs(info.recv_utime, pose.utime));
     track.delay_recv_utime[src] = info.recv_utime;
   }
   switch (outcome) {

@@ -275,6 +275,48 @@ TEST_F(FusionNodeTest, KeepsARobotWhoseFramesArriveLateAndSparseButLosesASilentO
   EXPECT_NEAR(lost_at_s, last_frame_s + options.filter.lost_after_s + kDelay_s, 0.02);
 }
 
+// A refused pose (here one stamped 5 s back: a stale log replayed onto the
+// bus, too late for the filter's history) says nothing of how late the
+// camera runs: the robot is still lost lost_after_s after its last frame,
+// not a further second later.
+TEST_F(FusionNodeTest, ARefusedStalePoseDoesNotPostponeLost) {
+  FusionNodeOptions options;
+  options.rate_hz = 10.0;
+  FusionNode node(site_, &bus_, options, fusion::synthetic::kStartUtime);
+  auto frame = [&](double t) {
+    pose2d_t p{};
+    p.utime = UtimeAt(t);
+    p.source = pose2d_t::SOURCE_CAMERA;
+    p.camera_id = 0;
+    p.robot_id = 1;
+    p.x_m = 1.0;
+    p.y_m = 1.0;
+    p.z_m = 0.3;
+    for (auto& row : p.covariance) {
+      for (double& v : row) v = 0.0;
+    }
+    p.covariance[0][0] = p.covariance[1][1] = 1e-6;
+    p.covariance[2][2] = 1e-4;
+    p.status = pose2d_t::STATUS_OK;
+    return p;
+  };
+  constexpr double kLastFrame_s = 5.0, kStale_s = 5.0;
+  for (double t = 0.0; t <= kLastFrame_s + 1e-9; t += 0.1) {
+    Deliver(frame(t), UtimeAt(t));
+    node.Tick(UtimeAt(t));
+  }
+  Deliver(frame(kLastFrame_s + 0.05 - kStale_s), UtimeAt(kLastFrame_s + 0.05));
+  EXPECT_EQ(node.status().rejected("too_late"), 1);
+  double lost_at_s = -1.0;
+  for (double now = kLastFrame_s + 0.05; now < kLastFrame_s + 3.0; now += 0.01) {
+    node.Tick(UtimeAt(now));
+    if (lost_at_s < 0.0 && node.status().counter("lost") == 1) lost_at_s = now;
+  }
+  // Ticks every 10 ms: the loss is seen within two of them.
+  constexpr double kTickTolerance_s = 0.02;
+  EXPECT_NEAR(lost_at_s, kLastFrame_s + options.filter.lost_after_s, kTickTolerance_s);
+}
+
 TEST_F(FusionNodeTest, PublishesOneLostPoseWithoutAFixedRate) {
   FusionNode node(site_, &bus_, FusionNodeOptions(), fusion::synthetic::kStartUtime);
   StreamOptions stream_options;

@@ -131,12 +131,11 @@ bool PoseFilterOptions::IsValid(std::string* error) const {
   // Times are turned into microseconds in int64_t: beyond a day they serve
   // no purpose and, near 9e12 s, would overflow.
   constexpr double kLongestTime_s = 86400.0;
-  for (const auto& [value, name] : {std::pair{lost_after_s, "lost_after_s"},
-                                    std::pair{degraded_after_s, "degraded_after_s"},
-                                    std::pair{history_s, "history_s"},
-                                    std::pair{reopen_after_s, "reopen_after_s"},
-                                    std::pair{max_future_s, "max_future_s"},
-                                    std::pair{camera_bias_time_s, "camera_bias_time_s"}}) {
+  for (const auto& [value, name] :
+       {std::pair{lost_after_s, "lost_after_s"}, std::pair{degraded_after_s, "degraded_after_s"},
+        std::pair{history_s, "history_s"}, std::pair{reopen_after_s, "reopen_after_s"},
+        std::pair{max_future_s, "max_future_s"},
+        std::pair{camera_bias_time_s, "camera_bias_time_s"}}) {
     if (value > kLongestTime_s) {
       *error = std::string(name) + " must be at most a day (86400 s)";
       return false;
