@@ -74,6 +74,27 @@ constexpr char kTwoRobotSite[] =
     "  - {id: 1, beacon_id: 10}\n"
     "  - {id: 2}\n";
 
+// Camera 0's pose of robot 1 at (x_m, 1) m, heading 0, stamped t s after the
+// synthetic streams' start: 1 mm in position, 10 mrad in heading.
+pose2d_t CameraPoseOfRobot1(double t, double x_m) {
+  pose2d_t p{};
+  p.utime = UtimeAt(t);
+  p.source = pose2d_t::SOURCE_CAMERA;
+  p.camera_id = 0;
+  p.robot_id = 1;
+  p.x_m = x_m;
+  p.y_m = 1.0;
+  p.z_m = 0.3;
+  p.heading_rad = 0.0;
+  for (auto& row : p.covariance) {
+    for (double& v : row) v = 0.0;
+  }
+  p.covariance[0][0] = p.covariance[1][1] = 1e-6;
+  p.covariance[2][2] = 1e-4;
+  p.status = pose2d_t::STATUS_OK;
+  return p;
+}
+
 class FusionNodeTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -233,24 +254,7 @@ TEST_F(FusionNodeTest, KeepsARobotWhoseFramesArriveLateAndSparseButLosesASilentO
   options.rate_hz = 10.0;
   FusionNode node(site_, &bus_, options, fusion::synthetic::kStartUtime);
   constexpr double kDelay_s = 0.75, kFramePeriod_s = 0.3, kSpeed_mps = 0.2;
-  auto frame = [&](double t) {
-    pose2d_t p{};
-    p.utime = UtimeAt(t);
-    p.source = pose2d_t::SOURCE_CAMERA;
-    p.camera_id = 0;
-    p.robot_id = 1;
-    p.x_m = 1.0 + kSpeed_mps * t;
-    p.y_m = 1.0;
-    p.z_m = 0.3;
-    p.heading_rad = 0.0;
-    for (auto& row : p.covariance) {
-      for (double& v : row) v = 0.0;
-    }
-    p.covariance[0][0] = p.covariance[1][1] = 1e-6;
-    p.covariance[2][2] = 1e-4;
-    p.status = pose2d_t::STATUS_OK;
-    return p;
-  };
+  auto frame = [&](double t) { return CameraPoseOfRobot1(t, 1.0 + kSpeed_mps * t); };
   double t = 0.0;
   for (double now = kDelay_s; now < 10.0; now += 0.01) {
     if (t + kDelay_s <= now + 1e-9) {
@@ -283,23 +287,7 @@ TEST_F(FusionNodeTest, ARefusedStalePoseDoesNotPostponeLost) {
   FusionNodeOptions options;
   options.rate_hz = 10.0;
   FusionNode node(site_, &bus_, options, fusion::synthetic::kStartUtime);
-  auto frame = [&](double t) {
-    pose2d_t p{};
-    p.utime = UtimeAt(t);
-    p.source = pose2d_t::SOURCE_CAMERA;
-    p.camera_id = 0;
-    p.robot_id = 1;
-    p.x_m = 1.0;
-    p.y_m = 1.0;
-    p.z_m = 0.3;
-    for (auto& row : p.covariance) {
-      for (double& v : row) v = 0.0;
-    }
-    p.covariance[0][0] = p.covariance[1][1] = 1e-6;
-    p.covariance[2][2] = 1e-4;
-    p.status = pose2d_t::STATUS_OK;
-    return p;
-  };
+  auto frame = [&](double t) { return CameraPoseOfRobot1(t, 1.0); };
   constexpr double kLastFrame_s = 5.0, kStale_s = 5.0;
   for (double t = 0.0; t <= kLastFrame_s + 1e-9; t += 0.1) {
     Deliver(frame(t), UtimeAt(t));
