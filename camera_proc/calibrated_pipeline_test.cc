@@ -18,6 +18,7 @@
 #include "core/analysis/fix_quality.h"
 #include "core/calib/calibration_file.h"
 #include "core/calib/camera_fit.h"
+#include "core/calib/marker_projection.h"
 #include "core/vision/marker_detector.h"
 #include "roomfix/pose2d_t.hpp"
 #include "sim/synthetic_camera.h"
@@ -85,6 +86,8 @@ class CalibratedPipelineTest : public ::testing::Test {
       }
     }
     const vision::MarkerDetector detector({orange}, vision::DetectorOptions{});
+    // The marker's disc: the fit maps its centre, as roomfix calibrate does.
+    const double marker_radius_m = PositionMarkerDiameterM(camera_, robot) / 2.0;
     std::mt19937 rng(3);
     std::normal_distribution<double> noise(0.0, 1.0);
     std::vector<calib::Correspondence> points;
@@ -103,7 +106,8 @@ class CalibratedPipelineTest : public ::testing::Test {
         EXPECT_EQ(blobs.size(), 1u) << "marker at " << x << ", " << y;
         if (blobs.size() != 1) continue;
         const double du = point_noise_px * noise(rng), dv = point_noise_px * noise(rng);
-        points.push_back({blobs[0].u_px + du, blobs[0].v_px + dv, x, y, robot.marker_height_m});
+        points.push_back(
+            {blobs[0].u_px + du, blobs[0].v_px + dv, x, y, robot.marker_height_m, marker_radius_m});
       }
     }
     calib::CameraFitOptions options;
@@ -113,7 +117,7 @@ class CalibratedPipelineTest : public ::testing::Test {
     options.pixel_sigma_px = kPointNoisePx;
     const calib::CameraModel initial = calib::NominalCamera(
         camera_.mount_position_m, camera_.field_of_view_deg, camera_.width_px, camera_.height_px);
-    const calib::CameraFitSummary fit = calib::FitCamera(points, initial, options);
+    const calib::CameraFitSummary fit = calib::FitCameraToMarkers(points, initial, options);
     EXPECT_TRUE(fit.usable) << fit.message;
     std::printf("tripod calibration: %zu points, %.3f px RMS\n", points.size(), fit.rms_px);
     calib::Calibration c;
@@ -240,6 +244,32 @@ TEST_F(CalibratedPipelineTest, PoseCovarianceCoversNinetyFivePercentOfTheErrorsO
       calibration.fit_rms_px, calibration.pixel_sigma_px, rmse * 1e3, inside_95 * 100.0);
   EXPECT_GE(inside_95, kCoverageLow);
   EXPECT_LE(inside_95, kCoverageHigh);
+}
+
+TEST_F(CalibratedPipelineTest, ARobotsOwnPixelSigmaSetsItsCovariance) {
+  // robot_pixel_sigma_px (calibration_file.h) replaces the fit's figure for
+  // that robot only: a quarter of the figure shrinks the ellipse's radius 4
+  // times over the same errors, so a pose that was inside at d^2 <= 5.99 is
+  // now inside only at d^2 <= 0.37, where a Gaussian error lies 17 % of the
+  // time (under half, with room for the circle's correlated errors); a
+  // figure for a robot the camera does not have changes nothing at all.
+  constexpr double kShrunkCoverageAtMost = 0.5;
+  constexpr int kFrames = 100;
+  calib::Calibration calibration =
+      CalibrateFromTripodImages(/*point_noise_px=*/0.0, /*as_frames=*/true);
+  double as_fitted = 0.0, shrunk = 0.0, other_robot = 0.0;
+  RmseOnFrames(calibration, kFrames, &as_fitted);
+  calibration.robot_pixel_sigma_px[camera_.robots.front().robot_id + 100] = 1e-6;
+  RmseOnFrames(calibration, kFrames, &other_robot);
+  calibration.robot_pixel_sigma_px[camera_.robots.front().robot_id] =
+      calibration.pixel_sigma_px / 4.0;
+  RmseOnFrames(calibration, kFrames, &shrunk);
+  std::printf(
+      "inside the 95 %% ellipse: as fitted %.2f, another robot's figure %.2f, a quarter "
+      "of the figure %.2f\n",
+      as_fitted, other_robot, shrunk);
+  EXPECT_EQ(other_robot, as_fitted);
+  EXPECT_LT(shrunk, kShrunkCoverageAtMost);
 }
 
 // Issue 17's targets on the simulated webcam (the demo site's `webcam`

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "camera_proc/image_file.h"
+#include "core/calib/marker_projection.h"
 #include "core/vision/marker_detector.h"
 #include "core/world/file_io.h"
 
@@ -48,6 +49,11 @@ bool AddSharedImagePoints(const std::string& csv_path, const calib::Calibration&
     *error = "camera " + std::to_string(camera.id) + " has no marker class '" + class_name + "'";
     return false;
   }
+  // The marker's disc, as in calibrate's --marker-images: both cameras map
+  // its centre, as camera_proc does (calib/marker_projection.h).
+  const double disc_radius_m =
+      0.5 *
+      (camera.marker_code.enabled() ? camera.marker_code.position_diameter_m : mc->diameter_m);
   vision::ColourClass cls;
   cls.name = mc->name;
   cls.hsv_min = mc->hsv_min;
@@ -111,7 +117,11 @@ bool AddSharedImagePoints(const std::string& csv_path, const calib::Calibration&
       return false;
     }
     std::string map_error;
-    if (!neighbour.PixelToFloor(nu, nv, height_m, &x, &y, &map_error)) {
+    const bool mapped =
+        neighbour.model == calib::Calibration::Model::kFull && disc_radius_m > 0.0
+            ? calib::DiscCentroidToFloor(neighbour.camera, nu, nv, disc_radius_m, height_m, &x, &y)
+            : neighbour.PixelToFloor(nu, nv, height_m, &x, &y, &map_error);
+    if (!mapped) {
       *error = name + std::to_string(line_no) + ": the neighbour's pixel (" + Px(nu) + ", " +
                Px(nv) + ") does not map to the floor: " + map_error;
       return false;
@@ -121,7 +131,7 @@ bool AddSharedImagePoints(const std::string& csv_path, const calib::Calibration&
     std::cout << cells[0] << ": marker at (" << Px(u) << ", " << Px(v)
               << ") px; the neighbour's at (" << Px(nu) << ", " << Px(nv) << ") px maps to "
               << floor << "\n";
-    points->push_back(calib::Correspondence{u, v, x, y, height_m});
+    points->push_back(calib::Correspondence{u, v, x, y, height_m, disc_radius_m});
     lines->push_back(line_no);
     ++used;
   }

@@ -21,7 +21,9 @@ namespace {
 using Reader = YamlReader;
 
 void ParseFull(const Reader& r, const YAML::Node& root, Calibration* c) {
-  r.OnlyKeys(root, "", {"model", "intrinsics", "pose", "fit_rms_px", "pixel_sigma_px"});
+  r.OnlyKeys(
+      root, "",
+      {"model", "intrinsics", "pose", "fit_rms_px", "pixel_sigma_px", "robot_pixel_sigma_px"});
   const YAML::Node in = r.Required(root, "", "intrinsics");
   r.ExpectMap(in, "intrinsics");
   r.OnlyKeys(in, "intrinsics", {"width_px", "height_px", "fx_px", "fy_px", "cx_px", "cy_px", "k"});
@@ -91,9 +93,10 @@ RegionAxis ParseAxis(const Reader& r, const YAML::Node& node, const std::string&
 }
 
 void ParseRegions(const Reader& r, const YAML::Node& root, Calibration* c) {
-  r.OnlyKeys(root, "",
-             {"model", "fit_rms_px", "pixel_sigma_px", "length_unit", "width_px", "height_px",
-              "calibration_height_m", "u_boundaries_px", "v_boundaries_px", "regions"});
+  r.OnlyKeys(
+      root, "",
+      {"model", "fit_rms_px", "pixel_sigma_px", "robot_pixel_sigma_px", "length_unit", "width_px",
+       "height_px", "calibration_height_m", "u_boundaries_px", "v_boundaries_px", "regions"});
   double metres_per_unit = 1.0;
   if (root["length_unit"]) {
     const std::string unit = r.String(root["length_unit"], "length_unit");
@@ -160,6 +163,11 @@ std::string G(double v) {
 
 }  // namespace
 
+double Calibration::PixelSigmaFor(int robot_id) const {
+  const auto it = robot_pixel_sigma_px.find(robot_id);
+  return it != robot_pixel_sigma_px.end() ? it->second : pixel_sigma_px;
+}
+
 int Calibration::width_px() const {
   return model == Model::kFull ? camera.intrinsics.width_px : regions.width_px;
 }
@@ -222,6 +230,15 @@ bool ParseCalibration(const std::string& yaml_text, const std::string& name,
         if (const YAML::Node sigma = root["pixel_sigma_px"]) {
           parsed.pixel_sigma_px = r.Double(sigma, "pixel_sigma_px");
           if (!(parsed.pixel_sigma_px > 0.0)) r.Fail(sigma, "pixel_sigma_px", "must be positive");
+        }
+        if (const YAML::Node robots = root["robot_pixel_sigma_px"]) {
+          r.ExpectMap(robots, "robot_pixel_sigma_px");
+          for (const auto& entry : robots) {
+            const int id = r.Int(entry.first, "robot_pixel_sigma_px");
+            // A repeated id is refused by the reader (duplicated key).
+            parsed.robot_pixel_sigma_px[id] =
+                r.Positive(entry.second, "robot_pixel_sigma_px." + std::to_string(id));
+          }
         }
       },
       error);
@@ -335,6 +352,13 @@ std::string FormatCalibration(const Calibration& c, const std::string& header_co
   }
   if (c.pixel_sigma_px > 0.0) {
     out << YAML::Key << "pixel_sigma_px" << YAML::Value << YAML::Precision(4) << c.pixel_sigma_px;
+  }
+  if (!c.robot_pixel_sigma_px.empty()) {
+    out << YAML::Key << "robot_pixel_sigma_px" << YAML::Value << YAML::Flow << YAML::BeginMap;
+    for (const auto& [id, sigma] : c.robot_pixel_sigma_px) {
+      out << YAML::Key << id << YAML::Value << YAML::Precision(4) << sigma;
+    }
+    out << YAML::EndMap;
   }
   if (c.model == Calibration::Model::kFull) {
     EmitFull(c.camera, &out);

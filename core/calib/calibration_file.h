@@ -1,6 +1,7 @@
 #ifndef ROOMFIX_CORE_CALIB_CALIBRATION_FILE_H_
 #define ROOMFIX_CORE_CALIB_CALIBRATION_FILE_H_
 
+#include <map>
 #include <string>
 
 #include "core/calib/fisheye_camera.h"
@@ -49,6 +50,15 @@ namespace roomfix::calib {
 //
 //   pixel_sigma_px: 0.0386
 //
+// and, per robot, the same measured on images of that robot's own markers
+// that the fit did not use (roomfix calibrate --robot-images): a marker's
+// centroid noise depends on its colours and on what surrounds it (in the
+// hall's JPEG frames a green marker beside a blue one is 2.7 times as noisy
+// as the red tripod marker the lens was fitted to), so one robot's figure
+// is not another's:
+//
+//   robot_pixel_sigma_px: {1: 0.035, 4: 0.094}
+//
 // A calibration whose fit_rms_px is over kMaxFitRmsPx is refused by
 // camera_proc and check-config (CheckFitResidual): it would place markers
 // wrongly by that much everywhere.
@@ -70,7 +80,14 @@ struct Calibration {
   // sigma^2 p / (2N) (the prediction variance of least squares), so
   // pixel_sigma^2 = sigma^2 (1 + p / (2N)) (PixelSigmaFromFit).
   double pixel_sigma_px = -1.0;
+  // Per robot id: the one-sigma pixel error per axis of that robot's
+  // markers, held out from the fit (robot_pixel_sigma_px); robots not
+  // listed use pixel_sigma_px.
+  std::map<int, double> robot_pixel_sigma_px;
 
+  // robot_pixel_sigma_px's figure for the robot, else pixel_sigma_px
+  // (negative when the file states neither).
+  double PixelSigmaFor(int robot_id) const;
   int width_px() const;
   int height_px() const;
   // Pixel to floor at a marker height / floor to pixel. The full model

@@ -160,6 +160,33 @@ TEST(CalibrationFile, StatesItsPixelErrorAndRefusesANonPositiveOne) {
   EXPECT_NE(error.find("pixel_sigma_px"), std::string::npos) << error;
 }
 
+TEST(CalibrationFile, StatesEachRobotsOwnPixelErrorBesideTheFits) {
+  Calibration c = FullExample();
+  c.pixel_sigma_px = 0.0351;
+  c.robot_pixel_sigma_px = {{1, 0.04}, {4, 0.1017}};
+  Calibration back;
+  std::string error;
+  ASSERT_TRUE(ParseCalibration(FormatCalibration(c, ""), "mem", &back, &error)) << error;
+  EXPECT_EQ(back.robot_pixel_sigma_px, c.robot_pixel_sigma_px);
+  // A listed robot gets its own figure, any other the fit's.
+  EXPECT_DOUBLE_EQ(back.PixelSigmaFor(4), 0.1017);
+  EXPECT_DOUBLE_EQ(back.PixelSigmaFor(2), 0.0351);
+  // Refused, naming the key: a figure that is not positive, a robot id that
+  // is not a whole number, a list instead of a map, not a number.
+  const std::string base = FormatCalibration(FullExample(), "");
+  for (const std::string& bad : {std::string("robot_pixel_sigma_px: {1: 0}\n"),
+                                 std::string("robot_pixel_sigma_px: {a: 0.1}\n"),
+                                 std::string("robot_pixel_sigma_px: [0.1]\n"),
+                                 std::string("robot_pixel_sigma_px: {1: .nan}\n")}) {
+    EXPECT_FALSE(ParseCalibration(base + bad, "cal.yaml", &back, &error)) << bad;
+    EXPECT_NE(error.find("robot_pixel_sigma_px"), std::string::npos) << bad << ": " << error;
+  }
+  // The same robot twice: the file's duplicated key, refused by the reader.
+  EXPECT_FALSE(ParseCalibration(base + "robot_pixel_sigma_px: {1: 0.1, 1: 0.2}\n", "cal.yaml",
+                                &back, &error));
+  EXPECT_NE(error.find("duplicated key '1'"), std::string::npos) << error;
+}
+
 TEST(PixelSigmaFromFit, AddsTheFitsLostDegreesOfFreedomAndItsOwnPredictionError) {
   // The demo's calibration: 35 points, 11 parameters, 0.0466 px RMS.
   // sigma^2 = 0.0466^2 * 35 / 59 = 0.0012882; times (1 + 11 / 70).

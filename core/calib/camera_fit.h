@@ -18,6 +18,12 @@ struct Correspondence {
   double x_m = 0.0;
   double y_m = 0.0;
   double height_m = 0.0;
+  // 0: (u, v) is the image of the point itself (a chessboard corner, a
+  // listed pixel). Otherwise (u, v) is the area centroid of the image of a
+  // horizontal disc of this radius centred on the point (a detected marker),
+  // which is not the image of its centre (marker_projection.h):
+  // FitCameraToMarkers fits the lens to the centres.
+  double disc_radius_m = 0.0;
 };
 
 struct CameraFitOptions {

@@ -1,5 +1,6 @@
 #include "core/calib/marker_projection.h"
 
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
@@ -55,6 +56,37 @@ bool DiscCentroidToFloor(const CameraModel& camera, double u_px, double v_px, do
   *x_m = x;
   *y_m = y;
   return true;
+}
+
+std::vector<Correspondence> DiscCentreCorrespondences(const CameraModel& camera,
+                                                      const std::vector<Correspondence>& points) {
+  std::vector<Correspondence> centres = points;
+  for (Correspondence& p : centres) {
+    Eigen::Vector2d offset;
+    if (p.disc_radius_m > 0.0 &&
+        DiscCentroidOffset(camera, Eigen::Vector3d(p.x_m, p.y_m, p.height_m), p.disc_radius_m,
+                           &offset)) {
+      p.u_px -= offset.x();
+      p.v_px -= offset.y();
+    }
+    p.disc_radius_m = 0.0;
+  }
+  return centres;
+}
+
+CameraFitSummary FitCameraToMarkers(const std::vector<Correspondence>& points,
+                                    const CameraModel& initial, const CameraFitOptions& options,
+                                    int rounds) {
+  CameraFitSummary fit = FitCamera(points, initial, options);
+  const bool any_disc = std::any_of(points.begin(), points.end(),
+                                    [](const Correspondence& p) { return p.disc_radius_m > 0.0; });
+  for (int round = 0; any_disc && fit.usable && round < rounds; ++round) {
+    CameraFitSummary next =
+        FitCamera(DiscCentreCorrespondences(fit.model, points), fit.model, options);
+    if (!next.usable) break;
+    fit = std::move(next);
+  }
+  return fit;
 }
 
 }  // namespace roomfix::calib
