@@ -1,11 +1,13 @@
 // roomfix render-camera: synthetic ceiling-camera frames of a site with
 // ground truth (sim/synthetic_camera.h).
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <memory>
 #include <opencv2/imgcodecs.hpp>
@@ -37,12 +39,17 @@ struct RenderCameraFlags {
   int jpeg_quality = 90;
   std::string tripod_dir;
   double tripod_step_m = 0.0;
+  bool tripod_robots = false;
 };
 
 // The reference's calibration procedure on the synthetic camera: the robot's
 // markers on a tripod at every grid point at least one grid step from the
-// walls, one image each, and points.csv (image,x_m,y_m,height_m) for
-// `roomfix calibrate --marker-images`.
+// walls where the camera sees the whole position marker, one image each, and
+// points.csv (image,x_m,y_m,height_m) for `roomfix calibrate
+// --marker-images`. With --tripod-robots also every robot of the camera at
+// the points half a step off that grid (places the fit does not see), each
+// at its own heading, and robots.csv (image,x_m,y_m,height_m,robot_id) for
+// `roomfix calibrate --robot-images`: each robot's held-out pixel noise.
 int WriteTripodImages(const RenderCameraFlags& f, const Site& site, const Camera& camera,
                       const sim::SyntheticCamera& synthetic) {
   const char* kName = "roomfix render-camera: ";
@@ -56,36 +63,109 @@ int WriteTripodImages(const RenderCameraFlags& f, const Site& site, const Camera
     std::cerr << kName << f.tripod_dir << ": cannot make the folder: " << ec.message() << "\n";
     return 1;
   }
-  // Written whole after the images, every step checked (file_io.h).
-  std::ostringstream csv;
-  csv << "image,x_m,y_m,height_m\n";
   const double step = f.tripod_step_m > 0.0 ? f.tripod_step_m : site.room.grid_m;
-  const CameraRobot& robot = camera.robots.front();
   const Room& room = site.room;
-  int n = 0;
-  for (double y = room.min_y_m + step; y < room.min_y_m + room.size_y_m - 0.5 * step; y += step) {
-    for (double x = room.min_x_m + step; x < room.min_x_m + room.size_x_m - 0.5 * step; x += step) {
-      cv::Mat image;
-      synthetic.Render(0.0, n, {sim::RobotState{robot.robot_id, x, y, 0.0}}, &image);
-      char name[64];
-      std::snprintf(name, sizeof(name), "tripod_%03d.png", n);
-      std::string error;
-      if (!camera::WriteImageChecked(f.tripod_dir + "/" + name, image, &error)) {
-        std::cerr << kName << error << "\n";
-        return 1;
-      }
-      csv << name << "," << x << "," << y << "," << robot.marker_height_m << "\n";
-      ++n;
-    }
-  }
+  int frame = 0;
   std::string error;
-  if (!WriteOutputFile(f.tripod_dir + "/points.csv", csv.str(), &error)) {
+  // One image of `robot` at (x, y, heading) as `stem`.jpg (or .png when
+  // lossless); false when the camera does not see its whole position marker
+  // (as in a lab, the tripod goes only where the camera sees it: a cut
+  // disc's centroid is not the disc's) or the write failed (*error set).
+  auto write = [&](const CameraRobot& robot, double x, double y, double heading_rad,
+                   const std::string& stem, std::string* name) {
+    cv::Mat image;
+    std::vector<sim::MarkerTruth> truth;
+    synthetic.Render(0.0, frame++, {sim::RobotState{robot.robot_id, x, y, heading_rad}}, &image,
+                     &truth);
+    if (std::none_of(truth.begin(), truth.end(),
+                     [](const sim::MarkerTruth& m) { return !m.is_heading_marker && m.visible; })) {
+      return false;
+    }
+    // As the camera delivers its frames (its JPEG at the device's quality,
+    // as camera_proc's sim: source encodes them), so that the fit's residual,
+    // and the pixel_sigma_px calibrate derives from it, is the centroid
+    // noise the markers will have in operation (docs/camera.md). A lossless
+    // image understates it: on the hall's clean camera 0.003 px against
+    // about 0.05 px in its JPEG frames.
+    std::vector<uint8_t> jpeg;
+    if (!synthetic.Encode(image, f.jpeg_quality, &jpeg)) {
+      error = stem + ": cannot encode as JPEG";
+      return false;
+    }
+    *name = stem + (jpeg.empty() ? ".png" : ".jpg");
+    const std::string path = f.tripod_dir + "/" + *name;
+    if (!(jpeg.empty() ? camera::WriteImageChecked(path, image, &error)
+                       : WriteOutputFile(path, std::string(jpeg.begin(), jpeg.end()), &error))) {
+      return false;
+    }
+    return true;
+  };
+  // Every point of the grid through (x0, y0) with this step, inside the
+  // room by at least one grid step.
+  auto each_point = [&](double offset_m, const std::function<bool(double, double)>& visit) {
+    for (double y = room.min_y_m + step + offset_m; y < room.min_y_m + room.size_y_m - 0.5 * step;
+         y += step) {
+      for (double x = room.min_x_m + step + offset_m; x < room.min_x_m + room.size_x_m - 0.5 * step;
+           x += step) {
+        if (!visit(x, y)) return false;
+      }
+    }
+    return true;
+  };
+  const CameraRobot& tripod = camera.robots.front();
+  std::ostringstream csv, robots_csv;
+  csv << "image,x_m,y_m,height_m\n";
+  robots_csv << "image,x_m,y_m,height_m,robot_id\n";
+  int n = 0, out_of_view = 0, held_out = 0;
+  bool ok = each_point(0.0, [&](double x, double y) {
+    char stem[32];
+    std::snprintf(stem, sizeof(stem), "tripod_%03d", n);
+    std::string name;
+    if (!write(tripod, x, y, 0.0, stem, &name)) {
+      ++out_of_view;
+      return error.empty();
+    }
+    csv << name << "," << x << "," << y << "," << tripod.marker_height_m << "\n";
+    ++n;
+    return true;
+  });
+  if (ok && f.tripod_robots) {
+    int point = 0;
+    ok = each_point(0.5 * step, [&](double x, double y) {
+      for (const CameraRobot& robot : camera.robots) {
+        // Headings spread by the golden angle: every robot is seen at many,
+        // as it will be while it drives.
+        const double heading_rad = std::remainder(2.399963 * (point + robot.robot_id), 2 * M_PI);
+        char stem[48];
+        std::snprintf(stem, sizeof(stem), "robot_%d_%03d", robot.robot_id, point);
+        std::string name;
+        if (!write(robot, x, y, heading_rad, stem, &name)) {
+          if (!error.empty()) return false;
+          continue;
+        }
+        robots_csv << name << "," << x << "," << y << "," << robot.marker_height_m << ","
+                   << robot.robot_id << "\n";
+        ++held_out;
+      }
+      ++point;
+      return true;
+    });
+  }
+  if (!ok || !WriteOutputFile(f.tripod_dir + "/points.csv", csv.str(), &error) ||
+      (f.tripod_robots &&
+       !WriteOutputFile(f.tripod_dir + "/robots.csv", robots_csv.str(), &error))) {
     std::cerr << kName << error << "\n";
     return 1;
   }
-  std::cout << "wrote " << n << " tripod images (" << robot.position_marker << " marker at "
-            << robot.marker_height_m << " m, every " << step << " m) and points.csv to "
-            << f.tripod_dir << "\n";
+  std::cout << "wrote " << n << " tripod images (" << tripod.position_marker << " marker at "
+            << tripod.marker_height_m << " m, every " << step << " m) and points.csv to "
+            << f.tripod_dir;
+  if (out_of_view > 0) std::cout << "; " << out_of_view << " grid points out of the camera's view";
+  if (f.tripod_robots) {
+    std::cout << "; " << held_out << " images of the camera's " << camera.robots.size()
+              << " robots half a step off the grid and robots.csv";
+  }
+  std::cout << "\n";
   return 0;
 }
 
@@ -215,13 +295,20 @@ void AddRenderCameraCommand(CLI::App* app, int* exit_code) {
                   "from the site's mount position and field of view)");
   cmd->add_option("--tripod-grid", f->tripod_dir,
                   "Write the reference's calibration images instead: the robot's markers at each "
-                  "grid point, one PNG each, and points.csv for calibrate --marker-images");
+                  "grid point the camera sees, one image each in the camera's JPEG, and "
+                  "points.csv for calibrate --marker-images");
   cmd->add_option("--tripod-step", f->tripod_step_m,
                   "Spacing of the tripod points, m (default: "
                   "the room's grid)");
+  cmd->add_flag("--tripod-robots", f->tripod_robots,
+                "With --tripod-grid: also every robot of the camera half a step off the grid, "
+                "and robots.csv for calibrate --robot-images (each robot's held-out noise)");
   cmd->add_option("--seed", f->seed, "Noise seed")->capture_default_str();
-  cmd->add_option("--jpeg-quality", f->jpeg_quality, "JPEG quality of folder frames")
-      ->capture_default_str();
+  cmd->add_option("--jpeg-quality", f->jpeg_quality,
+                  "JPEG quality of folder frames and tripod images (the webcam scenario uses its "
+                  "own; 0: lossless PNG)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 100));
   cmd->callback([f, exit_code] { *exit_code = RunRenderCamera(*f); });
 }
 
