@@ -728,9 +728,10 @@ void CameraNode::PublishPoses(int64_t capture_utime, int64_t frame_seq, int64_t 
       // Covariance (calib/pose_covariance.h): the calibration's measured
       // pixel noise through the mapping's Jacobian J = d(x, y)/d(u, v) (by
       // central differences), plus the streak, the timestamp jitter and the
-      // robot's tilt. sigma_px is the calibration's pixel_sigma_px (its
-      // fit's centroid noise plus its own model error, calibration_file.h),
-      // else the assumed centroid_sigma_px.
+      // robot's tilt. sigma_px is the calibration's figure for this robot's
+      // markers (robot_pixel_sigma_px, measured on its own markers), else its
+      // pixel_sigma_px (the fit's centroid noise plus its own model error,
+      // calibration_file.h), else the assumed centroid_sigma_px.
       const double h_px = 0.5;
       double xu0, yu0, xu1, yu1, xv0, yv0, xv1, yv1;
       const bool jac = calibration_->PixelToFloor(o.position.u_px - h_px, o.position.v_px, height_m,
@@ -746,8 +747,8 @@ void CameraNode::PublishPoses(int64_t capture_utime, int64_t frame_seq, int64_t 
         noise.floor_per_px << (xu1 - xu0) / (2 * h_px), (xv1 - xv0) / (2 * h_px),
             (yu1 - yu0) / (2 * h_px), (yv1 - yv0) / (2 * h_px);
       }
-      noise.pixel_sigma_px = calibration_->pixel_sigma_px > 0.0 ? calibration_->pixel_sigma_px
-                                                                : options_.centroid_sigma_px;
+      const double robot_sigma_px = calibration_->PixelSigmaFor(camera_.robots[i].robot_id);
+      noise.pixel_sigma_px = robot_sigma_px > 0.0 ? robot_sigma_px : options_.centroid_sigma_px;
       noise.velocity_mps = velocity;
       noise.exposure_s = timing_.exposure_s;
       noise.blur_sigma_fraction = options_.blur_sigma_fraction;

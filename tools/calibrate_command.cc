@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <iostream>
 #include <limits>
+#include <map>
 #include <memory>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
@@ -27,6 +28,7 @@
 #include "core/calib/calibration_file.h"
 #include "core/calib/camera_fit.h"
 #include "core/calib/camera_start.h"
+#include "core/calib/marker_projection.h"
 #include "core/calib/region_model.h"
 #include "core/vision/marker_detector.h"
 #include "core/world/file_io.h"
@@ -56,6 +58,7 @@ struct Flags {
   double board_height_m = 0.0;
   std::string corners_csv;
   std::string marker_images;
+  std::string robot_images;
   std::string marker_class;
   std::string out;
   std::string model = "full";
@@ -346,6 +349,47 @@ std::string Fixed(double v, int digits);
 // points, listed in a CSV `image,x_m,y_m,height_m` (image paths relative to
 // the CSV). The marker is found by the same detector camera_proc runs, with
 // the site camera's colour class; an image must show exactly one blob of it.
+// A marker class's detector as calibration uses it: the class's HSV box,
+// small blobs allowed, the lighting normalised.
+vision::MarkerDetector CalibrationDetector(const MarkerClass& mc) {
+  vision::ColourClass cls;
+  cls.name = mc.name;
+  cls.hsv_min = mc.hsv_min;
+  cls.hsv_max = mc.hsv_max;
+  cls.min_area_px = 20.0;
+  vision::DetectorOptions options;
+  options.lighting = vision::LightingMode::kNormalised;
+  return vision::MarkerDetector({cls}, options);
+}
+
+// The one marker of `class_name` in the image at `path`; a Refusal naming
+// the CSV line when the image cannot be read or does not show exactly one.
+vision::Blob FindOneMarker(const vision::MarkerDetector& detector, const std::string& class_name,
+                           const std::string& path, const std::string& where) {
+  cv::Mat image;
+  std::string image_error;
+  if (!camera::ReadImageChecked(path, camera::kMaxToolImageSidePx, camera::kMaxToolImageSidePx,
+                                cv::IMREAD_COLOR, &image, &image_error)) {
+    throw Refusal(where + ": " + image_error);
+  }
+  const std::vector<vision::Blob> blobs = detector.Detect(image, vision::ImageWindow{});
+  if (blobs.size() != 1) {
+    std::string at;
+    for (const vision::Blob& b : blobs)
+      at += " (" + Fixed(b.u_px, 1) + ", " + Fixed(b.v_px, 1) + ")";
+    throw Refusal(path + ": expected one " + class_name + " marker, found " +
+                  std::to_string(blobs.size()) + (at.empty() ? "" : " at" + at));
+  }
+  return blobs[0];
+}
+
+const MarkerClass* FindClass(const roomfix::Camera& camera, const std::string& name) {
+  for (const MarkerClass& c : camera.marker_classes) {
+    if (c.name == name) return &c;
+  }
+  return nullptr;
+}
+
 void AddMarkerImages(const Flags& f, std::vector<Correspondence>* points, std::vector<int>* lines) {
   if (f.marker_images.empty()) return;
   if (f.site.empty()) throw Refusal("--marker-images needs --site (the marker's colour class)");
@@ -358,19 +402,15 @@ void AddMarkerImages(const Flags& f, std::vector<Correspondence>* points, std::v
   if (class_name.empty() && !camera->robots.empty()) {
     class_name = camera->robots.front().position_marker;
   }
-  const MarkerClass* mc = nullptr;
-  for (const MarkerClass& c : camera->marker_classes) {
-    if (c.name == class_name) mc = &c;
-  }
+  const MarkerClass* mc = FindClass(*camera, class_name);
   if (mc == nullptr) throw Refusal("--marker-class: the camera has no class '" + class_name + "'");
-  vision::ColourClass cls;
-  cls.name = mc->name;
-  cls.hsv_min = mc->hsv_min;
-  cls.hsv_max = mc->hsv_max;
-  cls.min_area_px = 20.0;
-  vision::DetectorOptions options;
-  options.lighting = vision::LightingMode::kNormalised;
-  const vision::MarkerDetector detector({cls}, options);
+  // The tripod carries a position marker: the code's position size when the
+  // site has a marker code, else the class's own diameter. The fit maps the
+  // disc's centre, as camera_proc does (calib::FitCameraToMarkers).
+  const double disc_radius_m =
+      0.5 *
+      (camera->marker_code.enabled() ? camera->marker_code.position_diameter_m : mc->diameter_m);
+  const vision::MarkerDetector detector = CalibrationDetector(*mc);
 
   std::istringstream in(ReadCsv(f.marker_images));
   const std::string dir = std::filesystem::path(f.marker_images).parent_path().string();
@@ -397,25 +437,12 @@ void AddMarkerImages(const Flags& f, std::vector<Correspondence>* points, std::v
     }
     std::string path = cells[0];
     if (!path.empty() && path[0] != '/' && !dir.empty()) path = dir + "/" + path;
-    cv::Mat image;
-    std::string image_error;
-    if (!camera::ReadImageChecked(path, camera::kMaxToolImageSidePx, camera::kMaxToolImageSidePx,
-                                  cv::IMREAD_COLOR, &image, &image_error)) {
-      throw Refusal(f.marker_images + ":" + std::to_string(line_no) + ": " + image_error);
-    }
-    const std::vector<vision::Blob> blobs = detector.Detect(image, vision::ImageWindow{});
-    if (blobs.size() != 1) {
-      std::string where;
-      for (const vision::Blob& b : blobs) {
-        where += " (" + Fixed(b.u_px, 1) + ", " + Fixed(b.v_px, 1) + ")";
-      }
-      throw Refusal(path + ": expected one " + class_name + " marker, found " +
-                    std::to_string(blobs.size()) + (where.empty() ? "" : " at" + where));
-    }
-    std::cout << path << ": " << class_name << " marker at (" << Fixed(blobs[0].u_px, 2) << ", "
-              << Fixed(blobs[0].v_px, 2) << ") px for (" << Fixed(x, 3) << ", " << Fixed(y, 3)
-              << ", " << Fixed(h, 3) << ") m\n";
-    points->push_back(Correspondence{blobs[0].u_px, blobs[0].v_px, x, y, h});
+    const vision::Blob blob =
+        FindOneMarker(detector, class_name, path, f.marker_images + ":" + std::to_string(line_no));
+    std::cout << path << ": " << class_name << " marker at (" << Fixed(blob.u_px, 2) << ", "
+              << Fixed(blob.v_px, 2) << ") px for (" << Fixed(x, 3) << ", " << Fixed(y, 3) << ", "
+              << Fixed(h, 3) << ") m\n";
+    points->push_back(Correspondence{blob.u_px, blob.v_px, x, y, h, disc_radius_m});
     lines->push_back(line_no);
     ++used;
   }
@@ -448,6 +475,94 @@ void AddNeighbourPoints(const Flags& f, std::vector<Correspondence>* points,
                             &error)) {
     throw Refusal(error);
   }
+}
+
+// Each robot's own pixel sigma, held out from the fit: images of the robot
+// itself at surveyed points (CSV image,x_m,y_m,height_m,robot_id; `roomfix
+// render-camera --tripod-robots` writes them), its position marker found in
+// each, and the centroid compared with where the fitted lens images that
+// disc (the centre's projection plus the disc offset, as camera_proc maps
+// it). With n images and residuals d_i the sigma per axis is
+// sqrt(sum |d_i|^2 / 2n): nothing was fitted to these images, so no degrees
+// of freedom are lost, and the lens's own error at those places is in it, as
+// it will be in operation. A robot needs kMinRobotImages images.
+constexpr int kMinRobotImages = 5;
+
+std::map<int, double> RobotPixelSigmas(const Flags& f, const calib::CameraModel& lens) {
+  std::map<int, double> sigmas;
+  if (f.robot_images.empty()) return sigmas;
+  if (f.site.empty()) throw Refusal("--robot-images needs --site (the robots' markers)");
+  Site site;
+  std::string error;
+  if (!LoadSite(f.site, &site, &error)) throw Refusal(error);
+  const roomfix::Camera* camera = site.FindCameraOrFirst(f.camera_id);
+  if (camera == nullptr) throw Refusal(f.site + ": no such camera");
+  std::istringstream in(ReadCsv(f.robot_images));
+  const std::string dir = std::filesystem::path(f.robot_images).parent_path().string();
+  std::map<int, std::pair<int, double>> sums;  // robot: images, sum |d|^2 px^2
+  std::map<int, double> floor_sums;            // robot: sum of squared floor errors, m^2
+  std::map<std::string, vision::MarkerDetector> detectors;  // by class
+  std::string line;
+  int line_no = 0;
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (line.empty() || line[0] == '#') continue;
+    const std::vector<std::string> cells = SplitComma(line);
+    const std::string where = f.robot_images + ":" + std::to_string(line_no);
+    if (line_no == 1) {
+      if (cells != std::vector<std::string>{"image", "x_m", "y_m", "height_m", "robot_id"}) {
+        throw Refusal(where + ": expected the header image,x_m,y_m,height_m,robot_id");
+      }
+      continue;
+    }
+    double x = 0, y = 0, h = 0, id = 0;
+    if (cells.size() != 5 || !ParseNumber(cells[1], &x) || !ParseNumber(cells[2], &y) ||
+        !ParseNumber(cells[3], &h) || !ParseNumber(cells[4], &id) || id != std::floor(id)) {
+      throw Refusal(where + ": expected image,x_m,y_m,height_m,robot_id");
+    }
+    const auto robot = std::find_if(camera->robots.begin(), camera->robots.end(),
+                                    [&](const CameraRobot& r) { return r.robot_id == id; });
+    if (robot == camera->robots.end()) {
+      throw Refusal(where + ": camera " + std::to_string(camera->id) + " has no robot " + cells[4]);
+    }
+    const MarkerClass* mc = FindClass(*camera, robot->position_marker);
+    if (mc == nullptr) throw Refusal(where + ": no class '" + robot->position_marker + "'");
+    std::string path = cells[0];
+    if (!path.empty() && path[0] != '/' && !dir.empty()) path = dir + "/" + path;
+    auto detector = detectors.find(mc->name);
+    if (detector == detectors.end()) {
+      detector = detectors.emplace(mc->name, CalibrationDetector(*mc)).first;
+    }
+    const vision::Blob blob = FindOneMarker(detector->second, robot->position_marker, path, where);
+    const double radius_m = PositionMarkerDiameterM(*camera, *robot) / 2.0;
+    const Eigen::Vector3d centre(x, y, h);
+    Eigen::Vector2d image_px, offset_px = Eigen::Vector2d::Zero();
+    double fx = 0, fy = 0;
+    if (!lens.ProjectToPixel(centre, &image_px.x(), &image_px.y()) ||
+        (radius_m > 0.0 && !calib::DiscCentroidOffset(lens, centre, radius_m, &offset_px)) ||
+        !calib::DiscCentroidToFloor(lens, blob.u_px, blob.v_px, radius_m, h, &fx, &fy)) {
+      throw Refusal(where + ": the point is outside the fitted lens's view");
+    }
+    const Eigen::Vector2d d = Eigen::Vector2d(blob.u_px, blob.v_px) - image_px - offset_px;
+    auto& [n, sum_px2] = sums[robot->robot_id];
+    ++n;
+    sum_px2 += d.squaredNorm();
+    floor_sums[robot->robot_id] += std::pow(fx - x, 2) + std::pow(fy - y, 2);
+  }
+  for (const auto& [id, entry] : sums) {
+    const auto [n, sum_px2] = entry;
+    if (n < kMinRobotImages) {
+      throw Refusal(f.robot_images + ": robot " + std::to_string(id) + " has " + std::to_string(n) +
+                    " images; a held-out sigma needs at least " + std::to_string(kMinRobotImages));
+    }
+    sigmas[id] = std::sqrt(sum_px2 / (2.0 * n));
+    std::cout << "robot " << id << ": " << n << " held-out images, pixel sigma "
+              << Fixed(sigmas[id], 4) << " px per axis, floor RMS "
+              << Fixed(1e3 * std::sqrt(floor_sums[id] / n), 2) << " mm\n";
+  }
+  if (sigmas.empty()) throw Refusal(f.robot_images + ": no images listed");
+  return sigmas;
 }
 
 // The reprojection of room point `p` at its height under the chosen model.
@@ -657,7 +772,7 @@ void Run(const Flags& f) {
     options.max_iterations = f.max_iterations;
     options.max_outliers = std::min(
         kMaxOutliers, static_cast<int>(kMaxOutlierFraction * static_cast<double>(points.size())));
-    full = calib::FitCamera(points, start.usable ? start.model : nominal, options);
+    full = calib::FitCameraToMarkers(points, start.usable ? start.model : nominal, options);
     if (!full.usable) full_why = full.message;
   }
   const RegionFitSummary regions =
@@ -685,7 +800,12 @@ void Run(const Flags& f) {
     std::string ignored;
     double fmm = NAN, fpx = NAN, rmm = NAN, rpx = NAN, x, y;
     if (full.usable) {
-      if (full_cal.PixelToFloor(p.u_px, p.v_px, p.height_m, &x, &y, &ignored)) {
+      // A marker is mapped as camera_proc maps it: its disc's centre.
+      const bool mapped = p.disc_radius_m > 0.0
+                              ? calib::DiscCentroidToFloor(full.model, p.u_px, p.v_px,
+                                                           p.disc_radius_m, p.height_m, &x, &y)
+                              : full_cal.PixelToFloor(p.u_px, p.v_px, p.height_m, &x, &y, &ignored);
+      if (mapped) {
         fmm = 1e3 * std::hypot(x - p.x_m, y - p.y_m);
       }
       fpx = full.residual_px[i];
@@ -764,6 +884,10 @@ void Run(const Flags& f) {
   const int kFullModelParameters = 1 + 2 + f.distortion_terms + 3 + 3;
   full_cal.pixel_sigma_px =
       want_full ? calib::PixelSigmaFromFit(rms_px, n_full, kFullModelParameters) : -1.0;
+  if (!f.robot_images.empty()) {
+    if (!want_full) throw Refusal("--robot-images needs the full model");
+    full_cal.robot_pixel_sigma_px = RobotPixelSigmas(f, full.model);
+  }
   region_cal.fit_rms_px = want_full ? -1.0 : rms_px;
   const Calibration& chosen = want_full ? full_cal : region_cal;
   std::ostringstream header;
@@ -773,6 +897,9 @@ void Run(const Flags& f) {
     sources.push_back(std::to_string(f.chessboards.size()) + " chessboard image(s)");
   }
   if (!f.marker_images.empty()) sources.push_back("the marker images in " + f.marker_images);
+  if (!f.robot_images.empty()) {
+    sources.push_back("(robot_pixel_sigma_px) the robot images in " + f.robot_images);
+  }
   std::string from;
   for (size_t i = 0; i < sources.size(); ++i) from += (i > 0 ? " and " : "") + sources[i];
   header << "Written by roomfix calibrate from " << from << " (" << points.size()
@@ -824,6 +951,10 @@ void AddCalibrateCommand(CLI::App* app, int* exit_code) {
   cmd->add_option("--marker-images", f->marker_images,
                   "CSV image,x_m,y_m,height_m: images of one marker placed at surveyed points "
                   "(the reference's tripod procedure); the marker is detected in each");
+  cmd->add_option("--robot-images", f->robot_images,
+                  "CSV image,x_m,y_m,height_m,robot_id: images of each robot at surveyed points, "
+                  "not fitted: each robot's held-out pixel sigma (robot_pixel_sigma_px), the "
+                  "noise of its own markers");
   cmd->add_option("--shared-images", f->shared_images,
                   "CSV image,neighbour_image,height_m: one marker seen by this camera and by a "
                   "calibrated neighbour (--neighbour), its floor position from the neighbour");
