@@ -69,14 +69,21 @@ if [[ "${3:-}" == "--inner" ]]; then
     2>"$out/trilat_proc.txt" &
   pids+=($!)
   if [[ -x "$bin/fusion_proc" ]]; then
-    # Several cameras: each calibration's error (about 1 mm for the hall's
-    # fits) widens its poses so that two cameras agree through the gate in an
-    # overlap (docs/fusion.md, "Several cameras"); the hall's figures of
-    # eight turn and accelerate harder than the default process noise follows
-    # at the hall's reduced frame rate (docs/fusion.md, "The hall").
+    # Several cameras: each calibration's error at a place is the same in
+    # every frame, so fusion adds it as --camera-calibration-sigma
+    # (docs/fusion.md, "Several cameras"): 0.3 mm for the hall, whose
+    # calibrations are fitted to the discs' centres over each camera's whole
+    # view (docs/calibration.md; measured: 93.7 to 100 % of fused errors in
+    # the 95 % ellipse); 0.6 mm for two_cameras, whose two calibrations
+    # disagree by up to 1.02 mm in the overlap. The hall's figures of eight
+    # turn and accelerate harder than the default process noise follows at
+    # the hall's reduced frame rate (docs/fusion.md, "The hall").
     fusion_args=()
-    ((${#camera_ids[@]} < 2)) ||
-      fusion_args+=(--camera-calibration-sigma 0.001 --q-turn 1 --q-accel 0.1)
+    if ((${#camera_ids[@]} > 1)); then
+      calibration_sigma_m=0.0006
+      [[ "$(basename "$site")" != hall.yaml ]] || calibration_sigma_m=0.0003
+      fusion_args+=(--camera-calibration-sigma "$calibration_sigma_m" --q-turn 1 --q-accel 0.1)
+    fi
     "$bin/fusion_proc" --config "$site" --log-level info "${fusion_args[@]}" \
       2>"$out/fusion_proc.txt" &
     pids+=($!)

@@ -74,7 +74,7 @@ trilat=$!
 # overconfident, and gated the next fixes and frames (docs/fusion.md,
 # "The hall").
 on_host solver "$bin/fusion_proc" --config "$site" --lcm-url "$url" \
-  --camera-calibration-sigma 0.001 --q-turn 1 --q-accel 0.1 --log-level warn \
+  --camera-calibration-sigma 0.0003 --q-turn 1 --q-accel 0.1 --log-level warn \
   2>"$work/fusion_proc.err" &
 fusion=$!
 pids+=("$logger" "$trilat" "$fusion")
