@@ -154,8 +154,7 @@ TEST(TwoRadios, EveryFiringIsSolvedFromTheRangesOfBothCoordinators) {
     constexpr double kArrivalLag_s = 0.5;
     double nearest_m = INFINITY;
     for (double lag_s = 0.0; lag_s <= kArrivalLag_s; lag_s += 0.005) {
-      const GroundTruthPose truth =
-          sr->trajectory->PoseAt((p.utime - start_utime) * 1e-6 - lag_s);
+      const GroundTruthPose truth = sr->trajectory->PoseAt((p.utime - start_utime) * 1e-6 - lag_s);
       nearest_m = std::min(nearest_m, std::hypot(p.x_m - truth.x_m, p.y_m - truth.y_m));
     }
     EXPECT_LT(nearest_m, kFixTolerance_m) << "beacon " << key.first << " firing " << key.second;

@@ -18,6 +18,7 @@
 
 #include "core/calib/calibration_file.h"
 #include "core/calib/fisheye_camera.h"
+#include "core/world/file_io.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -720,6 +721,53 @@ TEST(RoomfixCalibrate, CalibratesFromImagesOfAMarkerAtSurveyedPoints) {
   const double rms = std::sqrt(sum2 / n);
   std::printf("tripod calibration: %d floor points mapped to %.2f mm RMS\n", n, rms * 1e3);
   EXPECT_LT(rms, kMappingRmsM);
+}
+
+TEST(RoomfixCalibrate, StatesEachRobotsHeldOutPixelSigmaFromImagesItDidNotFit) {
+  // The tripod images come in the camera's own JPEG (as its frames) and only
+  // where the camera sees the marker; --tripod-robots adds every robot half
+  // a step off the grid, and --robot-images turns them into each robot's
+  // held-out pixel sigma. The demo's one robot is the tripod's own marker, so
+  // its held-out sigma is the fit's noise plus the lens's error between the
+  // fitted points: within a factor kSameMarkerFactor of the fit's
+  // pixel_sigma_px either way (a figure outside would measure something else).
+  constexpr double kSameMarkerFactor = 3.0;
+  TempDir dir;
+  const std::string site = SourceDir() + "/config/sites/demo_room.yaml";
+  const RunResult render = Roomfix({"render-camera", "--site", site, "--scenario", "lighting",
+                                    "--tripod-grid", dir.File("tripod"), "--tripod-robots"});
+  ASSERT_EQ(render.exit_code, 0) << render.out;
+  EXPECT_TRUE(std::filesystem::exists(dir.File("tripod/tripod_000.jpg"))) << render.out;
+  ASSERT_TRUE(std::filesystem::exists(dir.File("tripod/robots.csv"))) << render.out;
+  const RunResult fit =
+      Roomfix({"calibrate", "--site", site, "--marker-images", dir.File("tripod/points.csv"),
+               "--robot-images", dir.File("tripod/robots.csv"), "--out", dir.File("cam.yaml")});
+  ASSERT_EQ(fit.exit_code, 0) << fit.out;
+  EXPECT_NE(fit.out.find("robot 1: "), std::string::npos) << fit.out;
+  Calibration fitted;
+  std::string error;
+  ASSERT_TRUE(calib::LoadCalibration(dir.File("cam.yaml"), &fitted, &error)) << error;
+  ASSERT_EQ(fitted.robot_pixel_sigma_px.size(), 1u);
+  const double held_out_px = fitted.PixelSigmaFor(1);
+  std::printf("fit pixel sigma %.4f px, robot 1 held out %.4f px\n", fitted.pixel_sigma_px,
+              held_out_px);
+  EXPECT_GT(held_out_px, fitted.pixel_sigma_px / kSameMarkerFactor);
+  EXPECT_LT(held_out_px, fitted.pixel_sigma_px * kSameMarkerFactor);
+
+  // A robot the camera does not carry is refused, naming the line.
+  std::string rows;
+  ASSERT_TRUE(ReadConfigFile(dir.File("tripod/robots.csv"), &rows, &error)) << error;
+  const size_t last = rows.rfind(",1\n");
+  ASSERT_NE(last, std::string::npos);
+  rows.replace(last, 3, ",9\n");
+  ASSERT_TRUE(WriteOutputFile(dir.File("tripod/robots.csv"), rows, &error)) << error;
+  const RunResult refused =
+      Roomfix({"calibrate", "--site", site, "--marker-images", dir.File("tripod/points.csv"),
+               "--robot-images", dir.File("tripod/robots.csv"), "--out", dir.File("cam2.yaml")},
+              /*stderr_only=*/true);
+  EXPECT_NE(refused.exit_code, 0);
+  EXPECT_NE(refused.out.find("has no robot 9"), std::string::npos) << refused.out;
+  EXPECT_FALSE(std::filesystem::exists(dir.File("cam2.yaml")));
 }
 
 TEST(RoomfixCalibrate, RefusesAMarkerImageWithTwoMarkersNamingIt) {
