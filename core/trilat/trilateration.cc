@@ -519,22 +519,22 @@ struct SolveContext {
   // a range can be checked against the others.
   static constexpr int kOverDetermined = D + 1;
 
-  SolveContext(const SolverOptions& options, const PositionPrior* position_prior, Ranges<D>* ranges,
-               Fix* out)
-      : o(options),
+  SolveContext(const SolverOptions& solver_options, const PositionPrior* position_prior,
+               Ranges<D>* solver_ranges, Fix* out)
+      : options(solver_options),
         prior(position_prior),
-        r(ranges),
+        ranges(solver_ranges),
         fix(out),
-        w(ThreadWorkspace()),
-        spread(SpreadOf(*ranges, ranges->active)),
-        threshold(options.OutlierThreshold()),
-        sigma2(options.range_sigma_m * options.range_sigma_m) {}
+        workspace(ThreadWorkspace()),
+        spread(SpreadOf(*solver_ranges, solver_ranges->active)),
+        threshold(solver_options.OutlierThreshold()),
+        sigma2(solver_options.range_sigma_m * solver_options.range_sigma_m) {}
 
-  const SolverOptions& o;
+  const SolverOptions& options;
   const PositionPrior* prior;
-  Ranges<D>* r;
+  Ranges<D>* ranges;
   Fix* fix;
-  Workspace& w;
+  Workspace& workspace;
   const Spread<D> spread;
   bool coplanar = false;
   // The outlier threshold in effect, and the range variance sigma^2.
@@ -572,12 +572,13 @@ template <int D>
 int SolveSubset(const SolveContext<D>& ctx, const std::vector<int>& active,
                 const Eigen::Vector3d* start_guess, Eigen::Matrix<double, D, 1>* p, bool* converged,
                 int max_iterations) {
-  if (!Start(*ctx.r, active, ctx.o, start_guess, ctx.spread, ctx.coplanar, p)) return -1;
-  if (ctx.o.method == Method::kNelderMead) {
-    return NelderMead(*ctx.r, active, max_iterations, p, converged);
+  if (!Start(*ctx.ranges, active, ctx.options, start_guess, ctx.spread, ctx.coplanar, p)) return -1;
+  if (ctx.options.method == Method::kNelderMead) {
+    return NelderMead(*ctx.ranges, active, max_iterations, p, converged);
   }
-  return Refine(*ctx.r, active, max_iterations, p, converged,
-                max_iterations < ctx.o.max_iterations ? kSubsetStepTolerance_m : kStepTolerance_m);
+  return Refine(
+      *ctx.ranges, active, max_iterations, p, converged,
+      max_iterations < ctx.options.max_iterations ? kSubsetStepTolerance_m : kStepTolerance_m);
 }
 
 // The kRobust consensus search's state: the best admissible subset so far
@@ -611,8 +612,8 @@ struct Consensus {
 // receiver (the LIAS data, docs/trilateration.md) look like a reflection.
 template <int D>
 bool ExcludedAreLong(const SolveContext<D>& ctx, const Eigen::Matrix<double, D, 1>& q) {
-  const Ranges<D>& r = *ctx.r;
-  const std::vector<int>& subset = ctx.w.subset;
+  const Ranges<D>& r = *ctx.ranges;
+  const std::vector<int>& subset = ctx.workspace.subset;
   double sub_mean = 0.0, sub_square = 0.0;
   for (int i : subset) {
     const double e = Excess(r, i, q);
@@ -624,9 +625,9 @@ bool ExcludedAreLong(const SolveContext<D>& ctx, const Eigen::Matrix<double, D, 
   const int scatter_dof = static_cast<int>(subset.size()) - D - 1;
   double scatter = std::sqrt(std::max(0.0, (sub_square - m_count * sub_mean * sub_mean) /
                                                (scatter_dof > 0 ? scatter_dof : m_count)));
-  if (scatter_dof > 0) scatter = std::max(scatter, ctx.o.range_sigma_m);
+  if (scatter_dof > 0) scatter = std::max(scatter, ctx.options.range_sigma_m);
   bool long_enough = true;
-  for (int i : ctx.w.excluded) {
+  for (int i : ctx.workspace.excluded) {
     long_enough =
         long_enough && Excess(r, i, q) - std::max(0.0, sub_mean) > ctx.threshold + 5.0 * scatter;
   }
@@ -643,16 +644,16 @@ template <int D>
 double PriorReachFraction(const SolveContext<D>& ctx, const Eigen::Matrix<double, D, 1>& q) {
   Eigen::Matrix<double, D, D> q_jtj;
   Eigen::Matrix<double, D, 1> q_jte;
-  NormalEquations(*ctx.r, ctx.w.subset, q, &q_jtj, &q_jte);
+  NormalEquations(*ctx.ranges, ctx.workspace.subset, q, &q_jtj, &q_jte);
   Eigen::Matrix<double, D, 1> q_values;
   EigenSymmetric<D>(q_jtj, &q_values, nullptr);
   const double q_sigma =
-      q_values.minCoeff() > 0.0 ? ctx.o.range_sigma_m / std::sqrt(q_values.minCoeff()) : kInf;
+      q_values.minCoeff() > 0.0 ? ctx.options.range_sigma_m / std::sqrt(q_values.minCoeff()) : kInf;
   const double reach = ctx.prior->radius_m + 3.0 * q_sigma;
   return DistanceToPrior(q, *ctx.prior) / reach;
 }
 
-// Solves ctx.w.subset (ctx.w.excluded left out) and keeps it as the best so
+// Solves ctx.workspace.subset (ctx.workspace.excluded left out) and keeps it as the best so
 // far when it is admissible: its fit converged, every kept residual is
 // within the threshold, every excluded range is long (ExcludedAreLong), the
 // fix is near the prior (PriorReachFraction <= 1) and the subset fits its
@@ -661,7 +662,7 @@ double PriorReachFraction(const SolveContext<D>& ctx, const Eigen::Matrix<double
 // fraction. True when admissible.
 template <int D>
 bool EvaluateSubset(const SolveContext<D>& ctx, Consensus<D>* cs) {
-  const std::vector<int>& subset = ctx.w.subset;
+  const std::vector<int>& subset = ctx.workspace.subset;
   Eigen::Matrix<double, D, 1> q;
   bool c = false;
   int its = 0;
@@ -670,17 +671,17 @@ bool EvaluateSubset(const SolveContext<D>& ctx, Consensus<D>* cs) {
     // prior, in closed form (a tenth of a Levenberg-Marquardt solve, which
     // for the worst sets, two reflections among four ranges and six such
     // pairs, decides the solver's p99 time).
-    c = CircleIntersection(*ctx.r, subset[0], subset[1], *ctx.prior, &q);
+    c = CircleIntersection(*ctx.ranges, subset[0], subset[1], *ctx.prior, &q);
   } else {
     its = SolveSubset(ctx, subset, cs->start, &q, &c,
-                      std::min(ctx.o.max_iterations, kSubsetIterations));
+                      std::min(ctx.options.max_iterations, kSubsetIterations));
   }
   if (its < 0 || !c) return false;
   ctx.fix->iterations += its;
   double sub_worst = 0.0;
-  Residuals(*ctx.r, subset, q, &sub_worst);
+  Residuals(*ctx.ranges, subset, q, &sub_worst);
   const bool long_enough = ExcludedAreLong(ctx, q);
-  double score = Cost(*ctx.r, subset, q) / ctx.sigma2;
+  double score = Cost(*ctx.ranges, subset, q) / ctx.sigma2;
   bool near = true;
   if (ctx.prior != nullptr) {
     const double d = PriorReachFraction(ctx, q);
@@ -688,7 +689,7 @@ bool EvaluateSubset(const SolveContext<D>& ctx, Consensus<D>* cs) {
     score += d * d;
   }
   const int dof = static_cast<int>(subset.size()) - D;
-  const bool fits = dof <= 0 || Cost(*ctx.r, subset, q) / ctx.sigma2 <= ChiSquareQuantile(dof);
+  const bool fits = dof <= 0 || Cost(*ctx.ranges, subset, q) / ctx.sigma2 <= ChiSquareQuantile(dof);
   if (!(sub_worst <= ctx.threshold && long_enough && near && fits)) return false;
   ++cs->admissible;
   if (score < cs->best_score) {
@@ -711,19 +712,19 @@ bool EvaluateSubset(const SolveContext<D>& ctx, Consensus<D>* cs) {
 // wrong prior) the exhaustive search runs as without the shortcut.
 template <int D>
 void TryPriorShortcut(const SolveContext<D>& ctx, int max_out, Consensus<D>* cs) {
-  Workspace& w = ctx.w;
+  Workspace& w = ctx.workspace;
   w.subset.clear();
   w.excluded.clear();
   const Eigen::Matrix<double, D, 1> prior_p = ctx.prior->position_m.template head<D>();
-  for (int i : ctx.r->active) {
-    if (Excess(*ctx.r, i, prior_p) > ctx.prior->radius_m + ctx.threshold) {
+  for (int i : ctx.ranges->active) {
+    if (Excess(*ctx.ranges, i, prior_p) > ctx.prior->radius_m + ctx.threshold) {
       w.excluded.push_back(i);
     } else {
       w.subset.push_back(i);
     }
   }
   const int excluded = static_cast<int>(w.excluded.size());
-  if (excluded >= 1 && excluded <= max_out && ctx.o.max_consensus_solves > 0) {
+  if (excluded >= 1 && excluded <= max_out && ctx.options.max_consensus_solves > 0) {
     ++ctx.fix->consensus_solves;
     cs->found = EvaluateSubset(ctx, cs);
     cs->identified_by_prior = cs->found;
@@ -736,14 +737,14 @@ void TryPriorShortcut(const SolveContext<D>& ctx, int max_out, Consensus<D>* cs)
 // subsets have been solved (cs->exhausted).
 template <int D>
 void SearchSubsets(const SolveContext<D>& ctx, int max_out, Consensus<D>* cs) {
-  Workspace& w = ctx.w;
-  const std::vector<int>& active = ctx.r->active;
+  Workspace& w = ctx.workspace;
+  const std::vector<int>& active = ctx.ranges->active;
   const int n = static_cast<int>(active.size());
   for (int k = 1; k <= max_out && !cs->found && !cs->exhausted; ++k) {
     std::vector<int> pick(k);
     for (int j = 0; j < k; ++j) pick[j] = j;
     while (true) {
-      if (ctx.fix->consensus_solves >= ctx.o.max_consensus_solves) {
+      if (ctx.fix->consensus_solves >= ctx.options.max_consensus_solves) {
         cs->exhausted = true;
         break;
       }
@@ -778,20 +779,20 @@ void SearchSubsets(const SolveContext<D>& ctx, int max_out, Consensus<D>* cs) {
 template <int D>
 void AdoptConsensus(const SolveContext<D>& ctx, const Consensus<D>& cs, double worst,
                     Eigen::Matrix<double, D, 1>* p, bool* converged) {
-  Ranges<D>* r = ctx.r;
+  Ranges<D>* r = ctx.ranges;
   Fix* fix = ctx.fix;
-  ctx.w.subset.clear();
+  ctx.workspace.subset.clear();
   for (int i : r->active) {
     if (std::abs(Excess(*r, i, cs.best_p)) <= ctx.threshold) {
-      ctx.w.subset.push_back(i);
+      ctx.workspace.subset.push_back(i);
     } else {
       fix->rejected.push_back({r->ids[i], RangeRejection::kOutlier});
     }
   }
-  r->active = ctx.w.subset;
+  r->active = ctx.workspace.subset;
   *p = cs.best_p;
   *converged = cs.best_converged;
-  fix->iterations += Refine(*r, r->active, ctx.o.max_iterations, p, converged);
+  fix->iterations += Refine(*r, r->active, ctx.options.max_iterations, p, converged);
   fix->flags |= kOutliersRejected;
   if (ctx.prior != nullptr &&
       (cs.identified_by_prior || cs.admissible > 1 ||
@@ -819,13 +820,13 @@ void RejectOutliers(const SolveContext<D>& ctx, Eigen::Matrix<double, D, 1>* p, 
   constexpr int over_determined = SolveContext<D>::kOverDetermined;
   const PositionPrior* prior = ctx.prior;
   double worst = 0.0;
-  Residuals(*ctx.r, ctx.r->active, *p, &worst);
-  const int n = static_cast<int>(ctx.r->active.size());
+  Residuals(*ctx.ranges, ctx.ranges->active, *p, &worst);
+  const int n = static_cast<int>(ctx.ranges->active.size());
   // With a prior, exactly determined subsets (D ranges) are admissible in
   // 2D: the prior picks the right one of the two circle intersections and
   // tells the long range apart. In 3D the smallest subset stays D + 1.
   const int smallest_subset = (prior != nullptr && D == 2) ? D : over_determined;
-  const int max_out = std::min(ctx.o.max_outliers, n - smallest_subset);
+  const int max_out = std::min(ctx.options.max_outliers, n - smallest_subset);
   // A consistent set with a single redundant range can still hide a long
   // range (the fit absorbs it); beyond the prior it is searched too. With
   // two or more redundant ranges a consistent set is trusted over the prior
@@ -856,9 +857,9 @@ void RejectOutliers(const SolveContext<D>& ctx, Eigen::Matrix<double, D, 1>* p, 
 // active set only when enough remain to over-determine the fix.
 template <int D>
 void ReweightCauchy(const SolveContext<D>& ctx, Eigen::Matrix<double, D, 1>* p, bool* converged) {
-  Ranges<D>* r = ctx.r;
+  Ranges<D>* r = ctx.ranges;
   Fix* fix = ctx.fix;
-  const double c = 2.3849 * ctx.o.range_sigma_m;
+  const double c = 2.3849 * ctx.options.range_sigma_m;
   for (int round = 0; round < 30; ++round) {
     r->evaluations += static_cast<int64_t>(r->active.size());
     for (int i : r->active) {
@@ -866,22 +867,22 @@ void ReweightCauchy(const SolveContext<D>& ctx, Eigen::Matrix<double, D, 1>* p, 
       r->w[i] = 1.0 / (1.0 + (e / c) * (e / c));
     }
     const Eigen::Matrix<double, D, 1> previous = *p;
-    fix->iterations += Refine(*r, r->active, ctx.o.max_iterations, p, converged);
+    fix->iterations += Refine(*r, r->active, ctx.options.max_iterations, p, converged);
     if ((*p - previous).norm() < kStepTolerance_m) break;
   }
-  ctx.w.subset.clear();
+  ctx.workspace.subset.clear();
   r->evaluations += static_cast<int64_t>(r->active.size());
   for (int i : r->active) {
     const double e = std::sqrt((*p - r->a[i]).squaredNorm() + r->off2[i]) - r->d[i];
     if (std::abs(e) <= ctx.threshold) {
-      ctx.w.subset.push_back(i);
+      ctx.workspace.subset.push_back(i);
     } else {
       fix->rejected.push_back({r->ids[i], RangeRejection::kOutlier});
       fix->flags |= kOutliersRejected;
     }
   }
-  if (static_cast<int>(ctx.w.subset.size()) >= SolveContext<D>::kOverDetermined) {
-    r->active = ctx.w.subset;
+  if (static_cast<int>(ctx.workspace.subset.size()) >= SolveContext<D>::kOverDetermined) {
+    r->active = ctx.workspace.subset;
   }
 }
 
@@ -892,7 +893,7 @@ void ReweightCauchy(const SolveContext<D>& ctx, Eigen::Matrix<double, D, 1>* p, 
 void ResolveMirror(const SolveContext<3>& ctx, Eigen::Vector3d* p) {
   const Spread<3>& spread = ctx.spread;
   const Eigen::Vector3d normal = spread.axes.col(0);
-  Eigen::Vector3d side_point = ctx.o.room_side_point_m;
+  Eigen::Vector3d side_point = ctx.options.room_side_point_m;
   if (!side_point.allFinite()) side_point = {spread.centroid.x(), spread.centroid.y(), 0.0};
   const double side = normal.dot(side_point - spread.centroid);
   const double offset = normal.dot(*p - spread.centroid);
@@ -909,7 +910,7 @@ Eigen::Matrix<double, D, D> NoiseCovariance(const SolveContext<D>& ctx,
                                             const Eigen::Matrix<double, D, 1>& p) {
   Eigen::Matrix<double, D, D> jtj;
   Eigen::Matrix<double, D, 1> jte;
-  const double cost = NormalEquations(*ctx.r, ctx.r->active, p, &jtj, &jte);
+  const double cost = NormalEquations(*ctx.ranges, ctx.ranges->active, p, &jtj, &jte);
   Eigen::Matrix<double, D, D> cov = Eigen::Matrix<double, D, D>::Constant(kInf);
   const double scale = jtj.trace();
   if (scale > 0.0 && std::abs(jtj.determinant()) > 1e-14 * std::pow(scale, D)) {
@@ -917,10 +918,11 @@ Eigen::Matrix<double, D, D> NoiseCovariance(const SolveContext<D>& ctx,
   }
   Eigen::Matrix<double, D, 1> cov_values = Eigen::Matrix<double, D, 1>::Constant(kInf);
   if (cov.allFinite()) EigenSymmetric<D>(cov, &cov_values, nullptr);
-  if (!(cov_values.maxCoeff() <= ctx.o.max_position_sigma_m * ctx.o.max_position_sigma_m)) {
+  if (!(cov_values.maxCoeff() <=
+        ctx.options.max_position_sigma_m * ctx.options.max_position_sigma_m)) {
     ctx.fix->flags |= kPoorGeometry;
   }
-  ctx.fix->residual_rms_m = std::sqrt(cost / static_cast<double>(ctx.r->active.size()));
+  ctx.fix->residual_rms_m = std::sqrt(cost / static_cast<double>(ctx.ranges->active.size()));
   return cov;
 }
 
@@ -964,7 +966,7 @@ bool GrowCovariance(const SolveContext<D>& ctx, const Eigen::Matrix<double, D, 1
 template <int D>
 void Finish(const SolveContext<D>& ctx, const Eigen::Matrix<double, D, 1>& p, bool converged) {
   Fix* fix = ctx.fix;
-  const Ranges<D>& r = *ctx.r;
+  const Ranges<D>& r = *ctx.ranges;
   if (!converged) fix->flags |= kNotConverged;
   // Whatever the method, a residual beyond the outlier threshold means the
   // ranges disagree: with too little redundancy to tell which one is wrong
@@ -980,8 +982,9 @@ void Finish(const SolveContext<D>& ctx, const Eigen::Matrix<double, D, 1>& p, bo
   fix->covariance_m2.setZero();
   fix->covariance_m2.topLeftCorner<D, D>() = cov;
   if constexpr (D == 2) {
-    fix->position_m = {p.x(), p.y(),
-                       ctx.o.dimension == Dimension::kFixedHeight2D ? ctx.o.fixed_height_m : 0.0};
+    fix->position_m = {
+        p.x(), p.y(),
+        ctx.options.dimension == Dimension::kFixedHeight2D ? ctx.options.fixed_height_m : 0.0};
   } else {
     fix->position_m = p;
   }
