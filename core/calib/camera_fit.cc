@@ -149,6 +149,248 @@ void Reject(const std::string& why, const CameraModel& initial, CameraFitSummary
   s->message = why;
 }
 
+// Whether the options and the initial model can start a fit at all: valid
+// options, at least kMinPoints points (fewer leave too few degrees of freedom
+// to see an outlier), positive focal lengths and image size, a finite pose.
+bool CheckSetup(size_t num_points, const CameraModel& initial, const CameraFitOptions& options,
+                std::string* why) {
+  std::string error;
+  if (!options.IsValid(&error)) {
+    *why = "invalid options: " + error;
+    return false;
+  }
+  const int n = static_cast<int>(num_points);
+  if (n < kMinPoints) {
+    *why = "too few points: need at least " + std::to_string(kMinPoints) + ", got " +
+           std::to_string(n);
+    return false;
+  }
+  const FisheyeIntrinsics& in = initial.intrinsics;
+  if (!(in.fx_px > 0 && in.fy_px > 0 && in.width_px > 0 && in.height_px > 0) ||
+      !initial.pose.position_m.allFinite() || !initial.pose.R_room_from_camera.allFinite()) {
+    *why = "invalid initial model: focal lengths and image size must be positive";
+    return false;
+  }
+  return true;
+}
+
+// Whether point i can be a view of a marker by the initial camera: finite,
+// inside the image (give or take CameraModel::kPixelMarginPx), at a height
+// between the floor and the camera at camera_z_m, and in front of the
+// initial camera (Z > 0 in its frame): a ceiling camera sees every marker in
+// front of it, so a marker at or behind it means the initial pose is wrong,
+// not the point.
+bool CheckPoint(int i, const Correspondence& c, const CameraModel& initial, double camera_z_m,
+                std::string* why) {
+  const FisheyeIntrinsics& in = initial.intrinsics;
+  const double margin = CameraModel::kPixelMarginPx;
+  const std::string where = "point " + std::to_string(i) + ": ";
+  if (!std::isfinite(c.u_px) || !std::isfinite(c.v_px) || !std::isfinite(c.x_m) ||
+      !std::isfinite(c.y_m)) {
+    *why = where + "non-finite pixel or position";
+    return false;
+  }
+  if (!(c.u_px >= -margin && c.u_px <= in.width_px + margin && c.v_px >= -margin &&
+        c.v_px <= in.height_px + margin)) {
+    std::ostringstream os;
+    os << where << "pixel (" << c.u_px << ", " << c.v_px << ") is outside the " << in.width_px
+       << " x " << in.height_px << " image";
+    *why = os.str();
+    return false;
+  }
+  if (!std::isfinite(c.height_m) || c.height_m < 0 || c.height_m >= camera_z_m) {
+    std::ostringstream os;
+    os << where << "height " << c.height_m << " m is inconsistent: must be >= 0 and below the "
+       << "camera at " << camera_z_m << " m";
+    *why = os.str();
+    return false;
+  }
+  const Eigen::Vector3d p_cam =
+      initial.pose.R_room_from_camera.transpose() *
+      (Eigen::Vector3d(c.x_m, c.y_m, c.height_m) - initial.pose.position_m);
+  if (!(p_cam.z() > 0)) {
+    *why = where + "the marker is behind the initial camera: wrong initial pose";
+    return false;
+  }
+  return true;
+}
+
+// Whether the points span the floor in two directions: the smaller principal
+// standard deviation of their (x, y), the square root of the scatter
+// matrix's smaller eigenvalue, must reach 1 cm. Points on a line leave the
+// rotation about it, and the mapping across it, undetermined.
+bool CheckSpread(const std::vector<Correspondence>& points, std::string* why) {
+  const int n = static_cast<int>(points.size());
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  for (const Correspondence& c : points) mean += Eigen::Vector2d(c.x_m, c.y_m);
+  mean /= n;
+  Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
+  for (const Correspondence& c : points) {
+    const Eigen::Vector2d d = Eigen::Vector2d(c.x_m, c.y_m) - mean;
+    cov += d * d.transpose();
+  }
+  cov /= n;
+  const double smallest_spread_m = std::sqrt(
+      std::max(0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(cov).eigenvalues()(0)));
+  if (smallest_spread_m < 0.01) {
+    std::ostringstream os;
+    os << "all points lie on a line: their spread across it is " << smallest_spread_m * 1000
+       << " mm (need 10 mm)";
+    *why = os.str();
+    return false;
+  }
+  return true;
+}
+
+// Every check FitCamera's header lists before a fit is tried, in that order;
+// *why is the first that fails.
+bool CheckInputs(const std::vector<Correspondence>& points, const CameraModel& initial,
+                 const CameraFitOptions& options, std::string* why) {
+  if (!CheckSetup(points.size(), initial, options, why)) return false;
+  // Markers lie below the camera: the initial one and, when the mount was
+  // measured, the mount.
+  const double camera_z_m =
+      options.prior_position_m && options.position_prior_sigma_m > 0
+          ? std::min(initial.pose.position_m.z(), (*options.prior_position_m)[2])
+          : initial.pose.position_m.z();
+  for (size_t i = 0; i < points.size(); ++i) {
+    if (!CheckPoint(static_cast<int>(i), points[i], initial, camera_z_m, why)) return false;
+  }
+  return CheckSpread(points, why);
+}
+
+// The least-squares problem over all points: the full parameter vector from
+// the initial model (the rotation perturbation w at 0, so R = R_initial), and
+// the parameters the options free: fy only without equal_focal_lengths,
+// k1..k_n only with fit_distortion (n = distortion_terms).
+Problem MakeProblem(const std::vector<Correspondence>& points, const CameraModel& initial,
+                    const CameraFitOptions& options) {
+  const FisheyeIntrinsics& in = initial.intrinsics;
+  Problem problem;
+  problem.points = &points;
+  problem.initial = initial;
+  problem.options = options;
+  problem.full[kFx] = in.fx_px;
+  problem.full[kFy] = in.fy_px;
+  problem.full[kCx] = in.cx_px;
+  problem.full[kCy] = in.cy_px;
+  for (int j = 0; j < 4; ++j) problem.full[kK1 + j] = in.k[j];
+  for (int a = 0; a < 3; ++a) problem.full[kC0 + a] = initial.pose.position_m[a];
+  for (int q = 0; q < kNumParams; ++q) {
+    if (q == kFy && options.equal_focal_lengths) continue;
+    if (q >= kK1 && q <= kK4 && (!options.fit_distortion || q - kK1 >= options.distortion_terms)) {
+      continue;
+    }
+    problem.free.push_back(q);
+  }
+  for (size_t i = 0; i < points.size(); ++i) problem.used.push_back(i);
+  return problem;
+}
+
+// The fit with its outliers left out, and every point's residual against it.
+struct OutlierFit {
+  CameraModel model;
+  int iterations = 0;
+  // Per input point: |pixel - projection| against `model`, and whether it
+  // was left out.
+  std::vector<double> residual_px;
+  std::vector<bool> outlier;
+};
+
+// Fits, then leaves out the worst point while its residual exceeds
+// outlier_px and more than kMinPoints remain, refitting each time from the
+// previous solution (a least-squares fit spreads one outlier's error over
+// all points, so only the worst is surely one). Refuses at once when more
+// points than max_outliers are over outlier_px: refitting once per outlier
+// is quadratic in the points. False with *why when GSL fails or the points
+// do not fit one camera; fit->iterations counts every run either way.
+bool FitLeavingOutOutliers(Problem* problem, OutlierFit* fit, std::string* why) {
+  const std::vector<Correspondence>& points = *problem->points;
+  const CameraFitOptions& options = problem->options;
+  const int n = static_cast<int>(points.size());
+  fit->outlier.assign(n, false);
+  fit->residual_px.assign(n, 0.0);
+  std::vector<bool>& outlier = fit->outlier;
+  std::vector<double>& residual = fit->residual_px;
+  for (;;) {
+    const SolveResult r = Solve(problem);
+    fit->iterations += r.iterations;
+    if (!r.ok) {
+      *why = r.message;
+      return false;
+    }
+    fit->model = r.model;
+    int worst = -1;
+    for (int i = 0; i < n; ++i) {
+      const Correspondence& c = points[i];
+      const Eigen::Vector2d uv = ProjectAny(r.model, Eigen::Vector3d(c.x_m, c.y_m, c.height_m));
+      residual[i] = std::hypot(uv.x() - c.u_px, uv.y() - c.v_px);
+      if (!outlier[i] && (worst < 0 || residual[i] > residual[worst])) worst = i;
+    }
+    if (residual[worst] <= options.outlier_px ||
+        static_cast<int>(problem->used.size()) <= kMinPoints) {
+      return true;
+    }
+    if (options.max_outliers >= 0) {
+      int left_out = 0, above = 0;
+      for (int i = 0; i < n; ++i) {
+        left_out += outlier[i] ? 1 : 0;
+        above += !outlier[i] && residual[i] > options.outlier_px ? 1 : 0;
+      }
+      if (left_out + above > options.max_outliers) {
+        std::ostringstream os;
+        os << left_out + above << " of " << n << " points are more than " << options.outlier_px
+           << " px off the fit, over the " << options.max_outliers
+           << " that may be left out as outliers: the points do not fit one camera";
+        *why = os.str();
+        return false;
+      }
+    }
+    outlier[worst] = true;
+    problem->used.erase(
+        std::find(problem->used.begin(), problem->used.end(), static_cast<size_t>(worst)));
+  }
+}
+
+// The summary of a usable fit: RMS and maximum residual over the points
+// used, and the one-line message. A point still above outlier_px (kept
+// because no more could be left out) is marked an outlier in the summary,
+// though it was fitted.
+void Summarise(const OutlierFit& fit, size_t num_used, const CameraFitOptions& options,
+               CameraFitSummary* s) {
+  const std::vector<double>& residual = fit.residual_px;
+  s->usable = true;
+  s->model = fit.model;
+  s->iterations = fit.iterations;
+  s->residual_px = residual;
+  s->outlier = fit.outlier;
+  double sum2 = 0;
+  int flagged = 0, still_above = 0;
+  for (size_t i = 0; i < residual.size(); ++i) {
+    if (fit.outlier[i]) {
+      ++flagged;
+      continue;
+    }
+    sum2 += residual[i] * residual[i];
+    s->max_px = std::max(s->max_px, residual[i]);
+    if (residual[i] > options.outlier_px) {
+      ++still_above;
+      s->outlier[i] = true;
+    }
+  }
+  s->rms_px = std::sqrt(sum2 / static_cast<double>(num_used));
+  std::ostringstream os;
+  os.precision(3);
+  os << "fitted " << num_used << " points, rms " << s->rms_px << " px";
+  if (flagged > 0)
+    os << "; " << flagged << " outlier(s) above " << options.outlier_px << " px left out";
+  if (still_above > 0) {
+    os << "; " << still_above << " more above " << options.outlier_px
+       << " px kept (too few points to leave out)";
+  }
+  s->message = os.str();
+}
+
 }  // namespace
 
 bool CameraFitOptions::IsValid(std::string* error) const {
@@ -175,175 +417,19 @@ CameraFitSummary FitCamera(const std::vector<Correspondence>& points, const Came
                            const CameraFitOptions& options) {
   CameraFitSummary s;
   s.model = initial;
-  std::string error;
-  if (!options.IsValid(&error)) {
-    Reject("invalid options: " + error, initial, &s);
+  std::string why;
+  if (!CheckInputs(points, initial, options, &why)) {
+    Reject(why, initial, &s);
     return s;
   }
-  const int n = static_cast<int>(points.size());
-  if (n < kMinPoints) {
-    Reject("too few points: need at least " + std::to_string(kMinPoints) + ", got " +
-               std::to_string(n),
-           initial, &s);
+  Problem problem = MakeProblem(points, initial, options);
+  OutlierFit fit;
+  if (!FitLeavingOutOutliers(&problem, &fit, &why)) {
+    Reject(why, initial, &s);
+    s.iterations = fit.iterations;
     return s;
   }
-  const FisheyeIntrinsics& in = initial.intrinsics;
-  if (!(in.fx_px > 0 && in.fy_px > 0 && in.width_px > 0 && in.height_px > 0) ||
-      !initial.pose.position_m.allFinite() || !initial.pose.R_room_from_camera.allFinite()) {
-    Reject("invalid initial model: focal lengths and image size must be positive", initial, &s);
-    return s;
-  }
-  const double margin = CameraModel::kPixelMarginPx;
-  // Markers lie below the camera: the initial one and, when the mount was
-  // measured, the mount.
-  const double camera_z_m =
-      options.prior_position_m && options.position_prior_sigma_m > 0
-          ? std::min(initial.pose.position_m.z(), (*options.prior_position_m)[2])
-          : initial.pose.position_m.z();
-  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
-  for (int i = 0; i < n; ++i) {
-    const Correspondence& c = points[i];
-    const std::string where = "point " + std::to_string(i) + ": ";
-    if (!std::isfinite(c.u_px) || !std::isfinite(c.v_px) || !std::isfinite(c.x_m) ||
-        !std::isfinite(c.y_m)) {
-      Reject(where + "non-finite pixel or position", initial, &s);
-      return s;
-    }
-    if (!(c.u_px >= -margin && c.u_px <= in.width_px + margin && c.v_px >= -margin &&
-          c.v_px <= in.height_px + margin)) {
-      std::ostringstream os;
-      os << where << "pixel (" << c.u_px << ", " << c.v_px << ") is outside the " << in.width_px
-         << " x " << in.height_px << " image";
-      Reject(os.str(), initial, &s);
-      return s;
-    }
-    if (!std::isfinite(c.height_m) || c.height_m < 0 || c.height_m >= camera_z_m) {
-      std::ostringstream os;
-      os << where << "height " << c.height_m << " m is inconsistent: must be >= 0 and below the "
-         << "camera at " << camera_z_m << " m";
-      Reject(os.str(), initial, &s);
-      return s;
-    }
-    const Eigen::Vector3d p_cam =
-        initial.pose.R_room_from_camera.transpose() *
-        (Eigen::Vector3d(c.x_m, c.y_m, c.height_m) - initial.pose.position_m);
-    if (!(p_cam.z() > 0)) {
-      Reject(where + "the marker is behind the initial camera: wrong initial pose", initial, &s);
-      return s;
-    }
-    mean += Eigen::Vector2d(c.x_m, c.y_m);
-  }
-  mean /= n;
-  Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
-  for (const Correspondence& c : points) {
-    const Eigen::Vector2d d = Eigen::Vector2d(c.x_m, c.y_m) - mean;
-    cov += d * d.transpose();
-  }
-  cov /= n;
-  const double smallest_spread_m = std::sqrt(
-      std::max(0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(cov).eigenvalues()(0)));
-  if (smallest_spread_m < 0.01) {
-    std::ostringstream os;
-    os << "all points lie on a line: their spread across it is " << smallest_spread_m * 1000
-       << " mm (need 10 mm)";
-    Reject(os.str(), initial, &s);
-    return s;
-  }
-
-  Problem problem;
-  problem.points = &points;
-  problem.initial = initial;
-  problem.options = options;
-  problem.full[kFx] = in.fx_px;
-  problem.full[kFy] = in.fy_px;
-  problem.full[kCx] = in.cx_px;
-  problem.full[kCy] = in.cy_px;
-  for (int j = 0; j < 4; ++j) problem.full[kK1 + j] = in.k[j];
-  for (int a = 0; a < 3; ++a) problem.full[kC0 + a] = initial.pose.position_m[a];
-  for (int q = 0; q < kNumParams; ++q) {
-    if (q == kFy && options.equal_focal_lengths) continue;
-    if (q >= kK1 && q <= kK4 && (!options.fit_distortion || q - kK1 >= options.distortion_terms)) {
-      continue;
-    }
-    problem.free.push_back(q);
-  }
-  for (int i = 0; i < n; ++i) problem.used.push_back(static_cast<size_t>(i));
-
-  // Fit, then leave out the worst point while it is an outlier.
-  std::vector<bool> outlier(n, false);
-  int iterations = 0;
-  SolveResult r;
-  std::vector<double> residual(n, 0.0);
-  for (;;) {
-    r = Solve(&problem);
-    iterations += r.iterations;
-    if (!r.ok) {
-      Reject(r.message, initial, &s);
-      s.iterations = iterations;
-      return s;
-    }
-    int worst = -1;
-    for (int i = 0; i < n; ++i) {
-      const Correspondence& c = points[i];
-      const Eigen::Vector2d uv = ProjectAny(r.model, Eigen::Vector3d(c.x_m, c.y_m, c.height_m));
-      residual[i] = std::hypot(uv.x() - c.u_px, uv.y() - c.v_px);
-      if (!outlier[i] && (worst < 0 || residual[i] > residual[worst])) worst = i;
-    }
-    if (residual[worst] <= options.outlier_px ||
-        static_cast<int>(problem.used.size()) <= kMinPoints) {
-      break;
-    }
-    if (options.max_outliers >= 0) {
-      int left_out = 0, above = 0;
-      for (int i = 0; i < n; ++i) {
-        left_out += outlier[i] ? 1 : 0;
-        above += !outlier[i] && residual[i] > options.outlier_px ? 1 : 0;
-      }
-      if (left_out + above > options.max_outliers) {
-        std::ostringstream os;
-        os << left_out + above << " of " << n << " points are more than " << options.outlier_px
-           << " px off the fit, over the " << options.max_outliers
-           << " that may be left out as outliers: the points do not fit one camera";
-        Reject(os.str(), initial, &s);
-        s.iterations = iterations;
-        return s;
-      }
-    }
-    outlier[worst] = true;
-    problem.used.erase(
-        std::find(problem.used.begin(), problem.used.end(), static_cast<size_t>(worst)));
-  }
-
-  s.usable = true;
-  s.model = r.model;
-  s.iterations = iterations;
-  s.residual_px = residual;
-  s.outlier = outlier;
-  double sum2 = 0;
-  int flagged = 0, still_above = 0;
-  for (int i = 0; i < n; ++i) {
-    if (outlier[i]) {
-      ++flagged;
-      continue;
-    }
-    sum2 += residual[i] * residual[i];
-    s.max_px = std::max(s.max_px, residual[i]);
-    if (residual[i] > options.outlier_px) {
-      ++still_above;
-      s.outlier[i] = true;
-    }
-  }
-  s.rms_px = std::sqrt(sum2 / static_cast<double>(problem.used.size()));
-  std::ostringstream os;
-  os.precision(3);
-  os << "fitted " << problem.used.size() << " points, rms " << s.rms_px << " px";
-  if (flagged > 0)
-    os << "; " << flagged << " outlier(s) above " << options.outlier_px << " px left out";
-  if (still_above > 0) {
-    os << "; " << still_above << " more above " << options.outlier_px
-       << " px kept (too few points to leave out)";
-  }
-  s.message = os.str();
+  Summarise(fit, problem.used.size(), options, &s);
   return s;
 }
 

@@ -502,368 +502,531 @@ bool CircleIntersection(const Ranges<D>& r, int i, int j, const PositionPrior& p
   }
 }
 
+// A consensus subset converges in a handful of Levenberg-Marquardt steps
+// from the linear start or the prior (quadratically once close); one that
+// has not within this many is not a consensus (two circles that do not
+// meet, a subset holding a reflection), and its remaining iterations would
+// set the solver's worst-case time.
+constexpr int kSubsetIterations = 12;
+
+// What every stage of one solve shares: the options, the valid ranges in the
+// solver's coordinates, the fix being filled, the thread's scratch vectors,
+// and the receivers' spread (from which the start and the mirror resolution
+// work). Built once per solve on the stack; no allocation.
 template <int D>
-void SolveIn(const std::vector<RangeMeasurement>& input, const SolverOptions& o,
-             const Eigen::Vector3d* guess, const PositionPrior* prior, Ranges<D>* r, Fix* fix) {
-  using Vec = Eigen::Matrix<double, D, 1>;
-  Collect(input, o, r, fix);
-  // Over-determined needs D + 1 ranges. Three receivers in 3D are enough
-  // when the mirror through their plane is resolved to the room side (three
-  // points are always coplanar): exactly determined, flagged unchecked.
-  const int over_determined = D + 1;
-  const int minimum = D == 3 ? 3 : over_determined;
-  if (static_cast<int>(r->active.size()) < minimum) {
-    fix->flags |= kTooFewRanges;
-    return;
-  }
-  const Spread<D> spread = SpreadOf(*r, r->active);
-  // variances ascending: [0] smallest.
-  const double second = std::sqrt(spread.variances[D == 2 ? 0 : 1]);
-  if (second < kCollinear_m) {
-    fix->flags |= kCollinearReceivers;
-    return;
-  }
+struct SolveContext {
+  // Over-determined needs D + 1 ranges: one more than the unknowns, so that
+  // a range can be checked against the others.
+  static constexpr int kOverDetermined = D + 1;
+
+  SolveContext(const SolverOptions& solver_options, const PositionPrior* position_prior,
+               Ranges<D>* solver_ranges, Fix* out)
+      : options(solver_options),
+        prior(position_prior),
+        ranges(solver_ranges),
+        fix(out),
+        workspace(ThreadWorkspace()),
+        spread(SpreadOf(*solver_ranges, solver_ranges->active)),
+        threshold(solver_options.OutlierThreshold()),
+        sigma2(solver_options.range_sigma_m * solver_options.range_sigma_m) {}
+
+  const SolverOptions& options;
+  const PositionPrior* prior;
+  Ranges<D>* ranges;
+  Fix* fix;
+  Workspace& workspace;
+  const Spread<D> spread;
   bool coplanar = false;
+  // The outlier threshold in effect, and the range variance sigma^2.
+  const double threshold;
+  const double sigma2;
+};
+
+// The receivers must span the free coordinates: in 2D not all on one line
+// (the fix would be mirror-ambiguous across it and the normal equations
+// singular along it), in 3D not all on one line either. Receivers that are
+// merely coplanar in 3D (the usual ceiling installation) are allowed and
+// noted: the start and the mirror resolution treat them specially. False
+// (flagged) when collinear.
+template <int D>
+bool CheckGeometry(SolveContext<D>* ctx) {
+  // variances ascending: [0] smallest.
+  const double second = std::sqrt(ctx->spread.variances[D == 2 ? 0 : 1]);
+  if (second < kCollinear_m) {
+    ctx->fix->flags |= kCollinearReceivers;
+    return false;
+  }
   if constexpr (D == 3) {
-    const double smallest = std::sqrt(spread.variances[0]);
-    coplanar = smallest < kCoplanar_m || smallest < kCoplanarRatio * second;
+    const double smallest = std::sqrt(ctx->spread.variances[0]);
+    ctx->coplanar = smallest < kCoplanar_m || smallest < kCoplanarRatio * second;
   }
+  return true;
+}
 
-  Workspace& w = ThreadWorkspace();
-  auto solve_subset = [&](const std::vector<int>& active, const Eigen::Vector3d* start_guess,
-                          Vec* p, bool* converged, int max_iterations) -> int {
-    if (!Start(*r, active, o, start_guess, spread, coplanar, p)) return -1;
-    if (o.method == Method::kNelderMead)
-      return NelderMead(*r, active, max_iterations, p, converged);
-    return Refine(*r, active, max_iterations, p, converged,
-                  max_iterations < o.max_iterations ? kSubsetStepTolerance_m : kStepTolerance_m);
-  };
-  // A consensus subset converges in a handful of Levenberg-Marquardt steps
-  // from the linear start or the prior (quadratically once close); one that
-  // has not within this many is not a consensus (two circles that do not
-  // meet, a subset holding a reflection), and its remaining iterations would
-  // set the solver's worst-case time.
-  constexpr int kSubsetIterations = 12;
-
-  Vec p;
-  bool converged = false;
-  int iterations = solve_subset(r->active, guess, &p, &converged, o.max_iterations);
-  if (iterations < 0) {
-    fix->flags |= kDegenerateGeometry;
-    return;
+// Fits the ranges in `active` from the caller's guess or the linear start
+// (Start), by Nelder-Mead for the reference method and Levenberg-Marquardt
+// otherwise. A budget below the solver's own marks a consensus subset, which
+// stops at kSubsetStepTolerance_m. Returns the iterations, or -1 when the
+// start is degenerate (anchors that do not span the coordinates).
+template <int D>
+int SolveSubset(const SolveContext<D>& ctx, const std::vector<int>& active,
+                const Eigen::Vector3d* start_guess, Eigen::Matrix<double, D, 1>* p, bool* converged,
+                int max_iterations) {
+  if (!Start(*ctx.ranges, active, ctx.options, start_guess, ctx.spread, ctx.coplanar, p)) return -1;
+  if (ctx.options.method == Method::kNelderMead) {
+    return NelderMead(*ctx.ranges, active, max_iterations, p, converged);
   }
-  fix->iterations = iterations;
-  const double threshold = o.OutlierThreshold();
-  const double sigma2 = o.range_sigma_m * o.range_sigma_m;
+  return Refine(
+      *ctx.ranges, active, max_iterations, p, converged,
+      max_iterations < ctx.options.max_iterations ? kSubsetStepTolerance_m : kStepTolerance_m);
+}
 
-  if (o.method == Method::kRobust) {
-    double worst = 0.0;
-    Residuals(*r, r->active, p, &worst);
-    const int n = static_cast<int>(r->active.size());
-    // With a prior, exactly determined subsets (D ranges) are admissible in
-    // 2D: the prior picks the right one of the two circle intersections and
-    // tells the long range apart. In 3D the smallest subset stays D + 1.
-    const int smallest_subset = (prior != nullptr && D == 2) ? D : over_determined;
-    const int max_out = std::min(o.max_outliers, n - smallest_subset);
-    // A consistent set with a single redundant range can still hide a long
-    // range (the fit absorbs it); beyond the prior it is searched too. With
-    // two or more redundant ranges a consistent set is trusted over the prior
-    // (a robot lifted and put down elsewhere).
-    const bool far = prior != nullptr && DistanceToPrior(p, *prior) > prior->radius_m;
-    const bool search = worst > threshold || (far && n <= over_determined);
-    if (search && max_out > 0) {
-      // Consensus: the fewest excluded ranges such that
-      //  - every remaining residual is within the threshold,
-      //  - every excluded range is long against the subset's fix by more than
-      //    the threshold (a reflection only lengthens a path: a subset that
-      //    explains a range as too short is physically impossible),
-      //  - with a prior, the fix is within the prior's radius;
-      // and among those the least score, cost / sigma^2, plus (distance to
-      // the prior / radius)^2 with a prior. Exhaustive over subsets, a few
-      // dozen small solves for a room; max_consensus_solves caps it for
-      // anything larger (C(n, 2) subsets of n ranges would let one message of
-      // 800 ranges take half a minute).
-      bool found = false;
-      bool exhausted = false;
-      int admissible = 0;
-      double best_score = kInf;
-      Vec best_p = p;
-      int best_converged = 0;
-      int best_size = n;
-      const Eigen::Vector3d* start = prior != nullptr ? &prior->position_m : nullptr;
-      bool identified_by_prior = false;
-      // Solves w.subset (w.excluded left out) and keeps it as the best so far
-      // when it is admissible; true when it is.
-      auto evaluate = [&]() -> bool {
-        const int admissible_before = admissible;
-        Vec q;
-        bool c = false;
-        int its = 0;
-        if (D == 2 && w.subset.size() == 2 && prior != nullptr) {
-          // Exactly determined in 2D: the two circles' intersection nearest
-          // the prior, in closed form (a tenth of a Levenberg-Marquardt
-          // solve, which for the worst sets, two reflections among four
-          // ranges and six such pairs, decides the solver's p99 time).
-          c = CircleIntersection(*r, w.subset[0], w.subset[1], *prior, &q);
+// The kRobust consensus search's state: the best admissible subset so far
+// (least score) and how many subsets were admissible at all.
+template <int D>
+struct Consensus {
+  bool found = false;
+  bool exhausted = false;
+  int admissible = 0;
+  double best_score = kInf;
+  Eigen::Matrix<double, D, 1> best_p;
+  int best_converged = 0;
+  int best_size = 0;
+  // Where subset solves start: the prior's position, or the linear start.
+  const Eigen::Vector3d* start = nullptr;
+  // The prior's shortcut subset was the consensus.
+  bool identified_by_prior = false;
+};
+
+// Whether every excluded range is long against the kept ranges' fix q: above
+// their mean excess at q (a common offset, such as an uncalibrated receiver
+// bias or a wrong speed of sound, lengthens every range, identifies none,
+// and a fixed-height fit cannot absorb it) by the threshold plus five times
+// their RMS scatter about that mean (kept ranges that scatter more than the
+// noise model says, as differently biased receivers do, make a range stand
+// out less). A reflection is long against the others. The scatter is
+// estimated with its degrees of freedom (m ranges less D coordinates and the
+// mean) and, where it has any, never below the configured range noise: a
+// handful of kept ranges that happen to fit tighter than the noise is
+// chance, not evidence, and would otherwise make a consistently biased
+// receiver (the LIAS data, docs/trilateration.md) look like a reflection.
+template <int D>
+bool ExcludedAreLong(const SolveContext<D>& ctx, const Eigen::Matrix<double, D, 1>& q) {
+  const Ranges<D>& r = *ctx.ranges;
+  const std::vector<int>& subset = ctx.workspace.subset;
+  double sub_mean = 0.0, sub_square = 0.0;
+  for (int i : subset) {
+    const double e = Excess(r, i, q);
+    sub_mean += e;
+    sub_square += e * e;
+  }
+  const double m_count = static_cast<double>(subset.size());
+  sub_mean /= m_count;
+  const int scatter_dof = static_cast<int>(subset.size()) - D - 1;
+  double scatter = std::sqrt(std::max(0.0, (sub_square - m_count * sub_mean * sub_mean) /
+                                               (scatter_dof > 0 ? scatter_dof : m_count)));
+  if (scatter_dof > 0) scatter = std::max(scatter, ctx.options.range_sigma_m);
+  bool long_enough = true;
+  for (int i : ctx.workspace.excluded) {
+    long_enough =
+        long_enough && Excess(r, i, q) - std::max(0.0, sub_mean) > ctx.threshold + 5.0 * scatter;
+  }
+  return long_enough;
+}
+
+// Distance of a subset's fix q from the prior, as a fraction of how far it
+// may be: the prior's radius plus three of the subset fix's own standard
+// deviations (its largest, sigma / sqrt of the smallest eigenvalue of
+// J^T J): an exactly determined pair of ranges at a shallow angle is
+// centimetres of noise times its dilution of precision away from the truth.
+// Above 1: not near. Infinite reach (singular J^T J) gives 0.
+template <int D>
+double PriorReachFraction(const SolveContext<D>& ctx, const Eigen::Matrix<double, D, 1>& q) {
+  Eigen::Matrix<double, D, D> q_jtj;
+  Eigen::Matrix<double, D, 1> q_jte;
+  NormalEquations(*ctx.ranges, ctx.workspace.subset, q, &q_jtj, &q_jte);
+  Eigen::Matrix<double, D, 1> q_values;
+  EigenSymmetric<D>(q_jtj, &q_values, nullptr);
+  const double q_sigma =
+      q_values.minCoeff() > 0.0 ? ctx.options.range_sigma_m / std::sqrt(q_values.minCoeff()) : kInf;
+  const double reach = ctx.prior->radius_m + 3.0 * q_sigma;
+  return DistanceToPrior(q, *ctx.prior) / reach;
+}
+
+// Solves ctx.workspace.subset (ctx.workspace.excluded left out) and keeps it as the best so
+// far when it is admissible: its fit converged, every kept residual is
+// within the threshold, every excluded range is long (ExcludedAreLong), the
+// fix is near the prior (PriorReachFraction <= 1) and the subset fits its
+// ranges as a whole (cost / sigma^2 within the chi-square quantile for its
+// redundant ranges). Its score is cost / sigma^2 plus the squared reach
+// fraction. True when admissible.
+template <int D>
+bool EvaluateSubset(const SolveContext<D>& ctx, Consensus<D>* cs) {
+  const std::vector<int>& subset = ctx.workspace.subset;
+  Eigen::Matrix<double, D, 1> q;
+  bool c = false;
+  int its = 0;
+  if (D == 2 && subset.size() == 2 && ctx.prior != nullptr) {
+    // Exactly determined in 2D: the two circles' intersection nearest the
+    // prior, in closed form (a tenth of a Levenberg-Marquardt solve, which
+    // for the worst sets, two reflections among four ranges and six such
+    // pairs, decides the solver's p99 time).
+    c = CircleIntersection(*ctx.ranges, subset[0], subset[1], *ctx.prior, &q);
+  } else {
+    its = SolveSubset(ctx, subset, cs->start, &q, &c,
+                      std::min(ctx.options.max_iterations, kSubsetIterations));
+  }
+  if (its < 0 || !c) return false;
+  ctx.fix->iterations += its;
+  double sub_worst = 0.0;
+  Residuals(*ctx.ranges, subset, q, &sub_worst);
+  const bool long_enough = ExcludedAreLong(ctx, q);
+  double score = Cost(*ctx.ranges, subset, q) / ctx.sigma2;
+  bool near = true;
+  if (ctx.prior != nullptr) {
+    const double d = PriorReachFraction(ctx, q);
+    near = d <= 1.0;
+    score += d * d;
+  }
+  const int dof = static_cast<int>(subset.size()) - D;
+  const bool fits = dof <= 0 || Cost(*ctx.ranges, subset, q) / ctx.sigma2 <= ChiSquareQuantile(dof);
+  if (!(sub_worst <= ctx.threshold && long_enough && near && fits)) return false;
+  ++cs->admissible;
+  if (score < cs->best_score) {
+    cs->best_score = score;
+    cs->best_p = q;
+    cs->best_converged = c;
+    cs->best_size = static_cast<int>(subset.size());
+  }
+  return true;
+}
+
+// With a prior, a range longer than the prior predicts by more than the
+// prior's radius plus the threshold is long against wherever the beacon can
+// be (|d_pred(p) - d_pred(prior)| <= |p - prior| <= radius), so it is a
+// reflection whatever the other ranges say. Excluding exactly those first
+// settles the common case in one subset solve instead of all C(n, 1) +
+// C(n, 2): two reflections among four ranges otherwise cost ten, which set
+// the solver's p99 time. The subset must pass the same tests as any other;
+// when it does not (a reflection too short to stand out against the prior, a
+// wrong prior) the exhaustive search runs as without the shortcut.
+template <int D>
+void TryPriorShortcut(const SolveContext<D>& ctx, int max_out, Consensus<D>* cs) {
+  Workspace& w = ctx.workspace;
+  w.subset.clear();
+  w.excluded.clear();
+  const Eigen::Matrix<double, D, 1> prior_p = ctx.prior->position_m.template head<D>();
+  for (int i : ctx.ranges->active) {
+    if (Excess(*ctx.ranges, i, prior_p) > ctx.prior->radius_m + ctx.threshold) {
+      w.excluded.push_back(i);
+    } else {
+      w.subset.push_back(i);
+    }
+  }
+  const int excluded = static_cast<int>(w.excluded.size());
+  if (excluded >= 1 && excluded <= max_out && ctx.options.max_consensus_solves > 0) {
+    ++ctx.fix->consensus_solves;
+    cs->found = EvaluateSubset(ctx, cs);
+    cs->identified_by_prior = cs->found;
+  }
+}
+
+// The exhaustive search: every way of excluding k = 1, 2, ... max_out of the
+// n active ranges, in lexicographic order, stopping at the first k with an
+// admissible subset (the fewest exclusions) or when max_consensus_solves
+// subsets have been solved (cs->exhausted).
+template <int D>
+void SearchSubsets(const SolveContext<D>& ctx, int max_out, Consensus<D>* cs) {
+  Workspace& w = ctx.workspace;
+  const std::vector<int>& active = ctx.ranges->active;
+  const int n = static_cast<int>(active.size());
+  for (int k = 1; k <= max_out && !cs->found && !cs->exhausted; ++k) {
+    std::vector<int> pick(k);
+    for (int j = 0; j < k; ++j) pick[j] = j;
+    while (true) {
+      if (ctx.fix->consensus_solves >= ctx.options.max_consensus_solves) {
+        cs->exhausted = true;
+        break;
+      }
+      ++ctx.fix->consensus_solves;
+      w.subset.clear();
+      w.excluded.clear();
+      for (int i = 0, j = 0; i < n; ++i) {
+        if (j < k && pick[j] == i) {
+          w.excluded.push_back(active[i]);
+          ++j;
         } else {
-          its =
-              solve_subset(w.subset, start, &q, &c, std::min(o.max_iterations, kSubsetIterations));
-        }
-        if (its >= 0 && c) {
-          fix->iterations += its;
-          double sub_worst = 0.0;
-          Residuals(*r, w.subset, q, &sub_worst);
-          // Long against the kept ranges: above their mean excess at q (a
-          // common offset, such as an uncalibrated receiver bias or a wrong
-          // speed of sound, lengthens every range, identifies none, and a
-          // fixed-height fit cannot absorb it) by the threshold plus five
-          // times their RMS scatter about that mean (kept ranges that
-          // scatter more than the noise model says, as differently biased
-          // receivers do, make a range stand out less). A reflection is
-          // long against the others. The scatter is estimated with its
-          // degrees of freedom (m ranges less D coordinates and the mean)
-          // and, where it has any, never below the configured range noise:
-          // a handful of kept ranges that happen to fit tighter than the
-          // noise is chance, not evidence, and would otherwise make a
-          // consistently biased receiver (the LIAS data, docs/trilateration.md)
-          // look like a reflection.
-          double sub_mean = 0.0, sub_square = 0.0;
-          for (int i : w.subset) {
-            const double e = Excess(*r, i, q);
-            sub_mean += e;
-            sub_square += e * e;
-          }
-          const double m_count = static_cast<double>(w.subset.size());
-          sub_mean /= m_count;
-          const int scatter_dof = static_cast<int>(w.subset.size()) - D - 1;
-          double scatter = std::sqrt(std::max(0.0, (sub_square - m_count * sub_mean * sub_mean) /
-                                                       (scatter_dof > 0 ? scatter_dof : m_count)));
-          if (scatter_dof > 0) scatter = std::max(scatter, o.range_sigma_m);
-          bool long_enough = true;
-          for (int i : w.excluded) {
-            long_enough = long_enough &&
-                          Excess(*r, i, q) - std::max(0.0, sub_mean) > threshold + 5.0 * scatter;
-          }
-          double score = Cost(*r, w.subset, q) / sigma2;
-          bool near = true;
-          if (prior != nullptr) {
-            // Within the radius plus three of the subset fix's own standard
-            // deviations (its largest): an exactly determined pair of
-            // ranges at a shallow angle is centimetres of noise times its
-            // dilution of precision away from the truth.
-            Eigen::Matrix<double, D, D> q_jtj;
-            Vec q_jte;
-            NormalEquations(*r, w.subset, q, &q_jtj, &q_jte);
-            Vec q_values;
-            EigenSymmetric<D>(q_jtj, &q_values, nullptr);
-            const double q_sigma =
-                q_values.minCoeff() > 0.0 ? o.range_sigma_m / std::sqrt(q_values.minCoeff()) : kInf;
-            const double reach = prior->radius_m + 3.0 * q_sigma;
-            const double d = DistanceToPrior(q, *prior) / reach;
-            near = d <= 1.0;
-            score += d * d;
-          }
-          const int dof = static_cast<int>(w.subset.size()) - D;
-          const bool fits = dof <= 0 || Cost(*r, w.subset, q) / sigma2 <= ChiSquareQuantile(dof);
-          if (sub_worst <= threshold && long_enough && near && fits) {
-            ++admissible;
-            if (score < best_score) {
-              best_score = score;
-              best_p = q;
-              best_converged = c;
-              best_size = static_cast<int>(w.subset.size());
-            }
-          }
-        }
-        return admissible > admissible_before;
-      };
-      // With a prior, a range longer than the prior predicts by more than the
-      // prior's radius plus the threshold is long against wherever the beacon
-      // can be (|d_pred(p) - d_pred(prior)| <= |p - prior| <= radius), so it
-      // is a reflection whatever the other ranges say. Excluding exactly
-      // those first settles the common case in one subset solve instead of
-      // all C(n, 1) + C(n, 2): two reflections among four ranges otherwise
-      // cost ten, which set the solver's p99 time. The subset must pass the
-      // same tests as any other; when it does not (a reflection too short
-      // to stand out against the prior, a wrong prior) the search below runs
-      // as without the shortcut.
-      if (prior != nullptr) {
-        w.subset.clear();
-        w.excluded.clear();
-        const Vec prior_p = prior->position_m.template head<D>();
-        for (int i : r->active) {
-          if (Excess(*r, i, prior_p) > prior->radius_m + threshold) {
-            w.excluded.push_back(i);
-          } else {
-            w.subset.push_back(i);
-          }
-        }
-        const int excluded = static_cast<int>(w.excluded.size());
-        if (excluded >= 1 && excluded <= max_out && o.max_consensus_solves > 0) {
-          ++fix->consensus_solves;
-          found = evaluate();
-          identified_by_prior = found;
+          w.subset.push_back(active[i]);
         }
       }
-      for (int k = 1; k <= max_out && !found && !exhausted; ++k) {
-        std::vector<int> pick(k);
-        for (int j = 0; j < k; ++j) pick[j] = j;
-        while (true) {
-          if (fix->consensus_solves >= o.max_consensus_solves) {
-            exhausted = true;
-            break;
-          }
-          ++fix->consensus_solves;
-          w.subset.clear();
-          w.excluded.clear();
-          for (int i = 0, j = 0; i < n; ++i) {
-            if (j < k && pick[j] == i) {
-              w.excluded.push_back(r->active[i]);
-              ++j;
-            } else {
-              w.subset.push_back(r->active[i]);
-            }
-          }
-          if (evaluate()) found = true;
-          // Next combination of k indices out of n.
-          int j = k - 1;
-          while (j >= 0 && pick[j] == n - k + j) --j;
-          if (j < 0) break;
-          ++pick[j];
-          for (int t = j + 1; t < k; ++t) pick[t] = pick[t - 1] + 1;
-        }
-      }
-      if (found) {
-        // Re-admit any excluded range that agrees with the consensus point,
-        // and refit on the final set.
-        w.subset.clear();
-        for (int i : r->active) {
-          if (std::abs(Excess(*r, i, best_p)) <= threshold) {
-            w.subset.push_back(i);
-          } else {
-            fix->rejected.push_back({r->ids[i], RangeRejection::kOutlier});
-          }
-        }
-        r->active = w.subset;
-        p = best_p;
-        converged = best_converged;
-        fix->iterations += Refine(*r, r->active, o.max_iterations, &p, &converged);
-        fix->flags |= kOutliersRejected;
-        if (prior != nullptr && (identified_by_prior || admissible > 1 ||
-                                 best_size < over_determined || worst <= threshold)) {
-          fix->flags |= kPriorIdentified;
-        }
-      } else if (worst > threshold) {
-        fix->flags |= kInconsistentRanges;
-        if (exhausted) fix->flags |= kConsensusBudgetExhausted;
-      }
+      if (EvaluateSubset(ctx, cs)) cs->found = true;
+      // Next combination of k indices out of n.
+      int j = k - 1;
+      while (j >= 0 && pick[j] == n - k + j) --j;
+      if (j < 0) break;
+      ++pick[j];
+      for (int t = j + 1; t < k; ++t) pick[t] = pick[t - 1] + 1;
     }
   }
+}
 
-  if (o.method == Method::kCauchy) {
-    // Iteratively reweighted least squares with the Cauchy loss
-    // rho(e) = c^2/2 log(1 + (e/c)^2), weight 1 / (1 + (e/c)^2), with
-    // c = 2.3849 sigma (95% efficiency on Gaussian noise). Ranges whose
-    // residual ends above the outlier threshold are reported as rejected:
-    // they still pull the estimate, with weight under a few percent.
-    const double c = 2.3849 * o.range_sigma_m;
-    for (int round = 0; round < 30; ++round) {
-      r->evaluations += static_cast<int64_t>(r->active.size());
-      for (int i : r->active) {
-        const double e = std::sqrt((p - r->a[i]).squaredNorm() + r->off2[i]) - r->d[i];
-        r->w[i] = 1.0 / (1.0 + (e / c) * (e / c));
-      }
-      const Vec previous = p;
-      fix->iterations += Refine(*r, r->active, o.max_iterations, &p, &converged);
-      if ((p - previous).norm() < kStepTolerance_m) break;
+// Adopts the consensus: re-admits any excluded range that agrees with the
+// consensus point (within the threshold), rejects the rest as outliers, and
+// refits on the final set. The prior is credited (kPriorIdentified) when it
+// did the choosing: its shortcut settled it, several subsets were
+// admissible, an exactly determined subset won, or the full set was
+// consistent and the search ran only because the fix lay beyond the prior.
+template <int D>
+void AdoptConsensus(const SolveContext<D>& ctx, const Consensus<D>& cs, double worst,
+                    Eigen::Matrix<double, D, 1>* p, bool* converged) {
+  Ranges<D>* r = ctx.ranges;
+  Fix* fix = ctx.fix;
+  ctx.workspace.subset.clear();
+  for (int i : r->active) {
+    if (std::abs(Excess(*r, i, cs.best_p)) <= ctx.threshold) {
+      ctx.workspace.subset.push_back(i);
+    } else {
+      fix->rejected.push_back({r->ids[i], RangeRejection::kOutlier});
     }
-    w.subset.clear();
+  }
+  r->active = ctx.workspace.subset;
+  *p = cs.best_p;
+  *converged = cs.best_converged;
+  fix->iterations += Refine(*r, r->active, ctx.options.max_iterations, p, converged);
+  fix->flags |= kOutliersRejected;
+  if (ctx.prior != nullptr &&
+      (cs.identified_by_prior || cs.admissible > 1 ||
+       cs.best_size < SolveContext<D>::kOverDetermined || worst <= ctx.threshold)) {
+    fix->flags |= kPriorIdentified;
+  }
+}
+
+// kRobust: when the full set's fix p leaves a residual above the threshold
+// (or lies beyond the prior with no more than one redundant range), the
+// consensus: the fewest excluded ranges such that
+//  - every remaining residual is within the threshold,
+//  - every excluded range is long against the subset's fix by more than the
+//    threshold (a reflection only lengthens a path: a subset that explains a
+//    range as too short is physically impossible),
+//  - with a prior, the fix is within the prior's radius;
+// and among those the least score, cost / sigma^2, plus (distance to the
+// prior / radius)^2 with a prior. Exhaustive over subsets, a few dozen small
+// solves for a room; max_consensus_solves caps it for anything larger
+// (C(n, 2) subsets of n ranges would let one message of 800 ranges take half
+// a minute). With no admissible subset p stays and the fix is flagged
+// inconsistent.
+template <int D>
+void RejectOutliers(const SolveContext<D>& ctx, Eigen::Matrix<double, D, 1>* p, bool* converged) {
+  constexpr int over_determined = SolveContext<D>::kOverDetermined;
+  const PositionPrior* prior = ctx.prior;
+  double worst = 0.0;
+  Residuals(*ctx.ranges, ctx.ranges->active, *p, &worst);
+  const int n = static_cast<int>(ctx.ranges->active.size());
+  // With a prior, exactly determined subsets (D ranges) are admissible in
+  // 2D: the prior picks the right one of the two circle intersections and
+  // tells the long range apart. In 3D the smallest subset stays D + 1.
+  const int smallest_subset = (prior != nullptr && D == 2) ? D : over_determined;
+  const int max_out = std::min(ctx.options.max_outliers, n - smallest_subset);
+  // A consistent set with a single redundant range can still hide a long
+  // range (the fit absorbs it); beyond the prior it is searched too. With
+  // two or more redundant ranges a consistent set is trusted over the prior
+  // (a robot lifted and put down elsewhere).
+  const bool far = prior != nullptr && DistanceToPrior(*p, *prior) > prior->radius_m;
+  const bool search = worst > ctx.threshold || (far && n <= over_determined);
+  if (!search || max_out <= 0) return;
+  Consensus<D> cs;
+  cs.best_p = *p;
+  cs.best_size = n;
+  cs.start = prior != nullptr ? &prior->position_m : nullptr;
+  if (prior != nullptr) TryPriorShortcut(ctx, max_out, &cs);
+  SearchSubsets(ctx, max_out, &cs);
+  if (cs.found) {
+    AdoptConsensus(ctx, cs, worst, p, converged);
+  } else if (worst > ctx.threshold) {
+    ctx.fix->flags |= kInconsistentRanges;
+    if (cs.exhausted) ctx.fix->flags |= kConsensusBudgetExhausted;
+  }
+}
+
+// kCauchy: iteratively reweighted least squares with the Cauchy loss
+// rho(e) = c^2/2 log(1 + (e/c)^2), weight 1 / (1 + (e/c)^2), with
+// c = 2.3849 sigma (95% efficiency on Gaussian noise), until a round moves
+// the fix less than kStepTolerance_m (at most 30 rounds). Ranges whose
+// residual ends above the outlier threshold are reported as rejected: they
+// still pull the estimate, with weight under a few percent, and leave the
+// active set only when enough remain to over-determine the fix.
+template <int D>
+void ReweightCauchy(const SolveContext<D>& ctx, Eigen::Matrix<double, D, 1>* p, bool* converged) {
+  Ranges<D>* r = ctx.ranges;
+  Fix* fix = ctx.fix;
+  const double c = 2.3849 * ctx.options.range_sigma_m;
+  for (int round = 0; round < 30; ++round) {
     r->evaluations += static_cast<int64_t>(r->active.size());
     for (int i : r->active) {
-      const double e = std::sqrt((p - r->a[i]).squaredNorm() + r->off2[i]) - r->d[i];
-      if (std::abs(e) <= threshold) {
-        w.subset.push_back(i);
-      } else {
-        fix->rejected.push_back({r->ids[i], RangeRejection::kOutlier});
-        fix->flags |= kOutliersRejected;
+      const double e = std::sqrt((*p - r->a[i]).squaredNorm() + r->off2[i]) - r->d[i];
+      r->w[i] = 1.0 / (1.0 + (e / c) * (e / c));
+    }
+    const Eigen::Matrix<double, D, 1> previous = *p;
+    fix->iterations += Refine(*r, r->active, ctx.options.max_iterations, p, converged);
+    if ((*p - previous).norm() < kStepTolerance_m) break;
+  }
+  ctx.workspace.subset.clear();
+  r->evaluations += static_cast<int64_t>(r->active.size());
+  for (int i : r->active) {
+    const double e = std::sqrt((*p - r->a[i]).squaredNorm() + r->off2[i]) - r->d[i];
+    if (std::abs(e) <= ctx.threshold) {
+      ctx.workspace.subset.push_back(i);
+    } else {
+      fix->rejected.push_back({r->ids[i], RangeRejection::kOutlier});
+      fix->flags |= kOutliersRejected;
+    }
+  }
+  if (static_cast<int>(ctx.workspace.subset.size()) >= SolveContext<D>::kOverDetermined) {
+    r->active = ctx.workspace.subset;
+  }
+}
+
+// k3D with coplanar receivers: the mirror image of p through the receivers'
+// plane (normal n, the spread's least axis, through their centroid c) fits
+// equally well, p' = p - 2 ((p - c).n) n; keep the one on the side of
+// room_side_point_m (default: the floor below the centroid).
+void ResolveMirror(const SolveContext<3>& ctx, Eigen::Vector3d* p) {
+  const Spread<3>& spread = ctx.spread;
+  const Eigen::Vector3d normal = spread.axes.col(0);
+  Eigen::Vector3d side_point = ctx.options.room_side_point_m;
+  if (!side_point.allFinite()) side_point = {spread.centroid.x(), spread.centroid.y(), 0.0};
+  const double side = normal.dot(side_point - spread.centroid);
+  const double offset = normal.dot(*p - spread.centroid);
+  if (side * offset < 0.0) *p -= 2.0 * offset * normal;
+  ctx.fix->flags |= kMirrorResolved;
+}
+
+// The covariance from the range noise alone, sigma^2 (J^T J)^-1 at p
+// (infinite where J^T J is singular to working precision), flagging poor
+// geometry when its largest eigenvalue exceeds max_position_sigma_m^2, and
+// the fix's residual RMS, sqrt(F(p) / n).
+template <int D>
+Eigen::Matrix<double, D, D> NoiseCovariance(const SolveContext<D>& ctx,
+                                            const Eigen::Matrix<double, D, 1>& p) {
+  Eigen::Matrix<double, D, D> jtj;
+  Eigen::Matrix<double, D, 1> jte;
+  const double cost = NormalEquations(*ctx.ranges, ctx.ranges->active, p, &jtj, &jte);
+  Eigen::Matrix<double, D, D> cov = Eigen::Matrix<double, D, D>::Constant(kInf);
+  const double scale = jtj.trace();
+  if (scale > 0.0 && std::abs(jtj.determinant()) > 1e-14 * std::pow(scale, D)) {
+    cov = ctx.sigma2 * jtj.inverse();
+  }
+  Eigen::Matrix<double, D, 1> cov_values = Eigen::Matrix<double, D, 1>::Constant(kInf);
+  if (cov.allFinite()) EigenSymmetric<D>(cov, &cov_values, nullptr);
+  if (!(cov_values.maxCoeff() <=
+        ctx.options.max_position_sigma_m * ctx.options.max_position_sigma_m)) {
+    ctx.fix->flags |= kPoorGeometry;
+  }
+  ctx.fix->residual_rms_m = std::sqrt(cost / static_cast<double>(ctx.ranges->active.size()));
+  return cov;
+}
+
+// Grows the covariance for what the ranges could not check (Fix::covariance_m2):
+// no redundant range, ranges that disagree, a fix beyond the prior. False when
+// the fix is no position after all: ranges that disagree among themselves,
+// with no subset the prior admits, and a fix where the robot cannot be (with
+// consistent ranges a fix beyond the prior is kept: the robot may have been
+// moved).
+template <int D>
+bool GrowCovariance(const SolveContext<D>& ctx, const Eigen::Matrix<double, D, 1>& p,
+                    Eigen::Matrix<double, D, D>* cov) {
+  Fix* fix = ctx.fix;
+  const double sigma2 = ctx.sigma2;
+  if ((fix->flags & kUnchecked) != 0) {
+    *cov *= (sigma2 + ctx.threshold * ctx.threshold / 3.0) / sigma2;
+  }
+  if ((fix->flags & kInconsistentRanges) != 0) {
+    *cov *= std::max(1.0, fix->residual_rms_m * fix->residual_rms_m / sigma2);
+  }
+  if (ctx.prior != nullptr) {
+    const double d = DistanceToPrior(p, *ctx.prior);
+    if (d > ctx.prior->radius_m) {
+      fix->flags |= kPriorDisagrees;
+      if ((fix->flags & kInconsistentRanges) != 0) {
+        fix->residual_rms_m = kNaN;
+        return false;
       }
-    }
-    if (static_cast<int>(w.subset.size()) >= over_determined) r->active = w.subset;
-  }
-
-  if constexpr (D == 3) {
-    if (coplanar) {
-      // The mirror image through the receivers' plane fits equally well;
-      // keep the room side.
-      const Eigen::Vector3d normal = spread.axes.col(0);
-      Eigen::Vector3d side_point = o.room_side_point_m;
-      if (!side_point.allFinite()) side_point = {spread.centroid.x(), spread.centroid.y(), 0.0};
-      const double side = normal.dot(side_point - spread.centroid);
-      const double offset = normal.dot(p - spread.centroid);
-      if (side * offset < 0.0) p -= 2.0 * offset * normal;
-      fix->flags |= kMirrorResolved;
+      // chi-square with 2 degrees of freedom at 95%: 5.99.
+      cov->diagonal().array() += d * d / 5.99;
     }
   }
+  return true;
+}
 
+// Fills the fix from the final point p and active set: the flags that judge
+// it (not converged, inconsistent, unchecked, poor geometry, prior
+// disagrees), the covariance, the position in room coordinates, the ranges
+// used, and the status: ok only for an over-determined, consistent fix that
+// nothing had to be taken out of.
+template <int D>
+void Finish(const SolveContext<D>& ctx, const Eigen::Matrix<double, D, 1>& p, bool converged) {
+  Fix* fix = ctx.fix;
+  const Ranges<D>& r = *ctx.ranges;
   if (!converged) fix->flags |= kNotConverged;
   // Whatever the method, a residual beyond the outlier threshold means the
   // ranges disagree: with too little redundancy to tell which one is wrong
   // (three ranges in 2D), or outside robust mode, the fix is still flagged.
   double worst_residual = 0.0;
-  Residuals(*r, r->active, p, &worst_residual);
-  if (worst_residual > threshold) fix->flags |= kInconsistentRanges;
-  fix->redundant_ranges = static_cast<int>(r->active.size()) - D;
+  Residuals(r, r.active, p, &worst_residual);
+  if (worst_residual > ctx.threshold) fix->flags |= kInconsistentRanges;
+  fix->redundant_ranges = static_cast<int>(r.active.size()) - D;
   if (fix->redundant_ranges <= 0) fix->flags |= kUnchecked;
-  Eigen::Matrix<double, D, D> jtj;
-  Vec jte;
-  const double cost = NormalEquations(*r, r->active, p, &jtj, &jte);
-  Eigen::Matrix<double, D, D> cov = Eigen::Matrix<double, D, D>::Constant(kInf);
-  const double scale = jtj.trace();
-  if (scale > 0.0 && std::abs(jtj.determinant()) > 1e-14 * std::pow(scale, D)) {
-    cov = sigma2 * jtj.inverse();
-  }
-  Vec cov_values = Vec::Constant(kInf);
-  if (cov.allFinite()) EigenSymmetric<D>(cov, &cov_values, nullptr);
   // Poor geometry is judged on the range noise alone, before any growth.
-  if (!(cov_values.maxCoeff() <= o.max_position_sigma_m * o.max_position_sigma_m)) {
-    fix->flags |= kPoorGeometry;
-  }
-  fix->residual_rms_m = std::sqrt(cost / static_cast<double>(r->active.size()));
-  // Grown for what the ranges could not check (Fix::covariance_m2).
-  if ((fix->flags & kUnchecked) != 0) cov *= (sigma2 + threshold * threshold / 3.0) / sigma2;
-  if ((fix->flags & kInconsistentRanges) != 0) {
-    cov *= std::max(1.0, fix->residual_rms_m * fix->residual_rms_m / sigma2);
-  }
-  if (prior != nullptr) {
-    const double d = DistanceToPrior(p, *prior);
-    if (d > prior->radius_m) {
-      fix->flags |= kPriorDisagrees;
-      // Ranges that disagree among themselves, with no subset the prior
-      // admits, and a fix where the robot cannot be: not a position. (With
-      // consistent ranges the fix is kept: the robot may have been moved.)
-      if ((fix->flags & kInconsistentRanges) != 0) {
-        fix->residual_rms_m = kNaN;
-        return;
-      }
-      // chi-square with 2 degrees of freedom at 95%: 5.99.
-      cov.diagonal().array() += d * d / 5.99;
-    }
-  }
+  Eigen::Matrix<double, D, D> cov = NoiseCovariance(ctx, p);
+  if (!GrowCovariance(ctx, p, &cov)) return;
   fix->covariance_m2.setZero();
   fix->covariance_m2.topLeftCorner<D, D>() = cov;
   if constexpr (D == 2) {
-    fix->position_m = {p.x(), p.y(),
-                       o.dimension == Dimension::kFixedHeight2D ? o.fixed_height_m : 0.0};
+    fix->position_m = {
+        p.x(), p.y(),
+        ctx.options.dimension == Dimension::kFixedHeight2D ? ctx.options.fixed_height_m : 0.0};
   } else {
     fix->position_m = p;
   }
-  for (int i : r->active) fix->used.push_back(r->ids[i]);
-  // ok only for an over-determined, consistent fix that nothing had to be
-  // taken out of.
+  for (int i : r.active) fix->used.push_back(r.ids[i]);
   const uint32_t degrading = kBadRangesDropped | kOutliersRejected | kInconsistentRanges |
                              kPoorGeometry | kNotConverged | kConsensusBudgetExhausted |
                              kUnchecked | kPriorDisagrees;
   fix->status = (fix->flags & degrading) != 0 ? FixStatus::kDegraded : FixStatus::kOk;
+}
+
+// One solve in D free coordinates, by stages: collect the valid ranges,
+// check that they can determine a point, fit all of them, then per method
+// reject outliers by consensus (kRobust) or down-weight them (kCauchy),
+// resolve the mirror ambiguity of coplanar receivers, and judge the result.
+template <int D>
+void SolveIn(const std::vector<RangeMeasurement>& input, const SolverOptions& o,
+             const Eigen::Vector3d* guess, const PositionPrior* prior, Ranges<D>* r, Fix* fix) {
+  Collect(input, o, r, fix);
+  // Three receivers in 3D are enough when the mirror through their plane is
+  // resolved to the room side (three points are always coplanar): exactly
+  // determined, flagged unchecked.
+  const int minimum = D == 3 ? 3 : SolveContext<D>::kOverDetermined;
+  if (static_cast<int>(r->active.size()) < minimum) {
+    fix->flags |= kTooFewRanges;
+    return;
+  }
+  SolveContext<D> ctx(o, prior, r, fix);
+  if (!CheckGeometry(&ctx)) return;
+  Eigen::Matrix<double, D, 1> p;
+  bool converged = false;
+  const int iterations = SolveSubset(ctx, r->active, guess, &p, &converged, o.max_iterations);
+  if (iterations < 0) {
+    fix->flags |= kDegenerateGeometry;
+    return;
+  }
+  fix->iterations = iterations;
+  if (o.method == Method::kRobust) RejectOutliers(ctx, &p, &converged);
+  if (o.method == Method::kCauchy) ReweightCauchy(ctx, &p, &converged);
+  if constexpr (D == 3) {
+    if (ctx.coplanar) ResolveMirror(ctx, &p);
+  }
+  Finish(ctx, p, converged);
 }
 
 }  // namespace
