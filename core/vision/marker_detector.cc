@@ -265,6 +265,187 @@ std::vector<Component> SparseComponents(const cv::Mat1b& mask) {
   return out;
 }
 
+// The stages of Measure (below), each on the component's window `roi`.
+
+// The deepest core depth (kCoreDepthPx + 1, kCoreDepthPx, then 1 px) that
+// still holds 5 pixels: a small blob at reduced scale may have no pixel 3 px
+// deep, and a core of fewer pixels gives a median no better than one pixel.
+float CoreDepth(const cv::Mat1f& dist_in) {
+  float core_depth = 1.0f;
+  for (float depth : {kCoreDepthPx + 1.0f, kCoreDepthPx, 1.0f}) {
+    core_depth = depth;
+    int count = 0;
+    for (int y = 0; y < dist_in.rows; ++y)
+      for (int x = 0; x < dist_in.cols; ++x) count += dist_in(y, x) >= depth ? 1 : 0;
+    if (count >= 5) break;
+  }
+  return core_depth;
+}
+
+// The marker colour m: the per-channel median of the raw core pixels (never
+// mixed with the floor, and the median ignores a specular highlight), and
+// the mean core colour with the gain applied (what classification saw),
+// into `core_bgr`. False when no pixel reaches `core_depth` (a component
+// eroded away by the padding), which leaves the blob unmeasured.
+bool MarkerColour(const cv::Mat& bgr, const cv::Rect& roi, const cv::Mat1f& dist_in,
+                  float core_depth, const cv::Mat1w& gain, cv::Vec3d* m, cv::Vec3d* core_bgr) {
+  std::array<std::vector<float>, 3> core_c;
+  cv::Vec3d core_sum(0, 0, 0);
+  for (int y = 0; y < roi.height; ++y) {
+    const cv::Vec3b* p = bgr.ptr<cv::Vec3b>(roi.y + y) + roi.x;
+    const uint16_t* g = gain.empty() ? nullptr : gain.ptr<uint16_t>(roi.y + y) + roi.x;
+    for (int x = 0; x < roi.width; ++x) {
+      if (dist_in(y, x) < core_depth) continue;
+      for (int k = 0; k < 3; ++k) core_c[k].push_back(p[x][k]);
+      const cv::Vec3b c = g ? ApplyGain(p[x], g[x]) : p[x];
+      core_sum += cv::Vec3d(c[0], c[1], c[2]);
+    }
+  }
+  if (core_c[0].empty()) return false;
+  *core_bgr = core_sum / static_cast<double>(core_c[0].size());
+  for (int k = 0; k < 3; ++k) (*m)[k] = MedianOf(&core_c[k]);
+  return true;
+}
+
+// Background: the per-channel median of the ring kRingInnerPx..kRingOuterPx
+// outside `region`, other blobs left out (a grid line through the ring is a
+// minority and does not move the median). Leaves the distance from `region`
+// in `dist_out` (the soft reach of the centroid needs it) even when the ring
+// is empty (a blob filling its window), which returns false.
+bool RingMedian(const cv::Mat& bgr, const cv::Rect& roi, const cv::Mat1b& other_local,
+                const cv::Mat1b& region, cv::Mat1f* dist_out, cv::Vec3d* b) {
+  cv::Mat1b outside;
+  cv::bitwise_not(region, outside);
+  cv::distanceTransform(outside, *dist_out, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+  std::array<std::vector<float>, 3> ring_c;
+  for (int y = 0; y < roi.height; ++y) {
+    const cv::Vec3b* p = bgr.ptr<cv::Vec3b>(roi.y + y) + roi.x;
+    const uchar* o = other_local.ptr<uchar>(y);
+    const float* dout = dist_out->ptr<float>(y);
+    for (int x = 0; x < roi.width; ++x) {
+      if (o[x] || dout[x] < kRingInnerPx || dout[x] > kRingOuterPx) continue;
+      for (int k = 0; k < 3; ++k) ring_c[k].push_back(p[x][k]);
+    }
+  }
+  if (ring_c[0].empty()) return false;
+  for (int k = 0; k < 3; ++k) (*b)[k] = MedianOf(&ring_c[k]);
+  return true;
+}
+
+// The two colours a pixel is unmixed between.
+struct Unmixing {
+  cv::Vec3d m;        // marker (core median)
+  cv::Vec3d b;        // floor (ring median)
+  cv::Vec3d d;        // m - b
+  double d2 = 0.0;    // |m - b|^2
+  bool soft = false;  // a ring was found and |m - b| >= kMinContrastDn
+};
+
+// Re-estimates the floor colour around `region` and whether the unmixing
+// applies. An empty ring keeps the previous floor colour but turns the
+// unmixing off, as does a contrast below kMinContrastDn (noise on a is
+// sigma / |m - b|): the centroid then falls back to binary moments.
+void FitFloor(const cv::Mat& bgr, const cv::Rect& roi, const cv::Mat1b& other_local,
+              const cv::Mat1b& region, cv::Mat1f* dist_out, Unmixing* mix) {
+  mix->soft = RingMedian(bgr, roi, other_local, region, dist_out, &mix->b);
+  mix->d = mix->m - mix->b;
+  mix->d2 = mix->d.dot(mix->d);
+  mix->soft = mix->soft && mix->d2 >= kMinContrastDn * kMinContrastDn;
+}
+
+// Coverage a = (c - b).(m - b) / |m - b|^2 of pixel `px`, and in `residual`
+// the distance of c from the line through b and m (how far it is from being
+// a mix of the two).
+double Unmix(const cv::Vec3b& px, const Unmixing& mix, double* residual) {
+  const cv::Vec3d c(px[0] - mix.b[0], px[1] - mix.b[1], px[2] - mix.b[2]);
+  const double a = c.dot(mix.d) / mix.d2;
+  *residual = cv::norm(c - a * mix.d);
+  return a;
+}
+
+// The marker's extent: the classified component `comp`, grown by up to
+// grow_px through neighbouring pixels that hold at least half the marker's
+// colour along m - b, into `region` (which holds `comp` on entry).
+// Classification by fixed ranges can leave out a shaded or hue-shifted part
+// of a real marker (the red-shifted underside of a glossy candy); the
+// unmixing still sees it as marker against the floor. A pixel of another
+// blob never joins.
+void GrowRegion(const cv::Mat& bgr, const cv::Rect& roi, const cv::Mat1b& comp,
+                const cv::Mat1b& other_local, int grow_px, const Unmixing& mix, cv::Mat1b* region) {
+  cv::Mat1b candidate(roi.size());
+  for (int y = 0; y < roi.height; ++y) {
+    const cv::Vec3b* p = bgr.ptr<cv::Vec3b>(roi.y + y) + roi.x;
+    const uchar* o = other_local.ptr<uchar>(y);
+    for (int x = 0; x < roi.width; ++x) {
+      double residual = 0.0;
+      const double a = Unmix(p[x], mix, &residual);
+      // Within a cone round m - b: residual <= 0.3 |c - b| (17 degrees).
+      // A darker or differently hued object (another candy, a shadow)
+      // projects onto m - b too, but far off its direction.
+      const double along = a * std::sqrt(mix.d2);
+      candidate(y, x) =
+          (!o[x] && a >= 0.5 && residual * residual <= kConeTan2 * along * along) ? 255 : 0;
+    }
+  }
+  const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(3, 3));
+  for (int i = 0; i < grow_px; ++i) {
+    cv::Mat1b grown;
+    cv::dilate(*region, grown, kernel);
+    cv::bitwise_and(grown, candidate, grown);
+    cv::bitwise_or(grown, comp, grown);
+    if (cv::countNonZero(grown != *region) == 0) break;
+    *region = grown;
+  }
+}
+
+// Holes (a specular highlight, a hue-shifted patch the growth did not
+// reach) belong to the marker: filled, so the outline alone is judged.
+void FillHoles(cv::Mat1b* region) {
+  std::vector<std::vector<cv::Point>> contours;
+  cv::findContours(region->clone(), contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
+  cv::drawContours(*region, contours, -1, cv::Scalar(255), cv::FILLED);
+}
+
+// The coverage-weighted centroid and area into `out`: core pixels count as
+// 1 (clamping their noise would bias the area low), other pixels of the
+// region and pixels up to kSoftReachPx outside it by their unmixed coverage
+// clamped to [0, 1]. A pixel whose colour is far from the line through b and
+// m is not a mix of the two (a grid line or shadow under the edge, a
+// hue-shifted part of the marker): it counts by membership of the region
+// instead. Without the unmixing (mix.soft false) every pixel counts by
+// membership. False when nothing counts.
+bool CoverageCentroid(const cv::Mat& bgr, const cv::Rect& roi, const cv::Mat1b& region,
+                      const cv::Mat1b& other_local, const cv::Mat1f& dist_in, float core_depth,
+                      const cv::Mat1f& dist_out, const Unmixing& mix, Measurement* out) {
+  const double max_residual = kResidualDn + kResidualFraction * std::sqrt(mix.d2);
+  double sa = 0.0, sx = 0.0, sy = 0.0;
+  for (int y = 0; y < roi.height; ++y) {
+    const cv::Vec3b* p = bgr.ptr<cv::Vec3b>(roi.y + y) + roi.x;
+    const uchar* o = other_local.ptr<uchar>(y);
+    for (int x = 0; x < roi.width; ++x) {
+      double a = 0.0;
+      const bool in_region = region(y, x) != 0;
+      if (dist_in(y, x) >= core_depth) {
+        a = 1.0;
+      } else if (!mix.soft) {
+        a = in_region ? 1.0 : 0.0;
+      } else if (in_region || (!o[x] && dist_out(y, x) <= kSoftReachPx)) {
+        double residual = 0.0;
+        a = Unmix(p[x], mix, &residual);
+        a = residual > max_residual ? (in_region ? 1.0 : 0.0) : std::clamp(a, 0.0, 1.0);
+      }
+      sa += a;
+      sx += a * x;
+      sy += a * y;
+    }
+  }
+  if (sa <= 0.0) return false;
+  out->area = sa;
+  out->x = roi.x + sx / sa;
+  out->y = roi.y + sy / sa;
+  return true;
+}
+
 // Sub-pixel measurement of one connected component by linear unmixing.
 //
 // Why it works: a camera pixel integrates the light over its footprint, so
@@ -301,152 +482,27 @@ bool Measure(const cv::Mat& bgr, const cv::Mat1b& comp, const cv::Rect& roi, int
   cv::distanceTransform(comp_padded, dist_in_padded, cv::DIST_L2, cv::DIST_MASK_PRECISE);
   const cv::Mat1f dist_in = dist_in_padded(cv::Rect(1, 1, roi.width, roi.height));
 
-  // Core: the deepest pixels available (a small blob at reduced scale may
-  // have no pixel 3 px deep).
-  float core_depth = 1.0f;
-  for (float depth : {kCoreDepthPx + 1.0f, kCoreDepthPx, 1.0f}) {
-    core_depth = depth;
-    int count = 0;
-    for (int y = 0; y < roi.height; ++y)
-      for (int x = 0; x < roi.width; ++x) count += dist_in(y, x) >= depth ? 1 : 0;
-    if (count >= 5) break;
-  }
-  std::array<std::vector<float>, 3> core_c;
-  cv::Vec3d core_sum(0, 0, 0);
-  for (int y = 0; y < roi.height; ++y) {
-    const cv::Vec3b* p = bgr.ptr<cv::Vec3b>(roi.y + y) + roi.x;
-    const uint16_t* g = gain.empty() ? nullptr : gain.ptr<uint16_t>(roi.y + y) + roi.x;
-    for (int x = 0; x < roi.width; ++x) {
-      if (dist_in(y, x) < core_depth) continue;
-      for (int k = 0; k < 3; ++k) core_c[k].push_back(p[x][k]);
-      const cv::Vec3b c = g ? ApplyGain(p[x], g[x]) : p[x];
-      core_sum += cv::Vec3d(c[0], c[1], c[2]);
-    }
-  }
-  if (core_c[0].empty()) return false;
-  out->core_bgr = core_sum / static_cast<double>(core_c[0].size());
-  cv::Vec3d m;
-  for (int k = 0; k < 3; ++k) m[k] = MedianOf(&core_c[k]);
+  const float core_depth = CoreDepth(dist_in);
+  Unmixing mix;
+  if (!MarkerColour(bgr, roi, dist_in, core_depth, gain, &mix.m, &out->core_bgr)) return false;
 
-  // Background: median of the ring kRingInnerPx..kRingOuterPx outside
-  // `region`, other blobs left out. Returns false when the ring is empty.
+  // The floor round the classified component decides whether it may grow;
+  // the floor is estimated again round what it grew to, then round the
+  // filled outline, so the ring never overlaps the marker.
   cv::Mat1f dist_out;
-  auto ring_median = [&](const cv::Mat1b& region, cv::Vec3d* b) {
-    cv::Mat1b outside;
-    cv::bitwise_not(region, outside);
-    cv::distanceTransform(outside, dist_out, cv::DIST_L2, cv::DIST_MASK_PRECISE);
-    std::array<std::vector<float>, 3> ring_c;
-    for (int y = 0; y < roi.height; ++y) {
-      const cv::Vec3b* p = bgr.ptr<cv::Vec3b>(roi.y + y) + roi.x;
-      const uchar* o = other_local.ptr<uchar>(y);
-      const float* dout = dist_out.ptr<float>(y);
-      for (int x = 0; x < roi.width; ++x) {
-        if (o[x] || dout[x] < kRingInnerPx || dout[x] > kRingOuterPx) continue;
-        for (int k = 0; k < 3; ++k) ring_c[k].push_back(p[x][k]);
-      }
-    }
-    if (ring_c[0].empty()) return false;
-    for (int k = 0; k < 3; ++k) (*b)[k] = MedianOf(&ring_c[k]);
-    return true;
-  };
-  auto unmix = [&](const cv::Vec3b& px, const cv::Vec3d& b, const cv::Vec3d& d, double d2,
-                   double* residual) {
-    const cv::Vec3d c(px[0] - b[0], px[1] - b[1], px[2] - b[2]);
-    const double a = c.dot(d) / d2;
-    *residual = cv::norm(c - a * d);
-    return a;
-  };
-
-  cv::Vec3d b;
-  bool soft = ring_median(comp, &b);
-  cv::Vec3d d = m - b;
-  double d2 = d.dot(d);
-  soft = soft && d2 >= kMinContrastDn * kMinContrastDn;
-
-  // The marker's extent: the classified component, grown by up to grow_px
-  // through neighbouring pixels that hold at least half the marker's colour
-  // along m - b. Classification by fixed ranges can leave out a shaded or
-  // hue-shifted part of a real marker (the red-shifted underside of a glossy
-  // candy); the unmixing still sees it as marker against the floor.
+  FitFloor(bgr, roi, other_local, comp, &dist_out, &mix);
   cv::Mat1b region = comp.clone();
-  if (soft && grow_px > 0) {
-    cv::Mat1b candidate(roi.size());
-    for (int y = 0; y < roi.height; ++y) {
-      const cv::Vec3b* p = bgr.ptr<cv::Vec3b>(roi.y + y) + roi.x;
-      const uchar* o = other_local.ptr<uchar>(y);
-      for (int x = 0; x < roi.width; ++x) {
-        double residual = 0.0;
-        const double a = unmix(p[x], b, d, d2, &residual);
-        // Within a cone round m - b: residual <= 0.3 |c - b| (17 degrees).
-        // A darker or differently hued object (another candy, a shadow)
-        // projects onto m - b too, but far off its direction.
-        const double along = a * std::sqrt(d2);
-        candidate(y, x) =
-            (!o[x] && a >= 0.5 && residual * residual <= kConeTan2 * along * along) ? 255 : 0;
-      }
-    }
-    const cv::Mat kernel = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(3, 3));
-    for (int i = 0; i < grow_px; ++i) {
-      cv::Mat1b grown;
-      cv::dilate(region, grown, kernel);
-      cv::bitwise_and(grown, candidate, grown);
-      cv::bitwise_or(grown, comp, grown);
-      if (cv::countNonZero(grown != region) == 0) break;
-      region = grown;
-    }
-    soft = ring_median(region, &b);
-    d = m - b;
-    d2 = d.dot(d);
-    soft = soft && d2 >= kMinContrastDn * kMinContrastDn;
+  if (mix.soft && grow_px > 0) {
+    GrowRegion(bgr, roi, comp, other_local, grow_px, mix, &region);
+    FitFloor(bgr, roi, other_local, region, &dist_out, &mix);
   } else {
     cv::Vec3d unused;
-    ring_median(region, &unused);  // dist_out for the region
+    RingMedian(bgr, roi, other_local, region, &dist_out, &unused);  // dist_out for the region
   }
-  // Holes (a specular highlight, a hue-shifted patch the growth did not
-  // reach) belong to the marker: fill them, then judge the outline.
-  {
-    std::vector<std::vector<cv::Point>> contours;
-    cv::findContours(region.clone(), contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
-    cv::drawContours(region, contours, -1, cv::Scalar(255), cv::FILLED);
-    if (soft) {
-      soft = ring_median(region, &b);
-      d = m - b;
-      d2 = d.dot(d);
-      soft = soft && d2 >= kMinContrastDn * kMinContrastDn;
-    }
-  }
+  FillHoles(&region);
+  if (mix.soft) FitFloor(bgr, roi, other_local, region, &dist_out, &mix);
   out->circularity = Circularity(region, cv::countNonZero(region));
-
-  // A pixel whose colour is far from the line through b and m is not a mix
-  // of the two (a grid line or shadow under the edge, a hue-shifted part of
-  // the marker): it counts by membership of the region instead.
-  const double max_residual = kResidualDn + kResidualFraction * std::sqrt(d2);
-  double sa = 0.0, sx = 0.0, sy = 0.0;
-  for (int y = 0; y < roi.height; ++y) {
-    const cv::Vec3b* p = bgr.ptr<cv::Vec3b>(roi.y + y) + roi.x;
-    const uchar* o = other_local.ptr<uchar>(y);
-    for (int x = 0; x < roi.width; ++x) {
-      double a = 0.0;
-      const bool in_region = region(y, x) != 0;
-      if (dist_in(y, x) >= core_depth) {
-        a = 1.0;
-      } else if (!soft) {
-        a = in_region ? 1.0 : 0.0;
-      } else if (in_region || (!o[x] && dist_out(y, x) <= kSoftReachPx)) {
-        double residual = 0.0;
-        a = unmix(p[x], b, d, d2, &residual);
-        a = residual > max_residual ? (in_region ? 1.0 : 0.0) : std::clamp(a, 0.0, 1.0);
-      }
-      sa += a;
-      sx += a * x;
-      sy += a * y;
-    }
-  }
-  if (sa <= 0.0) return false;
-  out->area = sa;
-  out->x = roi.x + sx / sa;
-  out->y = roi.y + sy / sa;
-  return true;
+  return CoverageCentroid(bgr, roi, region, other_local, dist_in, core_depth, dist_out, mix, out);
 }
 
 }  // namespace

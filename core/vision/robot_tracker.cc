@@ -106,6 +106,13 @@ void Fill(const Candidate& c, RobotObservation* obs) {
   }
 }
 
+// A pair of pool blobs whose classes are a robot's code (UpdateByCode).
+struct CodePair {
+  size_t position, heading, robot;
+  bool in_gate = true;
+  bool clipped = false;  // a blob of it reaches an edge: evidence only
+};
+
 }  // namespace
 
 const char* TrackStateName(TrackState state) {
@@ -195,7 +202,7 @@ std::vector<SearchPlan> RobotTracker::Plan(int64_t utime) const {
       if (options_.max_speed_px_per_s > 0.0) {
         dt = std::min(dt, std::max(0.0, (max_half - fixed) / options_.max_speed_px_per_s));
       }
-      const double half = std::min(max_half, fixed + options_.max_speed_px_per_s * dt);
+      const double half = std::min(max_half, WindowHalfPx(i, dt));
       double u = t.u_px, v = t.v_px;
       if (t.has_velocity) {
         u += t.du_px_per_s * dt;
@@ -320,15 +327,92 @@ std::vector<RobotObservation> RobotTracker::Identify(
   return obs;
 }
 
+bool RobotTracker::RecentlyFound(size_t i, int64_t utime) const {
+  const Track& t = tracks_[i];
+  return t.ever_found && Seconds(t.last_seen_utime, utime) < options_.lost_after_s;
+}
+
+void RobotTracker::Predict(size_t i, int64_t utime, double* u_px, double* v_px) const {
+  const Track& t = tracks_[i];
+  const double dt = Seconds(t.last_seen_utime, utime);
+  *u_px = t.u_px + (t.has_velocity ? t.du_px_per_s * dt : 0.0);
+  *v_px = t.v_px + (t.has_velocity ? t.dv_px_per_s * dt : 0.0);
+}
+
+double RobotTracker::WindowHalfPx(size_t i, double dt_s) const {
+  return options_.window_margin_px + robots_[i].position_radius_px * options_.window_radius_factor +
+         options_.max_speed_px_per_s * dt_s;
+}
+
+std::string RobotTracker::OutOfViewNote() const {
+  return "out of view: looked for by a full-frame search every " +
+         std::to_string(options_.absent_search_period_frames) + " frames";
+}
+
+// UpdateByClasses' working state within one frame.
+struct RobotTracker::ClassesFrame {
+  explicit ClassesFrame(size_t n) : obs(n), plan_of(n), blobs_of(n), ambiguous(n, false) {}
+  std::vector<RobotObservation> obs;
+  // Per robot: its plan (default full frame) and the blobs it may look at.
+  std::vector<SearchPlan> plan_of;
+  std::vector<std::vector<const Blob*>> blobs_of;
+  Taken taken;  // blobs given to a robot so far: robots never share one
+  std::vector<bool> ambiguous;
+};
+
+// Robots with one class pair that were all searched in the full frame, and
+// the candidates they compete for.
+struct RobotTracker::LookAlikes {
+  std::pair<int, int> classes;  // position, heading
+  std::vector<size_t> members;  // robot indices, in spec order
+  std::vector<Candidate> candidates;
+  std::vector<bool> candidate_taken;
+  std::vector<bool> member_done;  // re-acquired (Reacquire)
+  // "; class C blob(s) at ... have no heading marker beside them: not a
+  // robot", or empty.
+  std::string rejected_note;
+};
+
 std::vector<RobotObservation> RobotTracker::UpdateByClasses(
     int64_t utime, const std::vector<SearchPlan>& plans, const std::vector<Blob>& full_frame_blobs,
     const std::vector<std::vector<Blob>>& window_blobs) {
   const size_t n = robots_.size();
-  std::vector<RobotObservation> obs(n);
-  // Per robot: its plan (default full frame) and the blobs it may look at.
-  std::vector<SearchPlan> plan_of(n);
-  std::vector<std::vector<const Blob*>> blobs_of(n);
-  std::vector<bool> used_window(n, false);
+  ClassesFrame frame(n);
+  AssignLists(plans, full_frame_blobs, window_blobs, &frame);
+  SearchWindows(utime, &frame);
+
+  // 2. Full-frame searches, grouped by class pair: robots that look alike
+  // compete for the same candidates.
+  std::map<std::pair<int, int>, std::vector<size_t>> groups;
+  for (size_t i = 0; i < n; ++i) {
+    if (frame.plan_of[i].full_frame) {
+      groups[{robots_[i].position_class, robots_[i].heading_class}].push_back(i);
+    }
+  }
+  for (auto& [pair, members] : groups) {
+    LookAlikes group;
+    group.classes = pair;
+    group.members = std::move(members);
+    FindCandidates(full_frame_blobs, frame, &group);
+    Reacquire(utime, &group, &frame);
+    ResolveLookAlikes(group, &frame);
+  }
+
+  std::vector<bool> full_plan(n);
+  for (size_t i = 0; i < n; ++i) full_plan[i] = frame.plan_of[i].full_frame;
+  Bookkeep(utime, full_plan, frame.ambiguous, &frame.obs);
+  return std::move(frame.obs);
+}
+
+// Which blob lists a robot may look at: the window list of its plan (one
+// list per plan, or one per window plan, as Update documents) and every
+// full-frame blob, since a full-frame search run for another robot covers
+// this one's window too. A plan naming no robot of the specs is ignored.
+void RobotTracker::AssignLists(const std::vector<SearchPlan>& plans,
+                               const std::vector<Blob>& full_frame_blobs,
+                               const std::vector<std::vector<Blob>>& window_blobs,
+                               ClassesFrame* frame) const {
+  const size_t n = robots_.size();
   const bool per_plan_lists = window_blobs.size() == plans.size();
   size_t next_window_list = 0;
   std::map<int, size_t> index_of_id;
@@ -342,234 +426,238 @@ std::vector<RobotObservation> RobotTracker::UpdateByClasses(
     auto it = index_of_id.find(plans[p].robot_id);
     if (it == index_of_id.end()) continue;
     const size_t i = it->second;
-    plan_of[i] = plans[p];
+    frame->plan_of[i] = plans[p];
     if (list != nullptr) {
-      for (const Blob& b : *list) blobs_of[i].push_back(&b);
+      for (const Blob& b : *list) frame->blobs_of[i].push_back(&b);
     }
   }
   for (size_t i = 0; i < n; ++i) {
-    obs[i].robot_id = robots_[i].robot_id;
-    // A full-frame search run for another robot covers this one's window too.
-    for (const Blob& b : full_frame_blobs) blobs_of[i].push_back(&b);
+    frame->obs[i].robot_id = robots_[i].robot_id;
+    for (const Blob& b : full_frame_blobs) frame->blobs_of[i].push_back(&b);
   }
+}
 
-  Taken taken;
-  std::vector<bool> from_full_frame(n, false);
-  std::vector<bool> ambiguous(n, false);
-  std::vector<Candidate> chosen(n);
-
-  // 1. Window searches, nearest prediction first across all robots, so two
-  // robots with the same classes cannot take one blob.
+// 1. Window searches: each robot with a window takes the position-class blob
+// inside it nearest its prediction, nearest first across all robots, so two
+// robots with the same classes cannot take one blob (the one predicted
+// nearer wins, the other misses and gets a full-frame search next frame).
+// A blob outside the window is never taken, so a look-alike elsewhere cannot
+// steal the track. The heading marker is the nearest free heading-class
+// blob within heading_search_radii; without one the pose is degraded.
+void RobotTracker::SearchWindows(int64_t utime, ClassesFrame* frame) const {
+  const size_t n = robots_.size();
+  std::vector<RobotObservation>& obs = frame->obs;
   struct Option {
     double distance;
     size_t robot;
     const Blob* blob;
   };
   std::vector<Option> options;
-  std::vector<double> predicted_u(n), predicted_v(n);
   for (size_t i = 0; i < n; ++i) {
-    if (plan_of[i].full_frame) continue;
-    const Track& t = tracks_[i];
-    const double dt = Seconds(t.last_seen_utime, utime);
-    predicted_u[i] = t.u_px + (t.has_velocity ? t.du_px_per_s * dt : 0.0);
-    predicted_v[i] = t.v_px + (t.has_velocity ? t.dv_px_per_s * dt : 0.0);
+    if (frame->plan_of[i].full_frame) continue;
+    double predicted_u = 0.0, predicted_v = 0.0;
+    Predict(i, utime, &predicted_u, &predicted_v);
     int inside = 0;
-    for (const Blob* b : blobs_of[i]) {
-      if (b->class_index != robots_[i].position_class || !Inside(plan_of[i].window, *b)) continue;
+    for (const Blob* b : frame->blobs_of[i]) {
+      if (b->class_index != robots_[i].position_class || !Inside(frame->plan_of[i].window, *b)) {
+        continue;
+      }
       ++inside;
-      options.push_back({Distance(predicted_u[i], predicted_v[i], b->u_px, b->v_px), i, b});
+      options.push_back({Distance(predicted_u, predicted_v, b->u_px, b->v_px), i, b});
     }
     obs[i].num_candidates = inside;
   }
   std::stable_sort(options.begin(), options.end(),
                    [](const Option& a, const Option& b) { return a.distance < b.distance; });
   std::vector<bool> done(n, false);
+  std::vector<Candidate> chosen(n);
   for (const Option& o : options) {
-    if (done[o.robot] || taken.Contains(*o.blob)) continue;
+    if (done[o.robot] || frame->taken.Contains(*o.blob)) continue;
     done[o.robot] = true;
-    taken.Add(*o.blob);
+    frame->taken.Add(*o.blob);
     chosen[o.robot].position = *o.blob;
   }
   for (size_t i = 0; i < n; ++i) {
-    if (plan_of[i].full_frame) continue;
+    if (frame->plan_of[i].full_frame) continue;
     if (done[i]) {
       const TrackedRobotSpec& spec = robots_[i];
       Candidate& c = chosen[i];
       c.has_heading = PairHeading(c.position, spec.heading_class,
                                   options_.heading_search_radii * spec.position_radius_px,
-                                  blobs_of[i], taken, &c.heading);
-      if (c.has_heading) taken.Add(c.heading);
+                                  frame->blobs_of[i], frame->taken, &c.heading);
+      if (c.has_heading) frame->taken.Add(c.heading);
       Fill(c, &obs[i]);
       if (!c.has_heading) obs[i].note = "no heading marker beside the position marker";
-    } else if (plan_of[i].window.empty()) {
-      obs[i].note = "out of view: looked for by a full-frame search every " +
-                    std::to_string(options_.absent_search_period_frames) + " frames";
+    } else if (frame->plan_of[i].window.empty()) {
+      obs[i].note = OutOfViewNote();
     } else {
-      const cv::Rect& w = plan_of[i].window;
+      const cv::Rect& w = frame->plan_of[i].window;
       obs[i].note = "no free class " + std::to_string(robots_[i].position_class) +
                     " blob in the window at (" + std::to_string(w.x) + ", " + std::to_string(w.y) +
                     ") size " + std::to_string(w.width) + "x" + std::to_string(w.height) +
                     "; full-frame search next frame";
     }
   }
-
-  // 2. Full-frame searches, grouped by class pair: robots that look alike
-  // compete for the same candidates.
-  std::map<std::pair<int, int>, std::vector<size_t>> groups;
-  for (size_t i = 0; i < n; ++i) {
-    if (plan_of[i].full_frame) {
-      groups[{robots_[i].position_class, robots_[i].heading_class}].push_back(i);
-    }
-  }
-  for (auto& [pair, members] : groups) {
-    const TrackedRobotSpec& spec0 = robots_[members[0]];
-    std::vector<const Blob*> blobs;
-    for (const Blob& b : full_frame_blobs) blobs.push_back(&b);
-    // Candidates: free position-class blobs with a heading marker beside.
-    std::vector<Candidate> candidates;
-    std::string rejected;
-    for (const Blob* b : blobs) {
-      if (b->class_index != pair.first || taken.Contains(*b)) continue;
-      Candidate c;
-      c.position = *b;
-      const double reach = options_.heading_search_radii * spec0.position_radius_px;
-      c.has_heading = PairHeading(*b, pair.second, reach, blobs, taken, &c.heading);
-      if (c.has_heading) {
-        candidates.push_back(c);
-      } else {
-        rejected += (rejected.empty() ? "" : ", ") + Pixel(b->u_px, b->v_px);
-      }
-    }
-    const std::string rejected_note =
-        rejected.empty() ? ""
-                         : "; class " + std::to_string(pair.first) + " blob(s) at " + rejected +
-                               " have no heading marker beside them: not a robot";
-    std::vector<bool> candidate_taken(candidates.size(), false);
-
-    // Re-acquisition after a brief occlusion: exactly one candidate within
-    // reach of where a recently tracked robot was; nearest robots first.
-    std::vector<std::pair<double, std::pair<size_t, size_t>>> recent;
-    for (size_t m = 0; m < members.size(); ++m) {
-      const size_t i = members[m];
-      const Track& t = tracks_[i];
-      // Where the robot should be: its last find when that is recent, else
-      // a fresh hint from another sensor.
-      double ref_u = 0.0, ref_v = 0.0, reach = 0.0;
-      const double dt = Seconds(t.last_seen_utime, utime);
-      if (t.ever_found && dt < options_.lost_after_s) {
-        ref_u = t.u_px;
-        ref_v = t.v_px;
-        reach = options_.window_margin_px + options_.max_speed_px_per_s * dt;
-      } else if (t.has_hint && std::abs(Seconds(t.hint_utime, utime)) <= options_.hint_max_age_s) {
-        ref_u = t.hint_u_px;
-        ref_v = t.hint_v_px;
-        reach = t.hint_radius_px;
-      } else {
-        continue;
-      }
-      int within = 0;
-      size_t which = 0;
-      for (size_t k = 0; k < candidates.size(); ++k) {
-        const double d =
-            Distance(ref_u, ref_v, candidates[k].position.u_px, candidates[k].position.v_px);
-        if (d <= reach) {
-          ++within;
-          which = k;
-        }
-      }
-      if (within == 1) {
-        recent.push_back({Distance(ref_u, ref_v, candidates[which].position.u_px,
-                                   candidates[which].position.v_px),
-                          {m, which}});
-      }
-    }
-    std::sort(recent.begin(), recent.end());
-    std::vector<bool> member_done(members.size(), false);
-    for (const auto& [d, mk] : recent) {
-      const auto [m, k] = mk;
-      if (member_done[m] || candidate_taken[k]) continue;
-      member_done[m] = true;
-      candidate_taken[k] = true;
-      const size_t i = members[m];
-      chosen[i] = candidates[k];
-      Fill(candidates[k], &obs[i]);
-      obs[i].num_candidates = static_cast<int>(candidates.size());
-      if (candidates.size() > 1) {
-        const bool by_hint = !(tracks_[i].ever_found &&
-                               Seconds(tracks_[i].last_seen_utime, utime) < options_.lost_after_s);
-        obs[i].note = std::string(by_hint ? "chosen by the position hint"
-                                          : "re-acquired near the last position") +
-                      " among " + std::to_string(candidates.size()) + " candidates";
-      }
-      from_full_frame[i] = true;
-      taken.Add(candidates[k].position);
-      taken.Add(candidates[k].heading);
-    }
-
-    std::vector<size_t> open_members;
-    for (size_t m = 0; m < members.size(); ++m) {
-      if (!member_done[m]) open_members.push_back(members[m]);
-    }
-    std::vector<size_t> open_candidates;
-    std::string positions;
-    for (size_t k = 0; k < candidates.size(); ++k) {
-      if (candidate_taken[k]) continue;
-      open_candidates.push_back(k);
-      positions += (positions.empty() ? "" : ", ") +
-                   Pixel(candidates[k].position.u_px, candidates[k].position.v_px);
-    }
-    const int count = static_cast<int>(open_candidates.size());
-    // Look-alike robots that were never found, with a single candidate in
-    // view: the robots enter the view one at a time in spec order, so it is
-    // the first of them; the others find nothing left.
-    const bool none_found_before = std::none_of(open_members.begin(), open_members.end(),
-                                                [&](size_t j) { return tracks_[j].ever_found; });
-    bool single_given = false;
-    for (size_t i : open_members) {
-      if (single_given) {
-        obs[i].num_candidates = 0;
-        obs[i].note = "the only candidate went to robot " +
-                      std::to_string(robots_[open_members[0]].robot_id) +
-                      ", first in spec order of the robots with these marker classes";
-        continue;
-      }
-      obs[i].num_candidates = count;
-      if (count == 0) {
-        obs[i].note = "no class " + std::to_string(pair.first) + " blob with a class " +
-                      std::to_string(pair.second) + " heading marker beside it in the full frame" +
-                      rejected_note;
-      } else if (open_members.size() > 1 && !(count == 1 && none_found_before)) {
-        std::string ids;
-        for (size_t j : open_members) {
-          ids += (ids.empty() ? "" : ", ") + std::to_string(robots_[j].robot_id);
-        }
-        ambiguous[i] = true;
-        obs[i].note = "robots " + ids + " share marker classes " + std::to_string(pair.first) +
-                      "/" + std::to_string(pair.second) + ": " + std::to_string(count) +
-                      " candidate(s) at " + positions + ", cannot tell which robot is which" +
-                      rejected_note;
-      } else if (count > 1) {
-        ambiguous[i] = true;
-        obs[i].note = std::to_string(count) + " candidates with a heading marker beside them at " +
-                      positions + rejected_note;
-      } else {
-        const Candidate& c = candidates[open_candidates[0]];
-        chosen[i] = c;
-        Fill(c, &obs[i]);
-        obs[i].note = rejected_note.empty() ? "" : rejected_note.substr(2);
-        from_full_frame[i] = true;
-        taken.Add(c.position);
-        taken.Add(c.heading);
-        single_given = true;
-      }
-    }
-  }
-
-  Bookkeep(utime, from_full_frame, ambiguous, &obs);
-  return obs;
 }
 
-void RobotTracker::Bookkeep(int64_t utime, const std::vector<bool>& from_full_frame,
+// A look-alike group's candidates in the full frame: free position-class
+// blobs with a free heading-class blob within heading_search_radii (of the
+// first member's radius). A lone position-class blob is not a robot (a
+// coloured object on the floor): it is named in the note, not taken.
+void RobotTracker::FindCandidates(const std::vector<Blob>& full_frame_blobs,
+                                  const ClassesFrame& frame, LookAlikes* group) const {
+  const Taken& taken = frame.taken;
+  const auto& [position_class, heading_class] = group->classes;
+  const TrackedRobotSpec& spec0 = robots_[group->members[0]];
+  std::vector<const Blob*> blobs;
+  for (const Blob& b : full_frame_blobs) blobs.push_back(&b);
+  std::string rejected;
+  for (const Blob* b : blobs) {
+    if (b->class_index != position_class || taken.Contains(*b)) continue;
+    Candidate c;
+    c.position = *b;
+    const double reach = options_.heading_search_radii * spec0.position_radius_px;
+    c.has_heading = PairHeading(*b, heading_class, reach, blobs, taken, &c.heading);
+    if (c.has_heading) {
+      group->candidates.push_back(c);
+    } else {
+      rejected += (rejected.empty() ? "" : ", ") + Pixel(b->u_px, b->v_px);
+    }
+  }
+  group->rejected_note = rejected.empty()
+                             ? ""
+                             : "; class " + std::to_string(position_class) + " blob(s) at " +
+                                   rejected + " have no heading marker beside them: not a robot";
+  group->candidate_taken.assign(group->candidates.size(), false);
+}
+
+// Re-acquisition after a brief occlusion, or by another sensor's hint: a
+// member takes the candidate that is the only one within reach of where it
+// should be (its last find when less than lost_after_s ago, reach
+// window_margin_px + max_speed_px_per_s * dt; else a fresh hint and its
+// radius); nearest first across members. Two candidates within reach leave
+// the member to ResolveLookAlikes, which calls it ambiguous.
+void RobotTracker::Reacquire(int64_t utime, LookAlikes* group, ClassesFrame* frame) const {
+  const std::vector<size_t>& members = group->members;
+  const std::vector<Candidate>& candidates = group->candidates;
+  std::vector<std::pair<double, std::pair<size_t, size_t>>> recent;
+  for (size_t m = 0; m < members.size(); ++m) {
+    const size_t i = members[m];
+    const Track& t = tracks_[i];
+    double ref_u = 0.0, ref_v = 0.0, reach = 0.0;
+    if (RecentlyFound(i, utime)) {
+      ref_u = t.u_px;
+      ref_v = t.v_px;
+      reach = options_.window_margin_px +
+              options_.max_speed_px_per_s * Seconds(t.last_seen_utime, utime);
+    } else if (t.has_hint && std::abs(Seconds(t.hint_utime, utime)) <= options_.hint_max_age_s) {
+      ref_u = t.hint_u_px;
+      ref_v = t.hint_v_px;
+      reach = t.hint_radius_px;
+    } else {
+      continue;
+    }
+    int within = 0;
+    size_t which = 0;
+    for (size_t k = 0; k < candidates.size(); ++k) {
+      const double d =
+          Distance(ref_u, ref_v, candidates[k].position.u_px, candidates[k].position.v_px);
+      if (d <= reach) {
+        ++within;
+        which = k;
+      }
+    }
+    if (within == 1) {
+      recent.push_back(
+          {Distance(ref_u, ref_v, candidates[which].position.u_px, candidates[which].position.v_px),
+           {m, which}});
+    }
+  }
+  std::sort(recent.begin(), recent.end());
+  group->member_done.assign(members.size(), false);
+  for (const auto& [d, mk] : recent) {
+    const auto [m, k] = mk;
+    if (group->member_done[m] || group->candidate_taken[k]) continue;
+    group->member_done[m] = true;
+    group->candidate_taken[k] = true;
+    const size_t i = members[m];
+    RobotObservation& o = frame->obs[i];
+    Fill(candidates[k], &o);
+    o.num_candidates = static_cast<int>(candidates.size());
+    if (candidates.size() > 1) {
+      o.note = std::string(RecentlyFound(i, utime) ? "re-acquired near the last position"
+                                                   : "chosen by the position hint") +
+               " among " + std::to_string(candidates.size()) + " candidates";
+    }
+    frame->taken.Add(candidates[k].position);
+    frame->taken.Add(candidates[k].heading);
+  }
+}
+
+// The members not re-acquired share the candidates left. One member and one
+// candidate: taken. More candidates, or look-alike members of which one was
+// found before: kAmbiguous, never a guess (a wrong identity is worse than
+// none). Look-alikes that were never found, with a single candidate in view:
+// the robots enter the view one at a time in spec order, so it is the first
+// of them; the others find nothing left.
+void RobotTracker::ResolveLookAlikes(const LookAlikes& group, ClassesFrame* frame) const {
+  const auto& [position_class, heading_class] = group.classes;
+  std::vector<size_t> open_members;
+  for (size_t m = 0; m < group.members.size(); ++m) {
+    if (!group.member_done[m]) open_members.push_back(group.members[m]);
+  }
+  std::vector<size_t> open_candidates;
+  std::string positions;
+  for (size_t k = 0; k < group.candidates.size(); ++k) {
+    if (group.candidate_taken[k]) continue;
+    open_candidates.push_back(k);
+    positions += (positions.empty() ? "" : ", ") +
+                 Pixel(group.candidates[k].position.u_px, group.candidates[k].position.v_px);
+  }
+  const int count = static_cast<int>(open_candidates.size());
+  const bool none_found_before = std::none_of(open_members.begin(), open_members.end(),
+                                              [&](size_t j) { return tracks_[j].ever_found; });
+  const std::string& rejected_note = group.rejected_note;
+  bool single_given = false;
+  for (size_t i : open_members) {
+    RobotObservation& o = frame->obs[i];
+    if (single_given) {
+      o.num_candidates = 0;
+      o.note = "the only candidate went to robot " +
+               std::to_string(robots_[open_members[0]].robot_id) +
+               ", first in spec order of the robots with these marker classes";
+      continue;
+    }
+    o.num_candidates = count;
+    if (count == 0) {
+      o.note = "no class " + std::to_string(position_class) + " blob with a class " +
+               std::to_string(heading_class) + " heading marker beside it in the full frame" +
+               rejected_note;
+    } else if (open_members.size() > 1 && !(count == 1 && none_found_before)) {
+      std::string ids;
+      for (size_t j : open_members) {
+        ids += (ids.empty() ? "" : ", ") + std::to_string(robots_[j].robot_id);
+      }
+      frame->ambiguous[i] = true;
+      o.note = "robots " + ids + " share marker classes " + std::to_string(position_class) + "/" +
+               std::to_string(heading_class) + ": " + std::to_string(count) + " candidate(s) at " +
+               positions + ", cannot tell which robot is which" + rejected_note;
+    } else if (count > 1) {
+      frame->ambiguous[i] = true;
+      o.note = std::to_string(count) + " candidates with a heading marker beside them at " +
+               positions + rejected_note;
+    } else {
+      const Candidate& c = group.candidates[open_candidates[0]];
+      Fill(c, &o);
+      o.note = rejected_note.empty() ? "" : rejected_note.substr(2);
+      frame->taken.Add(c.position);
+      frame->taken.Add(c.heading);
+      single_given = true;
+    }
+  }
+}
+
+void RobotTracker::Bookkeep(int64_t utime, const std::vector<bool>& full_plan,
                             const std::vector<bool>& ambiguous,
                             std::vector<RobotObservation>* observations) {
   std::vector<RobotObservation>& obs = *observations;
@@ -580,7 +668,7 @@ void RobotTracker::Bookkeep(int64_t utime, const std::vector<bool>& from_full_fr
       const double u = o.position.u_px;
       const double v = o.position.v_px;
       const double dt = Seconds(t.last_seen_utime, utime);
-      if (from_full_frame[i] && !t.found_last_update) {
+      if (full_plan[i] && !t.found_last_update) {
         t.has_velocity = false;  // a re-acquisition: the old motion is stale
       } else if (t.found_last_update && dt > 0.0) {
         const double du = (u - t.u_px) / dt;
@@ -624,19 +712,69 @@ void RobotTracker::Bookkeep(int64_t utime, const std::vector<bool>& from_full_fr
   }
 }
 
+// UpdateByCode's working state within one frame.
+struct RobotTracker::CodeFrame {
+  explicit CodeFrame(size_t n)
+      : obs(n),
+        gated(n, false),
+        gate_u(n),
+        gate_v(n),
+        gate_px(n),
+        inside(n, 0),
+        outside(n, 0),
+        clipped_inside(n, 0),
+        interleaved(n, false),
+        ambiguous(n, false) {}
+  std::vector<RobotObservation> obs;
+  // Every blob searched, once, and whether it is clipped (PoolBlobs).
+  std::vector<Blob> pool;
+  std::vector<bool> clipped;
+  std::vector<CodePair> pairs;
+  // Bounds of a heading blob's radius over its position blob's (FindPairs).
+  double ratio_lo = 0.0, ratio_hi = 0.0;
+  // Per robot: whether it has a gate (found less than lost_after_s ago),
+  // its centre and radius, and its code's pairs inside and outside it.
+  std::vector<bool> gated;
+  std::vector<double> gate_u, gate_v, gate_px;
+  std::vector<int> inside, outside, clipped_inside;
+  std::vector<bool> interleaved;
+  // Pool blobs that a whole pair inside its gate claims.
+  std::vector<bool> in_a_pair;
+  std::vector<bool> ambiguous;
+};
+
 std::vector<RobotObservation> RobotTracker::UpdateByCode(
     int64_t utime, const std::vector<SearchPlan>& plans, const std::vector<Blob>& full_frame_blobs,
     const std::vector<std::vector<Blob>>& window_blobs, const ClipFlags& clip_flags) {
   const size_t n = robots_.size();
-  std::vector<RobotObservation> obs(n);
-  // Every blob searched, once. Windows are searched for every class, so a
-  // neighbour's marker that a window's edge cuts shows there as a smaller
-  // blob a few pixels off the whole one (measured in its own window or the
-  // full frame): two blobs of one class whose centres lie within the larger
-  // one's radius are one marker, and a whole measurement is kept over a
-  // clipped one, else the larger.
-  std::vector<Blob> pool;
-  std::vector<bool> clipped;
+  CodeFrame frame(n);
+  PoolBlobs(full_frame_blobs, window_blobs, clip_flags, &frame);
+  std::vector<bool> full_plan(n, true);
+  for (const SearchPlan& p : plans) {
+    for (size_t i = 0; i < n; ++i) {
+      if (robots_[i].robot_id == p.robot_id) full_plan[i] = p.full_frame;
+    }
+  }
+  FindPairs(&frame);
+  GatePairs(utime, &frame);
+  const bool any_full =
+      std::any_of(plans.begin(), plans.end(), [](const SearchPlan& p) { return p.full_frame; });
+  for (size_t i = 0; i < n; ++i) DecideByCode(i, any_full, &frame);
+  Bookkeep(utime, full_plan, frame.ambiguous, &frame.obs);
+  return std::move(frame.obs);
+}
+
+// Every blob searched, once. Windows are searched for every class, so a
+// neighbour's marker that a window's edge cuts shows there as a smaller blob
+// a few pixels off the whole one (measured in its own window or the full
+// frame): two blobs of one class whose centres lie within the larger one's
+// radius are one marker, and a whole measurement is kept over a clipped one,
+// else the larger. Quadratic in the blobs, which max_blobs bounds.
+void RobotTracker::PoolBlobs(const std::vector<Blob>& full_frame_blobs,
+                             const std::vector<std::vector<Blob>>& window_blobs,
+                             const ClipFlags& clip_flags, CodeFrame* frame) const {
+  std::vector<Blob>& pool = frame->pool;
+  std::vector<bool>& clipped = frame->clipped;
   auto add = [&pool, &clipped](const Blob& b, bool b_clipped) {
     for (size_t k = 0; k < pool.size(); ++k) {
       Blob& p = pool[k];
@@ -660,34 +798,28 @@ std::vector<RobotObservation> RobotTracker::UpdateByCode(
   for (size_t k = 0; k < full_frame_blobs.size(); ++k) {
     add(full_frame_blobs[k], clip_flags.full[k]);
   }
+}
 
+// Pairs whose code is a robot's. Size: the heading blob's radius over the
+// position blob's lies nearer the code's ratio rho than 1 in log scale,
+// i.e. in (rho^1.5, rho^0.5) (0.35..0.71 for rho 0.5): the geometric
+// midpoints to a same-size pair and to a pair one step smaller still.
+// Distance: heading_offset_radii position radii within
+// heading_offset_tolerance. Counts the comparisons in pairing_checks_.
+void RobotTracker::FindPairs(CodeFrame* frame) {
+  const std::vector<Blob>& pool = frame->pool;
   std::map<std::pair<int, int>, size_t> robot_of_code;
-  for (size_t i = 0; i < n; ++i) {
+  for (size_t i = 0; i < robots_.size(); ++i) {
     robot_of_code[{robots_[i].position_class, robots_[i].heading_class}] = i;
   }
-  std::vector<bool> full_plan(n, true);
-  for (const SearchPlan& p : plans) {
-    for (size_t i = 0; i < n; ++i) {
-      if (robots_[i].robot_id == p.robot_id) full_plan[i] = p.full_frame;
-    }
-  }
-
-  // Pairs whose code is a robot's. Size: the heading blob's radius over the
-  // position blob's lies nearer the code's ratio rho than 1 in log scale,
-  // i.e. in (rho^1.5, rho^0.5) (0.35..0.71 for rho 0.5): the geometric
-  // midpoints to a same-size pair and to a pair one step smaller still.
   const double rho = options_.heading_size_ratio;
-  const double ratio_lo = std::pow(rho, 1.5), ratio_hi = std::sqrt(rho);
+  frame->ratio_lo = std::pow(rho, 1.5);
+  frame->ratio_hi = std::sqrt(rho);
+  const double ratio_lo = frame->ratio_lo, ratio_hi = frame->ratio_hi;
   const double offset_lo =
       options_.heading_offset_radii * (1.0 - options_.heading_offset_tolerance);
   const double offset_hi =
       options_.heading_offset_radii * (1.0 + options_.heading_offset_tolerance);
-  struct Pair {
-    size_t position, heading, robot;
-    bool in_gate = true;
-    bool clipped = false;  // a blob of it reaches an edge: evidence only
-  };
-  std::vector<Pair> pairs;
   // A sweep along u: a heading blob lies within offset_hi position radii of
   // its position blob, so only blobs in that band of u are compared. Blobs
   // of a frame do not overlap, which bounds how many fit in the band.
@@ -712,153 +844,159 @@ std::vector<RobotObservation> RobotTracker::UpdateByCode(
       const double ratio = h.radius_px / p.radius_px;
       const double offset = Distance(p.u_px, p.v_px, h.u_px, h.v_px) / p.radius_px;
       if (ratio > ratio_lo && ratio < ratio_hi && offset >= offset_lo && offset <= offset_hi) {
-        pairs.push_back({a, b, it->second, true, clipped[a] || clipped[b]});
+        frame->pairs.push_back({a, b, it->second, true, frame->clipped[a] || frame->clipped[b]});
       }
     }
   }
+}
 
-  // Gates: where a recently found robot can be now.
-  std::vector<bool> gated(n, false);
-  std::vector<double> gate_u(n), gate_v(n), gate_px(n);
+// Gates: where a recently found robot can be now (its prediction, and the
+// tracking window's half-size as radius). Counts each robot's pairs inside
+// and outside its gate (a robot without a gate has every pair inside), and
+// marks robots whose in-gate pair shares a blob with another in-gate pair
+// (markers of neighbours interleaved: no pairing can be trusted there).
+void RobotTracker::GatePairs(int64_t utime, CodeFrame* frame) const {
+  const size_t n = robots_.size();
   for (size_t i = 0; i < n; ++i) {
-    const Track& t = tracks_[i];
-    const double dt = Seconds(t.last_seen_utime, utime);
-    if (!t.ever_found || dt >= options_.lost_after_s) continue;
-    gated[i] = true;
-    gate_u[i] = t.u_px + (t.has_velocity ? t.du_px_per_s * dt : 0.0);
-    gate_v[i] = t.v_px + (t.has_velocity ? t.dv_px_per_s * dt : 0.0);
-    gate_px[i] = options_.window_margin_px +
-                 robots_[i].position_radius_px * options_.window_radius_factor +
-                 options_.max_speed_px_per_s * dt;
+    if (!RecentlyFound(i, utime)) continue;
+    frame->gated[i] = true;
+    Predict(i, utime, &frame->gate_u[i], &frame->gate_v[i]);
+    frame->gate_px[i] = WindowHalfPx(i, Seconds(tracks_[i].last_seen_utime, utime));
   }
-  std::vector<int> inside(n, 0), outside(n, 0), clipped_inside(n, 0);
-  for (Pair& pr : pairs) {
+  for (CodePair& pr : frame->pairs) {
     const size_t i = pr.robot;
-    if (gated[i]) {
-      const Blob& p = pool[pr.position];
-      pr.in_gate = Distance(gate_u[i], gate_v[i], p.u_px, p.v_px) <= gate_px[i];
+    if (frame->gated[i]) {
+      const Blob& p = frame->pool[pr.position];
+      pr.in_gate =
+          Distance(frame->gate_u[i], frame->gate_v[i], p.u_px, p.v_px) <= frame->gate_px[i];
     }
-    ++(pr.in_gate ? inside[i] : outside[i]);
-    if (pr.in_gate && pr.clipped) ++clipped_inside[i];
+    ++(pr.in_gate ? frame->inside[i] : frame->outside[i]);
+    if (pr.in_gate && pr.clipped) ++frame->clipped_inside[i];
   }
-  // Interleaved: a blob in two pairs that are each some robot's code.
-  std::vector<int> uses(pool.size(), 0);
-  for (const Pair& pr : pairs) {
+  std::vector<int> uses(frame->pool.size(), 0);
+  for (const CodePair& pr : frame->pairs) {
     if (!pr.in_gate) continue;
     ++uses[pr.position];
     ++uses[pr.heading];
   }
-  std::vector<bool> interleaved(n, false);
-  for (const Pair& pr : pairs) {
-    if (pr.in_gate && (uses[pr.position] > 1 || uses[pr.heading] > 1)) interleaved[pr.robot] = true;
+  for (const CodePair& pr : frame->pairs) {
+    if (pr.in_gate && (uses[pr.position] > 1 || uses[pr.heading] > 1)) {
+      frame->interleaved[pr.robot] = true;
+    }
   }
-
-  std::vector<bool> ambiguous(n, false);
   // Blobs a whole pair claims (a clipped pair's whole blob may still be a
-  // robot's lone position marker below).
-  std::vector<bool> in_a_pair(pool.size(), false);
-  for (const Pair& pr : pairs) {
+  // robot's lone position marker: TakeLoneBlob).
+  frame->in_a_pair.assign(frame->pool.size(), false);
+  for (const CodePair& pr : frame->pairs) {
     if (!pr.in_gate || pr.clipped) continue;
-    in_a_pair[pr.position] = true;
-    in_a_pair[pr.heading] = true;
+    frame->in_a_pair[pr.position] = true;
+    frame->in_a_pair[pr.heading] = true;
   }
-  const bool any_full =
-      std::any_of(plans.begin(), plans.end(), [](const SearchPlan& p) { return p.full_frame; });
-  for (size_t i = 0; i < n; ++i) {
-    RobotObservation& o = obs[i];
-    o.robot_id = robots_[i].robot_id;
-    o.num_candidates = inside[i];
-    if (!gated[i] && !any_full) {
-      // Out of view until now, and this frame was searched in windows only:
-      // a code is unique only if the whole frame shows it once.
-      if (inside[i] > 0) {
-        full_requested_ = true;
-        o.note =
-            "its code is seen in another robot's window: identified at the next full-frame "
-            "search";
-      } else {
-        o.note = "out of view: looked for by a full-frame search every " +
-                 std::to_string(options_.absent_search_period_frames) + " frames";
-      }
-      continue;
-    }
-    if (interleaved[i]) {
-      ambiguous[i] = true;
-      o.identity_problem = "interleaved_markers";
-      o.note = "a marker of its code pair also pairs with another robot's marker: not published";
-      continue;
-    }
-    if (inside[i] >= 2) {
-      ambiguous[i] = true;
-      o.identity_problem = "code_seen_twice";
-      o.note = "its code is seen " + std::to_string(inside[i]) + " times" +
-               (gated[i] ? " inside its gate" : "") + ": not published";
-      continue;
-    }
-    if (inside[i] == 1 && clipped_inside[i] == 0) {
-      const auto pr = std::find_if(pairs.begin(), pairs.end(),
-                                   [&](const Pair& x) { return x.robot == i && x.in_gate; });
-      Candidate c;
-      c.position = pool[pr->position];
-      // Another pair with this code outside the gate: the identity rests on
-      // the gate alone, so the heading (and the status ok) is withheld.
-      c.has_heading = outside[i] == 0;
-      c.heading = pool[pr->heading];
-      Fill(c, &o);
-      if (outside[i] > 0) {
-        o.identity_problem = "code_seen_twice";
-        o.note = "its code is seen inside its gate and " + std::to_string(outside[i]) +
-                 " time(s) outside: published degraded";
-      }
-      continue;
-    }
-    if (inside[i] == 1) {
-      // Its only sighting is cut by an edge: a marker cut small can read as
-      // the other role (a swapped pair's robot), and its centroid is off.
-      o.identity_problem = "marker_clipped";
+}
+
+// Robot i's verdict from its code's pairs, by the rules UpdateByCode's
+// declaration states. A robot out of view until now, in a frame searched in
+// windows only, is never identified: a code is unique only if the whole
+// frame shows it once (a sighting in another robot's window asks for a
+// full-frame search next frame).
+void RobotTracker::DecideByCode(size_t i, bool any_full, CodeFrame* frame) {
+  RobotObservation& o = frame->obs[i];
+  const int inside = frame->inside[i], outside = frame->outside[i];
+  o.robot_id = robots_[i].robot_id;
+  o.num_candidates = inside;
+  if (!frame->gated[i] && !any_full) {
+    if (inside > 0) {
+      full_requested_ = true;
       o.note =
-          "its code is seen only with a marker cut by the image's or a window's edge: "
-          "not taken";
-    } else if (outside[i] > 0) {
-      o.identity_problem = "impossible_jump";
-      o.note = "its code is seen only beyond where it can be after its last find: not published";
-      continue;
-    }
-    // No whole pair: a lone whole position-class blob of the last find's
-    // size inside the gate, which no whole pair claims, when it is the only
-    // one.
-    if (!gated[i]) {
-      if (o.identity_problem.empty()) o.note = "no pair of blobs shows its marker code";
-      continue;
-    }
-    int lone = 0;
-    const Blob* taken = nullptr;
-    for (size_t k = 0; k < pool.size(); ++k) {
-      const Blob& b = pool[k];
-      if (in_a_pair[k] || clipped[k] || b.class_index != robots_[i].position_class) continue;
-      const double size = tracks_[i].radius_px > 0.0 ? b.radius_px / tracks_[i].radius_px : 1.0;
-      if (size <= ratio_hi || size >= 1.0 / ratio_hi) continue;
-      if (Distance(gate_u[i], gate_v[i], b.u_px, b.v_px) > gate_px[i]) continue;
-      ++lone;
-      taken = &b;
-    }
-    const std::string clipped_note = o.identity_problem.empty() ? "" : o.note + "; ";
-    if (lone == 1) {
-      Candidate c;
-      c.position = *taken;
-      Fill(c, &o);
-      o.note = clipped_note + "no heading marker beside the position marker";
+          "its code is seen in another robot's window: identified at the next full-frame "
+          "search";
     } else {
-      o.note = clipped_note + (lone == 0 ? "no pair of blobs shows its code inside its gate"
-                                         : std::to_string(lone) +
-                                               " lone position-class blobs inside its gate: none "
-                                               "taken");
+      o.note = OutOfViewNote();
     }
+    return;
   }
-  std::vector<bool> from_full_frame(n, false);
-  for (size_t i = 0; i < n; ++i) from_full_frame[i] = obs[i].found && full_plan[i];
-  Bookkeep(utime, from_full_frame, ambiguous, &obs);
-  return obs;
+  if (frame->interleaved[i]) {
+    frame->ambiguous[i] = true;
+    o.identity_problem = "interleaved_markers";
+    o.note = "a marker of its code pair also pairs with another robot's marker: not published";
+    return;
+  }
+  if (inside >= 2) {
+    frame->ambiguous[i] = true;
+    o.identity_problem = "code_seen_twice";
+    o.note = "its code is seen " + std::to_string(inside) + " times" +
+             (frame->gated[i] ? " inside its gate" : "") + ": not published";
+    return;
+  }
+  if (inside == 1 && frame->clipped_inside[i] == 0) {
+    const auto pr = std::find_if(frame->pairs.begin(), frame->pairs.end(),
+                                 [&](const CodePair& x) { return x.robot == i && x.in_gate; });
+    Candidate c;
+    c.position = frame->pool[pr->position];
+    // Another pair with this code outside the gate: the identity rests on
+    // the gate alone, so the heading (and the status ok) is withheld.
+    c.has_heading = outside == 0;
+    c.heading = frame->pool[pr->heading];
+    Fill(c, &o);
+    if (outside > 0) {
+      o.identity_problem = "code_seen_twice";
+      o.note = "its code is seen inside its gate and " + std::to_string(outside) +
+               " time(s) outside: published degraded";
+    }
+    return;
+  }
+  if (inside == 1) {
+    // Its only sighting is cut by an edge: a marker cut small can read as
+    // the other role (a swapped pair's robot), and its centroid is off.
+    o.identity_problem = "marker_clipped";
+    o.note =
+        "its code is seen only with a marker cut by the image's or a window's edge: "
+        "not taken";
+  } else if (outside > 0) {
+    o.identity_problem = "impossible_jump";
+    o.note = "its code is seen only beyond where it can be after its last find: not published";
+    return;
+  }
+  if (!frame->gated[i]) {
+    if (o.identity_problem.empty()) o.note = "no pair of blobs shows its marker code";
+    return;
+  }
+  TakeLoneBlob(i, frame);
+}
+
+// No whole pair: a lone whole position-class blob of the last find's size
+// (radius ratio within (ratio_hi, 1 / ratio_hi), so not a heading marker of
+// another code) inside the gate, which no whole pair claims, is taken when
+// it is the only one, degraded (no heading), as the demo does. Two or more
+// are not told apart.
+void RobotTracker::TakeLoneBlob(size_t i, CodeFrame* frame) const {
+  RobotObservation& o = frame->obs[i];
+  const double ratio_hi = frame->ratio_hi;
+  int lone = 0;
+  const Blob* taken = nullptr;
+  for (size_t k = 0; k < frame->pool.size(); ++k) {
+    const Blob& b = frame->pool[k];
+    if (frame->in_a_pair[k] || frame->clipped[k] || b.class_index != robots_[i].position_class) {
+      continue;
+    }
+    const double size = tracks_[i].radius_px > 0.0 ? b.radius_px / tracks_[i].radius_px : 1.0;
+    if (size <= ratio_hi || size >= 1.0 / ratio_hi) continue;
+    if (Distance(frame->gate_u[i], frame->gate_v[i], b.u_px, b.v_px) > frame->gate_px[i]) continue;
+    ++lone;
+    taken = &b;
+  }
+  const std::string clipped_note = o.identity_problem.empty() ? "" : o.note + "; ";
+  if (lone == 1) {
+    Candidate c;
+    c.position = *taken;
+    Fill(c, &o);
+    o.note = clipped_note + "no heading marker beside the position marker";
+  } else {
+    o.note = clipped_note + (lone == 0 ? "no pair of blobs shows its code inside its gate"
+                                       : std::to_string(lone) +
+                                             " lone position-class blobs inside its gate: none "
+                                             "taken");
+  }
 }
 
 void RobotTracker::SetHint(int robot_id, double u_px, double v_px, double radius_px,

@@ -237,9 +237,43 @@ class RobotTracker {
   std::vector<RobotObservation> UpdateByClasses(int64_t utime, const std::vector<SearchPlan>& plans,
                                                 const std::vector<Blob>& full_frame_blobs,
                                                 const std::vector<std::vector<Blob>>& window_blobs);
-  // Velocities, states and last positions from a frame's observations.
-  void Bookkeep(int64_t utime, const std::vector<bool>& from_full_frame,
+  // Velocities, states and last positions from a frame's observations; a
+  // find by a robot whose plan was a full-frame search (`full_plan`) is a
+  // re-acquisition and restarts its velocity.
+  void Bookkeep(int64_t utime, const std::vector<bool>& full_plan,
                 const std::vector<bool>& ambiguous, std::vector<RobotObservation>* obs);
+
+  // Stages both modes share. A robot found less than lost_after_s ago has a
+  // gate (by code) or may be re-acquired near its last find (by classes).
+  bool RecentlyFound(size_t i, int64_t utime) const;
+  // Robot i's last find moved on by its velocity estimate to `utime`.
+  void Predict(size_t i, int64_t utime, double* u_px, double* v_px) const;
+  // Half-size of robot i's tracking window (and code gate) dt_s after its
+  // last find: window_margin_px + radius * window_radius_factor + speed * dt.
+  double WindowHalfPx(size_t i, double dt_s) const;
+  std::string OutOfViewNote() const;
+
+  // UpdateByClasses' stages (robot_tracker.cc says what each decides), on
+  // the state they share within one frame.
+  struct ClassesFrame;
+  struct LookAlikes;
+  void AssignLists(const std::vector<SearchPlan>& plans, const std::vector<Blob>& full_frame_blobs,
+                   const std::vector<std::vector<Blob>>& window_blobs, ClassesFrame* frame) const;
+  void SearchWindows(int64_t utime, ClassesFrame* frame) const;
+  void FindCandidates(const std::vector<Blob>& full_frame_blobs, const ClassesFrame& frame,
+                      LookAlikes* group) const;
+  void Reacquire(int64_t utime, LookAlikes* group, ClassesFrame* frame) const;
+  void ResolveLookAlikes(const LookAlikes& group, ClassesFrame* frame) const;
+
+  // UpdateByCode's stages, likewise.
+  struct CodeFrame;
+  void PoolBlobs(const std::vector<Blob>& full_frame_blobs,
+                 const std::vector<std::vector<Blob>>& window_blobs, const ClipFlags& clip_flags,
+                 CodeFrame* frame) const;
+  void FindPairs(CodeFrame* frame);  // counts pairing_checks_
+  void GatePairs(int64_t utime, CodeFrame* frame) const;
+  void DecideByCode(size_t i, bool any_full, CodeFrame* frame);  // may set full_requested_
+  void TakeLoneBlob(size_t i, CodeFrame* frame) const;
 
   struct Track {
     TrackState state = TrackState::kSearching;
