@@ -217,8 +217,7 @@ void AddRenderCameraCommand(CLI::App* app, int* exit_code) {
                   "Write the reference's calibration images instead: the robot's markers at each "
                   "grid point, one PNG each, and points.csv for calibrate --marker-images");
   cmd->add_option("--tripod-step", f->tripod_step_m,
-                  "Spacing of the tripod points, m (default: "
-                  "the room's grid)");
+                  "Spacing of the tripod points, m (default: the room's grid)");
   cmd->add_option("--seed", f->seed, "Noise seed")->capture_default_str();
   cmd->add_option("--jpeg-quality", f->jpeg_quality, "JPEG quality of folder frames")
       ->capture_default_str();
