@@ -198,12 +198,13 @@ int main(int argc, char** argv) {
   std::string error;
   if (!flags.sim.IsValid(&error)) return Fail(error);
   if (flags.air_bench) {
-    roomfix::AirBenchOptions bench;
-    bench.duration_s = flags.sim.duration_s > 0.0 ? flags.sim.duration_s : 60.0;
-    bench.seeds = flags.bench_seeds;
-    bench.rate_hz = flags.sim.ranges.rate_hz;
-    bench.clock_ppm = flags.clock_ppm;
-    return roomfix::RunAirBench(process.config_path, bench, &error) == 0 ? 0 : Fail(error);
+    roomfix::SharedAirOptions air;
+    air.rate_hz = flags.sim.ranges.rate_hz;
+    air.clock_ppm = flags.clock_ppm;
+    const double run_s = flags.sim.duration_s > 0.0 ? flags.sim.duration_s : 60.0;
+    return roomfix::RunAirBench(process.config_path, air, run_s, flags.bench_seeds, &error) == 0
+               ? 0
+               : Fail(error);
   }
   auto ctx = roomfix::StartProcess("roomfix_sim", process, &error);
   if (ctx == nullptr) return Fail(error);

@@ -35,14 +35,6 @@ bool SimAppOptions::IsValid(std::string* error) const {
   return true;
 }
 
-bool AirBenchOptions::IsValid(std::string* error) const {
-  if (seeds < 1 || seeds > 1000) {
-    *error = "--bench-seeds must be in [1, 1000]";
-    return false;
-  }
-  return true;
-}
-
 namespace {
 
 // " of radio N", or "" for the single coordinator (id 0), in log lines.
@@ -162,10 +154,16 @@ int RunSimulator(ProcessContext* ctx, const SimAppOptions& options, std::string*
   return rc;
 }
 
-int RunAirBench(const std::string& config_path, const AirBenchOptions& options,
-                std::string* error) {
+int RunAirBench(const std::string& config_path, const SharedAirOptions& air, double duration_s,
+                int seeds, std::string* error) {
   Site site;
-  if (!LoadSite(config_path, &site, error) || !options.IsValid(error)) return 1;
+  if (!LoadSite(config_path, &site, error)) return 1;
+  // A row is the mean of its runs; a thousand runs of a minute are already
+  // a day.
+  if (seeds < 1 || seeds > 1000) {
+    *error = "--bench-seeds must be in [1, 1000]";
+    return 1;
+  }
   const RoomDecay d = ComputeRoomDecay(site, site.simulation.temperature_c);
   std::printf("Air of %s: %.1f x %.1f x %.1f m, %.1f degC, %.0f%% RH, walls absorb %.2f\n",
               site.name.c_str(), site.room.size_x_m, site.room.size_y_m, site.room.height_m,
@@ -180,9 +178,8 @@ int RunAirBench(const std::string& config_path, const AirBenchOptions& options,
       d.decay_s * 1e3, d.decay_from_site ? " (site's acoustics.decay_s)" : "",
       d.max_time_of_flight_s * 1e3, d.decay_s * 1e3, site.acoustics.clock_uncertainty_s * 1e3,
       d.slot_s * 1e3);
-  const int seeds = options.seeds;
   std::printf("%d s x %d seeds per row, beacons at random places, crystals +-%.0f ppm\n",
-              static_cast<int>(options.duration_s), seeds, options.clock_ppm);
+              static_cast<int>(duration_s), seeds, air.clock_ppm);
   std::printf("%8s | %-13s | %12s | %18s | %16s | %14s\n", "beacons", "schedule", "Hz/beacon",
               "corrupted ranges", "corrupted sets", "clean Hz/beacon");
   for (int n : {1, 2, 4, 8, 12}) {
@@ -190,12 +187,10 @@ int RunAirBench(const std::string& config_path, const AirBenchOptions& options,
       int64_t corrupted = 0, pairs = 0, bad_sets = 0, firings = 0;
       double rate = 0.0, clean = 0.0;
       for (int s = 1; s <= seeds; ++s) {
-        SharedAirOptions o;
+        SharedAirOptions o = air;
         o.mode = mode;
-        o.rate_hz = options.rate_hz;
-        o.clock_ppm = options.clock_ppm;
         o.seed = static_cast<uint64_t>(s);
-        const AirBenchRow row = MeasureAir(site, n, o, options.duration_s);
+        const AirBenchRow row = MeasureAir(site, n, o, duration_s);
         corrupted += row.counters.corrupted();
         pairs += row.counters.pairs;
         bad_sets += row.corrupted_firings;

@@ -13,6 +13,7 @@
 #include "msgio/process.h"
 #include "sim/ground_truth_node.h"
 #include "sim/ranges_node.h"
+#include "sim/shared_air.h"
 #include "sim/wall_devices.h"
 
 namespace roomfix {
@@ -53,24 +54,15 @@ struct SimAppOptions {
 // be opened.
 int RunSimulator(ProcessContext* ctx, const SimAppOptions& options, std::string* error);
 
-// `--air-bench`: for 1 to 12 beacons at random places, each schedule, run
-// `seeds` times for duration_s (docs/trilateration.md, "Sharing the air").
-struct AirBenchOptions {
-  double duration_s = 60.0;
-  int seeds = 10;
-  double rate_hz = 10.0;
-  double clock_ppm = 50.0;
-
-  // False with the reason when seeds is outside [1, 1000] (a row is the mean
-  // of its runs, and 1000 runs of a minute are already a day).
-  bool IsValid(std::string* error) const;
-};
-
-// Loads the site at config_path and prints the room's decay and slot, then a
-// row per beacon count and schedule: the rate each beacon gets and the share
-// of ranges and sets corrupted. 1 with *error when the site does not load or
-// the options are invalid (in that order), else 0.
-int RunAirBench(const std::string& config_path, const AirBenchOptions& options, std::string* error);
+// `--air-bench`: loads the site at config_path and prints the room's decay
+// and slot, then, for 1 to 12 beacons at random places and each schedule, the
+// rate each beacon gets and the share of ranges and sets corrupted, each row
+// the mean of `seeds` runs of duration_s (docs/trilateration.md, "Sharing the
+// air"). `air` gives the rate and the crystals; each run sets its own mode
+// and seed. 1 with *error when the site does not load or seeds is outside
+// [1, 1000] (in that order), else 0.
+int RunAirBench(const std::string& config_path, const SharedAirOptions& air, double duration_s,
+                int seeds, std::string* error);
 
 }  // namespace roomfix
 

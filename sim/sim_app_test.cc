@@ -2,8 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <memory>
 #include <string>
 
+#include "tests/testing/check_context.h"
 #include "tests/testing/demo_site.h"
 
 namespace roomfix {
@@ -49,42 +52,33 @@ TEST(SimAppOptionsTest, RefusesBothRangePathsAtOnce) {
             "itself, the virtual devices feed zigbee_bridge");
 }
 
-TEST(AirBenchOptionsTest, TakesOneToAThousandSeeds) {
-  AirBenchOptions options;
-  std::string error;
-  for (int seeds : {1, 1000}) {
-    options.seeds = seeds;
-    EXPECT_TRUE(options.IsValid(&error)) << seeds << ": " << error;
-  }
+TEST(RunAirBenchTest, TakesOneToAThousandSeedsAndRefusesOthersBeforePrinting) {
   for (int seeds : {0, 1001}) {
-    options.seeds = seeds;
-    error.clear();
-    EXPECT_FALSE(options.IsValid(&error)) << seeds;
-    EXPECT_EQ(error, "--bench-seeds must be in [1, 1000]");
+    std::string error;
+    ::testing::internal::CaptureStdout();
+    EXPECT_EQ(RunAirBench(testing::DemoSitePath(), SharedAirOptions(), 1.0, seeds, &error), 1);
+    EXPECT_EQ(::testing::internal::GetCapturedStdout(), "") << seeds;
+    EXPECT_EQ(error, "--bench-seeds must be in [1, 1000]") << seeds;
   }
-}
-
-TEST(RunAirBenchTest, RefusesInvalidSeedsBeforePrintingAnything) {
-  AirBenchOptions options;
-  options.seeds = 0;
+  // One seed of 0.1 s per row: six lines of header (the room, its air, the
+  // pulse, the slot, the runs, the column names), then 5 beacon counts x 2
+  // schedules.
   std::string error;
   ::testing::internal::CaptureStdout();
-  EXPECT_EQ(RunAirBench(testing::DemoSitePath(), options, &error), 1);
-  EXPECT_EQ(::testing::internal::GetCapturedStdout(), "");
-  EXPECT_EQ(error, "--bench-seeds must be in [1, 1000]");
+  EXPECT_EQ(RunAirBench(testing::DemoSitePath(), SharedAirOptions(), 0.1, 1, &error), 0) << error;
+  const std::string out = ::testing::internal::GetCapturedStdout();
+  EXPECT_EQ(out.rfind("Air of demo_room: 4.0 x 3.0 x 3.3 m", 0), 0u) << out;
+  EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 6 + 10) << out;
 }
 
 class RunSimulatorTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    ctx_.name = "roomfix_sim";
-    ctx_.options.config_path = testing::DemoSitePath();
-    ctx_.options.lcm_url = "memq://";
-    ctx_.options.check = true;
     std::string error;
-    ASSERT_TRUE(LoadSite(ctx_.options.config_path, &ctx_.site, &error)) << error;
+    ctx_ = testing::DemoCheckContext("roomfix_sim", &error);
+    ASSERT_NE(ctx_, nullptr) << error;
   }
-  ProcessContext ctx_;
+  std::unique_ptr<ProcessContext> ctx_;
 };
 
 TEST_F(RunSimulatorTest, CheckPrintsWhatWouldRunWithoutABus) {
@@ -94,7 +88,7 @@ TEST_F(RunSimulatorTest, CheckPrintsWhatWouldRunWithoutABus) {
   options.faults_preset = "all";
   std::string error;
   ::testing::internal::CaptureStdout();
-  EXPECT_EQ(RunSimulator(&ctx_, options, &error), 0) << error;
+  EXPECT_EQ(RunSimulator(ctx_.get(), options, &error), 0) << error;
   // spdlog's default logger (StartProcess has not moved it to stderr) writes
   // the robots' trajectories to stdout first: the check line comes last.
   const std::string out = ::testing::internal::GetCapturedStdout();
@@ -106,10 +100,10 @@ TEST_F(RunSimulatorTest, CheckPrintsWhatWouldRunWithoutABus) {
 }
 
 TEST_F(RunSimulatorTest, RefusesASiteWithNothingToSimulate) {
-  ctx_.site.simulation.robots.clear();
+  ctx_->site.simulation.robots.clear();
   std::string error;
-  EXPECT_EQ(RunSimulator(&ctx_, SimAppOptions(), &error), 1);
-  EXPECT_EQ(error, ctx_.options.config_path + ": simulation.robots is empty; nothing to simulate");
+  EXPECT_EQ(RunSimulator(ctx_.get(), SimAppOptions(), &error), 1);
+  EXPECT_EQ(error, ctx_->options.config_path + ": simulation.robots is empty; nothing to simulate");
 }
 
 }  // namespace

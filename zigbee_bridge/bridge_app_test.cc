@@ -2,9 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <memory>
 #include <string>
 
-#include "tests/testing/demo_site.h"
+#include "tests/testing/check_context.h"
 
 namespace roomfix {
 namespace {
@@ -38,14 +39,11 @@ TEST(BridgeAppOptionsTest, RefusesANegativeDeadline) {
 class RunBridgeTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    ctx_.name = "zigbee_bridge";
-    ctx_.options.config_path = testing::DemoSitePath();
-    ctx_.options.lcm_url = "memq://";
-    ctx_.options.check = true;
     std::string error;
-    ASSERT_TRUE(LoadSite(ctx_.options.config_path, &ctx_.site, &error)) << error;
+    ctx_ = testing::DemoCheckContext("zigbee_bridge", &error);
+    ASSERT_NE(ctx_, nullptr) << error;
   }
-  ProcessContext ctx_;
+  std::unique_ptr<ProcessContext> ctx_;
 };
 
 TEST_F(RunBridgeTest, CheckPrintsThePortTheSiteAndTheDeadline) {
@@ -54,7 +52,7 @@ TEST_F(RunBridgeTest, CheckPrintsThePortTheSiteAndTheDeadline) {
   options.node.assembler.deadline_s = 0.0455;
   std::string error;
   ::testing::internal::CaptureStdout();
-  EXPECT_EQ(RunBridge(&ctx_, options, &error), 0) << error;
+  EXPECT_EQ(RunBridge(ctx_.get(), options, &error), 0) << error;
   // The demo room: one coordinator hearing 4 receivers and 1 beacon.
   EXPECT_EQ(::testing::internal::GetCapturedStdout(),
             "zigbee_bridge: ok: /dev/ttyUSB0 at 115200 baud, API mode 1, 4 receivers, 1 beacons, "
@@ -65,7 +63,7 @@ TEST_F(RunBridgeTest, RefusesARadioTheSiteDoesNotName) {
   BridgeAppOptions options = ValidOptions();
   options.radio_id = 7;
   std::string error;
-  EXPECT_EQ(RunBridge(&ctx_, options, &error), 1);
+  EXPECT_EQ(RunBridge(ctx_.get(), options, &error), 1);
   EXPECT_EQ(error, "--radio: the site names no radio 7 (it has no radios: section)");
 }
 
