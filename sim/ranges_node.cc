@@ -20,10 +20,8 @@ bool SimRangesNodeOptions::IsValid(std::string* error) const {
 
 std::vector<SimRangesNode::Firer> SimRangesNode::MakeFirers(const Site& site) {
   std::vector<Firer> firers;
-  for (const SimulatedRobot& sr : site.simulation.robots) {
-    const Robot* robot = site.FindRobot(sr.robot_id);
-    if (robot == nullptr || !robot->beacon_id) continue;
-    firers.push_back({sr.robot_id, site.FindBeacon(*robot->beacon_id), sr.trajectory.get()});
+  for (const CarriedBeacon& b : CarriedBeacons(site)) {
+    firers.push_back({b.robot_id, b.beacon, b.trajectory});
   }
   return firers;
 }
@@ -48,19 +46,7 @@ SimRangesNode::SimRangesNode(const Site& site, Bus* bus, const SimRangesNodeOpti
       bus_(bus),
       options_(options),
       firers_(MakeFirers(site)),
-      air_(
-          site,
-          [&] {
-            std::vector<int> ids;
-            for (const Firer& f : firers_) ids.push_back(f.beacon->id);
-            return ids;
-          }(),
-          [this](size_t firer, int64_t utime) -> std::array<double, 3> {
-            const Firer& f = firers_[firer];
-            const GroundTruthPose p = f.trajectory->PoseAt((utime - options_.start_utime) * 1e-6);
-            return {p.x_m, p.y_m, f.beacon->height_m};
-          },
-          AirOptions(options)),
+      air_(site, CarriedBeacons(site), AirOptions(options)),
       rng_(options.seed) {}
 
 void SimRangesNode::Tick(int64_t now_utime) {

@@ -78,6 +78,38 @@ SharedAir::SharedAir(const Site& site, const std::vector<int>& beacon_ids, Posit
       rng_(options.seed ^ 0x5A17A11ull),
       skipped_(beacon_ids.size(), 0) {}
 
+namespace {
+
+std::vector<int> BeaconIds(const std::vector<CarriedBeacon>& beacons) {
+  std::vector<int> ids;
+  for (const CarriedBeacon& b : beacons) ids.push_back(b.beacon->id);
+  return ids;
+}
+
+}  // namespace
+
+SharedAir::SharedAir(const Site& site, std::vector<CarriedBeacon> beacons,
+                     const SharedAirOptions& options)
+    : SharedAir(
+          site, BeaconIds(beacons),
+          [beacons, start_utime = options.start_utime](size_t firer,
+                                                       int64_t utime) -> std::array<double, 3> {
+            const CarriedBeacon& b = beacons[firer];
+            const GroundTruthPose p = b.trajectory->PoseAt((utime - start_utime) * 1e-6);
+            return {p.x_m, p.y_m, b.beacon->height_m};
+          },
+          options) {}
+
+std::vector<CarriedBeacon> CarriedBeacons(const Site& site) {
+  std::vector<CarriedBeacon> beacons;
+  for (const SimulatedRobot& sr : site.simulation.robots) {
+    const Robot* robot = site.FindRobot(sr.robot_id);
+    if (robot == nullptr || !robot->beacon_id) continue;
+    beacons.push_back({sr.robot_id, site.FindBeacon(*robot->beacon_id), sr.trajectory.get()});
+  }
+  return beacons;
+}
+
 void SharedAir::PlanUntil(int64_t utime, const std::function<bool(size_t, int64_t)>& silent) {
   const double c = SpeedOfSound(site_.simulation.temperature_c);
   std::uniform_real_distribution<double> unit(0.0, 1.0);

@@ -48,6 +48,18 @@ struct AirCounters {
   int64_t corrupted() const { return early + armed_in_tail; }
 };
 
+// A beacon a simulated robot carries: its emitter follows the robot's
+// trajectory (t = 0 at SharedAirOptions::start_utime) at the beacon's height.
+struct CarriedBeacon {
+  int robot_id = 0;
+  const Beacon* beacon = nullptr;
+  const Trajectory* trajectory = nullptr;
+};
+
+// The site's simulated robots that carry a beacon, in the simulation's
+// order: the firers of both simulated radio paths.
+std::vector<CarriedBeacon> CarriedBeacons(const Site& site);
+
 class SharedAir {
  public:
   // One firer per entry of beacon_ids (its slot is the beacon's position in
@@ -55,6 +67,8 @@ class SharedAir {
   using PositionFn = std::function<std::array<double, 3>(size_t firer, int64_t utime)>;
   SharedAir(const Site& site, const std::vector<int>& beacon_ids, PositionFn position,
             const SharedAirOptions& options);
+  // One firer per carried beacon, in order, placed by its trajectory.
+  SharedAir(const Site& site, std::vector<CarriedBeacon> beacons, const SharedAirOptions& options);
 
   struct Firing {
     size_t firer = 0;

@@ -99,10 +99,8 @@ bool WallDevicesOptions::IsValid(std::string* error) const {
 std::vector<VirtualWallDevices::Firer> VirtualWallDevices::MakeFirers(const Site& site,
                                                                       uint16_t first_seq) {
   std::vector<Firer> firers;
-  for (const SimulatedRobot& sr : site.simulation.robots) {
-    const Robot* robot = site.FindRobot(sr.robot_id);
-    if (robot == nullptr || !robot->beacon_id) continue;
-    Firer f{site.FindBeacon(*robot->beacon_id), sr.trajectory.get()};
+  for (const CarriedBeacon& b : CarriedBeacons(site)) {
+    Firer f{b.beacon, b.trajectory};
     f.radio_seq = first_seq;
     firers.push_back(f);
   }
@@ -131,19 +129,7 @@ VirtualWallDevices::VirtualWallDevices(const Site& site, const WallDevicesOption
       options_(options),
       rng_(options.seed),
       firers_(MakeFirers(site, options.first_seq)),
-      air_(
-          site,
-          [&] {
-            std::vector<int> ids;
-            for (const Firer& f : firers_) ids.push_back(f.beacon->id);
-            return ids;
-          }(),
-          [this](size_t firer, int64_t utime) -> std::array<double, 3> {
-            const Firer& f = firers_[firer];
-            const GroundTruthPose p = f.trajectory->PoseAt((utime - options_.start_utime) * 1e-6);
-            return {p.x_m, p.y_m, f.beacon->height_m};
-          },
-          AirOptions(options)) {
+      air_(site, CarriedBeacons(site), AirOptions(options)) {
   hold_until_utime_.assign(site.receivers.size(), INT64_MIN);
 }
 

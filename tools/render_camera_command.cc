@@ -298,8 +298,7 @@ void AddRenderCameraCommand(CLI::App* app, int* exit_code) {
                   "grid point the camera sees, one image each in the camera's JPEG, and "
                   "points.csv for calibrate --marker-images");
   cmd->add_option("--tripod-step", f->tripod_step_m,
-                  "Spacing of the tripod points, m (default: "
-                  "the room's grid)");
+                  "Spacing of the tripod points, m (default: the room's grid)");
   cmd->add_flag("--tripod-robots", f->tripod_robots,
                 "With --tripod-grid: also every robot of the camera half a step off the grid, "
                 "and robots.csv for calibrate --robot-images (each robot's held-out noise)");
