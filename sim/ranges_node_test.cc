@@ -8,6 +8,7 @@
 #include "core/trilat/trilateration.h"
 #include "msgio/trilat_conversions.h"
 #include "roomfix/range_set_t.hpp"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -16,7 +17,7 @@ namespace {
 TEST(SimRangesNode, FiresOnScheduleWithRangesThatPutTheBeaconOnItsTrajectory) {
   Site site;
   std::string error;
-  ASSERT_TRUE(LoadSite(testing::SourceDir() + "/config/sites/demo_room.yaml", &site, &error));
+  ASSERT_TRUE(LoadSite(testing::DemoSitePath(), &site, &error));
   LoopbackBus bus;
   std::vector<range_set_t> sets;
   bus.Subscribe<range_set_t>("RANGES",

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "sim/wall_devices.h"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -11,8 +12,7 @@ namespace {
 Site DemoRoom() {
   Site site;
   std::string error;
-  EXPECT_TRUE(LoadSite(testing::SourceDir() + "/config/sites/demo_room.yaml", &site, &error))
-      << error;
+  EXPECT_TRUE(LoadSite(testing::DemoSitePath(), &site, &error)) << error;
   return site;
 }
 

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "core/world/site.h"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix::viewer {
@@ -44,7 +45,7 @@ constexpr int kLineCoreTolerance = 24;
 Site DemoSite() {
   Site site;
   std::string error;
-  const bool ok = LoadSite(testing::SourceDir() + "/config/sites/demo_room.yaml", &site, &error);
+  const bool ok = LoadSite(testing::DemoSitePath(), &site, &error);
   EXPECT_TRUE(ok) << error;
   return site;
 }

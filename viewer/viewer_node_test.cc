@@ -14,6 +14,7 @@
 #include "roomfix/pose2d_t.hpp"
 #include "roomfix/process_status_t.hpp"
 #include "roomfix/range_set_t.hpp"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 #include "viewer/render.h"
 
@@ -25,8 +26,7 @@ constexpr int64_t kT0 = 1'700'000'000'000'000;
 Site DemoSite() {
   Site site;
   std::string error;
-  EXPECT_TRUE(LoadSite(testing::SourceDir() + "/config/sites/demo_room.yaml", &site, &error))
-      << error;
+  EXPECT_TRUE(LoadSite(testing::DemoSitePath(), &site, &error)) << error;
   return site;
 }
 

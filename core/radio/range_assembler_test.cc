@@ -7,6 +7,7 @@
 #include <random>
 
 #include "core/world/ultrasound_model.h"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix::radio {
@@ -21,8 +22,7 @@ class RangeAssemblerTest : public ::testing::Test {
  protected:
   void SetUp() override {
     std::string error;
-    ASSERT_TRUE(LoadSite(testing::SourceDir() + "/config/sites/demo_room.yaml", &site_, &error))
-        << error;
+    ASSERT_TRUE(LoadSite(testing::DemoSitePath(), &site_, &error)) << error;
   }
 
   // The beacon at (2.0, 1.5) at its height: every receiver is 2.5 m away in

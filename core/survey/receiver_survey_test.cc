@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "core/world/site.h"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix::survey {
@@ -30,8 +31,7 @@ constexpr int64_t kT0_us = 1'700'000'000'000'000;
 Site DemoRoom() {
   Site site;
   std::string error;
-  EXPECT_TRUE(LoadSite(testing::SourceDir() + "/config/sites/demo_room.yaml", &site, &error))
-      << error;
+  EXPECT_TRUE(LoadSite(testing::DemoSitePath(), &site, &error)) << error;
   return site;
 }
 

@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -15,16 +16,15 @@ namespace {
 
 using testing::BinDir;
 using testing::ChildProcess;
-using testing::SourceDir;
+using testing::DemoSitePath;
 
 TEST(RoomfixAnalyze, ReadsALogRecordedByLcmLogger) {
   testing::TempDir dir;
   ChildProcess logger({"lcm-logger", "-q", "-f", dir.File("sim.lcm")});
   ASSERT_TRUE(logger.started());
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
-  ChildProcess sim({BinDir() + "/roomfix_sim", "--config",
-                    SourceDir() + "/config/sites/demo_room.yaml", "--duration", "4", "--rate-hz",
-                    "30", "--log-level", "warn"});
+  ChildProcess sim({BinDir() + "/roomfix_sim", "--config", DemoSitePath(), "--duration", "4",
+                    "--rate-hz", "30", "--log-level", "warn"});
   ASSERT_EQ(sim.Wait(20), 0);
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   logger.Signal(SIGINT);

@@ -12,12 +12,14 @@
 #include "msgio/message_json.h"
 #include "msgio/process.h"
 #include "roomfix/pose2d_t.hpp"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
 namespace {
 
 using testing::ChildProcess;
+using testing::DemoSitePath;
 using testing::SourceDir;
 
 // Recorded by lcm-logger from `roomfix_sim --config config/sites/demo_room.yaml
@@ -36,7 +38,7 @@ TEST(SampleLog, ReadsBackAsGroundTruthOnTheReferenceCircle) {
   ASSERT_GE(events.size(), 30u);
   Site site;
   std::string error;
-  ASSERT_TRUE(LoadSite(SourceDir() + "/config/sites/demo_room.yaml", &site, &error)) << error;
+  ASSERT_TRUE(LoadSite(DemoSitePath(), &site, &error)) << error;
   int poses = 0;
   int beats = 0;
   int64_t start_utime = -1;

@@ -18,6 +18,7 @@
 
 #include "core/calib/calibration_file.h"
 #include "core/calib/fisheye_camera.h"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -27,6 +28,7 @@ using calib::Calibration;
 using calib::CameraModel;
 using testing::BinDir;
 using testing::ChildProcess;
+using testing::DemoSitePath;
 using testing::ReadFile;
 using testing::SharedDataDir;
 using testing::SourceDir;
@@ -119,9 +121,9 @@ std::vector<std::vector<double>> ParseCsv(const std::string& text) {
 TEST(RoomfixCalibrate, FitsTheSyntheticCameraFlagsTheOutlierAndWritesYamlAndPng) {
   TempDir dir;
   ASSERT_TRUE(WriteFile(dir.File("points.csv"), PointsCsv(/*outlier=*/7)));
-  const RunResult r = Roomfix(
-      {"calibrate", "--points", dir.File("points.csv"), "--out", dir.File("cam0.yaml"), "--site",
-       SourceDir() + "/config/sites/demo_room.yaml", "--camera", "0", "--pixel-sigma", "0.3"});
+  const RunResult r =
+      Roomfix({"calibrate", "--points", dir.File("points.csv"), "--out", dir.File("cam0.yaml"),
+               "--site", DemoSitePath(), "--camera", "0", "--pixel-sigma", "0.3"});
   std::cout << r.out;
   ASSERT_EQ(r.exit_code, 0);
   // Point 7 is flagged in its table row and in its own line.
@@ -174,13 +176,9 @@ TEST(RoomfixCalibrate, FitsTheSyntheticCameraFlagsTheOutlierAndWritesYamlAndPng)
 TEST(RoomfixCalibrate, RefusesAFitOverTheResidualToleranceWithOneLine) {
   TempDir dir;
   ASSERT_TRUE(WriteFile(dir.File("p.csv"), PointsCsv()));
-  const std::vector<std::string> base = {"calibrate",
-                                         "--points",
-                                         dir.File("p.csv"),
-                                         "--out",
-                                         dir.File("cal.yaml"),
-                                         "--site",
-                                         SourceDir() + "/config/sites/demo_room.yaml"};
+  const std::vector<std::string> base = {"calibrate",   "--points",           dir.File("p.csv"),
+                                         "--out",       dir.File("cal.yaml"), "--site",
+                                         DemoSitePath()};
   struct Case {
     std::vector<std::string> extra;
     std::string message;
@@ -202,7 +200,7 @@ TEST(RoomfixCalibrate, RefusesAFitOverTheResidualToleranceWithOneLine) {
   }
   const RunResult r =
       Roomfix({"calibrate", "--points", dir.File("p.csv"), "--out", dir.File("cal.yaml"), "--site",
-               SourceDir() + "/config/sites/demo_room.yaml", "--max-rms-px", "0.1"},
+               DemoSitePath(), "--max-rms-px", "0.1"},
               /*stderr_only=*/true);
   EXPECT_NE(r.out.find(" px over the points is over the 0.10 px tolerance (--max-rms-px); "
                        "not written"),
@@ -216,13 +214,9 @@ TEST(RoomfixCalibrate, RefusesAFitOverTheResidualToleranceWithOneLine) {
 TEST(RoomfixCalibrate, RefusesAnOutOfRangeFlagWhileParsingWithOneLine) {
   TempDir dir;
   ASSERT_TRUE(WriteFile(dir.File("p.csv"), PointsCsv()));
-  const std::vector<std::string> base = {"calibrate",
-                                         "--points",
-                                         dir.File("p.csv"),
-                                         "--out",
-                                         dir.File("cal.yaml"),
-                                         "--site",
-                                         SourceDir() + "/config/sites/demo_room.yaml"};
+  const std::vector<std::string> base = {"calibrate",   "--points",           dir.File("p.csv"),
+                                         "--out",       dir.File("cal.yaml"), "--site",
+                                         DemoSitePath()};
   const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
       {{"--model", "pinhole"}, "roomfix calibrate: --model: pinhole not in {full,regions}"},
       {{"--square", "nan"}, "roomfix calibrate: --square: expected the square size in metres"},
@@ -261,10 +255,9 @@ TEST(RoomfixCalibrate, RefusesPointsWithMoreOutliersThanItMayLeaveOut) {
     moved += line + "\n";
   }
   ASSERT_TRUE(WriteFile(dir.File("p.csv"), moved));
-  const RunResult r =
-      Roomfix({"calibrate", "--points", dir.File("p.csv"), "--out", dir.File("cal.yaml"), "--site",
-               SourceDir() + "/config/sites/demo_room.yaml"},
-              /*stderr_only=*/true);
+  const RunResult r = Roomfix({"calibrate", "--points", dir.File("p.csv"), "--out",
+                               dir.File("cal.yaml"), "--site", DemoSitePath()},
+                              /*stderr_only=*/true);
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_EQ(r.out.rfind("roomfix calibrate: full model: ", 0), 0u) << r.out;
   EXPECT_NE(r.out.find("over the 4 that may be left out as outliers: the points do not fit one "
@@ -290,10 +283,9 @@ TEST(RoomfixCalibrate, RefusesTwoThousandRandomPointsQuickly) {
   ASSERT_TRUE(WriteFile(dir.File("random.csv"), csv.str()));
   for (const std::string model : {"full", "regions"}) {
     const auto start = std::chrono::steady_clock::now();
-    const RunResult r =
-        Roomfix({"calibrate", "--points", dir.File("random.csv"), "--out", dir.File("cal.yaml"),
-                 "--site", SourceDir() + "/config/sites/demo_room.yaml", "--model", model},
-                /*stderr_only=*/true);
+    const RunResult r = Roomfix({"calibrate", "--points", dir.File("random.csv"), "--out",
+                                 dir.File("cal.yaml"), "--site", DemoSitePath(), "--model", model},
+                                /*stderr_only=*/true);
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     std::printf("calibrate --model %s on 2000 random points: exit %d after %.1f s: %s",
@@ -309,7 +301,7 @@ TEST(RoomfixCalibrate, RefusesTwoThousandRandomPointsQuickly) {
 TEST(RoomfixCalibrate, AFullDiskIsAFailedRunNamingTheFile) {
   TempDir dir;
   ASSERT_TRUE(WriteFile(dir.File("p.csv"), PointsCsv()));
-  const std::string site = SourceDir() + "/config/sites/demo_room.yaml";
+  const std::string site = DemoSitePath();
   const RunResult yaml =
       Roomfix({"calibrate", "--points", dir.File("p.csv"), "--out", "/dev/full", "--site", site},
               /*stderr_only=*/true);
@@ -484,7 +476,7 @@ TEST(RoomfixCalibrate, RefusesBadPointSetsWithOneClearLine) {
     std::vector<std::string> args = {"calibrate", "--points", dir.File("p.csv"), "--out",
                                      dir.File("cal.yaml")};
     if (c.name.find("no mount") == std::string::npos) {
-      args.insert(args.end(), {"--site", SourceDir() + "/config/sites/demo_room.yaml"});
+      args.insert(args.end(), {"--site", DemoSitePath()});
     }
     args.insert(args.end(), c.extra.begin(), c.extra.end());
     const RunResult r = Roomfix(args, /*stderr_only=*/true);
@@ -643,10 +635,10 @@ TEST(RoomfixCalibrate, CalibratesFromAChessboardOnTheFloorToMillimetres) {
   const CameraModel truth = TrueCamera();
   TempDir dir;
   ASSERT_TRUE(RenderFloorChessboard(truth, dir.File("board.png")));
-  const RunResult r = Roomfix({"calibrate", "--chessboard", dir.File("board.png"), "--board",
-                               "11x7", "--square", "0.25", "--board-origin", "0.75,2.25",
-                               "--board-axes", "+x-y", "--out", dir.File("cam0.yaml"), "--site",
-                               SourceDir() + "/config/sites/demo_room.yaml", "--camera", "0"});
+  const RunResult r =
+      Roomfix({"calibrate", "--chessboard", dir.File("board.png"), "--board", "11x7", "--square",
+               "0.25", "--board-origin", "0.75,2.25", "--board-axes", "+x-y", "--out",
+               dir.File("cam0.yaml"), "--site", DemoSitePath(), "--camera", "0"});
   std::cout << r.out;
   ASSERT_EQ(r.exit_code, 0) << r.out;
   Calibration cal;
@@ -694,7 +686,7 @@ TEST(RoomfixCalibrate, CalibratesFromImagesOfAMarkerAtSurveyedPoints) {
   truth.camera.intrinsics.height_px = 1080;
   std::string error;
   ASSERT_TRUE(calib::SaveCalibration(dir.File("truth.yaml"), truth, "true lens", &error)) << error;
-  const std::string site = SourceDir() + "/config/sites/demo_room.yaml";
+  const std::string site = DemoSitePath();
   const RunResult render =
       Roomfix({"render-camera", "--site", site, "--calibration", dir.File("truth.yaml"),
                "--scenario", "lighting", "--tripod-grid", dir.File("tripod")});
@@ -724,7 +716,7 @@ TEST(RoomfixCalibrate, CalibratesFromImagesOfAMarkerAtSurveyedPoints) {
 
 TEST(RoomfixCalibrate, RefusesAMarkerImageWithTwoMarkersNamingIt) {
   TempDir dir;
-  const std::string site = SourceDir() + "/config/sites/demo_room.yaml";
+  const std::string site = DemoSitePath();
   // "distractors" puts two more orange discs on the floor.
   ASSERT_EQ(Roomfix({"render-camera", "--site", site, "--scenario", "distractors", "--png",
                      dir.File("busy.png")})

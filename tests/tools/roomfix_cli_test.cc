@@ -13,6 +13,7 @@
 #include "core/radio/xbee_frame.h"
 #include "msgio/log.h"
 #include "roomfix/marker_pixels_t.hpp"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -367,10 +368,10 @@ TEST(RoomfixFrames, RefusesHexTextThatIsNotHex) {
 
 TEST(RoomfixBenchRadio, PrintsThroughputLatencyAndTheGroupingComparisonAsJson) {
   int rc = -1;
-  const std::string out = RunRoomfix(
-      {"bench", "radio", "--json", "--site", testing::SourceDir() + "/config/sites/demo_room.yaml",
-       "--stream-mb", "2", "--repeats", "2", "--latency-firings", "50", "--compare-seconds", "60"},
-      &rc);
+  const std::string out =
+      RunRoomfix({"bench", "radio", "--json", "--site", testing::DemoSitePath(), "--stream-mb", "2",
+                  "--repeats", "2", "--latency-firings", "50", "--compare-seconds", "60"},
+                 &rc);
   ASSERT_EQ(rc, 0) << out;
   const json j = json::parse(out);
   for (const char* mode : {"api_mode_1", "api_mode_2"}) {
@@ -395,8 +396,8 @@ TEST(RoomfixBenchMicro, PrintsEachKernelAgainstItsGroupsBaseline) {
     GTEST_SKIP() << "roomfix was built without Google Benchmark (libbenchmark-dev)";
   }
   const std::string out =
-      RunRoomfix({"bench", "micro", "--site", testing::SourceDir() + "/config/sites/demo_room.yaml",
-                  "--filter", "detect/(reference|window)", "--min-time", "0.01"},
+      RunRoomfix({"bench", "micro", "--site", testing::DemoSitePath(), "--filter",
+                  "detect/(reference|window)", "--min-time", "0.01"},
                  &rc);
   ASSERT_EQ(rc, 0) << out;
   EXPECT_NE(out.find("detect/window_120px_one_class"), std::string::npos) << out;
@@ -405,8 +406,7 @@ TEST(RoomfixBenchMicro, PrintsEachKernelAgainstItsGroupsBaseline) {
       << out;
   EXPECT_NE(out.find("baseline of detect: detect/reference"), std::string::npos) << out;
   // A filter that matches nothing is an error, not an empty table.
-  RunRoomfix({"bench", "micro", "--site", testing::SourceDir() + "/config/sites/demo_room.yaml",
-              "--filter", "no_such_benchmark"},
+  RunRoomfix({"bench", "micro", "--site", testing::DemoSitePath(), "--filter", "no_such_benchmark"},
              &rc);
   EXPECT_EQ(rc, 1);
 }
