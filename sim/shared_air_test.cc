@@ -105,7 +105,9 @@ TEST(VirtualWallDevices, ReportsWhatTheDetectorsTimedAmongCollidingBeacons) {
     if (mode == FiringPlanOptions::Mode::kTdma) {
       EXPECT_EQ(corrupted, 0);
       // Four beacons share a frame of four slots.
-      EXPECT_NEAR(devices.air().rate_hz(), 1.0 / (4 * devices.air().decay().slot_s), 1e-9);
+      constexpr double kSameDivisionHz = 1e-9;  // the same quotient, rounding only
+      EXPECT_NEAR(devices.air().rate_hz(), 1.0 / (4 * devices.air().decay().slot_s),
+                  kSameDivisionHz);
     } else {
       EXPECT_GT(corrupted, reports / 10);
     }

@@ -153,7 +153,9 @@ TEST_F(RangeAssemblerTest, NeverMixesFiringsDeliveredInAShuffledBurst) {
     for (const AssembledRange& r : set.ranges) {
       const uint32_t expected =
           static_cast<uint32_t>(8'000'000 + set.firing_seq * 1000 + (r.receiver_id - 1));
-      EXPECT_NEAR(r.time_of_flight_us, expected * 1e-3, 1e-9)
+      // Whole nanoseconds to microseconds: exact but for the division.
+      constexpr double kNsToUsRoundOffUs = 1e-9;
+      EXPECT_NEAR(r.time_of_flight_us, expected * 1e-3, kNsToUsRoundOffUs)
           << "firing " << set.firing_seq << " receiver " << r.receiver_id;
     }
   }

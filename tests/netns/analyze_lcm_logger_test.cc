@@ -37,12 +37,18 @@ TEST(RoomfixAnalyze, ReadsALogRecordedByLcmLogger) {
   const auto out = nlohmann::json::parse(testing::ReadFile(dir.File("out.json")));
   const auto& truth = out["robots"]["1"]["ground_truth"];
   EXPECT_GE(truth["fixes"].get<int>(), 100);
-  EXPECT_NEAR(truth["timing"]["rate_hz"].get<double>(), 30.0, 0.5);
+  // A 4 s real-time run on a shared machine: when the first and last
+  // samples are sent moves the measured rate by a fraction of a hertz; 0.5 Hz
+  // still tells 30 Hz from 25 or 60.
+  constexpr double kLiveRateTolHz = 0.5;
+  EXPECT_NEAR(truth["timing"]["rate_hz"].get<double>(), 30.0, kLiveRateTolHz);
   // The simulator's samples lie exactly on the circle: the fit is exact to
-  // rounding.
+  // rounding (and the whole-microsecond stamps: 0.2 um at 0.18 m/s).
+  constexpr double kExactFitM = 1e-6;
+  constexpr double kExactFitRadps = 1e-6;
   const auto& fit = truth["circle"]["circular_motion"];
-  EXPECT_NEAR(fit["radius_m"].get<double>(), 0.419, 1e-6);
-  EXPECT_NEAR(fit["angular_speed_radps"].get<double>(), -0.439, 1e-6);
+  EXPECT_NEAR(fit["radius_m"].get<double>(), 0.419, kExactFitM);
+  EXPECT_NEAR(fit["angular_speed_radps"].get<double>(), -0.439, kExactFitRadps);
   EXPECT_FALSE(out["logs"][0]["damaged"].get<bool>());
 }
 

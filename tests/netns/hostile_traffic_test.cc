@@ -562,7 +562,8 @@ TEST(HostileGenerator, EachClassIsTheInputTheIssueDescribes) {
     const double d =
         std::hypot(r.receiver_position_m[0] - hostile::kGoodX_m,
                    r.receiver_position_m[1] - hostile::kGoodY_m, r.receiver_position_m[2] - 1.3);
-    EXPECT_NEAR(r.range_m, d, 1e-12);
+    constexpr double kSameHypotM = 1e-12;  // the same distance computed again: rounding only
+    EXPECT_NEAR(r.range_m, d, kSameHypotM);
   }
   const range_set_t bad = hostile::InconsistentRanges(400, 1, NowUtime(), 1);
   EXPECT_EQ(bad.num_ranges, 400);
