@@ -171,14 +171,26 @@ TEST(RoomfixCalibrate, FitsTheSyntheticCameraFlagsTheOutlierAndWritesYamlAndPng)
   EXPECT_EQ(calib::CheckFitResidual(cal), "");
 }
 
+// Runs `roomfix calibrate` on DIR/p.csv into DIR/cal.yaml with the demo
+// site and `extra` flags, and expects a refusal: exit code 1, `message` as
+// the start of the only line on standard error, no calibration written.
+void ExpectCalibrateRefuses(const TempDir& dir, const std::vector<std::string>& extra,
+                            const std::string& message) {
+  std::vector<std::string> args = {"calibrate",          "--points", dir.File("p.csv"), "--out",
+                                   dir.File("cal.yaml"), "--site",   DemoSitePath()};
+  args.insert(args.end(), extra.begin(), extra.end());
+  const RunResult r = Roomfix(args, /*stderr_only=*/true);
+  EXPECT_EQ(r.exit_code, 1) << message;
+  EXPECT_EQ(r.out.rfind(message, 0), 0u) << r.out;
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+  EXPECT_FALSE(std::filesystem::exists(dir.File("cal.yaml"))) << message;
+}
+
 // Issue #15: a fit that does not reproduce its points is refused, not
 // written; the tolerance is a flag (default 2 px, what camera_proc accepts).
 TEST(RoomfixCalibrate, RefusesAFitOverTheResidualToleranceWithOneLine) {
   TempDir dir;
   ASSERT_TRUE(WriteFile(dir.File("p.csv"), PointsCsv()));
-  const std::vector<std::string> base = {"calibrate",   "--points",           dir.File("p.csv"),
-                                         "--out",       dir.File("cal.yaml"), "--site",
-                                         DemoSitePath()};
   struct Case {
     std::vector<std::string> extra;
     std::string message;
@@ -189,15 +201,7 @@ TEST(RoomfixCalibrate, RefusesAFitOverTheResidualToleranceWithOneLine) {
       {{"--max-rms-px", "0"}, "roomfix calibrate: --max-rms-px: expected a positive number"},
       {{"--max-rms-px", "nan"}, "roomfix calibrate: --max-rms-px: expected a positive number"},
   };
-  for (const Case& c : cases) {
-    std::vector<std::string> args = base;
-    args.insert(args.end(), c.extra.begin(), c.extra.end());
-    const RunResult r = Roomfix(args, /*stderr_only=*/true);
-    EXPECT_EQ(r.exit_code, 1) << c.message;
-    EXPECT_EQ(r.out.rfind(c.message, 0), 0u) << r.out;
-    EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
-    EXPECT_FALSE(std::filesystem::exists(dir.File("cal.yaml"))) << c.message;
-  }
+  for (const Case& c : cases) ExpectCalibrateRefuses(dir, c.extra, c.message);
   const RunResult r =
       Roomfix({"calibrate", "--points", dir.File("p.csv"), "--out", dir.File("cal.yaml"), "--site",
                DemoSitePath(), "--max-rms-px", "0.1"},
@@ -214,9 +218,6 @@ TEST(RoomfixCalibrate, RefusesAFitOverTheResidualToleranceWithOneLine) {
 TEST(RoomfixCalibrate, RefusesAnOutOfRangeFlagWhileParsingWithOneLine) {
   TempDir dir;
   ASSERT_TRUE(WriteFile(dir.File("p.csv"), PointsCsv()));
-  const std::vector<std::string> base = {"calibrate",   "--points",           dir.File("p.csv"),
-                                         "--out",       dir.File("cal.yaml"), "--site",
-                                         DemoSitePath()};
   const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
       {{"--model", "pinhole"}, "roomfix calibrate: --model: pinhole not in {full,regions}"},
       {{"--square", "nan"}, "roomfix calibrate: --square: expected the square size in metres"},
@@ -228,15 +229,7 @@ TEST(RoomfixCalibrate, RefusesAnOutOfRangeFlagWhileParsingWithOneLine) {
       {{"--max-iterations", "0"},
        "roomfix calibrate: --max-iterations: Value 0 not in range 1 to 100000"},
   };
-  for (const auto& [extra, message] : cases) {
-    std::vector<std::string> args = base;
-    args.insert(args.end(), extra.begin(), extra.end());
-    const RunResult r = Roomfix(args, /*stderr_only=*/true);
-    EXPECT_EQ(r.exit_code, 1) << message;
-    EXPECT_EQ(r.out.rfind(message, 0), 0u) << r.out;
-    EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
-    EXPECT_FALSE(std::filesystem::exists(dir.File("cal.yaml"))) << message;
-  }
+  for (const auto& [extra, message] : cases) ExpectCalibrateRefuses(dir, extra, message);
 }
 
 // More outliers than a fit may leave out (20 % of the points): refused at
