@@ -22,6 +22,7 @@
 #include "core/vision/marker_detector.h"
 #include "roomfix/pose2d_t.hpp"
 #include "sim/synthetic_camera.h"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -37,8 +38,7 @@ class CalibratedPipelineTest : public ::testing::Test {
  protected:
   void SetUp() override {
     std::string error;
-    ASSERT_TRUE(LoadSite(testing::SourceDir() + "/config/sites/demo_room.yaml", &site_, &error))
-        << error;
+    ASSERT_TRUE(LoadSite(testing::DemoSitePath(), &site_, &error)) << error;
     camera_ = site_.cameras.front();
     webcam_camera_ = camera_;
     // The demo site's camera is a webcam; the `clean` tests render an ideal

@@ -17,6 +17,7 @@
 #include "roomfix/marker_pixels_t.hpp"
 #include "roomfix/pose2d_t.hpp"
 #include "sim/synthetic_camera.h"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -49,8 +50,7 @@ class CameraNodeTest : public ::testing::Test {
  protected:
   void SetUp() override {
     std::string error;
-    ASSERT_TRUE(LoadSite(testing::SourceDir() + "/config/sites/demo_room.yaml", &site_, &error))
-        << error;
+    ASSERT_TRUE(LoadSite(testing::DemoSitePath(), &site_, &error)) << error;
     camera_ = site_.cameras.front();
     // The demo site's camera is a webcam (rolling shutter, exposure,
     // latency, a rocking robot); these tests render the ideal `clean`

@@ -10,6 +10,7 @@
 
 #include "msgio/process.h"
 #include "roomfix/process_status_t.hpp"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -25,8 +26,7 @@ class CameraProcessTest : public ::testing::Test {
  protected:
   void SetUp() override {
     std::string error;
-    ASSERT_TRUE(LoadSite(testing::SourceDir() + "/config/sites/demo_room.yaml", &site_, &error))
-        << error;
+    ASSERT_TRUE(LoadSite(testing::DemoSitePath(), &site_, &error)) << error;
     ASSERT_FALSE(site_.cameras.empty());
   }
   Site site_;

@@ -11,6 +11,7 @@
 
 #include "core/calib/fisheye_camera.h"
 #include "core/world/site.h"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix::camera {
@@ -21,8 +22,7 @@ namespace {
 std::shared_ptr<const sim::SyntheticCamera> SmallWebcam(sim::SimScenario* scenario) {
   Site site;
   std::string error;
-  EXPECT_TRUE(LoadSite(testing::SourceDir() + "/config/sites/demo_room.yaml", &site, &error))
-      << error;
+  EXPECT_TRUE(LoadSite(testing::DemoSitePath(), &site, &error)) << error;
   Camera camera = site.cameras.at(0);
   camera.width_px = 320;
   camera.height_px = 180;

@@ -10,15 +10,15 @@
 #include "msgio/process.h"
 #include "msgio/wire_check.h"
 #include "msgio/wire_test_messages.h"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
 namespace {
 
+using testing::DemoSitePath;
 using testing::Encode;
 using testing::TempDir;
-
-std::string DemoSitePath() { return testing::SourceDir() + "/config/sites/demo_room.yaml"; }
 
 LoadedSite LoadDemo() {
   LoadedSite loaded;

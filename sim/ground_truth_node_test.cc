@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "roomfix/pose2d_t.hpp"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -12,8 +13,7 @@ class GroundTruthNodeTest : public ::testing::Test {
  protected:
   void SetUp() override {
     std::string error;
-    ASSERT_TRUE(LoadSite(testing::SourceDir() + "/config/sites/demo_room.yaml", &site_, &error))
-        << error;
+    ASSERT_TRUE(LoadSite(testing::DemoSitePath(), &site_, &error)) << error;
     bus_.Subscribe<pose2d_t>(kGroundTruthChannel, [this](const pose2d_t& p, const MessageInfo&) {
       poses_.push_back(p);
     });

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "sim/wall_devices.h"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -11,8 +12,7 @@ namespace {
 Site DemoRoom() {
   Site site;
   std::string error;
-  EXPECT_TRUE(LoadSite(testing::SourceDir() + "/config/sites/demo_room.yaml", &site, &error))
-      << error;
+  EXPECT_TRUE(LoadSite(testing::DemoSitePath(), &site, &error)) << error;
   return site;
 }
 
@@ -105,7 +105,9 @@ TEST(VirtualWallDevices, ReportsWhatTheDetectorsTimedAmongCollidingBeacons) {
     if (mode == FiringPlanOptions::Mode::kTdma) {
       EXPECT_EQ(corrupted, 0);
       // Four beacons share a frame of four slots.
-      EXPECT_NEAR(devices.air().rate_hz(), 1.0 / (4 * devices.air().decay().slot_s), 1e-9);
+      constexpr double kSameDivisionHz = 1e-9;  // the same quotient, rounding only
+      EXPECT_NEAR(devices.air().rate_hz(), 1.0 / (4 * devices.air().decay().slot_s),
+                  kSameDivisionHz);
     } else {
       EXPECT_GT(corrupted, reports / 10);
     }

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix::sim {
@@ -77,7 +78,7 @@ const Demo& DemoRoom() {
   static const Demo* demo = [] {
     auto* d = new Demo;
     std::string error;
-    const std::string path = testing::SourceDir() + "/config/sites/demo_room.yaml";
+    const std::string path = testing::DemoSitePath();
     if (!LoadSite(path, &d->site, &error)) {
       ADD_FAILURE() << error;
       return d;

@@ -14,12 +14,14 @@
 #include "msgio/wire_check.h"
 #include "roomfix/pose2d_t.hpp"
 #include "roomfix/range_set_t.hpp"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/raw_log_event.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
 namespace {
 
+using testing::DemoSitePath;
 using testing::ReadFile;
 using testing::SourceDir;
 using testing::TempDir;
@@ -34,7 +36,7 @@ std::string LivePath() { return SourceDir() + "/tests/data/pipeline_replay.lcm";
 Site DemoSite() {
   Site site;
   std::string error;
-  EXPECT_TRUE(LoadSite(SourceDir() + "/config/sites/demo_room.yaml", &site, &error)) << error;
+  EXPECT_TRUE(LoadSite(DemoSitePath(), &site, &error)) << error;
   return site;
 }
 
@@ -216,8 +218,7 @@ PipelineReplayOptions CameraOptions() {
   options.camera_options.device_timing = clean;
   LoadedSite loaded;
   std::string error;
-  EXPECT_TRUE(LoadSiteWithTexts(SourceDir() + "/config/sites/demo_room.yaml", &loaded, &error))
-      << error;
+  EXPECT_TRUE(LoadSiteWithTexts(DemoSitePath(), &loaded, &error)) << error;
   EXPECT_TRUE(ReplayCameraCalibrations(loaded, &options.camera_calibrations, &error)) << error;
   EXPECT_EQ(options.camera_calibrations.size(), 1u);
   return options;
@@ -470,8 +471,7 @@ TEST(PipelineReplay, ASparseLogStaysSmall) {
     }
   }
   LoadedSite loaded;
-  ASSERT_TRUE(LoadSiteWithTexts(SourceDir() + "/config/sites/demo_room.yaml", &loaded, &error))
-      << error;
+  ASSERT_TRUE(LoadSiteWithTexts(DemoSitePath(), &loaded, &error)) << error;
   PipelineReplayOptions options = LiveOptions();
   site_t msg{};
   ASSERT_TRUE(MakeReplaySiteMessage(loaded, &msg, &error)) << error;
@@ -524,9 +524,7 @@ TEST(ReplaySite, ComesFromTheLogWhenNoSiteFileIsGiven) {
   EXPECT_NE(from_log.used_line.find("site from " + LivePath()), std::string::npos);
   EXPECT_TRUE(from_log.warnings.empty());
   ReplaySite from_file;
-  ASSERT_TRUE(ResolveReplaySite(LivePath(), SourceDir() + "/config/sites/demo_room.yaml", "",
-                                &from_file, &error))
-      << error;
+  ASSERT_TRUE(ResolveReplaySite(LivePath(), DemoSitePath(), "", &from_file, &error)) << error;
   EXPECT_TRUE(from_file.warnings.empty());  // The same site as recorded.
   EXPECT_EQ(from_file.loaded.content_hash, from_log.loaded.content_hash);
 
@@ -557,11 +555,9 @@ TEST(ReplaySite, ALogWithoutASiteNeedsASiteFile) {
   EXPECT_NE(error.find("holds no SITE"), std::string::npos) << error;
   EXPECT_NE(error.find("--config"), std::string::npos) << error;
   EXPECT_NE(error.find("--site"), std::string::npos) << error;
-  EXPECT_TRUE(ResolveReplaySite(dir.File("no_site.lcm"),
-                                SourceDir() + "/config/sites/demo_room.yaml", "", &site, &error))
+  EXPECT_TRUE(ResolveReplaySite(dir.File("no_site.lcm"), DemoSitePath(), "", &site, &error))
       << error;
-  EXPECT_FALSE(ResolveReplaySite(LivePath(), SourceDir() + "/config/sites/demo_room.yaml",
-                                 SourceDir() + "/config/sites/demo_room.yaml", &site, &error));
+  EXPECT_FALSE(ResolveReplaySite(LivePath(), DemoSitePath(), DemoSitePath(), &site, &error));
   EXPECT_NE(error.find("not both"), std::string::npos) << error;
 }
 
@@ -570,7 +566,7 @@ TEST(ReplaySite, ALogWithoutASiteNeedsASiteFile) {
 // poses were solved with.
 TEST(ReplaySite, ANewSiteTravelsInTheNewLog) {
   TempDir dir;
-  std::string text = ReadFile(SourceDir() + "/config/sites/demo_room.yaml");
+  std::string text = ReadFile(DemoSitePath());
   const std::string old_receiver = "position_m: [0.0, 0.0, 2.5], range_offset_m: 0.0}";
   const size_t at = text.find(old_receiver);
   ASSERT_NE(at, std::string::npos);
@@ -663,14 +659,14 @@ TEST(ReplayCommand, ReplaysRefusesToOverwriteAndComparesOldWithNew) {
   EXPECT_TRUE(ReadFile(dir.File("c.lcm")) == ReadFile(dir.File("c2.lcm")));
   // A log without the camera's detections has nothing for its node.
   const std::string no_pixels = SourceDir() + "/tests/data/trilat_replay.lcm";
-  EXPECT_EQ(RunRoomfix({"replay", no_pixels, "--out", dir.File("d.lcm"), "--config",
-                        SourceDir() + "/config/sites/demo_room.yaml", "--nodes", "camera"},
+  EXPECT_EQ(RunRoomfix({"replay", no_pixels, "--out", dir.File("d.lcm"), "--config", DemoSitePath(),
+                        "--nodes", "camera"},
                        dir.File("refused.txt")),
             1);
   EXPECT_FALSE(std::ifstream(dir.File("d.lcm")).good()) << "a refused replay writes no log";
   // ... while its ranges replay (so the refusal is the camera's).
-  EXPECT_EQ(RunRoomfix({"replay", no_pixels, "--out", dir.File("e.lcm"), "--config",
-                        SourceDir() + "/config/sites/demo_room.yaml", "--nodes", "trilat"},
+  EXPECT_EQ(RunRoomfix({"replay", no_pixels, "--out", dir.File("e.lcm"), "--config", DemoSitePath(),
+                        "--nodes", "trilat"},
                        dir.File("trilat.txt")),
             0);
 

@@ -9,6 +9,7 @@
 
 #include "msgio/log.h"
 #include "roomfix/pose2d_t.hpp"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 #include "trilat_proc/trilat_node.h"
 
@@ -42,7 +43,7 @@ TEST(TrilatReplay, ReproducesTheRecordedPosesExactly) {
 
   Site site;
   std::string error;
-  ASSERT_TRUE(LoadSite(testing::SourceDir() + "/config/sites/demo_room.yaml", &site, &error));
+  ASSERT_TRUE(LoadSite(testing::DemoSitePath(), &site, &error));
   LoopbackBus bus;
   TrilatNodeOptions options;
   options.solver.method = trilat::Method::kRobust;

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "core/world/site.h"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix::viewer {
@@ -40,11 +41,20 @@ constexpr double kLineSearchPx = 2.0;
 // Trails and discs, compared by colour: 24 levels for the blending of a 2 px
 // anti-aliased line's core pixel (the trail test).
 constexpr int kLineCoreTolerance = 24;
+// The floor mapping is an affine map computed in doubles; its pixels (up to
+// ~1e3 px) and metres (up to ~1e3 m in the round trip) match the closed form
+// to round-off, ~1e-13, so these fail only on a wrong formula, not on noise.
+constexpr double kAffineRoundOffPx = 1e-9;
+constexpr double kRoundTripM = 1e-9;
+constexpr double kScaleRoundOffPxPerM = 1e-9;
+// Panning shifts the mapping's origin and leaves its scale (~196 px/m)
+// computed by the same operations: equal to within a few ulps.
+constexpr double kPanKeepsScalePxPerM = 1e-12;
 
 Site DemoSite() {
   Site site;
   std::string error;
-  const bool ok = LoadSite(testing::SourceDir() + "/config/sites/demo_room.yaml", &site, &error);
+  const bool ok = LoadSite(testing::DemoSitePath(), &site, &error);
   EXPECT_TRUE(ok) << error;
   return site;
 }
@@ -216,8 +226,8 @@ TEST(FloorMapping, RoundTripsBetweenMetresAndPixels) {
     double bx = 0;
     double by = 0;
     m.ToFloor(m.ToPixel(x, y), &bx, &by);
-    EXPECT_NEAR(bx, x, 1e-9);
-    EXPECT_NEAR(by, y, 1e-9);
+    EXPECT_NEAR(bx, x, kRoundTripM);
+    EXPECT_NEAR(by, y, kRoundTripM);
   }
 }
 
@@ -226,23 +236,23 @@ TEST(FloorMapping, FitsTheRoomAndItsMarginCentredKeepingAspectWithYUp) {
   RenderOptions o;               // 1280 x 800, panel 380: floor 900 x 800
   const FloorMapping m = MakeFloorMapping(site, o);
   // (4 + 0.6) m across 900 px limits: 900 / 4.6; (3 + 0.6) m would allow 800 / 3.6.
-  EXPECT_NEAR(m.scale_px_per_m, 900.0 / 4.6, 1e-9);
+  EXPECT_NEAR(m.scale_px_per_m, 900.0 / 4.6, kScaleRoundOffPxPerM);
   const cv::Point2d centre = m.ToPixel(2.0, 1.5);
-  EXPECT_NEAR(centre.x, 450.0, 1e-9);
-  EXPECT_NEAR(centre.y, 400.0, 1e-9);
+  EXPECT_NEAR(centre.x, 450.0, kAffineRoundOffPx);
+  EXPECT_NEAR(centre.y, 400.0, kAffineRoundOffPx);
   // The margin exactly reaches the floor's left and right edges.
-  EXPECT_NEAR(m.ToPixel(-0.3, 0).x, 0.0, 1e-9);
-  EXPECT_NEAR(m.ToPixel(4.3, 0).x, 900.0, 1e-9);
+  EXPECT_NEAR(m.ToPixel(-0.3, 0).x, 0.0, kAffineRoundOffPx);
+  EXPECT_NEAR(m.ToPixel(4.3, 0).x, 900.0, kAffineRoundOffPx);
   // One scale both ways (aspect kept), y up.
-  EXPECT_NEAR(m.ToPixel(0, 0).y - m.ToPixel(0, 1).y, m.scale_px_per_m, 1e-9);
+  EXPECT_NEAR(m.ToPixel(0, 0).y - m.ToPixel(0, 1).y, m.scale_px_per_m, kAffineRoundOffPx);
   EXPECT_LT(m.ToPixel(0, 3).y, m.ToPixel(0, 0).y);
   // A tall floor area: the height limits instead.
   o.width_px = 1000;
   o.panel_px = 0;
   o.height_px = 2000;
-  EXPECT_NEAR(MakeFloorMapping(site, o).scale_px_per_m, 1000.0 / 4.6, 1e-9);
+  EXPECT_NEAR(MakeFloorMapping(site, o).scale_px_per_m, 1000.0 / 4.6, kScaleRoundOffPxPerM);
   o.width_px = 3000;
-  EXPECT_NEAR(MakeFloorMapping(site, o).scale_px_per_m, 2000.0 / 3.6, 1e-9);
+  EXPECT_NEAR(MakeFloorMapping(site, o).scale_px_per_m, 2000.0 / 3.6, kScaleRoundOffPxPerM);
 }
 
 TEST(FloorMapping, PanMovesTheCentreAndZoomScalesAboutIt) {
@@ -253,14 +263,14 @@ TEST(FloorMapping, PanMovesTheCentreAndZoomScalesAboutIt) {
   o.pan_y_m = -0.5;
   const FloorMapping panned = MakeFloorMapping(site, o);
   // The room point (3, 1) is now in the middle of the floor area.
-  EXPECT_NEAR(panned.ToPixel(3.0, 1.0).x, 450.0, 1e-9);
-  EXPECT_NEAR(panned.ToPixel(3.0, 1.0).y, 400.0, 1e-9);
-  EXPECT_NEAR(panned.scale_px_per_m, base.scale_px_per_m, 1e-12);
+  EXPECT_NEAR(panned.ToPixel(3.0, 1.0).x, 450.0, kAffineRoundOffPx);
+  EXPECT_NEAR(panned.ToPixel(3.0, 1.0).y, 400.0, kAffineRoundOffPx);
+  EXPECT_NEAR(panned.scale_px_per_m, base.scale_px_per_m, kPanKeepsScalePxPerM);
   o.zoom = 2.0;
   const FloorMapping zoomed = MakeFloorMapping(site, o);
-  EXPECT_NEAR(zoomed.scale_px_per_m, 2 * base.scale_px_per_m, 1e-9);
-  EXPECT_NEAR(zoomed.ToPixel(3.0, 1.0).x, 450.0, 1e-9);
-  EXPECT_NEAR(zoomed.ToPixel(3.5, 1.0).x - 450.0, 0.5 * 2 * base.scale_px_per_m, 1e-9);
+  EXPECT_NEAR(zoomed.scale_px_per_m, 2 * base.scale_px_per_m, kScaleRoundOffPxPerM);
+  EXPECT_NEAR(zoomed.ToPixel(3.0, 1.0).x, 450.0, kAffineRoundOffPx);
+  EXPECT_NEAR(zoomed.ToPixel(3.5, 1.0).x - 450.0, 0.5 * 2 * base.scale_px_per_m, kAffineRoundOffPx);
 }
 
 TEST(FloorMapping, IsFiniteForARoomOrOptionsThatMakeNoSense) {
@@ -504,8 +514,8 @@ TEST(Render, ZoomAndPanMoveTheDrawing) {
   EXPECT_LE(Distance(At(image, {450, 400}), SourceColour(Source::kFused)), kExact);
   // Receiver 3 at (4, 3) is 1 m right and 1 m up of the centre.
   const cv::Point2d r3 = m.ToPixel(4.0, 3.0);
-  EXPECT_NEAR(r3.x, 450 + 1.0 * m.scale_px_per_m, 1e-9);
-  EXPECT_NEAR(r3.y, 400 - 1.0 * m.scale_px_per_m, 1e-9);
+  EXPECT_NEAR(r3.x, 450 + 1.0 * m.scale_px_per_m, kAffineRoundOffPx);
+  EXPECT_NEAR(r3.y, 400 - 1.0 * m.scale_px_per_m, kAffineRoundOffPx);
   EXPECT_LE(Distance(At(image, r3), ReceiverColour()), kExact);
   // Where the robot was at zoom 1 it is not.
   const FloorMapping before = MakeFloorMapping(state.site, RenderOptions{});

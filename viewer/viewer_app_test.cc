@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "msgio/log.h"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix::viewer {
@@ -89,9 +90,7 @@ TEST(ReplayIntoView, WritesAFrameAtEveryPacedInstantAndTheLastPicture) {
   const std::string log = roomfix::testing::SourceDir() + "/tests/data/pipeline_replay.lcm";
   Site site;
   std::string error;
-  ASSERT_TRUE(
-      LoadSite(roomfix::testing::SourceDir() + "/config/sites/demo_room.yaml", &site, &error))
-      << error;
+  ASSERT_TRUE(LoadSite(roomfix::testing::DemoSitePath(), &site, &error)) << error;
   roomfix::testing::TempDir dir;
   ViewerAppOptions options;
   options.headless = true;

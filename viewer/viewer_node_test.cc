@@ -14,6 +14,7 @@
 #include "roomfix/pose2d_t.hpp"
 #include "roomfix/process_status_t.hpp"
 #include "roomfix/range_set_t.hpp"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 #include "viewer/render.h"
 
@@ -25,8 +26,7 @@ constexpr int64_t kT0 = 1'700'000'000'000'000;
 Site DemoSite() {
   Site site;
   std::string error;
-  EXPECT_TRUE(LoadSite(testing::SourceDir() + "/config/sites/demo_room.yaml", &site, &error))
-      << error;
+  EXPECT_TRUE(LoadSite(testing::DemoSitePath(), &site, &error)) << error;
   return site;
 }
 
@@ -53,7 +53,9 @@ TEST(ViewerNode, KeepsEachSourcesTrackWithItsRateLatencyAndTrail) {
   const viewer::TrackView& t = s.tracks[0];
   EXPECT_EQ(t.source, viewer::Source::kUltrasound);
   EXPECT_DOUBLE_EQ(t.x_m, 1.29);
-  EXPECT_NEAR(t.rate_hz, 10.0, 1e-6);
+  // 30 poses exactly 100 ms apart: 10 Hz but for the division's rounding.
+  constexpr double kExactRateHz = 1e-6;
+  EXPECT_NEAR(t.rate_hz, 10.0, kExactRateHz);
   EXPECT_DOUBLE_EQ(t.latency_ms, 12.0);
   // 1 s of trail at 10 Hz: the newest and the 10 before it.
   EXPECT_EQ(t.trail.size(), 11u);
@@ -395,15 +397,19 @@ TEST(ViewerNode, DrawsEachCamerasFootprintAndWhichCameraSeesARobot) {
   // walked clockwise from the top-left corner, 32 points a side: index 32 is
   // the top-right corner, 48 the right edge's middle, 112 the left edge's.
   // 2 cm: the fitted lens is not exactly the nominal one.
+  constexpr double kFittedLensFootprintM = 0.02;
+  // config/calibration/two_cameras_cam1.yaml's fitted lens x, 6.00006 m, the
+  // site's 6.0 m mount to within a millimetre.
+  constexpr double kFittedMountM = 0.001;
   ASSERT_EQ(empty.footprints[0].floor_m.size(), 128u);
   ASSERT_EQ(empty.footprints[1].floor_m.size(), 128u);
   EXPECT_TRUE(empty.footprints[0].calibrated);
   EXPECT_TRUE(empty.footprints[1].calibrated);
-  EXPECT_NEAR(empty.footprints[0].floor_m[48][0], 4.52, 0.02);
-  EXPECT_NEAR(empty.footprints[0].floor_m[48][1], 1.5, 0.02);
-  EXPECT_NEAR(empty.footprints[1].floor_m[112][0], 3.48, 0.02);
-  EXPECT_NEAR(empty.footprints[0].floor_m[32][0], 4.89, 0.02);
-  EXPECT_NEAR(empty.footprints[1].lens_m[0], 6.0, 0.001);
+  EXPECT_NEAR(empty.footprints[0].floor_m[48][0], 4.52, kFittedLensFootprintM);
+  EXPECT_NEAR(empty.footprints[0].floor_m[48][1], 1.5, kFittedLensFootprintM);
+  EXPECT_NEAR(empty.footprints[1].floor_m[112][0], 3.48, kFittedLensFootprintM);
+  EXPECT_NEAR(empty.footprints[0].floor_m[32][0], 4.89, kFittedLensFootprintM);
+  EXPECT_NEAR(empty.footprints[1].lens_m[0], 6.0, kFittedMountM);
 
   // Robot 1 in the overlap, seen by both cameras; an id the site does not
   // list is not remembered.

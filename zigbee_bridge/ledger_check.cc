@@ -8,7 +8,7 @@
 #include <set>
 
 #include "roomfix/range_set_t.hpp"
-#include "tests/testing/test_paths.h"
+#include "tests/testing/demo_site.h"
 
 namespace roomfix {
 namespace {
@@ -22,8 +22,7 @@ void Fail(LedgerCheck* check, const std::string& text) {
 Site LoadDemoSite() {
   Site site;
   std::string error;
-  EXPECT_TRUE(LoadSite(testing::SourceDir() + "/config/sites/demo_room.yaml", &site, &error))
-      << error;
+  EXPECT_TRUE(LoadSite(testing::DemoSitePath(), &site, &error)) << error;
   return site;
 }
 

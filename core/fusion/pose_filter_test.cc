@@ -39,6 +39,10 @@ constexpr double kCameraLevelFactor = 1.5;
 // A radio outage "changes nothing noticeable": the RMSE grows by less than
 // this fraction.
 constexpr double kUnnoticeable = 0.10;
+// A track the ultrasound holds with exact fixes, after a camera position
+// metres away was gated: had the gate let it in, the estimate would have
+// moved by metres; held, it stays within 1 cm of the fixes.
+constexpr double kHeldTrackM = 0.01;
 
 std::unique_ptr<Trajectory> ReferenceCircle() {
   std::string error;
@@ -297,7 +301,10 @@ TEST(PoseFilter, HandlesACameraPoseWithUnknownHeading) {
   m.heading_var_rad2 = 1e-3;
   ASSERT_EQ(filter.Add(m, UtimeAt(0.1)), Outcome::kAccepted);
   EXPECT_TRUE(filter.Latest().heading_known);
-  EXPECT_NEAR(filter.Latest().state[kHeading], 0.5, 0.01);
+  // The first known heading initialises the state: half a degree of the
+  // measured 0.5 rad, where an unknown heading would still read 0.
+  constexpr double kFirstHeadingTolRad = 0.01;
+  EXPECT_NEAR(filter.Latest().state[kHeading], 0.5, kFirstHeadingTolRad);
 }
 
 TEST(PoseFilter, IsLostAfterASilenceAndReinitialisesOnTheNextMeasurement) {
@@ -340,7 +347,11 @@ TEST(PoseFilter, TheCameraTakesOverATrackTheUltrasoundStarted) {
               Outcome::kAccepted)
         << "frame " << k;
   }
-  EXPECT_NEAR(e.state[kVx], kSpeed_mps, 0.01);
+  // 20 exact frames of a constant velocity: the filter learns it up to the lag
+  // its process noise leaves, within 1 cm/s (3 % of the speed; the
+  // ultrasound's start had 0).
+  constexpr double kLearnedSpeedTolMps = 0.01;
+  EXPECT_NEAR(e.state[kVx], kSpeed_mps, kLearnedSpeedTolMps);
 }
 
 // At 10 fps five rejected frames are half a second (more with dropped
@@ -382,7 +393,7 @@ TEST(PoseFilter, RejectionsSeparatedByAcceptedMeasurementsDoNotReopenTheGate) {
     ASSERT_TRUE(Entered(filter.Add(UltrasoundAt(t, 1.0, 1.0), UtimeAt(t))));
   }
   EXPECT_EQ(filter.Add(CameraAt(7.2, 3.0, 1.0), UtimeAt(7.2)), Outcome::kGated);
-  EXPECT_NEAR(filter.Latest().state[kX], 1.0, 0.01);
+  EXPECT_NEAR(filter.Latest().state[kX], 1.0, kHeldTrackM);
 }
 
 TEST(PoseFilterOptions, RefusesTimesBeyondADay) {
@@ -401,7 +412,7 @@ TEST(PoseFilter, TheCameraDoesNotTakeOverFromOutsideTheGate) {
     ASSERT_TRUE(Entered(filter.Add(UltrasoundAt(0.1 * k, 1.0, 1.0), UtimeAt(0.1 * k))));
   }
   EXPECT_EQ(filter.Add(CameraAt(0.45, 5.0, 1.0), UtimeAt(0.45)), Outcome::kGated);
-  EXPECT_NEAR(filter.Latest().state[kX], 1.0, 0.01);
+  EXPECT_NEAR(filter.Latest().state[kX], 1.0, kHeldTrackM);
 }
 
 TEST(PoseFilter, FollowsARobotCarriedAwayOnceTheGateReopens) {
@@ -470,7 +481,10 @@ TEST(PoseFilter, PrefersTheCameraWhenTheUltrasoundDisagrees) {
       EXPECT_EQ(filter.Add(UltrasoundAt(t + 0.01, 1.3, 1.0), UtimeAt(t + 0.01)), Outcome::kGated);
     }
   }
-  EXPECT_NEAR(filter.Latest().state[kX], 1.0, 0.001);
+  // The camera's own 1 mm sigma (CameraAt): the gated ultrasound's 30 cm
+  // would show far beyond it.
+  constexpr double kCameraSigmaM = 0.001;
+  EXPECT_NEAR(filter.Latest().state[kX], 1.0, kCameraSigmaM);
 }
 
 TEST(PoseFilterCameraBias, LeavesAnUltrasoundOnlyTrackAsItWas) {
@@ -498,7 +512,10 @@ TEST(PoseFilterCameraBias, LeavesAnUltrasoundOnlyTrackAsItWas) {
                   .cwiseAbs()
                   .maxCoeff(),
               kSameResult);
-    EXPECT_NEAR(b.estimates[i].covariance(kBiasX, kBiasX), 0.002 * 0.002, 1e-15);
+    // Never touched by an ultrasound fix: the initial 4e-6 m^2 up to rounding
+    // (its ulp is ~1e-21).
+    constexpr double kUntouchedVarianceM2 = 1e-15;
+    EXPECT_NEAR(b.estimates[i].covariance(kBiasX, kBiasX), 0.002 * 0.002, kUntouchedVarianceM2);
   }
 }
 
@@ -550,7 +567,8 @@ TEST(PoseFilterOptions, RefusesNonPositiveNoiseAndGates) {
 TEST(WrapAngle, MapsOntoTheHalfOpenInterval) {
   EXPECT_DOUBLE_EQ(WrapAngle(-M_PI), M_PI);
   EXPECT_DOUBLE_EQ(WrapAngle(M_PI), M_PI);
-  EXPECT_NEAR(WrapAngle(3.0 * M_PI / 2.0), -M_PI / 2.0, 1e-12);
+  constexpr double kRoundOffRad = 1e-12;  // 3 pi / 2 - 2 pi in doubles: a few ulps of pi
+  EXPECT_NEAR(WrapAngle(3.0 * M_PI / 2.0), -M_PI / 2.0, kRoundOffRad);
 }
 
 }  // namespace

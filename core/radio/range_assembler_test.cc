@@ -7,6 +7,7 @@
 #include <random>
 
 #include "core/world/ultrasound_model.h"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix::radio {
@@ -21,8 +22,7 @@ class RangeAssemblerTest : public ::testing::Test {
  protected:
   void SetUp() override {
     std::string error;
-    ASSERT_TRUE(LoadSite(testing::SourceDir() + "/config/sites/demo_room.yaml", &site_, &error))
-        << error;
+    ASSERT_TRUE(LoadSite(testing::DemoSitePath(), &site_, &error)) << error;
   }
 
   // The beacon at (2.0, 1.5) at its height: every receiver is 2.5 m away in
@@ -153,7 +153,9 @@ TEST_F(RangeAssemblerTest, NeverMixesFiringsDeliveredInAShuffledBurst) {
     for (const AssembledRange& r : set.ranges) {
       const uint32_t expected =
           static_cast<uint32_t>(8'000'000 + set.firing_seq * 1000 + (r.receiver_id - 1));
-      EXPECT_NEAR(r.time_of_flight_us, expected * 1e-3, 1e-9)
+      // Whole nanoseconds to microseconds: exact but for the division.
+      constexpr double kNsToUsRoundOffUs = 1e-9;
+      EXPECT_NEAR(r.time_of_flight_us, expected * 1e-3, kNsToUsRoundOffUs)
           << "firing " << set.firing_seq << " receiver " << r.receiver_id;
     }
   }

@@ -88,6 +88,18 @@ std::string Events(const Bytes& stream, ApiMode mode, size_t max_frame = 300) {
 constexpr ApiMode kMode1 = ApiMode::kUnescaped;
 constexpr ApiMode kMode2 = ApiMode::kEscaped;
 
+// Decodes `stream` in API mode 1, expects exactly one frame reported as
+// `events`, and parses that frame as a receive packet into *packet. Call it
+// through ASSERT_NO_FATAL_FAILURE: a stream that is not one well-formed
+// receive packet stops the test before its fields are read.
+void DecodeOneReceivePacket(const Bytes& stream, const std::string& events, ReceivePacket* packet) {
+  const Decoded decoded = Decode(stream, kMode1);
+  EXPECT_EQ(decoded.events, events);
+  ASSERT_EQ(decoded.frames.size(), 1u);
+  ASSERT_EQ(ParseReceivePacket(decoded.frames[0].data(), decoded.frames[0].size(), packet),
+            PacketParse::kOk);
+}
+
 // --- Digi's published examples ---------------------------------------------
 // "RxData" = 52 78 44 61 74 61 sums to 0x244, "TxData" = 54 78 44 61 74 61 to
 // 0x246; the checksum is 0xFF minus the low byte of the frame data's sum.
@@ -101,13 +113,9 @@ const Bytes kDigiZigbeeRx =
     Hex("7E 00 12 90 00 13 A2 00 40 52 2B AA 7D 84 01 52 78 44 61 74 61 0D");
 
 TEST(DigiExamples, ZigbeeReceivePacketDecodesInApiMode1WithEscapeByteAsData) {
-  const Decoded decoded = Decode(kDigiZigbeeRx, kMode1);
-  EXPECT_EQ(decoded.events, "frame@0:900013A20040522BAA7D8401527844617461");
-  ASSERT_EQ(decoded.frames.size(), 1u);
-
   ReceivePacket packet;
-  ASSERT_EQ(ParseReceivePacket(decoded.frames[0].data(), decoded.frames[0].size(), &packet),
-            PacketParse::kOk);
+  ASSERT_NO_FATAL_FAILURE(DecodeOneReceivePacket(
+      kDigiZigbeeRx, "frame@0:900013A20040522BAA7D8401527844617461", &packet));
   EXPECT_EQ(packet.frame_type, kZigbeeRxFrameType);
   EXPECT_TRUE(packet.has_address64);
   EXPECT_EQ(packet.address64, 0x0013A20040522BAAu);
@@ -143,12 +151,9 @@ TEST(DigiExamples, OlderZigbeeGuidesMisprintedLengthIsABadChecksum) {
 const Bytes kDigiRx64 = Hex("7E 00 11 80 00 13 A2 00 12 34 56 78 5E 01 54 78 44 61 74 61 11");
 
 TEST(DigiExamples, Rx64PacketDecodesInApiMode1) {
-  const Decoded decoded = Decode(kDigiRx64, kMode1);
-  EXPECT_EQ(decoded.events, "frame@0:800013A200123456785E01547844617461");
-  ASSERT_EQ(decoded.frames.size(), 1u);
   ReceivePacket packet;
-  ASSERT_EQ(ParseReceivePacket(decoded.frames[0].data(), decoded.frames[0].size(), &packet),
-            PacketParse::kOk);
+  ASSERT_NO_FATAL_FAILURE(
+      DecodeOneReceivePacket(kDigiRx64, "frame@0:800013A200123456785E01547844617461", &packet));
   EXPECT_EQ(packet.frame_type, kRx64FrameType);
   EXPECT_TRUE(packet.has_address64);
   EXPECT_EQ(packet.address64, 0x0013A20012345678u);
@@ -173,12 +178,10 @@ TEST(DigiExamples, Rx64PacketInApiMode2EscapesAddressAndChecksum) {
 // Address frame - 0x81", example: source 0x1234, RSSI 0x5E, options 0x01,
 // data "TxData". 81+12+34+5E+01 = 0x126, + 0x246 = 0x36C, 0xFF - 0x6C = 0x93.
 TEST(DigiExamples, Rx16PacketDecodesInApiMode1) {
-  const Decoded decoded = Decode(Hex("7E 00 0B 81 12 34 5E 01 54 78 44 61 74 61 93"), kMode1);
-  EXPECT_EQ(decoded.events, "frame@0:8112345E01547844617461");
-  ASSERT_EQ(decoded.frames.size(), 1u);
   ReceivePacket packet;
-  ASSERT_EQ(ParseReceivePacket(decoded.frames[0].data(), decoded.frames[0].size(), &packet),
-            PacketParse::kOk);
+  ASSERT_NO_FATAL_FAILURE(
+      DecodeOneReceivePacket(Hex("7E 00 0B 81 12 34 5E 01 54 78 44 61 74 61 93"),
+                             "frame@0:8112345E01547844617461", &packet));
   EXPECT_EQ(packet.frame_type, kRx16FrameType);
   EXPECT_FALSE(packet.has_address64);
   EXPECT_TRUE(packet.has_address16);

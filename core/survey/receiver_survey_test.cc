@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "core/world/site.h"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix::survey {
@@ -30,8 +31,7 @@ constexpr int64_t kT0_us = 1'700'000'000'000'000;
 Site DemoRoom() {
   Site site;
   std::string error;
-  EXPECT_TRUE(LoadSite(testing::SourceDir() + "/config/sites/demo_room.yaml", &site, &error))
-      << error;
+  EXPECT_TRUE(LoadSite(testing::DemoSitePath(), &site, &error)) << error;
   return site;
 }
 
@@ -184,8 +184,10 @@ TEST(AlignToReference, InterpolatesLinearlyAndSkipsGapsAndTimesOutsideTheTrack) 
   EXPECT_EQ(s.aligned, 2);
   EXPECT_EQ(s.in_gap, 1);
   EXPECT_EQ(s.outside_span, 1);
-  EXPECT_NEAR(firings[0].reference_m.x(), 0.25, 1e-12);
-  EXPECT_NEAR(firings[0].reference_m.y(), 0.5, 1e-12);
+  // Linear interpolation a quarter of the way: exact but for rounding.
+  constexpr double kInterpolationRoundOffM = 1e-12;
+  EXPECT_NEAR(firings[0].reference_m.x(), 0.25, kInterpolationRoundOffM);
+  EXPECT_NEAR(firings[0].reference_m.y(), 0.5, kInterpolationRoundOffM);
   EXPECT_DOUBLE_EQ(firings[0].reference_m.z(), 1.3);
   EXPECT_FALSE(firings[1].has_reference());
   EXPECT_FALSE(firings[2].has_reference());
@@ -202,7 +204,11 @@ TEST(SurveyWithReference, RecoversDisplacedReceiversAndOffsetsToTheIssuesTarget)
   ExpectRecovered(truth, r, kPositionTolerance_m, kOffsetTolerance_m, "reference");
   // Noise only: the robust step keeps nearly everything.
   EXPECT_LT(r.ranges_rejected, r.ranges_used / 100);
-  EXPECT_NEAR(r.residual_rms_m, 0.01, 0.001);
+  // The drive's 1 cm range noise comes back as the residual RMS; 1 mm (10 %)
+  // leaves room for what the fitted parameters absorb and the robust weights,
+  // and fails a fit left with a systematic error of that size.
+  constexpr double kResidualIsTheNoiseM = 0.001;
+  EXPECT_NEAR(r.residual_rms_m, 0.01, kResidualIsTheNoiseM);
   EXPECT_FALSE(r.scale_estimated);
   EXPECT_EQ(r.null_directions, 0);
 }
@@ -281,7 +287,10 @@ TEST(SurveyWithReference, HeldOutTrilaterationErrorDropsAfterTheSurvey) {
   AlignToReference(d.reference, 200'000, &d.firings);
   std::vector<Firing> fit, held_out;
   SplitByTime(d.firings, 10.0, 3, &fit, &held_out);
-  EXPECT_NEAR(static_cast<double>(held_out.size()) / d.firings.size(), 1.0 / 3, 0.05);
+  // Every third 10 s block: a third of the firings, give or take the last,
+  // partial block and the firing rate's variation between blocks.
+  constexpr double kHeldOutShareTol = 0.05;
+  EXPECT_NEAR(static_cast<double>(held_out.size()) / d.firings.size(), 1.0 / 3, kHeldOutShareTol);
   const SurveyResult r = SurveyWithReference(nominal, fit, SurveyOptions());
   ASSERT_TRUE(r.usable);
   const TrilaterationError before = EvaluateTrilateration(nominal, held_out);

@@ -11,6 +11,7 @@
 #include "core/trilat/trilateration.h"
 #include "core/world/site.h"
 #include "core/world/ultrasound_model.h"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix::trilat {
@@ -174,8 +175,7 @@ TEST(BeaconPrior, UncheckedFixesNeitherStartNorResetIt) {
 TEST(DemoStream, RawUltrasoundFixesMeetTheTargets) {
   Site site;
   std::string error;
-  ASSERT_TRUE(LoadSite(testing::SourceDir() + "/config/sites/demo_room.yaml", &site, &error))
-      << error;
+  ASSERT_TRUE(LoadSite(testing::DemoSitePath(), &site, &error)) << error;
   ASSERT_FALSE(site.simulation.robots.empty());
   const Trajectory& trajectory = *site.simulation.robots[0].trajectory;
   const double height_m = site.beacons[0].height_m;

@@ -30,6 +30,10 @@ constexpr double kRadiusPx = 15.0;
 constexpr double kHeadingOffsetPx = 40.0;
 // Centroid agreement: the tracker copies blobs, so exact up to rounding.
 constexpr double kTolPx = 1e-9;
+// A search window is a cv::Rect of whole pixels centred on a predicted
+// position: its centre (x + (width - 1) / 2) rounds the prediction by up to
+// a pixel.
+constexpr double kWholePixelRectPx = 1.0;
 // Angles from atan2 of exact offsets.
 constexpr double kTolRad = 1e-12;
 
@@ -186,8 +190,8 @@ TEST(RobotTracker, ConstantVelocityMarkerStaysTrackedWithWindowsCentredOnThePred
       // Two consecutive finds give the velocity: the window's centre is the
       // predicted (here: true) position, to the pixel rounding of the rect.
       const cv::Rect& w = f.plans[0].window;
-      EXPECT_NEAR(w.x + (w.width - 1) / 2.0, u, 1.0) << "frame " << k;
-      EXPECT_NEAR(w.y + (w.height - 1) / 2.0, v, 1.0) << "frame " << k;
+      EXPECT_NEAR(w.x + (w.width - 1) / 2.0, u, kWholePixelRectPx) << "frame " << k;
+      EXPECT_NEAR(w.y + (w.height - 1) / 2.0, v, kWholePixelRectPx) << "frame " << k;
     }
   }
 }
@@ -219,8 +223,8 @@ TEST(RobotTracker, MarkerJumpingOutOfTheWindowIsMissedThenReacquiredFromTheFullF
   const auto plans = tracker.Plan(t + kFramePeriodUs);
   ASSERT_FALSE(plans[0].full_frame);
   const cv::Rect& w = plans[0].window;
-  EXPECT_NEAR(w.x + (w.width - 1) / 2.0, kJumpU, 1.0);
-  EXPECT_NEAR(w.y + (w.height - 1) / 2.0, kJumpV, 1.0);
+  EXPECT_NEAR(w.x + (w.width - 1) / 2.0, kJumpU, kWholePixelRectPx);
+  EXPECT_NEAR(w.y + (w.height - 1) / 2.0, kJumpV, kWholePixelRectPx);
 }
 
 TEST(RobotTracker, SameClassDistractorOutsideTheWindowIsIgnoredWhileTracking) {

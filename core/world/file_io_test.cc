@@ -14,12 +14,13 @@
 #include "core/calib/calibration_file.h"
 #include "core/world/site.h"
 #include "core/world/yaml_reader.h"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
 namespace {
 
-using testing::SourceDir;
+using testing::DemoSitePath;
 using testing::TempDir;
 
 TEST(ReadConfigFile, ReadsARegularFileWhole) {
@@ -97,9 +98,7 @@ TEST(LoadCalibration, RefusesDevZeroAndAFolder) {
 }
 
 // The demo site with one line appended or changed, in a temporary file.
-std::string DemoSiteText() {
-  return testing::ReadFile(SourceDir() + "/config/sites/demo_room.yaml");
-}
+std::string DemoSiteText() { return testing::ReadFile(DemoSitePath()); }
 
 int LineOf(const std::string& text, const std::string& what) {
   const size_t at = text.find(what);

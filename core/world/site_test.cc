@@ -9,12 +9,14 @@
 #include <set>
 #include <sstream>
 
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
 namespace {
 
 namespace fs = std::filesystem;
+using testing::DemoSitePath;
 using testing::SourceDir;
 
 std::vector<std::string> YamlFilesIn(const std::string& dir) {
@@ -40,7 +42,7 @@ TEST(Site, LoadsEveryShippedSiteFile) {
 TEST(Site, DemoRoomMatchesTheReferenceSetup) {
   Site site;
   std::string error;
-  ASSERT_TRUE(LoadSite(SourceDir() + "/config/sites/demo_room.yaml", &site, &error)) << error;
+  ASSERT_TRUE(LoadSite(DemoSitePath(), &site, &error)) << error;
   EXPECT_DOUBLE_EQ(site.room.size_x_m, 4.0);
   EXPECT_DOUBLE_EQ(site.room.size_y_m, 3.0);
   EXPECT_DOUBLE_EQ(site.room.grid_m, 0.5);
@@ -76,7 +78,7 @@ TEST(Site, DemoRoomMatchesTheReferenceSetup) {
 TEST(Site, FindsReceiversAndBeaconsByIdAndAddress) {
   Site site;
   std::string error;
-  ASSERT_TRUE(LoadSite(SourceDir() + "/config/sites/demo_room.yaml", &site, &error)) << error;
+  ASSERT_TRUE(LoadSite(DemoSitePath(), &site, &error)) << error;
   const Receiver* r3 = site.FindReceiver(3);
   ASSERT_NE(r3, nullptr);
   EXPECT_EQ(site.FindReceiverByAddress(r3->address), r3);
@@ -117,7 +119,7 @@ TEST(Site, EightRobotSiteSizesMarkersByRoleAndGivesEveryRobotItsOwnPair) {
 TEST(Site, WithoutAMarkerCodeEachClassGivesItsOwnDiameter) {
   Site site;
   std::string error;
-  ASSERT_TRUE(LoadSite(SourceDir() + "/config/sites/demo_room.yaml", &site, &error)) << error;
+  ASSERT_TRUE(LoadSite(DemoSitePath(), &site, &error)) << error;
   const Camera& cam = site.cameras.front();
   EXPECT_FALSE(cam.marker_code.enabled());
   EXPECT_EQ(PositionMarkerDiameterM(cam, cam.robots[0]), 0.10);
@@ -392,7 +394,7 @@ TEST(Site, AcceptsAWrappingRedBesideOrange) {
 TEST(Site, DemoRoomColourClassesDoNotOverlap) {
   Site site;
   std::string error;
-  ASSERT_TRUE(LoadSite(SourceDir() + "/config/sites/demo_room.yaml", &site, &error)) << error;
+  ASSERT_TRUE(LoadSite(DemoSitePath(), &site, &error)) << error;
   const auto& classes = site.cameras.at(0).marker_classes;
   ASSERT_EQ(classes.size(), 2u);
   EXPECT_FALSE(HsvRangesOverlap(classes[0], classes[1]));

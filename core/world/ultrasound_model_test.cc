@@ -4,6 +4,7 @@
 
 #include <cmath>
 
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -22,7 +23,7 @@ class UltrasoundModelTest : public ::testing::Test {
  protected:
   void SetUp() override {
     std::string error;
-    ASSERT_TRUE(LoadSite(testing::SourceDir() + "/config/sites/demo_room.yaml", &site_, &error));
+    ASSERT_TRUE(LoadSite(testing::DemoSitePath(), &site_, &error));
   }
   Site site_;
 };

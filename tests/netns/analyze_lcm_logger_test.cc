@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -15,16 +16,15 @@ namespace {
 
 using testing::BinDir;
 using testing::ChildProcess;
-using testing::SourceDir;
+using testing::DemoSitePath;
 
 TEST(RoomfixAnalyze, ReadsALogRecordedByLcmLogger) {
   testing::TempDir dir;
   ChildProcess logger({"lcm-logger", "-q", "-f", dir.File("sim.lcm")});
   ASSERT_TRUE(logger.started());
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
-  ChildProcess sim({BinDir() + "/roomfix_sim", "--config",
-                    SourceDir() + "/config/sites/demo_room.yaml", "--duration", "4", "--rate-hz",
-                    "30", "--log-level", "warn"});
+  ChildProcess sim({BinDir() + "/roomfix_sim", "--config", DemoSitePath(), "--duration", "4",
+                    "--rate-hz", "30", "--log-level", "warn"});
   ASSERT_EQ(sim.Wait(20), 0);
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   logger.Signal(SIGINT);
@@ -37,12 +37,18 @@ TEST(RoomfixAnalyze, ReadsALogRecordedByLcmLogger) {
   const auto out = nlohmann::json::parse(testing::ReadFile(dir.File("out.json")));
   const auto& truth = out["robots"]["1"]["ground_truth"];
   EXPECT_GE(truth["fixes"].get<int>(), 100);
-  EXPECT_NEAR(truth["timing"]["rate_hz"].get<double>(), 30.0, 0.5);
+  // A 4 s real-time run on a shared machine: when the first and last
+  // samples are sent moves the measured rate by a fraction of a hertz; 0.5 Hz
+  // still tells 30 Hz from 25 or 60.
+  constexpr double kLiveRateTolHz = 0.5;
+  EXPECT_NEAR(truth["timing"]["rate_hz"].get<double>(), 30.0, kLiveRateTolHz);
   // The simulator's samples lie exactly on the circle: the fit is exact to
-  // rounding.
+  // rounding (and the whole-microsecond stamps: 0.2 um at 0.18 m/s).
+  constexpr double kExactFitM = 1e-6;
+  constexpr double kExactFitRadps = 1e-6;
   const auto& fit = truth["circle"]["circular_motion"];
-  EXPECT_NEAR(fit["radius_m"].get<double>(), 0.419, 1e-6);
-  EXPECT_NEAR(fit["angular_speed_radps"].get<double>(), -0.439, 1e-6);
+  EXPECT_NEAR(fit["radius_m"].get<double>(), 0.419, kExactFitM);
+  EXPECT_NEAR(fit["angular_speed_radps"].get<double>(), -0.439, kExactFitRadps);
   EXPECT_FALSE(out["logs"][0]["damaged"].get<bool>());
 }
 

@@ -14,6 +14,7 @@
 #include "roomfix/pose2d_t.hpp"
 #include "roomfix/process_status_t.hpp"
 #include "roomfix/range_set_t.hpp"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -21,15 +22,13 @@ namespace {
 
 using testing::BinDir;
 using testing::ChildProcess;
-using testing::SourceDir;
+using testing::DemoSitePath;
 using testing::WaitForPath;
-
-std::string DemoSite() { return SourceDir() + "/config/sites/demo_room.yaml"; }
 
 std::vector<std::string> Simulator(const std::string& link) {
   return {BinDir() + "/roomfix_sim",
           "--config",
-          DemoSite(),
+          DemoSitePath(),
           "--radio-pty",
           "--pty-link",
           link,
@@ -74,9 +73,9 @@ TEST_F(BridgeProcess, RangeSetsFlowFromTheVirtualDevicesToPosesAndSurviveAnUnplu
   const std::string link = dir_.File("radio");
   auto sim = std::make_unique<ChildProcess>(Simulator(link), dir_.File("sim.out"));
   ASSERT_TRUE(WaitForPath(link, 10)) << "roomfix_sim made no pseudo-terminal";
-  ChildProcess bridge({BinDir() + "/zigbee_bridge", "--config", DemoSite(), "--port", link,
+  ChildProcess bridge({BinDir() + "/zigbee_bridge", "--config", DemoSitePath(), "--port", link,
                        "--api-mode", "2", "--reopen-max", "0.2", "--log-level", "warn"});
-  ChildProcess trilat({BinDir() + "/trilat_proc", "--config", DemoSite(), "--method", "robust",
+  ChildProcess trilat({BinDir() + "/trilat_proc", "--config", DemoSitePath(), "--method", "robust",
                        "--log-level", "warn"});
   ASSERT_TRUE(HandleUntil(
       bus_.get(), [&] { return sets_.size() >= 20 && poses_.size() >= 10; }, 20))
@@ -137,7 +136,7 @@ TEST_F(BridgeProcess, RangeSetsFlowFromTheVirtualDevicesToPosesAndSurviveAnUnplu
 
 TEST_F(BridgeProcess, WaitsForAMissingDeviceAndSaysSo) {
   const std::string link = dir_.File("not_yet");
-  ChildProcess bridge({BinDir() + "/zigbee_bridge", "--config", DemoSite(), "--port", link,
+  ChildProcess bridge({BinDir() + "/zigbee_bridge", "--config", DemoSitePath(), "--port", link,
                        "--reopen-max", "0.2", "--log-level", "error"});
   ASSERT_TRUE(HandleUntil(
       bus_.get(), [&] { return !bridge_status_.empty(); }, 5));

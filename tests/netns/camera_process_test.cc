@@ -19,6 +19,7 @@
 #include "roomfix/marker_pixels_t.hpp"
 #include "roomfix/pose2d_t.hpp"
 #include "roomfix/process_status_t.hpp"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_images.h"
 #include "tests/testing/test_paths.h"
 
@@ -27,6 +28,7 @@ namespace {
 
 using testing::BinDir;
 using testing::ChildProcess;
+using testing::DemoSitePath;
 using testing::SourceDir;
 
 constexpr int64_t kStartUtime = 1'700'000'000'000'000;
@@ -36,15 +38,13 @@ constexpr double kRmseTargetM = 0.005;
 // need 1200 MB.
 constexpr double kMaxChildPeakRssMb = 600.0;
 
-std::string DemoSite() { return SourceDir() + "/config/sites/demo_room.yaml"; }
-
 // The demo site with its camera stated as an ideal one (readout_s,
 // exposure_s and timestamp_latency_s 0) in `dir`: a folder of frames that
 // `roomfix render-camera --scenario lighting` wrote is a global shutter
 // stamped exactly, but camera_proc cannot know that of files and takes the
 // site's word (the demo site's camera states the webcam's timing).
 std::string IdealCameraSite(const testing::TempDir& dir) {
-  std::string text = testing::ReadFile(DemoSite());
+  std::string text = testing::ReadFile(DemoSitePath());
   auto replace_first = [&text](const std::string& from, const std::string& to) {
     const size_t at = text.find(from);
     EXPECT_NE(at, std::string::npos) << from;
@@ -115,8 +115,8 @@ class CameraProcess : public ::testing::Test {
 
 TEST_F(CameraProcess, AFolderOfFramesBecomesPosesAndBadFilesAreCounted) {
   const std::string frames = dir_.File("frames");
-  ChildProcess render({BinDir() + "/roomfix", "render-camera", "--site", DemoSite(), "--scenario",
-                       "lighting", "--duration", "2", "--out", frames},
+  ChildProcess render({BinDir() + "/roomfix", "render-camera", "--site", DemoSitePath(),
+                       "--scenario", "lighting", "--duration", "2", "--out", frames},
                       dir_.File("render.out"));
   ASSERT_EQ(render.Wait(60), 0) << testing::ReadFile(dir_.File("render.out"));
   const auto truth = ReadTruth(frames + "/truth.csv");
@@ -162,8 +162,8 @@ TEST_F(CameraProcess, AFolderOfFramesBecomesPosesAndBadFilesAreCounted) {
 // counted as wrong_frame_size; the good frames around them still become poses.
 TEST_F(CameraProcess, ForgedAndHugeImagesAreCountedAsWrongSizeAndNeverDecoded) {
   const std::string frames = dir_.File("frames");
-  ChildProcess render({BinDir() + "/roomfix", "render-camera", "--site", DemoSite(), "--scenario",
-                       "lighting", "--duration", "0.5", "--out", frames},
+  ChildProcess render({BinDir() + "/roomfix", "render-camera", "--site", DemoSitePath(),
+                       "--scenario", "lighting", "--duration", "0.5", "--out", frames},
                       dir_.File("render.out"));
   ASSERT_EQ(render.Wait(60), 0) << testing::ReadFile(dir_.File("render.out"));
   std::rename((frames + "/truth.csv").c_str(), dir_.File("truth.csv").c_str());
@@ -172,7 +172,7 @@ TEST_F(CameraProcess, ForgedAndHugeImagesAreCountedAsWrongSizeAndNeverDecoded) {
   std::ofstream(frames + "/frame_000003_forged.png", std::ios::binary)
       .write(reinterpret_cast<const char*>(forged.data()), 57);
   ASSERT_TRUE(testing::WriteOneColourPng(frames + "/frame_000007_huge.png", 20000, 20000));
-  ChildProcess camera({BinDir() + "/camera_proc", "--config", DemoSite(), "--device", frames,
+  ChildProcess camera({BinDir() + "/camera_proc", "--config", DemoSitePath(), "--device", frames,
                        "--start-utime", std::to_string(kStartUtime), "--log-level", "error"});
   ASSERT_TRUE(HandleUntil(
       bus_.get(),
@@ -196,7 +196,7 @@ TEST_F(CameraProcess, ForgedAndHugeImagesAreCountedAsWrongSizeAndNeverDecoded) {
 }
 
 TEST_F(CameraProcess, AMissingWebcamIsRetriedAndReported) {
-  ChildProcess camera({BinDir() + "/camera_proc", "--config", DemoSite(), "--device",
+  ChildProcess camera({BinDir() + "/camera_proc", "--config", DemoSitePath(), "--device",
                        "/dev/video99", "--reopen-max", "0.5", "--log-level", "error"});
   ASSERT_TRUE(HandleUntil(
       bus_.get(),
@@ -215,9 +215,9 @@ TEST_F(CameraProcess, TheLiveSyntheticCameraAgreesWithTheSimulatorsGroundTruth) 
   // Started separately, as bot-procman would start them, with no shared
   // flag: camera_proc takes t = 0 from roomfix_sim's heartbeat, so it
   // renders the robot where roomfix_sim says it is, at the capture time.
-  ChildProcess sim({BinDir() + "/roomfix_sim", "--config", DemoSite(), "--log-level", "warn"});
+  ChildProcess sim({BinDir() + "/roomfix_sim", "--config", DemoSitePath(), "--log-level", "warn"});
   std::this_thread::sleep_for(std::chrono::milliseconds(700));
-  ChildProcess camera({BinDir() + "/camera_proc", "--config", DemoSite(), "--device",
+  ChildProcess camera({BinDir() + "/camera_proc", "--config", DemoSitePath(), "--device",
                        "sim:reference_circle", "--log-level", "warn"});
   ASSERT_TRUE(HandleUntil(
       bus_.get(), [&] { return poses_.size() >= 60; }, 30));

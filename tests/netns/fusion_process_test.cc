@@ -16,6 +16,7 @@
 #include "msgio/bus.h"
 #include "msgio/process.h"
 #include "roomfix/pose2d_t.hpp"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -23,7 +24,7 @@ namespace {
 
 using testing::BinDir;
 using testing::ChildProcess;
-using testing::SourceDir;
+using testing::DemoSitePath;
 
 // A 5 s outage of the camera leaves the ultrasound (about 1 cm) to carry
 // the track; of the radio, the camera (sub-millimetre).
@@ -35,8 +36,6 @@ constexpr double kFusedOverCameraMax = 1.2;
 
 // Ground truth comes at 30 Hz; a longer gap is a stall, not a sample.
 constexpr int64_t kMaxTruthGapUs = 200'000;
-
-std::string DemoSite() { return SourceDir() + "/config/sites/demo_room.yaml"; }
 
 struct Window {
   int64_t begin_utime;
@@ -81,9 +80,9 @@ class FusionProcess : public ::testing::Test {
 };
 
 TEST_F(FusionProcess, FusedIsNoWorseThanTheCameraAndRidesOutEachSensorsOutage) {
-  ChildProcess sim({BinDir() + "/roomfix_sim", "--config", DemoSite(), "--ranges", "--range-noise",
-                    "0.01", "--log-level", "warn"});
-  ChildProcess trilat({BinDir() + "/trilat_proc", "--config", DemoSite(), "--method", "robust",
+  ChildProcess sim({BinDir() + "/roomfix_sim", "--config", DemoSitePath(), "--ranges",
+                    "--range-noise", "0.01", "--log-level", "warn"});
+  ChildProcess trilat({BinDir() + "/trilat_proc", "--config", DemoSitePath(), "--method", "robust",
                        "--log-level", "warn"});
   // The idealised camera (sim:reference_circle) renders no tilt, while the
   // demo site states the webcam robot's 0.55 degrees: with its bias model
@@ -91,10 +90,10 @@ TEST_F(FusionProcess, FusedIsNoWorseThanTheCameraAndRidesOutEachSensorsOutage) {
   // (0.3 mm against the camera's 0.13), so this test, which compares the
   // fused track with an ideal camera's, tells fusion the camera's errors
   // are white, as they are here (docs/fusion.md, "Correlated camera error").
-  ChildProcess fusion({BinDir() + "/fusion_proc", "--config", DemoSite(), "--camera-bias-time", "0",
-                       "--log-level", "warn"});
+  ChildProcess fusion({BinDir() + "/fusion_proc", "--config", DemoSitePath(), "--camera-bias-time",
+                       "0", "--log-level", "warn"});
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
-  ChildProcess camera({BinDir() + "/camera_proc", "--config", DemoSite(), "--device",
+  ChildProcess camera({BinDir() + "/camera_proc", "--config", DemoSitePath(), "--device",
                        "sim:reference_circle", "--log-level", "warn"});
   Listen(3.0);  // start-up and the filter's first second
   auto now = [] { return NowUtime(); };

@@ -43,6 +43,7 @@
 #include "msgio/process.h"
 #include "roomfix/pose2d_t.hpp"
 #include "roomfix/process_status_t.hpp"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -52,7 +53,7 @@ using hostile::Bytes;
 using hostile::Encode;
 using testing::BinDir;
 using testing::ChildProcess;
-using testing::SourceDir;
+using testing::DemoSitePath;
 using testing::TempDir;
 using Clock = std::chrono::steady_clock;
 
@@ -90,8 +91,6 @@ constexpr double kRoomY_m = 3.0;
 // A fix this close outside the walls is measurement noise, not the issue's
 // pose "outside the room from 800 ranges" (which was metres out).
 constexpr double kRoomMargin_m = 0.2;
-
-std::string DemoSite() { return SourceDir() + "/config/sites/demo_room.yaml"; }
 
 double Seconds(Clock::duration d) { return std::chrono::duration<double>(d).count(); }
 void SleepS(double s) { std::this_thread::sleep_for(std::chrono::duration<double>(s)); }
@@ -563,7 +562,8 @@ TEST(HostileGenerator, EachClassIsTheInputTheIssueDescribes) {
     const double d =
         std::hypot(r.receiver_position_m[0] - hostile::kGoodX_m,
                    r.receiver_position_m[1] - hostile::kGoodY_m, r.receiver_position_m[2] - 1.3);
-    EXPECT_NEAR(r.range_m, d, 1e-12);
+    constexpr double kSameHypotM = 1e-12;  // the same distance computed again: rounding only
+    EXPECT_NEAR(r.range_m, d, kSameHypotM);
   }
   const range_set_t bad = hostile::InconsistentRanges(400, 1, NowUtime(), 1);
   EXPECT_EQ(bad.num_ranges, 400);
@@ -581,7 +581,7 @@ bool WaitReady(Listener* listener, const std::string& name, ChildProcess* p, dou
 
 TEST_F(HostileTraffic, TrilatProcSurvivesEveryClassAndCountsEachRefusal) {
   Listener listener("POSE_ULTRASOUND");
-  ChildProcess trilat({BinDir() + "/trilat_proc", "--config", DemoSite(), "--method", "robust",
+  ChildProcess trilat({BinDir() + "/trilat_proc", "--config", DemoSitePath(), "--method", "robust",
                        "--log-level", "error"});
   double rss = 0;
   ASSERT_TRUE(WaitReady(&listener, "trilat_proc", &trilat, &rss));
@@ -622,7 +622,8 @@ TEST_F(HostileTraffic, TrilatProcSurvivesEveryClassAndCountsEachRefusal) {
 
 TEST_F(HostileTraffic, FusionProcKeepsOnlyTheSitesRobotsAndCountsTheRest) {
   Listener listener("POSE_FUSED");
-  ChildProcess fusion({BinDir() + "/fusion_proc", "--config", DemoSite(), "--log-level", "error"});
+  ChildProcess fusion(
+      {BinDir() + "/fusion_proc", "--config", DemoSitePath(), "--log-level", "error"});
   double rss = 0;
   ASSERT_TRUE(WaitReady(&listener, "fusion_proc", &fusion, &rss));
   Probe probe{[&](int64_t id) {
@@ -662,8 +663,8 @@ TEST_F(HostileTraffic, FusionProcKeepsOnlyTheSitesRobotsAndCountsTheRest) {
 TEST_F(HostileTraffic, HeadlessViewerSurvivesEveryClassAndForgetsUnknownRobots) {
   TempDir dir;
   Listener listener("");
-  ChildProcess viewer({BinDir() + "/roomfix_viewer", "--config", DemoSite(), "--headless", "--png",
-                       dir.File("view.png"), "--log-level", "error"});
+  ChildProcess viewer({BinDir() + "/roomfix_viewer", "--config", DemoSitePath(), "--headless",
+                       "--png", dir.File("view.png"), "--log-level", "error"});
   double rss = 0;
   ASSERT_TRUE(WaitReady(&listener, "roomfix_viewer", &viewer, &rss));
   const double idle_cpu0 = CpuSeconds(viewer.pid());
@@ -714,7 +715,7 @@ TEST_F(HostileTraffic, HeadlessViewerSurvivesEveryClassAndForgetsUnknownRobots) 
 // it subscribe to POSE_ULTRASOUND for search hints.
 TEST_F(HostileTraffic, CameraProcsHintSubscriptionSurvivesEveryClass) {
   Listener listener("");
-  ChildProcess camera({BinDir() + "/camera_proc", "--config", DemoSite(), "--device",
+  ChildProcess camera({BinDir() + "/camera_proc", "--config", DemoSitePath(), "--device",
                        "sim:reference_circle", "--log-level", "error"});
   double rss = 0;
   ASSERT_TRUE(WaitReady(&listener, "camera_proc", &camera, &rss));
@@ -834,7 +835,7 @@ int64_t TransportDropped(const process_status_t& s) {
 
 TEST_F(HostileTraffic, TrilatProcStoppedAccountsForEveryRangeSetItMissed) {
   Listener listener("");
-  ChildProcess trilat({BinDir() + "/trilat_proc", "--config", DemoSite(), "--lcm-url",
+  ChildProcess trilat({BinDir() + "/trilat_proc", "--config", DemoSitePath(), "--lcm-url",
                        kSmallBufferUrl, "--log-level", "error"});
   double rss = 0;
   ASSERT_TRUE(WaitReady(&listener, "trilat_proc", &trilat, &rss));

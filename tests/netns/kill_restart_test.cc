@@ -24,6 +24,7 @@
 #include "roomfix/pose2d_t.hpp"
 #include "roomfix/process_status_t.hpp"
 #include "roomfix/range_set_t.hpp"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -31,7 +32,7 @@ namespace {
 
 using testing::BinDir;
 using testing::ChildProcess;
-using testing::SourceDir;
+using testing::DemoSitePath;
 using testing::WaitForPath;
 using Clock = std::chrono::steady_clock;
 
@@ -40,8 +41,6 @@ constexpr double kRecoveryLimit_s = 2.0;
 // How long each killed process stays dead: long enough for several missed
 // heartbeats (1 Hz) and a gap no jitter explains.
 constexpr double kDead_s = 2.5;
-
-std::string DemoSite() { return SourceDir() + "/config/sites/demo_room.yaml"; }
 
 double Since(Clock::time_point t) {
   return std::chrono::duration<double>(Clock::now() - t).count();
@@ -105,23 +104,23 @@ class Pipeline {
   std::vector<std::string> Argv(const std::string& name) const {
     const std::string bin = BinDir() + "/" + name;
     if (name == "roomfix_sim") {
-      return {bin,           "--config", DemoSite(),      "--radio-pty",
+      return {bin,           "--config", DemoSitePath(),  "--radio-pty",
               "--pty-link",  link_,      "--start-utime", std::to_string(start_utime_),
               "--log-level", "warn"};
     }
     if (name == "zigbee_bridge") {
       // A quick reopen, so losing the device (the simulator) costs little.
-      return {bin,   "--config",    DemoSite(), "--port", link_, "--reopen-max",
+      return {bin,   "--config",    DemoSitePath(), "--port", link_, "--reopen-max",
               "0.5", "--log-level", "error"};
     }
     if (name == "trilat_proc") {
-      return {bin, "--config", DemoSite(), "--method", "robust", "--log-level", "warn"};
+      return {bin, "--config", DemoSitePath(), "--method", "robust", "--log-level", "warn"};
     }
     if (name == "camera_proc") {
       // The clean synthetic camera the demo site used before its webcam.
       return {bin,
               "--config",
-              DemoSite(),
+              DemoSitePath(),
               "--device",
               "sim:reference_circle",
               "--start-utime",

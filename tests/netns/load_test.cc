@@ -24,6 +24,7 @@
 #include "msgio/process.h"
 #include "roomfix/process_status_t.hpp"
 #include "roomfix/range_set_t.hpp"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -31,7 +32,7 @@ namespace {
 
 using testing::BinDir;
 using testing::ChildProcess;
-using testing::SourceDir;
+using testing::DemoSitePath;
 using testing::WaitForPath;
 
 constexpr double kNominalRate_hz = 10.0;
@@ -41,8 +42,6 @@ double LoadSeconds() {
   const char* s = std::getenv("ROOMFIX_LOAD_SECONDS");
   return s ? std::atof(s) : 60.0;
 }
-
-std::string DemoSite() { return SourceDir() + "/config/sites/demo_room.yaml"; }
 
 TEST(RadioLoad, TenTimesTheNominalRateForAMinuteLosesNoRangeSetBetweenBridgeAndLogger) {
   const double seconds = LoadSeconds();
@@ -55,13 +54,13 @@ TEST(RadioLoad, TenTimesTheNominalRateForAMinuteLosesNoRangeSetBetweenBridgeAndL
   std::this_thread::sleep_for(std::chrono::milliseconds(500));  // joins before anything publishes
   // The load, not the air: --no-collisions, or the demo room's echo decay
   // (a 61.5 ms slot, docs/trilateration.md) would cap the beacon at 16 Hz.
-  ChildProcess sim({BinDir() + "/roomfix_sim", "--config", DemoSite(), "--radio-pty", "--pty-link",
-                    link, "--radio-rate-hz", std::to_string(rate_hz), "--faults", "none",
-                    "--no-collisions", "--log-level", "warn"},
+  ChildProcess sim({BinDir() + "/roomfix_sim", "--config", DemoSitePath(), "--radio-pty",
+                    "--pty-link", link, "--radio-rate-hz", std::to_string(rate_hz), "--faults",
+                    "none", "--no-collisions", "--log-level", "warn"},
                    dir.File("sim.out"));
   ASSERT_TRUE(WaitForPath(link, 10)) << "roomfix_sim made no pseudo-terminal";
-  ChildProcess bridge(
-      {BinDir() + "/zigbee_bridge", "--config", DemoSite(), "--port", link, "--log-level", "info"});
+  ChildProcess bridge({BinDir() + "/zigbee_bridge", "--config", DemoSitePath(), "--port", link,
+                       "--log-level", "info"});
   const auto start = std::chrono::steady_clock::now();
   std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
   ASSERT_EQ(bridge.Wait(0), -1) << "zigbee_bridge died under load";

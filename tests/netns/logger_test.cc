@@ -18,6 +18,7 @@
 #include "msgio/process.h"
 #include "msgio/udpm_bus.h"
 #include "roomfix/process_status_t.hpp"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/hostile_traffic.h"
 #include "tests/testing/test_paths.h"
 
@@ -26,7 +27,7 @@ namespace {
 
 using testing::BinDir;
 using testing::ChildProcess;
-using testing::SourceDir;
+using testing::DemoSitePath;
 using testing::TempDir;
 
 std::vector<LogEvent> ReadAll(const std::string& path) {
@@ -46,9 +47,8 @@ TEST(RoomfixLogger, WhatItRecordsLcmLogplayerPlaysAndLcmLoggerRecordsIdentically
     ChildProcess logger(
         {BinDir() + "/roomfix_logger", ours, "--channel", "POSE_.*|RANGES", "--log-level", "warn"});
     SleepS(0.5);
-    ChildProcess sim({BinDir() + "/roomfix_sim", "--config",
-                      SourceDir() + "/config/sites/demo_room.yaml", "--ranges", "--duration", "1.5",
-                      "--log-level", "warn"});
+    ChildProcess sim({BinDir() + "/roomfix_sim", "--config", DemoSitePath(), "--ranges",
+                      "--duration", "1.5", "--log-level", "warn"});
     ASSERT_EQ(sim.Wait(20), 0);
     SleepS(0.3);
     logger.Signal(SIGINT);

@@ -22,8 +22,8 @@ namespace {
 
 using testing::BinDir;
 using testing::ChildProcess;
+using testing::DemoSitePath;
 using testing::ReadFile;
-using testing::SourceDir;
 using testing::TempDir;
 
 // A process republishes on its first heartbeat at least kSitePeriodUs after
@@ -68,7 +68,7 @@ std::string MovedSite(const TempDir& dir) {
 
 TEST(SiteOnTheBus, ProcessesPublishTheirSiteAtStartAndEveryFiveSeconds) {
   TempDir dir;
-  const std::string demo = SourceDir() + "/config/sites/demo_room.yaml";
+  const std::string demo = DemoSitePath();
   const std::string moved = MovedSite(dir);
   ChildProcess logger({"lcm-logger", "-q", "-f", dir.File("run.lcm")});
   ASSERT_TRUE(logger.started());
@@ -161,10 +161,10 @@ TEST(SiteOnTheBus, ProcessesPublishTheirSiteAtStartAndEveryFiveSeconds) {
 TEST(SiteOnTheBus, ListenNamesTheKeyWhereAPublishedSiteDiffersFromConfig) {
   TempDir dir;
   const std::string moved = MovedSite(dir);
-  ChildProcess listen(
-      {"sh", "-c",
-       "exec '" + BinDir() + "/roomfix' listen --channel SITE --count 1 --timeout 10 --config '" +
-           SourceDir() + "/config/sites/demo_room.yaml' 2>'" + dir.File("err.txt") + "'"});
+  ChildProcess listen({"sh", "-c",
+                       "exec '" + BinDir() +
+                           "/roomfix' listen --channel SITE --count 1 --timeout 10 --config '" +
+                           DemoSitePath() + "' 2>'" + dir.File("err.txt") + "'"});
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
   ChildProcess trilat({BinDir() + "/trilat_proc", "--config", moved, "--log-level", "warn"});
   EXPECT_EQ(listen.Wait(15), 0);

@@ -10,6 +10,7 @@
 #include "msgio/bus.h"
 #include "msgio/process.h"
 #include "roomfix/pose2d_t.hpp"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -17,14 +18,12 @@ namespace {
 
 using testing::BinDir;
 using testing::ChildProcess;
-using testing::SourceDir;
+using testing::DemoSitePath;
 
 // The simulator computes the pose in double precision from the same
 // trajectory; the wire format is IEEE doubles, so agreement is exact to
 // rounding in the drift term.
 constexpr double kOnCircle_m = 1e-9;
-
-std::string DemoSite() { return SourceDir() + "/config/sites/demo_room.yaml"; }
 
 TEST(UdpmExchange, PosesFromTheSimulatorProcessArriveIntactOverMulticast) {
   std::string error;
@@ -37,7 +36,7 @@ TEST(UdpmExchange, PosesFromTheSimulatorProcessArriveIntactOverMulticast) {
   bus->Subscribe<process_status_t>(
       "STATUS", [&](const process_status_t& s, const MessageInfo&) { beats.push_back(s); });
 
-  ChildProcess sim({BinDir() + "/roomfix_sim", "--config", DemoSite(), "--rate-hz", "50",
+  ChildProcess sim({BinDir() + "/roomfix_sim", "--config", DemoSitePath(), "--rate-hz", "50",
                     "--duration", "2.5", "--log-level", "warn"});
   ASSERT_TRUE(sim.started());
   ASSERT_TRUE(HandleUntil(
@@ -46,7 +45,7 @@ TEST(UdpmExchange, PosesFromTheSimulatorProcessArriveIntactOverMulticast) {
   EXPECT_EQ(sim.Wait(10), 0) << "roomfix_sim did not stop cleanly after --duration";
 
   Site site;
-  ASSERT_TRUE(LoadSite(DemoSite(), &site, &error)) << error;
+  ASSERT_TRUE(LoadSite(DemoSitePath(), &site, &error)) << error;
   const CircleTrajectoryOptions circle;  // demo_room drives the reference circle.
   const int64_t start_utime = poses[0].utime - poses[0].measurement_seq * 20000;
   for (size_t i = 0; i < poses.size(); ++i) {
@@ -77,7 +76,8 @@ TEST(UdpmExchange, SigtermStopsAProcessCleanly) {
                            [&](const pose2d_t&, const MessageInfo&) { ++poses; });
   for (int sig : {SIGTERM, SIGINT}) {
     poses = 0;
-    ChildProcess sim({BinDir() + "/roomfix_sim", "--config", DemoSite(), "--log-level", "warn"});
+    ChildProcess sim(
+        {BinDir() + "/roomfix_sim", "--config", DemoSitePath(), "--log-level", "warn"});
     ASSERT_TRUE(HandleUntil(
         bus.get(), [&] { return poses > 3; }, 20));
     sim.Signal(sig);

@@ -19,6 +19,7 @@
 #include "core/calib/calibration_file.h"
 #include "core/calib/fisheye_camera.h"
 #include "core/world/file_io.h"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -28,6 +29,7 @@ using calib::Calibration;
 using calib::CameraModel;
 using testing::BinDir;
 using testing::ChildProcess;
+using testing::DemoSitePath;
 using testing::ReadFile;
 using testing::SharedDataDir;
 using testing::SourceDir;
@@ -120,9 +122,9 @@ std::vector<std::vector<double>> ParseCsv(const std::string& text) {
 TEST(RoomfixCalibrate, FitsTheSyntheticCameraFlagsTheOutlierAndWritesYamlAndPng) {
   TempDir dir;
   ASSERT_TRUE(WriteFile(dir.File("points.csv"), PointsCsv(/*outlier=*/7)));
-  const RunResult r = Roomfix(
-      {"calibrate", "--points", dir.File("points.csv"), "--out", dir.File("cam0.yaml"), "--site",
-       SourceDir() + "/config/sites/demo_room.yaml", "--camera", "0", "--pixel-sigma", "0.3"});
+  const RunResult r =
+      Roomfix({"calibrate", "--points", dir.File("points.csv"), "--out", dir.File("cam0.yaml"),
+               "--site", DemoSitePath(), "--camera", "0", "--pixel-sigma", "0.3"});
   std::cout << r.out;
   ASSERT_EQ(r.exit_code, 0);
   // Point 7 is flagged in its table row and in its own line.
@@ -170,18 +172,26 @@ TEST(RoomfixCalibrate, FitsTheSyntheticCameraFlagsTheOutlierAndWritesYamlAndPng)
   EXPECT_EQ(calib::CheckFitResidual(cal), "");
 }
 
+// Runs `roomfix calibrate` on DIR/p.csv into DIR/cal.yaml with the demo
+// site and `extra` flags, and expects a refusal: exit code 1, `message` as
+// the start of the only line on standard error, no calibration written.
+void ExpectCalibrateRefuses(const TempDir& dir, const std::vector<std::string>& extra,
+                            const std::string& message) {
+  std::vector<std::string> args = {"calibrate",          "--points", dir.File("p.csv"), "--out",
+                                   dir.File("cal.yaml"), "--site",   DemoSitePath()};
+  args.insert(args.end(), extra.begin(), extra.end());
+  const RunResult r = Roomfix(args, /*stderr_only=*/true);
+  EXPECT_EQ(r.exit_code, 1) << message;
+  EXPECT_EQ(r.out.rfind(message, 0), 0u) << r.out;
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+  EXPECT_FALSE(std::filesystem::exists(dir.File("cal.yaml"))) << message;
+}
+
 // Issue #15: a fit that does not reproduce its points is refused, not
 // written; the tolerance is a flag (default 2 px, what camera_proc accepts).
 TEST(RoomfixCalibrate, RefusesAFitOverTheResidualToleranceWithOneLine) {
   TempDir dir;
   ASSERT_TRUE(WriteFile(dir.File("p.csv"), PointsCsv()));
-  const std::vector<std::string> base = {"calibrate",
-                                         "--points",
-                                         dir.File("p.csv"),
-                                         "--out",
-                                         dir.File("cal.yaml"),
-                                         "--site",
-                                         SourceDir() + "/config/sites/demo_room.yaml"};
   struct Case {
     std::vector<std::string> extra;
     std::string message;
@@ -192,18 +202,10 @@ TEST(RoomfixCalibrate, RefusesAFitOverTheResidualToleranceWithOneLine) {
       {{"--max-rms-px", "0"}, "roomfix calibrate: --max-rms-px: expected a positive number"},
       {{"--max-rms-px", "nan"}, "roomfix calibrate: --max-rms-px: expected a positive number"},
   };
-  for (const Case& c : cases) {
-    std::vector<std::string> args = base;
-    args.insert(args.end(), c.extra.begin(), c.extra.end());
-    const RunResult r = Roomfix(args, /*stderr_only=*/true);
-    EXPECT_EQ(r.exit_code, 1) << c.message;
-    EXPECT_EQ(r.out.rfind(c.message, 0), 0u) << r.out;
-    EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
-    EXPECT_FALSE(std::filesystem::exists(dir.File("cal.yaml"))) << c.message;
-  }
+  for (const Case& c : cases) ExpectCalibrateRefuses(dir, c.extra, c.message);
   const RunResult r =
       Roomfix({"calibrate", "--points", dir.File("p.csv"), "--out", dir.File("cal.yaml"), "--site",
-               SourceDir() + "/config/sites/demo_room.yaml", "--max-rms-px", "0.1"},
+               DemoSitePath(), "--max-rms-px", "0.1"},
               /*stderr_only=*/true);
   EXPECT_NE(r.out.find(" px over the points is over the 0.10 px tolerance (--max-rms-px); "
                        "not written"),
@@ -217,13 +219,6 @@ TEST(RoomfixCalibrate, RefusesAFitOverTheResidualToleranceWithOneLine) {
 TEST(RoomfixCalibrate, RefusesAnOutOfRangeFlagWhileParsingWithOneLine) {
   TempDir dir;
   ASSERT_TRUE(WriteFile(dir.File("p.csv"), PointsCsv()));
-  const std::vector<std::string> base = {"calibrate",
-                                         "--points",
-                                         dir.File("p.csv"),
-                                         "--out",
-                                         dir.File("cal.yaml"),
-                                         "--site",
-                                         SourceDir() + "/config/sites/demo_room.yaml"};
   const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
       {{"--model", "pinhole"}, "roomfix calibrate: --model: pinhole not in {full,regions}"},
       {{"--square", "nan"}, "roomfix calibrate: --square: expected the square size in metres"},
@@ -235,15 +230,7 @@ TEST(RoomfixCalibrate, RefusesAnOutOfRangeFlagWhileParsingWithOneLine) {
       {{"--max-iterations", "0"},
        "roomfix calibrate: --max-iterations: Value 0 not in range 1 to 100000"},
   };
-  for (const auto& [extra, message] : cases) {
-    std::vector<std::string> args = base;
-    args.insert(args.end(), extra.begin(), extra.end());
-    const RunResult r = Roomfix(args, /*stderr_only=*/true);
-    EXPECT_EQ(r.exit_code, 1) << message;
-    EXPECT_EQ(r.out.rfind(message, 0), 0u) << r.out;
-    EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
-    EXPECT_FALSE(std::filesystem::exists(dir.File("cal.yaml"))) << message;
-  }
+  for (const auto& [extra, message] : cases) ExpectCalibrateRefuses(dir, extra, message);
 }
 
 // More outliers than a fit may leave out (20 % of the points): refused at
@@ -262,10 +249,9 @@ TEST(RoomfixCalibrate, RefusesPointsWithMoreOutliersThanItMayLeaveOut) {
     moved += line + "\n";
   }
   ASSERT_TRUE(WriteFile(dir.File("p.csv"), moved));
-  const RunResult r =
-      Roomfix({"calibrate", "--points", dir.File("p.csv"), "--out", dir.File("cal.yaml"), "--site",
-               SourceDir() + "/config/sites/demo_room.yaml"},
-              /*stderr_only=*/true);
+  const RunResult r = Roomfix({"calibrate", "--points", dir.File("p.csv"), "--out",
+                               dir.File("cal.yaml"), "--site", DemoSitePath()},
+                              /*stderr_only=*/true);
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_EQ(r.out.rfind("roomfix calibrate: full model: ", 0), 0u) << r.out;
   EXPECT_NE(r.out.find("over the 4 that may be left out as outliers: the points do not fit one "
@@ -291,10 +277,9 @@ TEST(RoomfixCalibrate, RefusesTwoThousandRandomPointsQuickly) {
   ASSERT_TRUE(WriteFile(dir.File("random.csv"), csv.str()));
   for (const std::string model : {"full", "regions"}) {
     const auto start = std::chrono::steady_clock::now();
-    const RunResult r =
-        Roomfix({"calibrate", "--points", dir.File("random.csv"), "--out", dir.File("cal.yaml"),
-                 "--site", SourceDir() + "/config/sites/demo_room.yaml", "--model", model},
-                /*stderr_only=*/true);
+    const RunResult r = Roomfix({"calibrate", "--points", dir.File("random.csv"), "--out",
+                                 dir.File("cal.yaml"), "--site", DemoSitePath(), "--model", model},
+                                /*stderr_only=*/true);
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     std::printf("calibrate --model %s on 2000 random points: exit %d after %.1f s: %s",
@@ -310,7 +295,7 @@ TEST(RoomfixCalibrate, RefusesTwoThousandRandomPointsQuickly) {
 TEST(RoomfixCalibrate, AFullDiskIsAFailedRunNamingTheFile) {
   TempDir dir;
   ASSERT_TRUE(WriteFile(dir.File("p.csv"), PointsCsv()));
-  const std::string site = SourceDir() + "/config/sites/demo_room.yaml";
+  const std::string site = DemoSitePath();
   const RunResult yaml =
       Roomfix({"calibrate", "--points", dir.File("p.csv"), "--out", "/dev/full", "--site", site},
               /*stderr_only=*/true);
@@ -349,14 +334,21 @@ TEST(RoomfixMap, FullModelRoundTripsPixelToFloorAndBackWithin1e6) {
   const auto floor = ParseCsv(forward.out);
   const auto again = ParseCsv(back.out);
   ASSERT_EQ(again.size(), pixels.size());
+  // The promise of the test's name: far above what the CSV's 12 significant
+  // digits lose (1e-11 m at a few hundred px/m: ~1e-9 px), far below what any
+  // marker detector resolves.
+  constexpr double kRoundTripPx = 1e-6;
   for (size_t i = 0; i < pixels.size(); ++i) {
-    EXPECT_NEAR(again[i][0], pixels[i][0], 1e-6) << i;
-    EXPECT_NEAR(again[i][1], pixels[i][1], 1e-6) << i;
+    EXPECT_NEAR(again[i][0], pixels[i][0], kRoundTripPx) << i;
+    EXPECT_NEAR(again[i][1], pixels[i][1], kRoundTripPx) << i;
     EXPECT_EQ(again[i][2], pixels[i][2]);
   }
-  // The image centre is near the nadir: below the 3.1 m mount.
-  EXPECT_NEAR(floor[0][0], 2.0, 0.1);
-  EXPECT_NEAR(floor[0][1], 1.5, 0.1);
+  // The image centre is near the nadir: below the 3.1 m mount. Near, not at:
+  // the fitted principal point and the lens's tilt move it; 10 cm checks the
+  // axes and the origin, not the fit's accuracy.
+  constexpr double kNearTheNadirM = 0.1;
+  EXPECT_NEAR(floor[0][0], 2.0, kNearTheNadirM);
+  EXPECT_NEAR(floor[0][1], 1.5, kNearTheNadirM);
 }
 
 TEST(RoomfixMap, TheShippedRegionTableMapsItsOwnHeightAndRefusesAnother) {
@@ -369,8 +361,12 @@ TEST(RoomfixMap, TheShippedRegionTableMapsItsOwnHeightAndRefusesAnother) {
   EXPECT_EQ(r.exit_code, 2);
   const auto rows = ParseCsv(r.out);
   ASSERT_EQ(rows.size(), 3u);
-  EXPECT_NEAR(rows[0][0], 2.0, 0.01);
-  EXPECT_NEAR(rows[0][1], 1.5, 0.01);
+  // The file's centre region (row 1, col 1) maps the centre pixel to
+  // (2.000, 1.500) m; 1 cm lets the example be refitted (the table's RMS is
+  // 28 mm) and still fails a wrong region (os2 metres apart) or axis.
+  constexpr double kCentreRegionM = 0.01;
+  EXPECT_NEAR(rows[0][0], 2.0, kCentreRegionM);
+  EXPECT_NEAR(rows[0][1], 1.5, kCentreRegionM);
   EXPECT_TRUE(std::isnan(rows[1][0]));
   const RunResult why = Roomfix({"map", "--calibration", example, dir.File("in.csv")}, true);
   EXPECT_NE(why.out.find(":2: height 0 m differs from the calibration height 0.2 m"),
@@ -387,8 +383,10 @@ TEST(RoomfixMap, TheShippedRegionTableMapsItsOwnHeightAndRefusesAnother) {
   ASSERT_EQ(back.exit_code, 0);
   const auto pixel = ParseCsv(back.out);
   ASSERT_EQ(pixel.size(), 1u);
-  EXPECT_NEAR(pixel[0][0], 1500, 1e-6);
-  EXPECT_NEAR(pixel[0][1], 300, 1e-6);
+  // An affine map and its inverse, through 12 printed digits each way.
+  constexpr double kRoundTripPx = 1e-6;
+  EXPECT_NEAR(pixel[0][0], 1500, kRoundTripPx);
+  EXPECT_NEAR(pixel[0][1], 300, kRoundTripPx);
 }
 
 // Each refusal: exit code 1, one line on standard error, no file written.
@@ -485,7 +483,7 @@ TEST(RoomfixCalibrate, RefusesBadPointSetsWithOneClearLine) {
     std::vector<std::string> args = {"calibrate", "--points", dir.File("p.csv"), "--out",
                                      dir.File("cal.yaml")};
     if (c.name.find("no mount") == std::string::npos) {
-      args.insert(args.end(), {"--site", SourceDir() + "/config/sites/demo_room.yaml"});
+      args.insert(args.end(), {"--site", DemoSitePath()});
     }
     args.insert(args.end(), c.extra.begin(), c.extra.end());
     const RunResult r = Roomfix(args, /*stderr_only=*/true);
@@ -644,10 +642,10 @@ TEST(RoomfixCalibrate, CalibratesFromAChessboardOnTheFloorToMillimetres) {
   const CameraModel truth = TrueCamera();
   TempDir dir;
   ASSERT_TRUE(RenderFloorChessboard(truth, dir.File("board.png")));
-  const RunResult r = Roomfix({"calibrate", "--chessboard", dir.File("board.png"), "--board",
-                               "11x7", "--square", "0.25", "--board-origin", "0.75,2.25",
-                               "--board-axes", "+x-y", "--out", dir.File("cam0.yaml"), "--site",
-                               SourceDir() + "/config/sites/demo_room.yaml", "--camera", "0"});
+  const RunResult r =
+      Roomfix({"calibrate", "--chessboard", dir.File("board.png"), "--board", "11x7", "--square",
+               "0.25", "--board-origin", "0.75,2.25", "--board-axes", "+x-y", "--out",
+               dir.File("cam0.yaml"), "--site", DemoSitePath(), "--camera", "0"});
   std::cout << r.out;
   ASSERT_EQ(r.exit_code, 0) << r.out;
   Calibration cal;
@@ -695,7 +693,7 @@ TEST(RoomfixCalibrate, CalibratesFromImagesOfAMarkerAtSurveyedPoints) {
   truth.camera.intrinsics.height_px = 1080;
   std::string error;
   ASSERT_TRUE(calib::SaveCalibration(dir.File("truth.yaml"), truth, "true lens", &error)) << error;
-  const std::string site = SourceDir() + "/config/sites/demo_room.yaml";
+  const std::string site = DemoSitePath();
   const RunResult render =
       Roomfix({"render-camera", "--site", site, "--calibration", dir.File("truth.yaml"),
                "--scenario", "lighting", "--tripod-grid", dir.File("tripod")});
@@ -772,7 +770,7 @@ TEST(RoomfixCalibrate, StatesEachRobotsHeldOutPixelSigmaFromImagesItDidNotFit) {
 
 TEST(RoomfixCalibrate, RefusesAMarkerImageWithTwoMarkersNamingIt) {
   TempDir dir;
-  const std::string site = SourceDir() + "/config/sites/demo_room.yaml";
+  const std::string site = DemoSitePath();
   // "distractors" puts two more orange discs on the floor.
   ASSERT_EQ(Roomfix({"render-camera", "--site", site, "--scenario", "distractors", "--png",
                      dir.File("busy.png")})

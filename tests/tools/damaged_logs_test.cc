@@ -10,6 +10,7 @@
 #include "msgio/test_messages.h"
 #include "roomfix/pose2d_t.hpp"
 #include "roomfix/range_set_t.hpp"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/raw_log_event.h"
 #include "tests/testing/test_paths.h"
 
@@ -21,7 +22,6 @@ using testing::BinDir;
 using testing::ChildProcess;
 using testing::MakeTestPose;
 using testing::ReadFile;
-using testing::SourceDir;
 using testing::TempDir;
 
 constexpr int64_t kT0 = 1'700'000'000'000'000;
@@ -178,9 +178,9 @@ TEST_P(DamagedLogTest, ListenOnAFileUrlPrintsEveryGoodEvent) {
 }
 
 TEST_P(DamagedLogTest, TheViewerReplaysItHeadless) {
-  const ToolRun r = RunTool(
-      dir_, {BinDir() + "/roomfix_viewer", "--config", SourceDir() + "/config/sites/demo_room.yaml",
-             "--log", path_, "--headless", "--png", dir_.File("end.png")});
+  const ToolRun r =
+      RunTool(dir_, {BinDir() + "/roomfix_viewer", "--config", testing::DemoSitePath(), "--log",
+                     path_, "--headless", "--png", dir_.File("end.png")});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.err.find("replayed every good event"), std::string::npos) << r.err;
   ExpectOneDamageLine(r, "roomfix_viewer", GetParam());
@@ -201,9 +201,8 @@ TEST_P(DamagedLogTest, SurveyReadsAroundTheDamageAndSaysSo) {
   const std::string ranges =
       RawEvent(0, kT0, "RANGES", encoded, 6, static_cast<int32_t>(encoded.size()));
   ASSERT_TRUE(testing::WriteFile(path_, ranges + bytes));
-  const ToolRun r =
-      RunTool(dir_, {BinDir() + "/roomfix", "survey", path_, "--site",
-                     SourceDir() + "/config/sites/demo_room.yaml", "--reference", "ground_truth"});
+  const ToolRun r = RunTool(dir_, {BinDir() + "/roomfix", "survey", path_, "--site",
+                                   testing::DemoSitePath(), "--reference", "ground_truth"});
   EXPECT_LT(r.exit_code, 128) << "killed by a signal: " << r.err;
   ExpectOneDamageLine(r, "roomfix survey", GetParam());
 }
@@ -212,7 +211,7 @@ TEST_P(DamagedLogTest, SurveyReadsAroundTheDamageAndSaysSo) {
 TEST_P(DamagedLogTest, ReplayRunsAroundTheDamageAndSaysSo) {
   const ToolRun r =
       RunTool(dir_, {BinDir() + "/roomfix", "replay", path_, "--out", dir_.File("replayed.lcm"),
-                     "--config", SourceDir() + "/config/sites/demo_room.yaml", "--json"});
+                     "--config", testing::DemoSitePath(), "--json"});
   ASSERT_EQ(r.exit_code, 0) << r.err;  // Damaged, and replayed.
   const json out = json::parse(r.out, nullptr, false);
   ASSERT_FALSE(out.is_discarded()) << r.out;
@@ -226,9 +225,8 @@ TEST_P(DamagedLogTest, ReplayRunsAroundTheDamageAndSaysSo) {
 // through LogFileBus (LCM's file provider SIGSEGVs on the 0x7FFFFFFF event)
 // and, as with LCM's provider, stops with exit 1 at the end of the log.
 TEST_P(DamagedLogTest, AProcessReadingItAsItsLcmUrlReachesTheEnd) {
-  const ToolRun r = RunTool(
-      dir_, {BinDir() + "/trilat_proc", "--config", SourceDir() + "/config/sites/demo_room.yaml",
-             "--lcm-url", "file://" + path_ + "?speed=0"});
+  const ToolRun r = RunTool(dir_, {BinDir() + "/trilat_proc", "--config", testing::DemoSitePath(),
+                                   "--lcm-url", "file://" + path_ + "?speed=0"});
   EXPECT_EQ(r.exit_code, 1) << r.err;
   EXPECT_NE(r.err.find("end of log " + path_), std::string::npos) << r.err;
   ExpectOneDamageLine(r, "trilat_proc", GetParam());

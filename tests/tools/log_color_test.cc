@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "sim/pseudo_terminal.h"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 extern char** environ;
@@ -23,7 +24,7 @@ namespace roomfix {
 namespace {
 
 using testing::BinDir;
-using testing::SourceDir;
+using testing::DemoSitePath;
 
 // An ANSI SGR sequence, which is how spdlog colours the level name.
 constexpr char kEscape[] = "\x1b[";
@@ -41,7 +42,7 @@ enum class Stderr { kTerminal, kPipe };
 std::string StderrOf(Stderr where, const std::string& color, const char* no_color) {
   std::vector<std::string> args = {BinDir() + "/trilat_proc",
                                    "--config",
-                                   SourceDir() + "/config/sites/demo_room.yaml",
+                                   DemoSitePath(),
                                    "--lcm-url",
                                    "memq://",
                                    "--log-level",
@@ -144,8 +145,8 @@ TEST(LogColor, AlwaysColoursAPipeEvenWithNoColor) {
 
 TEST(LogColor, AnUnknownModeIsRefusedByName) {
   std::string error;
-  const std::string cmd = BinDir() + "/trilat_proc --config " + SourceDir() +
-                          "/config/sites/demo_room.yaml --log-color sometimes --check 2>&1";
+  const std::string cmd =
+      BinDir() + "/trilat_proc --config " + DemoSitePath() + " --log-color sometimes --check 2>&1";
   FILE* f = ::popen(cmd.c_str(), "r");
   ASSERT_NE(f, nullptr);
   std::string out;

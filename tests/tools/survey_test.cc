@@ -14,6 +14,7 @@
 #include "msgio/test_messages.h"
 #include "roomfix/pose2d_t.hpp"
 #include "roomfix/range_set_t.hpp"
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -22,6 +23,7 @@ namespace {
 using nlohmann::json;
 using testing::BinDir;
 using testing::ChildProcess;
+using testing::DemoSitePath;
 using testing::ReadFile;
 using testing::SourceDir;
 using testing::TempDir;
@@ -134,7 +136,7 @@ json RunSurvey(const testing::TempDir& dir, std::vector<std::string> args) {
 
 TEST(RoomfixSurvey, RecoversDisplacedReceiversFromALogAndWritesAPastableFragment) {
   TempDir dir;
-  const std::string site_path = SourceDir() + "/config/sites/demo_room.yaml";
+  const std::string site_path = DemoSitePath();
   Site site;
   std::string error;
   ASSERT_TRUE(LoadSite(site_path, &site, &error)) << error;
@@ -179,7 +181,7 @@ TEST(RoomfixSurvey, RecoversDisplacedReceiversFromALogAndWritesAPastableFragment
 
 TEST(RoomfixSurvey, WithoutAReferenceTwoPinnedReceiversFixTheFrame) {
   TempDir dir;
-  const std::string site_path = SourceDir() + "/config/sites/demo_room.yaml";
+  const std::string site_path = DemoSitePath();
   Site site;
   std::string error;
   ASSERT_TRUE(LoadSite(site_path, &site, &error)) << error;
@@ -210,7 +212,7 @@ TEST(RoomfixSurvey, WithoutAReferenceTwoPinnedReceiversFixTheFrame) {
 
 TEST(RoomfixSurvey, SaysWhatIsMissingWithoutAReference) {
   TempDir dir;
-  const std::string site_path = SourceDir() + "/config/sites/demo_room.yaml";
+  const std::string site_path = DemoSitePath();
   Site site;
   std::string error;
   ASSERT_TRUE(LoadSite(site_path, &site, &error)) << error;

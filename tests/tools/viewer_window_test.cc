@@ -13,6 +13,7 @@
 #include <string>
 #include <thread>
 
+#include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -20,6 +21,7 @@ namespace {
 
 using testing::BinDir;
 using testing::ChildProcess;
+using testing::DemoSitePath;
 using testing::SourceDir;
 
 bool OnPath(const std::string& program) {
@@ -114,8 +116,7 @@ TEST(RoomfixViewerWindow, ShowsAReplayedLogInARealWindowUnderXvfb) {
   }
   ASSERT_TRUE(up) << "Xvfb did not come up on " << display;
 
-  ChildProcess viewer({BinDir() + "/roomfix_viewer", "--config",
-                       SourceDir() + "/config/sites/demo_room.yaml", "--log",
+  ChildProcess viewer({BinDir() + "/roomfix_viewer", "--config", DemoSitePath(), "--log",
                        SourceDir() + "/tests/data/trilat_replay.lcm", "--fps", "30", "--log-level",
                        "warn"});
   ASSERT_TRUE(viewer.started());
@@ -142,10 +143,10 @@ TEST(RoomfixViewerHeadless, WritesAFramePerTickOfLogTimeAndTheLastPicture) {
   // trilat_replay.lcm spans 3.0 s: at 10 frames per second of log time that
   // is 31 frames (both ends included).
   testing::TempDir dir;
-  ChildProcess viewer({BinDir() + "/roomfix_viewer", "--config",
-                       SourceDir() + "/config/sites/demo_room.yaml", "--headless", "--log",
-                       SourceDir() + "/tests/data/trilat_replay.lcm", "--fps", "10", "--video",
-                       dir.File("frames"), "--png", dir.File("last.png"), "--log-level", "warn"});
+  ChildProcess viewer({BinDir() + "/roomfix_viewer", "--config", DemoSitePath(), "--headless",
+                       "--log", SourceDir() + "/tests/data/trilat_replay.lcm", "--fps", "10",
+                       "--video", dir.File("frames"), "--png", dir.File("last.png"), "--log-level",
+                       "warn"});
   ASSERT_EQ(viewer.Wait(60), 0);
   int frames = 0;
   for (int k = 1; k <= 40; ++k) {
