@@ -6,6 +6,7 @@
 #include <deque>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -69,11 +70,15 @@ class LoggerNode {
   // file exists (and overwrite is off) or cannot be created.
   static std::unique_ptr<LoggerNode> Create(Bus* bus, const LoggerOptions& options,
                                             int64_t start_utime, std::string* error);
+  // Unsubscribes (the bus would otherwise call into a freed node), then
+  // writes what is queued. Like Stop, on the thread that calls bus->Handle:
+  // a Bus is not thread-safe.
   ~LoggerNode();
 
   // Heartbeat; call from the receive loop.
   void Tick(int64_t now_utime);
-  // Writes everything still queued, flushes and closes the file.
+  // Stops receiving (later events are neither recorded nor counted), writes
+  // everything still queued, flushes and closes the file.
   void Stop(int64_t now_utime);
 
   const StatusReporter& status() const { return status_; }
@@ -85,6 +90,8 @@ class LoggerNode {
   bool OpenNext(int64_t utime, std::string* error);
   void OnMessage(const MessageInfo& info, const void* data, int size);
   void WriterLoop();
+  // Unsubscribes from the bus once; later calls do nothing.
+  void StopReceiving();
 
   struct Event {
     int64_t utime;
@@ -93,6 +100,7 @@ class LoggerNode {
   };
 
   Bus* bus_;
+  std::optional<SubscriptionId> subscription_;
   LoggerOptions options_;
   StatusReporter status_;
 
