@@ -6,7 +6,6 @@
 #include <deque>
 #include <memory>
 #include <mutex>
-#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -14,6 +13,7 @@
 #include "msgio/bus.h"
 #include "msgio/log.h"
 #include "msgio/process.h"
+#include "msgio/subscriptions.h"
 
 namespace roomfix {
 
@@ -90,8 +90,6 @@ class LoggerNode {
   bool OpenNext(int64_t utime, std::string* error);
   void OnMessage(const MessageInfo& info, const void* data, int size);
   void WriterLoop();
-  // Unsubscribes from the bus once; later calls do nothing.
-  void StopReceiving();
 
   struct Event {
     int64_t utime;
@@ -100,7 +98,8 @@ class LoggerNode {
   };
 
   Bus* bus_;
-  std::optional<SubscriptionId> subscription_;
+  // Ended first thing in Stop and in the destructor.
+  Subscriptions subscriptions_{bus_};
   LoggerOptions options_;
   StatusReporter status_;
 
