@@ -287,8 +287,8 @@ CameraNode::CameraNode(const Site& site, const Camera& camera,
   // Hints need the floor-to-pixel direction, so a calibration.
   if (calibration_) {
     for (const std::string& channel : options_.hint_channels) {
-      bus_->Subscribe<pose2d_t>(
-          channel, [this](const pose2d_t& p, const MessageInfo& info) { OnHint(p, info); });
+      subscriptions_.Add(bus_->Subscribe<pose2d_t>(
+          channel, [this](const pose2d_t& p, const MessageInfo& info) { OnHint(p, info); }));
     }
   }
 }

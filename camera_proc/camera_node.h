@@ -20,6 +20,7 @@
 #include "msgio/lcm_types_fwd.h"
 #include "msgio/messages.h"
 #include "msgio/process.h"
+#include "msgio/subscriptions.h"
 
 namespace roomfix {
 
@@ -206,6 +207,8 @@ class CameraNode {
     double x_m, y_m;
   };
   std::vector<std::deque<PoseSample>> recent_poses_;
+  // Last: ended first, before anything the handlers use.
+  Subscriptions subscriptions_{bus_};
 };
 
 }  // namespace roomfix

@@ -681,5 +681,23 @@ TEST_F(CameraNodeTest, BadRecordedMarkerPixelsAreCountedNotTracked) {
   EXPECT_EQ(poses[1].x_m, live.poses[2].x_m);
 }
 
+// The bus must not call into a destroyed node: its hint handler captures
+// `this`. (Junk bytes: delivered to the handler, refused before the node's
+// code.)
+TEST_F(CameraNodeTest, ADestroyedNodeReceivesNoMoreHints) {
+  LoopbackBus bus;
+  calib::Calibration c;
+  c.model = calib::Calibration::Model::kFull;
+  c.camera = lens_;
+  const uint8_t junk[3] = {1, 2, 3};
+  {
+    CameraNode node(site_, camera_, c, &bus, CameraNodeOptions(), kStartUtime);
+    bus.Inject("POSE_ULTRASOUND", junk, sizeof(junk), kStartUtime);
+    EXPECT_EQ(bus.stats().received, 1);
+  }
+  bus.Inject("POSE_ULTRASOUND", junk, sizeof(junk), kStartUtime + 1);
+  EXPECT_EQ(bus.stats().received, 1) << "delivered to a destroyed node";
+}
+
 }  // namespace
 }  // namespace roomfix

@@ -1,6 +1,7 @@
 # Install rules and the Debian package (docs/install.md says what goes where).
 #
-#   <prefix>/bin/                     the processes and the roomfix tool
+#   <prefix>/bin/                     the processes, the roomfix tool and
+#                                     roomfix-spy (scripts/spy; with the jar)
 #   <prefix>/share/roomfix/config/    sites, calibrations, bot-procman files
 #   <prefix>/share/roomfix/lcmtypes/  the message definitions (.lcm)
 #   <prefix>/include/roomfix/         the generated C++ message headers
@@ -21,6 +22,12 @@ install(TARGETS ${ROOMFIX_PROGRAMS} RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR}
 
 install(DIRECTORY config/ DESTINATION ${CMAKE_INSTALL_DATADIR}/roomfix/config
         COMPONENT runtime)
+# lcm-spy with roomfix's types (scripts/spy), named so that it cannot clash in
+# /usr/bin; it is of use only with the jar, so it goes where the jar goes.
+if(ROOMFIX_JAVA)
+  install(PROGRAMS scripts/spy DESTINATION ${CMAKE_INSTALL_BINDIR} RENAME roomfix-spy
+          COMPONENT dev)
+endif()
 install(FILES README.md DESTINATION ${CMAKE_INSTALL_DOCDIR} COMPONENT runtime)
 install(DIRECTORY docs/ DESTINATION ${CMAKE_INSTALL_DOCDIR}/docs COMPONENT runtime)
 

@@ -60,14 +60,14 @@ FusionNode::FusionNode(const Site& site, Bus* bus, const FusionNodeOptions& opti
       bias = std::max(bias, sigma_m);
     }
   }
-  bus_->Subscribe<pose2d_t>(options_.camera_channel,
-                            [this](const pose2d_t& pose, const MessageInfo& info) {
-                              OnPose(pose, info, fusion::Source::kCamera);
-                            });
-  bus_->Subscribe<pose2d_t>(options_.ultrasound_channel,
-                            [this](const pose2d_t& pose, const MessageInfo& info) {
-                              OnPose(pose, info, fusion::Source::kUltrasound);
-                            });
+  subscriptions_.Add(bus_->Subscribe<pose2d_t>(
+      options_.camera_channel, [this](const pose2d_t& pose, const MessageInfo& info) {
+        OnPose(pose, info, fusion::Source::kCamera);
+      }));
+  subscriptions_.Add(bus_->Subscribe<pose2d_t>(
+      options_.ultrasound_channel, [this](const pose2d_t& pose, const MessageInfo& info) {
+        OnPose(pose, info, fusion::Source::kUltrasound);
+      }));
   status_.SetState(process_status_t::STATE_RUNNING);
 }
 

@@ -13,6 +13,7 @@
 #include "msgio/bus.h"
 #include "msgio/lcm_types_fwd.h"
 #include "msgio/process.h"
+#include "msgio/subscriptions.h"
 
 namespace roomfix {
 
@@ -104,6 +105,8 @@ class FusionNode {
   std::map<int32_t, double> robot_bias_sigma_m_;
   std::map<int32_t, Track> tracks_;
   int64_t next_rate_utime_ = 0;
+  // Last: ended first, before anything the handlers use.
+  Subscriptions subscriptions_{bus_};
 };
 
 }  // namespace roomfix

@@ -775,5 +775,21 @@ TEST(FusionNodeOptions, RefusesANegativeRate) {
   EXPECT_FALSE(options.IsValid(&error));
 }
 
+// The bus must not call into a destroyed node: its handlers capture `this`.
+// (Junk bytes: delivered to the handlers, refused before the node's code.)
+TEST_F(FusionNodeTest, ADestroyedNodeReceivesNothingMore) {
+  const uint8_t junk[3] = {1, 2, 3};
+  const FusionNodeOptions options;
+  {
+    FusionNode node(site_, &bus_, options, fusion::synthetic::kStartUtime);
+    bus_.Inject(options.camera_channel, junk, sizeof(junk), 1);
+    bus_.Inject(options.ultrasound_channel, junk, sizeof(junk), 2);
+    EXPECT_EQ(bus_.stats().received, 2);
+  }
+  bus_.Inject(options.camera_channel, junk, sizeof(junk), 3);
+  bus_.Inject(options.ultrasound_channel, junk, sizeof(junk), 4);
+  EXPECT_EQ(bus_.stats().received, 2) << "delivered to a destroyed node";
+}
+
 }  // namespace
 }  // namespace roomfix

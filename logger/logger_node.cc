@@ -93,10 +93,10 @@ std::unique_ptr<LoggerNode> LoggerNode::Create(Bus* bus, const LoggerOptions& op
   std::unique_ptr<LoggerNode> node(new LoggerNode(bus, options, start_utime));
   if (!node->OpenNext(start_utime, error)) return nullptr;
   node->thread_ = std::thread(&LoggerNode::WriterLoop, node.get());
-  bus->SubscribeRaw(options.channel_regex,
-                    [n = node.get()](const MessageInfo& info, const void* data, int size) {
-                      n->OnMessage(info, data, size);
-                    });
+  node->subscriptions_.Add(bus->SubscribeRaw(
+      options.channel_regex, [n = node.get()](const MessageInfo& info, const void* data, int size) {
+        n->OnMessage(info, data, size);
+      }));
   node->status_.SetState(process_status_t::STATE_RUNNING);
   return node;
 }
@@ -105,6 +105,7 @@ LoggerNode::LoggerNode(Bus* bus, const LoggerOptions& options, int64_t start_uti
     : bus_(bus), options_(options), status_("roomfix_logger", start_utime) {}
 
 LoggerNode::~LoggerNode() {
+  subscriptions_.Clear();
   {
     std::lock_guard<std::mutex> lock(mutex_);
     stopping_ = true;
@@ -269,6 +270,7 @@ void LoggerNode::Tick(int64_t now_utime) {
 }
 
 void LoggerNode::Stop(int64_t now_utime) {
+  subscriptions_.Clear();
   {
     std::lock_guard<std::mutex> lock(mutex_);
     stopping_ = true;

@@ -13,6 +13,7 @@
 #include "msgio/bus.h"
 #include "msgio/log.h"
 #include "msgio/process.h"
+#include "msgio/subscriptions.h"
 
 namespace roomfix {
 
@@ -69,11 +70,15 @@ class LoggerNode {
   // file exists (and overwrite is off) or cannot be created.
   static std::unique_ptr<LoggerNode> Create(Bus* bus, const LoggerOptions& options,
                                             int64_t start_utime, std::string* error);
+  // Unsubscribes (the bus would otherwise call into a freed node), then
+  // writes what is queued. Like Stop, on the thread that calls bus->Handle:
+  // a Bus is not thread-safe.
   ~LoggerNode();
 
   // Heartbeat; call from the receive loop.
   void Tick(int64_t now_utime);
-  // Writes everything still queued, flushes and closes the file.
+  // Stops receiving (later events are neither recorded nor counted), writes
+  // everything still queued, flushes and closes the file.
   void Stop(int64_t now_utime);
 
   const StatusReporter& status() const { return status_; }
@@ -93,6 +98,8 @@ class LoggerNode {
   };
 
   Bus* bus_;
+  // Ended first thing in Stop and in the destructor.
+  Subscriptions subscriptions_{bus_};
   LoggerOptions options_;
   StatusReporter status_;
 

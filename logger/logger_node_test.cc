@@ -223,6 +223,41 @@ TEST_F(LoggerNodeTest, DropsAndCountsWhatTheQueueCannotHold) {
   EXPECT_EQ(ReadAll(o.path).size(), 3u);
 }
 
+// The bus must not call into a destroyed node: it used to stay subscribed,
+// and the next message ran its handler on freed memory. Another subscriber
+// on the same bus still receives every message.
+TEST_F(LoggerNodeTest, ADestroyedNodeReceivesNothingMore) {
+  int other_received = 0;
+  bus_->SubscribeRaw("DATA", [&](const MessageInfo&, const void*, int) { ++other_received; });
+  LoggerOptions o;
+  o.path = dir_.File("a.lcm");
+  std::string error;
+  auto node = LoggerNode::Create(bus_.get(), o, 0, &error);
+  ASSERT_NE(node, nullptr) << error;
+  Publish(3, 10);
+  EXPECT_EQ(bus_->stats().received, 2 * 3) << "the node and the other subscriber";
+  node.reset();
+  Publish(5, 10);
+  EXPECT_EQ(other_received, 3 + 5);
+  EXPECT_EQ(bus_->stats().received, 2 * 3 + 5) << "only the other subscriber after the node";
+  EXPECT_EQ(ReadAll(o.path).size(), 3u);
+}
+
+// Stop ends the recording: what arrives after it is neither written nor
+// counted as an input (it would otherwise wait in a queue no one drains).
+TEST_F(LoggerNodeTest, StopEndsReceiving) {
+  LoggerOptions o;
+  o.path = dir_.File("a.lcm");
+  std::string error;
+  auto node = LoggerNode::Create(bus_.get(), o, 0, &error);
+  ASSERT_NE(node, nullptr) << error;
+  Publish(3, 10);
+  node->Stop(1);
+  Publish(2, 10);  // also delivers the STATUS that Stop published
+  EXPECT_EQ(node->status().inputs(), 3);
+  EXPECT_EQ(ReadAll(o.path).size(), 3u);
+}
+
 TEST(LoggerOptions, RejectsABadChannelExpressionAndNoPath) {
   LoggerOptions o;
   std::string error;

@@ -79,6 +79,32 @@ TEST(LcmBus, CountsATruncatedMessage) {
   EXPECT_EQ(bus->stats().refused, (std::map<std::string, int64_t>{{"POSE.truncated", 1}}));
 }
 
+// A status outside pose2d_t's constants would cast to a PoseStatus no switch
+// names and read as "not lost": refused before the handler, by channel.
+TEST(LcmBus, RefusesAnEnumOutsideItsConstantsAndCountsItByChannel) {
+  auto bus = MemqBus();
+  std::vector<pose2d_t> got;
+  bus->Subscribe<pose2d_t>("POSE_CAMERA",
+                           [&](const pose2d_t& p, const MessageInfo&) { got.push_back(p); });
+  pose2d_t bad_status = MakeTestPose(1000, 1, 1.5, 2.25);
+  bad_status.status = 7;
+  pose2d_t bad_source = MakeTestPose(2000, 1, 1.5, 2.25);
+  bad_source.source = -1;
+  ASSERT_TRUE(bus->Publish("POSE_CAMERA", bad_status));
+  ASSERT_TRUE(bus->Publish("POSE_CAMERA", bad_source));
+  ASSERT_TRUE(bus->Publish("POSE_CAMERA", MakeTestPose(3000, 1, 1.5, 2.25)));
+  while (bus->Handle(0) > 0) {
+  }
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got[0].utime, 3000);
+  EXPECT_EQ(bus->stats().decode_failures, 2);
+  EXPECT_EQ(bus->stats().refused,
+            (std::map<std::string, int64_t>{{"POSE_CAMERA.enum_out_of_range", 2}}));
+  EXPECT_EQ(bus->stats().last_error,
+            "message on POSE_CAMERA refused (enum_out_of_range): pose2d_t.source -1 outside 0..4 "
+            "at byte 16 of 158");
+}
+
 // The audit's crash of every STATUS listener: a string length of INT32_MIN.
 TEST(LoopbackBus, RefusesAHostileLengthBeforeTheHandlerAndCountsItByChannel) {
   LoopbackBus bus;

@@ -4,9 +4,10 @@
 // The one conversion per message type between msgio/messages.h's structs and
 // the generated types. ToMessage copies every field and sets the counts from
 // the vectors; FromMessage copies every field of a message DecodeChecked
-// accepted (an enum field keeps whatever int8 the sender put there: a reader
-// compares it with the values it knows). Neither checks values: a producer
-// states what it measured, a consumer refuses what it cannot use.
+// accepted, whose enum fields it has checked to hold one of their .lcm
+// constants (wire_check.h: enum_out_of_range), so each casts to a named
+// enumerator. Neither checks other values: a producer states what it
+// measured, a consumer refuses what it cannot use.
 
 #include "msgio/messages.h"
 #include "roomfix/image_t.hpp"

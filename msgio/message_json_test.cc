@@ -103,7 +103,8 @@ TEST(MessageJson, RefusesUnknownAndCorruptPayloads) {
   auto bytes = Encode(testing::MakeTestPose(1, 1, 1, 1));
   std::string reason;
   EXPECT_FALSE(MessageToJson(bytes.data(), 20, &json, &error, &reason));
-  EXPECT_EQ(error, "refused: pose2d_t.utime..latency_us needs 150 bytes at byte 8 of 20");
+  EXPECT_EQ(error,
+            "refused: pose2d_t.camera_id..num_measurements needs 132 bytes at byte 17 of 20");
   EXPECT_EQ(reason, "truncated");
   EXPECT_FALSE(MessageToJson(junk, 16, &json, &error, &reason));
   EXPECT_EQ(reason, "unknown_type");

@@ -37,7 +37,7 @@ enum class PoseStatus : int8_t {
 };
 
 // "camera", "ultrasound", "fused", "ground_truth" or "unknown" (also for a
-// value outside the enum: a decoded message may carry any int8).
+// value outside the enum, which DecodeChecked refuses on the wire).
 const char* PoseSourceName(PoseSource source);
 
 // A pose2d_t. What a producer does not state is unknown: position, heading

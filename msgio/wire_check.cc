@@ -4,6 +4,10 @@
 #include <string>
 
 #include "core/world/site.h"
+#include "roomfix/marker_pixels_t.hpp"
+#include "roomfix/marker_t.hpp"
+#include "roomfix/pose2d_t.hpp"
+#include "roomfix/process_status_t.hpp"
 
 namespace roomfix {
 
@@ -16,12 +20,16 @@ namespace {
 // int8 and byte 1, int32 4, int64 and double 8 bytes; a fixed-size array is
 // its elements back to back; a nested struct is its fields with no
 // fingerprint. wire_check_test.cc checks each table against the generated
-// encoder (the checked size of real messages equals getEncodedSize()).
+// encoder (the checked size of real messages equals getEncodedSize()). An
+// enum's constants run from 0 without gaps in every .lcm file, so its largest
+// constant bounds it; wire_check_test.cc reads lcmtypes/*.lcm and checks that
+// every int8 with constants is a kEnum here with that bound.
 constexpr FieldKind kFixed = FieldKind::kFixed;
 constexpr FieldKind kString = FieldKind::kString;
 constexpr FieldKind kCount = FieldKind::kCount;
 constexpr FieldKind kStructArray = FieldKind::kStructArray;
 constexpr FieldKind kByteArray = FieldKind::kByteArray;
+constexpr FieldKind kEnum = FieldKind::kEnum;
 
 constexpr Field kCounterFields[] = {
     {"name", kString, wire_cap::kNameBytes, nullptr},
@@ -32,7 +40,7 @@ constexpr Layout kCounter{"counter_t", kCounterFields, 2};
 constexpr Field kMarkerFields[] = {
     {"colour_class", kString, wire_cap::kColourClassBytes, nullptr},
     {"robot_id", kFixed, 4, nullptr},
-    {"role", kFixed, 1, nullptr},
+    {"role", kEnum, marker_t::ROLE_HEADING, nullptr},
     // u_px, v_px, radius_px, circularity, area_px
     {"u_px..area_px", kFixed, 5 * 8, nullptr},
 };
@@ -47,12 +55,15 @@ constexpr Field kRangeFields[] = {
 constexpr Layout kRange{"range_t", kRangeFields, 3};
 
 constexpr Field kPoseFields[] = {
-    // utime 8, source 1, camera_id 4, robot_id 4, measurement_seq 8, x_m
-    // y_m z_m heading_rad 4*8, covariance 9*8, residual_m 8,
-    // num_measurements 4, status 1, latency_us 8.
-    {"utime..latency_us", kFixed, 8 + 1 + 4 + 4 + 8 + 4 * 8 + 9 * 8 + 8 + 4 + 1 + 8, nullptr},
+    {"utime", kFixed, 8, nullptr},
+    {"source", kEnum, pose2d_t::SOURCE_GROUND_TRUTH, nullptr},
+    // camera_id 4, robot_id 4, measurement_seq 8, x_m y_m z_m heading_rad
+    // 4*8, covariance 9*8, residual_m 8, num_measurements 4.
+    {"camera_id..num_measurements", kFixed, 4 + 4 + 8 + 4 * 8 + 9 * 8 + 8 + 4, nullptr},
+    {"status", kEnum, pose2d_t::STATUS_LOST, nullptr},
+    {"latency_us", kFixed, 8, nullptr},
 };
-constexpr Layout kPose{"pose2d_t", kPoseFields, 1};
+constexpr Layout kPose{"pose2d_t", kPoseFields, 5};
 
 constexpr Field kRangeSetFields[] = {
     // utime 8, beacon_id 4, firing_seq 8, speed_of_sound_mps 8,
@@ -64,13 +75,14 @@ constexpr Field kRangeSetFields[] = {
 constexpr Layout kRangeSet{"range_set_t", kRangeSetFields, 3};
 
 constexpr Field kMarkerPixelsFields[] = {
-    // utime 8, camera_id 4, frame_seq 8, width_px 4, height_px 4,
-    // search_mode 1, processing_time_us 4
-    {"utime..processing_time_us", kFixed, 8 + 4 + 8 + 4 + 4 + 1 + 4, nullptr},
+    // utime 8, camera_id 4, frame_seq 8, width_px 4, height_px 4
+    {"utime..height_px", kFixed, 8 + 4 + 8 + 4 + 4, nullptr},
+    {"search_mode", kEnum, marker_pixels_t::SEARCH_REGION_OF_INTEREST, nullptr},
+    {"processing_time_us", kFixed, 4, nullptr},
     {"num_markers", kCount, wire_cap::kMarkersPerFrame, nullptr},
     {"markers", kStructArray, 0, &kMarker},
 };
-constexpr Layout kMarkerPixels{"marker_pixels_t", kMarkerPixelsFields, 3};
+constexpr Layout kMarkerPixels{"marker_pixels_t", kMarkerPixelsFields, 5};
 
 constexpr Field kImageFields[] = {
     // utime 8, camera_id 4, frame_seq 8, width_px, height_px,
@@ -86,8 +98,9 @@ constexpr Field kProcessStatusFields[] = {
     {"utime", kFixed, 8, nullptr},
     {"process", kString, wire_cap::kNameBytes, nullptr},
     {"host", kString, wire_cap::kNameBytes, nullptr},
-    // pid 4, uptime_us 8, state 1, inputs, outputs, dropped 8 each
-    {"pid..dropped", kFixed, 4 + 8 + 1 + 3 * 8, nullptr},
+    {"pid..uptime_us", kFixed, 4 + 8, nullptr},
+    {"state", kEnum, process_status_t::STATE_FAILED, nullptr},
+    {"inputs..dropped", kFixed, 3 * 8, nullptr},
     {"num_rejected", kCount, wire_cap::kStatusCounters, nullptr},
     {"rejected", kStructArray, 0, &kCounter},
     {"num_counters", kCount, wire_cap::kStatusCounters, nullptr},
@@ -95,7 +108,7 @@ constexpr Field kProcessStatusFields[] = {
     {"last_error", kString, wire_cap::kLastErrorBytes, nullptr},
     {"last_error_utime", kFixed, 8, nullptr},
 };
-constexpr Layout kProcessStatus{"process_status_t", kProcessStatusFields, 10};
+constexpr Layout kProcessStatus{"process_status_t", kProcessStatusFields, 12};
 
 constexpr Field kSiteFileFields[] = {
     {"name", kString, wire_cap::kPathBytes, nullptr},
@@ -126,6 +139,7 @@ int64_t MinEncodedSize(const Layout& layout) {
   for (int i = 0; i < layout.num_fields; ++i) {
     const Field& f = layout.fields[i];
     if (f.kind == kFixed) n += f.limit;
+    if (f.kind == kEnum) n += 1;
     if (f.kind == kString) n += 4 + 1;
     if (f.kind == kCount) n += 4;
   }
@@ -173,6 +187,16 @@ class Walker {
           }
           pos_ += f.limit;
           break;
+        case kEnum: {
+          if (left() < 1) return Fail(wire_refusal::kTruncated, layout, f, "needs 1 byte");
+          const auto value = static_cast<int8_t>(data_[pos_]);
+          if (value < 0 || value > f.limit) {
+            return Fail(wire_refusal::kEnumOutOfRange, layout, f,
+                        std::to_string(value) + " outside 0.." + std::to_string(f.limit));
+          }
+          ++pos_;
+          break;
+        }
         case kString: {
           int32_t length = 0;
           if (!ReadInt32(&length)) {

@@ -11,7 +11,8 @@
 // encoded form against a table of the type's fields and refuses it with a
 // reason unless every length and count is non-negative, within a per-type cap
 // (docs/messages.md) and within the bytes present, every string is
-// NUL-terminated with no NUL inside (as LCM encodes it), and no byte trails.
+// NUL-terminated with no NUL inside (as LCM encodes it), every enum-valued
+// field holds one of its .lcm constants, and no byte trails.
 // Only then does the generated decoder run; it can then allocate at most a
 // small multiple of the message's size.
 
@@ -40,6 +41,11 @@ inline constexpr char kCountOverCap[] = "count_over_cap";
 inline constexpr char kBadString[] = "bad_string";
 // Bytes after the end of the message.
 inline constexpr char kTrailingBytes[] = "trailing_bytes";
+// An enum-valued int8 (a pose's source or status, a marker's role, a
+// search mode, a process state) outside the constants its .lcm file lists.
+// Decoded, it would be cast to a roomfix enum no switch handles and read as
+// whatever its comparisons fall through to (a status of 7 as "not lost").
+inline constexpr char kEnumOutOfRange[] = "enum_out_of_range";
 // Passed the check but the generated decoder still failed: a disagreement
 // between the field table and the .lcm file, i.e. a roomfix bug.
 inline constexpr char kUndecodable[] = "undecodable";
@@ -73,6 +79,7 @@ enum class FieldKind : uint8_t {
   kCount,        // int32 count of the next array field; `limit` caps it
   kStructArray,  // `element` structs (no fingerprints), as many as the last count
   kByteArray,    // bytes, as many as the last count
+  kEnum,         // one int8 that must lie in 0..`limit` (the .lcm's constants)
 };
 
 struct Layout;
@@ -80,7 +87,7 @@ struct Layout;
 struct Field {
   const char* name;
   FieldKind kind;
-  int32_t limit;  // kFixed: size in bytes; kString, kCount: cap
+  int32_t limit;  // kFixed: size in bytes; kString, kCount: cap; kEnum: largest value
   const Layout* element;
 };
 

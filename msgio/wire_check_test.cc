@@ -4,9 +4,14 @@
 #include <sys/resource.h>
 
 #include <climits>
+#include <fstream>
+#include <map>
+#include <regex>
+#include <sstream>
 #include <string>
 #include <vector>
 
+#include "msgio/install_paths.h"
 #include "msgio/wire_test_messages.h"
 
 namespace roomfix {
@@ -243,6 +248,114 @@ TEST(WireCheck, RefusesFewerThanTheFingerprintsEightBytes) {
   EXPECT_STREQ(CheckEncoded<pose2d_t>(bytes, 7), "truncated");
   EXPECT_STREQ(CheckEncoded<pose2d_t>(nullptr, 0), "truncated");
   EXPECT_STREQ(CheckEncoded<pose2d_t>(bytes, -5), "truncated");
+}
+
+// Every enum-valued int8 a roomfix message carries, encoded by the generated
+// encoder with each value an int8 can hold: exactly the .lcm's constants pass;
+// every other value is refused before decoding, with the field and value
+// named, however the rest of the message looks.
+template <class Msg, class Set>
+void ExpectOnlyConstantsPass(const Msg& good, Set set, int8_t largest, const std::string& field) {
+  SCOPED_TRACE(field);
+  for (int v = INT8_MIN; v <= INT8_MAX; ++v) {
+    Msg msg = good;
+    set(&msg, static_cast<int8_t>(v));
+    const std::vector<uint8_t> bytes = Encode(msg);
+    Msg decoded{};
+    std::string reason;
+    std::string detail;
+    const bool accepted =
+        DecodeChecked(bytes.data(), static_cast<int>(bytes.size()), &decoded, &reason, &detail);
+    if (v >= 0 && v <= largest) {
+      EXPECT_TRUE(accepted) << v << ": " << detail;
+      continue;
+    }
+    ASSERT_FALSE(accepted) << "value " << v << " passed";
+    EXPECT_EQ(reason, "enum_out_of_range");
+    EXPECT_EQ(detail.rfind(field + " " + std::to_string(v) + " outside 0.." +
+                               std::to_string(largest) + " at byte ",
+                           0),
+              0u)
+        << detail;
+  }
+}
+
+TEST(WireCheck, AcceptsOnlyTheConstantsOfEveryEnumField) {
+  const pose2d_t pose = testing::MakeTestPose(1700000000000000, 3, 1.25, 2.5);
+  ExpectOnlyConstantsPass(
+      pose, [](pose2d_t* m, int8_t v) { m->status = v; }, pose2d_t::STATUS_LOST, "pose2d_t.status");
+  ExpectOnlyConstantsPass(
+      pose, [](pose2d_t* m, int8_t v) { m->source = v; }, pose2d_t::SOURCE_GROUND_TRUTH,
+      "pose2d_t.source");
+  const marker_pixels_t pixels = testing::MakeTestMarkerPixels();
+  ExpectOnlyConstantsPass(
+      pixels, [](marker_pixels_t* m, int8_t v) { m->search_mode = v; },
+      marker_pixels_t::SEARCH_REGION_OF_INTEREST, "marker_pixels_t.search_mode");
+  // The second marker's role: a bad element inside an array is found too.
+  ExpectOnlyConstantsPass(
+      pixels, [](marker_pixels_t* m, int8_t v) { m->markers[1].role = v; }, marker_t::ROLE_HEADING,
+      "marker_t.role");
+  ExpectOnlyConstantsPass(
+      testing::MakeTestStatus(), [](process_status_t* m, int8_t v) { m->state = v; },
+      process_status_t::STATE_FAILED, "process_status_t.state");
+}
+
+// The field tables against lcmtypes/*.lcm: every int8 field followed by
+// `const int8_t` constants is an enum, and its table entry is a kEnum bounded
+// by the largest constant, the constants running 0, 1, 2 ... without a gap
+// (the range check relies on that). A constant added to a .lcm file without
+// its table fails here.
+TEST(WireCheck, EveryEnumOfTheLcmFilesIsCheckedWithItsLargestConstant) {
+  const std::map<std::string, const wire::Layout*> layouts = {
+      {"marker_pixels_t", &wire::LayoutOf(static_cast<const marker_pixels_t*>(nullptr))},
+      {"marker_t", &wire::LayoutOf(static_cast<const marker_t*>(nullptr))},
+      {"pose2d_t", &wire::LayoutOf(static_cast<const pose2d_t*>(nullptr))},
+      {"process_status_t", &wire::LayoutOf(static_cast<const process_status_t*>(nullptr))},
+      {"counter_t", &wire::LayoutOf(static_cast<const counter_t*>(nullptr))},
+      {"image_t", &wire::LayoutOf(static_cast<const image_t*>(nullptr))},
+      {"range_set_t", &wire::LayoutOf(static_cast<const range_set_t*>(nullptr))},
+      {"range_t", &wire::LayoutOf(static_cast<const range_t*>(nullptr))},
+      {"site_file_t", &wire::LayoutOf(static_cast<const site_file_t*>(nullptr))},
+      {"site_t", &wire::LayoutOf(static_cast<const site_t*>(nullptr))},
+  };
+  const std::regex field_re(R"(^\s*int8_t\s+(\w+)\s*;)");
+  const std::regex const_re(R"(^\s*const\s+int8_t\s+\w+\s*=\s*(-?\d+)\s*;)");
+  int enums_found = 0;
+  for (const auto& [type, layout] : layouts) {
+    const std::string path = DataFile("lcmtypes/" + type + ".lcm");
+    std::ifstream in(path);
+    ASSERT_TRUE(in.good()) << path;
+    // Field name -> its constants, in file order.
+    std::map<std::string, std::vector<int>> constants;
+    std::string field;
+    for (std::string line; std::getline(in, line);) {
+      line = line.substr(0, line.find("//"));
+      std::smatch m;
+      if (std::regex_search(line, m, field_re)) {
+        field = m[1];
+      } else if (std::regex_search(line, m, const_re)) {
+        ASSERT_FALSE(field.empty()) << path << ": a constant before any int8 field";
+        constants[field].push_back(std::stoi(m[1]));
+      } else if (line.find(';') != std::string::npos) {
+        field.clear();  // another field: constants after it are not this enum's
+      }
+    }
+    for (const auto& [name, values] : constants) {
+      SCOPED_TRACE(type + "." + name);
+      ++enums_found;
+      for (size_t i = 0; i < values.size(); ++i) EXPECT_EQ(values[i], static_cast<int>(i));
+      const wire::Field* entry = nullptr;
+      for (int i = 0; i < layout->num_fields; ++i) {
+        if (layout->fields[i].name == name) entry = &layout->fields[i];
+      }
+      ASSERT_NE(entry, nullptr) << "no field table entry";
+      EXPECT_EQ(entry->kind, wire::FieldKind::kEnum);
+      EXPECT_EQ(entry->limit, static_cast<int32_t>(values.size()) - 1);
+    }
+  }
+  // pose2d_t source and status, marker_t role, marker_pixels_t search_mode,
+  // process_status_t state: a parser that found none would pass vacuously.
+  EXPECT_EQ(enums_found, 5);
 }
 
 }  // namespace

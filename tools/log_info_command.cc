@@ -100,6 +100,8 @@ void AddLogInfoCommand(CLI::App* app, int* exit_code) {
     // By pid (STATUS carries no camera id); as many as there are cameras.
     std::map<int32_t, CameraProcStatus> camera_procs;
     int64_t unlisted_channel_events = 0;
+    // MARKER_PIXELS and STATUS events refused before decoding, by reason.
+    std::map<std::string, int64_t> refused;
     LogEvent event;
     while (reader->Next(&event)) {
       auto it = channels.find(event.channel);
@@ -118,9 +120,16 @@ void AddLogInfoCommand(CLI::App* app, int* exit_code) {
       marker_pixels_t pixels;
       process_status_t status;
       std::string reason;
-      if (event.channel == "STATUS" &&
-          DecodeChecked(event.data.data(), static_cast<int>(event.data.size()), &status, &reason) &&
-          status.process == "camera_proc" &&
+      const bool is_status = event.channel == "STATUS";
+      const bool is_pixels = event.channel == "MARKER_PIXELS";
+      const int size = static_cast<int>(event.data.size());
+      // A refused event is not a frame or a heartbeat: counted for the
+      // warning below, never read.
+      const bool decoded =
+          (is_status && DecodeChecked(event.data.data(), size, &status, &reason)) ||
+          (is_pixels && DecodeChecked(event.data.data(), size, &pixels, &reason));
+      if ((is_status || is_pixels) && !decoded) ++refused[reason];
+      if (is_status && decoded && status.process == "camera_proc" &&
           (camera_procs.size() < kMaxCameras || camera_procs.count(status.pid) > 0)) {
         // Counters are totals since start: the last heartbeat holds them all.
         CameraProcStatus& p = camera_procs[status.pid];
@@ -128,8 +137,7 @@ void AddLogInfoCommand(CLI::App* app, int* exit_code) {
           if (counter.name == "source_skipped_frames") p.source_skipped = counter.count;
         }
       }
-      if (event.channel == "MARKER_PIXELS" &&
-          DecodeChecked(event.data.data(), static_cast<int>(event.data.size()), &pixels, &reason)) {
+      if (is_pixels && decoded) {
         if (cameras.size() >= kMaxCameras && cameras.count(pixels.camera_id) == 0) continue;
         CameraFrames& f = cameras[pixels.camera_id];
         if (f.frames == 0) {
@@ -188,6 +196,12 @@ void AddLogInfoCommand(CLI::App* app, int* exit_code) {
         std::printf("camera_proc pid %d: %lld frames skipped by the synthetic camera's renderer\n",
                     pid, static_cast<long long>(p.source_skipped));
       }
+    }
+    if (!refused.empty()) {
+      int64_t total = 0;
+      for (const auto& [reason, count] : refused) total += count;
+      std::cerr << "roomfix log-info: warning: " << total
+                << " MARKER_PIXELS and STATUS events refused (" << RefusalCounts(refused) << ")\n";
     }
     if (unlisted_channel_events > 0) {
       std::cerr << "roomfix log-info: warning: more than " << kMaxListedChannels

@@ -63,9 +63,9 @@ TrilatNode::TrilatNode(const Site& site, Bus* bus, const TrilatNodeOptions& opti
   // before the solver), so the solver's own cap must not be lower.
   options_.solver.max_ranges =
       std::max(options_.solver.max_ranges, static_cast<int>(site.receivers.size()));
-  bus_->Subscribe<range_set_t>(
+  subscriptions_.Add(bus_->Subscribe<range_set_t>(
       kRangesChannel,
-      [this](const range_set_t& set, const MessageInfo& info) { OnRangeSet(set, info); });
+      [this](const range_set_t& set, const MessageInfo& info) { OnRangeSet(set, info); }));
   status_.SetState(process_status_t::STATE_RUNNING);
 }
 

@@ -13,6 +13,7 @@
 #include "msgio/bus.h"
 #include "msgio/lcm_types_fwd.h"
 #include "msgio/process.h"
+#include "msgio/subscriptions.h"
 #include "trilat_proc/range_set_merger.h"
 
 namespace roomfix {
@@ -125,6 +126,8 @@ class TrilatNode {
   std::vector<RangeSetMerger::Ready> ready_;
   std::vector<trilat::RangeMeasurement> ranges_;
   trilat::Fix fix_;
+  // Last: ended first, before anything the handlers use.
+  Subscriptions subscriptions_{bus_};
 };
 
 }  // namespace roomfix

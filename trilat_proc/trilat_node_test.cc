@@ -412,5 +412,18 @@ TEST_F(TrilatNodeTest, IdentifiesALongRangeWithTheBeaconsPriorAndResetsItWhenMov
   EXPECT_EQ(poses_.back().status, pose2d_t::STATUS_OK);
 }
 
+// The bus must not call into a destroyed node: its handler captures `this`.
+// (Junk bytes: delivered to the handler, refused before the node's code.)
+TEST_F(TrilatNodeTest, ADestroyedNodeReceivesNothingMore) {
+  const uint8_t junk[3] = {1, 2, 3};
+  {
+    TrilatNode node(site_, &bus_, TrilatNodeOptions(), 0);
+    bus_.Inject(kRangesChannel, junk, sizeof(junk), 1);
+    EXPECT_EQ(bus_.stats().received, 1);
+  }
+  bus_.Inject(kRangesChannel, junk, sizeof(junk), 2);
+  EXPECT_EQ(bus_.stats().received, 1) << "delivered to a destroyed node";
+}
+
 }  // namespace
 }  // namespace roomfix

@@ -87,7 +87,8 @@ ViewerNode::ViewerNode(const Site& site, Bus* bus, const ViewerNodeOptions& opti
   state_.now_utime = start_utime;
   status_.SetState(process_status_t::STATE_RUNNING);
 
-  bus_->Subscribe<pose2d_t>("POSE_.*", [this](const pose2d_t& p, const MessageInfo& info) {
+  subscriptions_.Add(bus_->Subscribe<pose2d_t>("POSE_.*", [this](const pose2d_t& p,
+                                                                 const MessageInfo& info) {
     status_.AddInputs();
     ++messages_;
     viewer::Source source;
@@ -139,8 +140,9 @@ ViewerNode::ViewerNode(const Site& site, Bus* bus, const ViewerNodeOptions& opti
     }
     t->trail.push_back({p.utime, p.x_m, p.y_m});
     if (t->trail.size() > kMaxTrailPoints) t->trail.pop_front();
-  });
-  bus_->Subscribe<range_set_t>("RANGES", [this](const range_set_t& s, const MessageInfo& info) {
+  }));
+  subscriptions_.Add(bus_->Subscribe<range_set_t>("RANGES", [this](const range_set_t& s,
+                                                                   const MessageInfo& info) {
     status_.AddInputs();
     ++messages_;
     if (!UtimeNear(s.utime, info.recv_utime)) {
@@ -188,8 +190,8 @@ ViewerNode::ViewerNode(const Site& site, Bus* bus, const ViewerNodeOptions& opti
     } else {
       *it = std::move(view);
     }
-  });
-  bus_->Subscribe<process_status_t>(
+  }));
+  subscriptions_.Add(bus_->Subscribe<process_status_t>(
       "STATUS", [this](const process_status_t& s, const MessageInfo& info) {
         ++messages_;
         // The output rate divides by the difference of two heartbeats'
@@ -239,23 +241,25 @@ ViewerNode::ViewerNode(const Site& site, Bus* bus, const ViewerNodeOptions& opti
         it->last_error = s.last_error;
         it->recv_utime = info.recv_utime;
         NoteSites(s.utime, [&] { site_hashes_.ObserveStatus(s, info.recv_utime); });
-      });
-  bus_->Subscribe<site_t>(kSiteChannel, [this](const site_t& m, const MessageInfo& info) {
-    ++messages_;
-    NoteSites(m.utime, [&] { site_hashes_.ObserveSite(m, info.recv_utime); });
-  });
-  bus_->Subscribe<image_t>(kCameraPreviewChannel, [this](const image_t& m, const MessageInfo&) {
-    ++messages_;
-    state_.has_preview = true;
-    viewer::PreviewView& p = state_.preview;
-    if (p.camera_id != m.camera_id || p.utime != m.utime) p.markers.clear();
-    p.camera_id = m.camera_id;
-    p.utime = m.utime;
-    p.encoded = m.data;
-    preview_scale_ =
-        m.source_width_px > 0 ? static_cast<double>(m.width_px) / m.source_width_px : 1.0;
-  });
-  bus_->Subscribe<marker_pixels_t>(
+      }));
+  subscriptions_.Add(
+      bus_->Subscribe<site_t>(kSiteChannel, [this](const site_t& m, const MessageInfo& info) {
+        ++messages_;
+        NoteSites(m.utime, [&] { site_hashes_.ObserveSite(m, info.recv_utime); });
+      }));
+  subscriptions_.Add(
+      bus_->Subscribe<image_t>(kCameraPreviewChannel, [this](const image_t& m, const MessageInfo&) {
+        ++messages_;
+        state_.has_preview = true;
+        viewer::PreviewView& p = state_.preview;
+        if (p.camera_id != m.camera_id || p.utime != m.utime) p.markers.clear();
+        p.camera_id = m.camera_id;
+        p.utime = m.utime;
+        p.encoded = m.data;
+        preview_scale_ =
+            m.source_width_px > 0 ? static_cast<double>(m.width_px) / m.source_width_px : 1.0;
+      }));
+  subscriptions_.Add(bus_->Subscribe<marker_pixels_t>(
       "MARKER_PIXELS", [this](const marker_pixels_t& m, const MessageInfo&) {
         ++messages_;
         // The markers of the newest frame, in the preview's pixels.
@@ -265,7 +269,7 @@ ViewerNode::ViewerNode(const Site& site, Bus* bus, const ViewerNodeOptions& opti
           state_.preview.markers.push_back({k.u_px * preview_scale_, k.v_px * preview_scale_,
                                             k.radius_px * preview_scale_, k.colour_class});
         }
-      });
+      }));
 }
 
 viewer::TrackView* ViewerNode::FindTrack(viewer::Source source, int robot_id) {

@@ -12,6 +12,7 @@
 #include "msgio/bus.h"
 #include "msgio/process.h"
 #include "msgio/site_message.h"
+#include "msgio/subscriptions.h"
 #include "viewer/view_state.h"
 
 namespace roomfix {
@@ -99,6 +100,8 @@ class ViewerNode {
   // Preview pixels per full-frame pixel of the latest preview.
   double preview_scale_ = 1.0;
   int64_t messages_ = 0;
+  // Last: ended first, before anything the handlers use.
+  Subscriptions subscriptions_{bus_};
 };
 
 }  // namespace roomfix

@@ -430,5 +430,23 @@ TEST(ViewerNode, DrawsEachCamerasFootprintAndWhichCameraSeesARobot) {
   EXPECT_EQ(image.rows, viewer::RenderOptions{}.height_px);
 }
 
+// The bus must not call into a destroyed node: its six handlers capture
+// `this`. (Junk bytes: delivered to the handlers, refused before the node's
+// code.)
+TEST(ViewerNode, ADestroyedNodeReceivesNothingMore) {
+  const Site site = DemoSite();
+  LoopbackBus bus;
+  const uint8_t junk[3] = {1, 2, 3};
+  const std::vector<std::string> channels = {"POSE_FUSED", "RANGES",         "STATUS",
+                                             "SITE",       "CAMERA_PREVIEW", "MARKER_PIXELS"};
+  {
+    ViewerNode node(site, &bus, {}, kT0);
+    for (const std::string& c : channels) bus.Inject(c, junk, sizeof(junk), kT0);
+    EXPECT_EQ(bus.stats().received, 6);
+  }
+  for (const std::string& c : channels) bus.Inject(c, junk, sizeof(junk), kT0 + 1);
+  EXPECT_EQ(bus.stats().received, 6) << "delivered to a destroyed node";
+}
+
 }  // namespace
 }  // namespace roomfix

@@ -8,10 +8,12 @@
 #  - the headers, .lcm files and CMake package build and run a small program
 #    of another lab (tests/install/consumer) through find_package(roomfix);
 #  - every package the .deb Depends on exists in Debian 12 at a version that
-#    satisfies it (this machine's dpkg database, then its apt lists).
-#   deb_test.sh PACKAGE_DIR VERSION SOURCE_DIR
+#    satisfies it (this machine's dpkg database, then its apt lists);
+#  - with the Java jar (ROOMFIX_JAVA), the package lists /usr/bin/roomfix-spy
+#    (scripts/spy) and the jar, and roomfix-spy uses the jar unpacked beside it.
+#   deb_test.sh PACKAGE_DIR VERSION SOURCE_DIR JAVA(ON|OFF)
 set -uo pipefail
-package_dir=$1 version=$2 source=$3
+package_dir=$1 version=$2 source=$3 java=${4:-OFF}
 failures=0
 fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
 
@@ -45,8 +47,27 @@ for p in "${programs[@]}"; do
     fail "$p --help: $help"
   fi
 done
-extra=$(cd "$prefix/bin" && ls | grep -vxF -f <(printf '%s\n' "${programs[@]}"))
+scripts=()
+[[ "$java" == ON ]] && scripts=(roomfix-spy)
+extra=$(cd "$prefix/bin" && ls | grep -vxF -f <(printf '%s\n' "${programs[@]}" "${scripts[@]}"))
 [[ -z "$extra" ]] || fail "programs packaged but not checked here: $extra"
+
+# The package's own listing (dpkg-deb -c: "-rwxr-xr-x root/root ... ./usr/bin/x").
+contents=$(dpkg-deb -c "$deb")
+if [[ "$java" == ON ]]; then
+  for f in ./usr/bin/roomfix-spy ./usr/share/java/roomfix_lcmtypes.jar; do
+    grep -qF " $f" <<<"$contents" || fail "$f is not listed by dpkg-deb -c"
+  done
+  grep -qE '^-rwxr-xr-x .* \./usr/bin/roomfix-spy$' <<<"$contents" ||
+    fail "/usr/bin/roomfix-spy is not executable: $(grep roomfix-spy <<<"$contents")"
+  # Started from the unpacked tree, it must find that tree's jar, not a build's.
+  if ! cp=$(env -u ROOMFIX_BUILD_DIR "$prefix/bin/roomfix-spy" --print-classpath 2>&1) ||
+    [[ ":$cp:" != *":$prefix/share/java/roomfix_lcmtypes.jar:"* ]]; then
+    fail "roomfix-spy --print-classpath does not name the packaged jar: $cp"
+  fi
+elif grep -q roomfix-spy <<<"$contents"; then
+  fail "roomfix-spy packaged without the jar it needs"
+fi
 
 site=$prefix/share/roomfix/config/sites/demo_room.yaml
 if ! out=$("$prefix/bin/roomfix" check-config "$site" 2>&1); then

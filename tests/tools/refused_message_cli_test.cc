@@ -12,6 +12,9 @@
 
 #include "msgio/log.h"
 #include "msgio/wire_test_messages.h"
+#include "roomfix/marker_pixels_t.hpp"
+#include "roomfix/pose2d_t.hpp"
+#include "roomfix/process_status_t.hpp"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -146,6 +149,97 @@ TEST(RoomfixAnalyze, ReportsARefusedPoseOnStderrAndReadsTheRest) {
   EXPECT_EQ(summary["logs"][0]["undecodable"], 1);
   EXPECT_EQ(summary["logs"][0]["refused"], (json{{"truncated", 1}}));
   EXPECT_NE(run.err.find(": 1 POSE_* events refused (1 truncated)\n"), std::string::npos)
+      << run.err;
+}
+
+// A log whose messages are each well formed but for one enum-valued field
+// outside its .lcm constants, one per message type that has enums, between
+// good ones: a pose with status 7 ("ok" to a reader that only compares with
+// LOST and DEGRADED), a pose with source -1, MARKER_PIXELS with search mode 5
+// and with a marker role of 3, STATUS with state 9.
+void WriteBadEnumLog(const std::string& path) {
+  std::string error;
+  auto log = LogWriter::Create(path, true, &error);
+  ASSERT_NE(log, nullptr) << error;
+  int64_t utime = 1700000000000000;
+  auto write = [&](const std::string& channel, const std::vector<uint8_t>& bytes) {
+    utime += 100000;
+    ASSERT_TRUE(log->Write(utime, channel, bytes.data(), static_cast<int>(bytes.size()), &error))
+        << error;
+  };
+  pose2d_t bad_status = testing::MakeTestPose(1700000000000000, 1, 1.0, 2.0);
+  bad_status.source = pose2d_t::SOURCE_CAMERA;
+  bad_status.status = 7;
+  pose2d_t bad_source = bad_status;
+  bad_source.utime += 100000;
+  bad_source.status = pose2d_t::STATUS_OK;
+  bad_source.source = -1;
+  pose2d_t good = bad_source;
+  good.utime += 100000;
+  good.source = pose2d_t::SOURCE_CAMERA;
+  marker_pixels_t bad_mode = testing::MakeTestMarkerPixels();
+  bad_mode.search_mode = 5;
+  marker_pixels_t bad_role = testing::MakeTestMarkerPixels();
+  bad_role.frame_seq += 1;
+  bad_role.markers[0].role = 3;
+  marker_pixels_t good_pixels = testing::MakeTestMarkerPixels();
+  good_pixels.frame_seq += 2;
+  process_status_t bad_state = testing::MakeTestStatus();
+  bad_state.state = 9;
+
+  write("POSE_CAMERA", testing::Encode(bad_status));
+  write("POSE_CAMERA", testing::Encode(bad_source));
+  write("POSE_CAMERA", testing::Encode(good));
+  write("MARKER_PIXELS", testing::Encode(bad_mode));
+  write("MARKER_PIXELS", testing::Encode(bad_role));
+  write("MARKER_PIXELS", testing::Encode(good_pixels));
+  write("STATUS", testing::Encode(bad_state));
+  ASSERT_TRUE(log->Flush(&error)) << error;
+}
+
+TEST(RoomfixAnalyze, RefusesPosesWithAStatusOrSourceOutsideTheEnum) {
+  TempDir dir;
+  WriteBadEnumLog(dir.File("enums.lcm"));
+  const ToolRun run = RunRoomfix(dir, "analyze --json --no-figures --out '" + dir.File("report") +
+                                          "' '" + dir.File("enums.lcm") + "'");
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  const json summary = json::parse(run.out);
+  EXPECT_EQ(summary["logs"][0]["pose_events"], 3);
+  EXPECT_EQ(summary["logs"][0]["undecodable"], 2);
+  EXPECT_EQ(summary["logs"][0]["refused"], (json{{"enum_out_of_range", 2}}));
+  EXPECT_NE(run.err.find(": 2 POSE_* events refused (2 enum_out_of_range)\n"), std::string::npos)
+      << run.err;
+}
+
+TEST(RoomfixListen, RefusesEveryMessageTypeWithAnEnumOutsideItsConstants) {
+  TempDir dir;
+  WriteBadEnumLog(dir.File("enums.lcm"));
+  const ToolRun run =
+      RunRoomfix(dir, "listen --lcm-url 'file://" + dir.File("enums.lcm") + "?speed=0'");
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  std::vector<json> lines;
+  std::istringstream out(run.out);
+  for (std::string line; std::getline(out, line);) lines.push_back(json::parse(line));
+  ASSERT_EQ(lines.size(), 7u) << run.out;
+  for (size_t i : {0, 1, 3, 4, 6}) EXPECT_EQ(lines[i]["refused"], "enum_out_of_range") << i;
+  EXPECT_EQ(lines[2]["message"]["status"], pose2d_t::STATUS_OK);
+  EXPECT_EQ(lines[5]["message"]["frame_seq"], 101);
+  EXPECT_NE(run.err.find("roomfix listen: warning: 5 messages refused (5 enum_out_of_range)\n"),
+            std::string::npos)
+      << run.err;
+}
+
+// log-info counts a camera's frames from MARKER_PIXELS: a refused one is not
+// a frame, and is said on stderr rather than dropped without a word.
+TEST(RoomfixLogInfo, CountsOnlyGoodFramesAndReportsTheRefusedOnes) {
+  TempDir dir;
+  WriteBadEnumLog(dir.File("enums.lcm"));
+  const ToolRun run = RunRoomfix(dir, "log-info '" + dir.File("enums.lcm") + "'");
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_NE(run.out.find("camera 1: 1 frames (seq 101..101)"), std::string::npos) << run.out;
+  EXPECT_NE(run.err.find("roomfix log-info: warning: 3 MARKER_PIXELS and STATUS events refused "
+                         "(3 enum_out_of_range)\n"),
+            std::string::npos)
       << run.err;
 }
 
