@@ -53,7 +53,7 @@ void CheckThenDecode(const uint8_t* data, size_t size) {
         roomfix::wire_refusal::kTruncated,      roomfix::wire_refusal::kWrongType,
         roomfix::wire_refusal::kNegativeLength, roomfix::wire_refusal::kStringOverCap,
         roomfix::wire_refusal::kCountOverCap,   roomfix::wire_refusal::kBadString,
-        roomfix::wire_refusal::kTrailingBytes};
+        roomfix::wire_refusal::kTrailingBytes,  roomfix::wire_refusal::kEnumOutOfRange};
     if (kReasons.count(reason) == 0) Fail(Msg::getTypeName(), reason + ": " + detail);
     return;
   }
