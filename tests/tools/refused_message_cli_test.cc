@@ -70,6 +70,12 @@ ToolRun RunRoomfix(const TempDir& dir, const std::string& args) {
   return run;
 }
 
+// `roomfix analyze --json` of the log `name` in `dir`, its report beside it.
+ToolRun AnalyzeJson(const TempDir& dir, const std::string& name) {
+  return RunRoomfix(dir, "analyze --json --no-figures --out '" + dir.File("report") + "' '" +
+                             dir.File(name) + "'");
+}
+
 TEST(RoomfixListen, RefusesHostileMessagesInALogAndCountsThemByReason) {
   TempDir dir;
   WriteHostileLog(dir.File("hostile.lcm"));
@@ -141,8 +147,7 @@ TEST(RoomfixListen, EscapesEveryChannelNameIntoValidJson) {
 TEST(RoomfixAnalyze, ReportsARefusedPoseOnStderrAndReadsTheRest) {
   TempDir dir;
   WriteHostileLog(dir.File("hostile.lcm"));
-  const ToolRun run = RunRoomfix(dir, "analyze --json --no-figures --out '" + dir.File("report") +
-                                          "' '" + dir.File("hostile.lcm") + "'");
+  const ToolRun run = AnalyzeJson(dir, "hostile.lcm");
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const json summary = json::parse(run.out);
   EXPECT_EQ(summary["logs"][0]["pose_events"], 2);
@@ -200,8 +205,7 @@ void WriteBadEnumLog(const std::string& path) {
 TEST(RoomfixAnalyze, RefusesPosesWithAStatusOrSourceOutsideTheEnum) {
   TempDir dir;
   WriteBadEnumLog(dir.File("enums.lcm"));
-  const ToolRun run = RunRoomfix(dir, "analyze --json --no-figures --out '" + dir.File("report") +
-                                          "' '" + dir.File("enums.lcm") + "'");
+  const ToolRun run = AnalyzeJson(dir, "enums.lcm");
   ASSERT_EQ(run.exit_code, 0) << run.err;
   const json summary = json::parse(run.out);
   EXPECT_EQ(summary["logs"][0]["pose_events"], 3);
