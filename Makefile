@@ -12,18 +12,24 @@
 #             [DEMO_CAMERA_FPS=N] ... cameras at N fps (default: the site's,
 #                                10 with fewer than 2 cores per camera)
 #   make test [SANITIZE=1]       the whole suite through ctest (ASan+UBSan build);
-#                                warnings are errors (ROOMFIX_WERROR); turns
-#                                the tests and the Java jar on in the build folder
+#                                turns the tests and the Java jar on in the
+#                                build folder
 #   make build                   configure and build everything into build/
 #   make package                 a Release build in build/release and its
 #                                Debian package build/release/roomfix_<version>_<arch>.deb
 #   make spy                     lcm-spy with roomfix's types
 #   make format                  clang-format every C++ file
+#   CMAKE_ARGS="-D..."           more arguments for CMake's configure step, for
+#                                any target (-DROOMFIX_VIEWER_WINDOW=OFF, ...)
 #
-# WERROR=1 turns warnings into errors for any of them; `make test` sets it.
-# A build folder keeps its setting until it is given again.
+# Warnings are errors (ROOMFIX_WERROR=ON) in every build folder these targets
+# configure, from the first: `make demo` then `make test` compile each file
+# once, since a flag that changes between them would rebuild every file.
+# WERROR=0 makes them warnings (a compiler other than Debian 12's GCC 12 or
+# clang 14 may warn where those do not); a plain `cmake` keeps them warnings.
 
 SANITIZE ?= 0
+WERROR ?= 1
 DEMO_SECONDS ?= 30
 DEMO_CAMERA ?= 1
 JOBS ?= $(shell nproc)
@@ -36,13 +42,13 @@ CMAKE_FLAGS += -DROOMFIX_SANITIZE=ON
 else
 BUILD_DIR ?= build
 endif
-# Passed only when given, so that `make demo` after `make test` does not flip
-# the setting (and rebuild everything).
-WERROR_FLAG = $(if $(WERROR),-DROOMFIX_WERROR=$(if $(filter 1 ON on,$(WERROR)),ON,OFF))
+WERROR_FLAG = -DROOMFIX_WERROR=$(if $(filter 1 ON on,$(WERROR)),ON,OFF)
+# Said when a build fails with warnings as errors.
+WERROR_HINT = { echo "make: the build failed. If on a warning: make's builds treat warnings as errors; WERROR=0 makes them warnings (for a compiler other than Debian 12's GCC 12 or clang 14)." >&2; exit 1; }
 # The Debian packages to install (scripts/install_deps.sh): all, or demo.
 DEPS_SET = all
 
-.PHONY: all deps configure build test demo package spy format clean
+.PHONY: all deps configure configure-demo configure-test build test demo package spy format clean
 
 all: build
 
@@ -51,15 +57,20 @@ deps:
 
 configure: deps
 	@mkdir -p $(dir $(BUILD_DIR))
-	@cmake -S . -B $(BUILD_DIR) -DCMAKE_BUILD_TYPE=$(BUILD_TYPE) $(CMAKE_FLAGS) $(WERROR_FLAG) \
+	@cmake -S . -B $(BUILD_DIR) -DCMAKE_BUILD_TYPE=$(BUILD_TYPE) $(CMAKE_FLAGS) $(WERROR_FLAG) $(CMAKE_ARGS) \
 	  > $(BUILD_DIR).configure.log 2>&1 || { cat $(BUILD_DIR).configure.log; exit 1; }
 
 build: configure
-	@cmake --build $(BUILD_DIR) -j $(JOBS) -- --no-print-directory
+	@cmake --build $(BUILD_DIR) -j $(JOBS) -- --no-print-directory || $(WERROR_HINT)
 
-test: WERROR = 1
-test: CMAKE_FLAGS += -DBUILD_TESTING=ON -DROOMFIX_JAVA=ON
-test: build
+# The build folder's settings for `make test` and `make demo` (also run alone
+# by tests/build/one_build_test.sh, which checks that the second compiles
+# nothing the first built).
+configure-test: CMAKE_FLAGS += -DBUILD_TESTING=ON -DROOMFIX_JAVA=ON
+configure-test: configure
+
+test: configure-test
+	@cmake --build $(BUILD_DIR) -j $(JOBS) -- --no-print-directory || $(WERROR_HINT)
 	@cd $(BUILD_DIR) && ctest --output-on-failure -j $(JOBS) --timeout 600
 
 # Only what scripts/demo.sh runs: no test, no GoogleTest, no Java. The
@@ -67,10 +78,12 @@ test: build
 # configured with the tests and the jar off (their packages may be absent); one
 # that has a cache (after `make test`, say) keeps its settings, so nothing is
 # rebuilt.
-demo: DEPS_SET = demo
-demo: CMAKE_FLAGS += $(if $(wildcard $(BUILD_DIR)/CMakeCache.txt),,-DBUILD_TESTING=OFF -DROOMFIX_JAVA=OFF)
-demo: configure
-	@cmake --build $(BUILD_DIR) -j $(JOBS) --target demo -- --no-print-directory
+configure-demo: DEPS_SET = demo
+configure-demo: CMAKE_FLAGS += $(if $(wildcard $(BUILD_DIR)/CMakeCache.txt),,-DBUILD_TESTING=OFF -DROOMFIX_JAVA=OFF)
+configure-demo: configure
+
+demo: configure-demo
+	@cmake --build $(BUILD_DIR) -j $(JOBS) --target demo -- --no-print-directory || $(WERROR_HINT)
 	@DEMO_CAMERA=$(DEMO_CAMERA) DEMO_SITE=$(DEMO_SITE) DEMO_CAMERA_FPS=$(DEMO_CAMERA_FPS) \
 	  scripts/demo.sh $(BUILD_DIR) $(DEMO_SECONDS)
 

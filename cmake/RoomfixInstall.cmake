@@ -8,7 +8,7 @@
 #   <prefix>/<libdir>/                libroomfix_lcmtypes.a (the constants'
 #                                     definitions lcm-gen 1.3.1 leaves out)
 #   <prefix>/<libdir>/cmake/roomfix/  find_package(roomfix): roomfix::lcmtypes
-#   <prefix>/share/java/              roomfix_lcmtypes.jar (lcm-spy)
+#   <prefix>/share/java/              roomfix-lcmtypes.jar (lcm-spy)
 #   <prefix>/share/doc/roomfix/       README and docs
 # Programs find share/roomfix from their own folder (msgio/install_paths.h),
 # so the tree works wherever it is put. Every library of the project is

@@ -28,9 +28,7 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
   AddBenchCameraCommand(bench, exit_code);
   AddBenchReplayCommand(bench, exit_code);
   AddBenchCapacityCommand(bench, exit_code);
-#ifdef ROOMFIX_BENCH_MICRO
   AddBenchMicroCommand(bench, exit_code);
-#endif
 }
 
 }  // namespace roomfix

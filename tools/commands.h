@@ -37,8 +37,8 @@ void AddBenchReplayCommand(CLI::App* bench, int* exit_code);
 // (tools/bench_capacity.cc).
 void AddBenchCapacityCommand(CLI::App* bench, int* exit_code);
 // roomfix bench micro (bench_micro.cc): Google Benchmark timings of the
-// camera path's kernels against baselines in the same run; built only
-// with Google Benchmark (ROOMFIX_BENCH_MICRO).
+// camera path's kernels against baselines in the same run; without Google
+// Benchmark (bench_micro_absent.cc) a command that says it is missing.
 void AddBenchMicroCommand(CLI::App* bench, int* exit_code);
 
 }  // namespace roomfix

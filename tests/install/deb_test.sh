@@ -55,14 +55,14 @@ extra=$(cd "$prefix/bin" && ls | grep -vxF -f <(printf '%s\n' "${programs[@]}" "
 # The package's own listing (dpkg-deb -c: "-rwxr-xr-x root/root ... ./usr/bin/x").
 contents=$(dpkg-deb -c "$deb")
 if [[ "$java" == ON ]]; then
-  for f in ./usr/bin/roomfix-spy ./usr/share/java/roomfix_lcmtypes.jar; do
+  for f in ./usr/bin/roomfix-spy ./usr/share/java/roomfix-lcmtypes.jar; do
     grep -qF " $f" <<<"$contents" || fail "$f is not listed by dpkg-deb -c"
   done
   grep -qE '^-rwxr-xr-x .* \./usr/bin/roomfix-spy$' <<<"$contents" ||
     fail "/usr/bin/roomfix-spy is not executable: $(grep roomfix-spy <<<"$contents")"
   # Started from the unpacked tree, it must find that tree's jar, not a build's.
   if ! cp=$(env -u ROOMFIX_BUILD_DIR "$prefix/bin/roomfix-spy" --print-classpath 2>&1) ||
-    [[ ":$cp:" != *":$prefix/share/java/roomfix_lcmtypes.jar:"* ]]; then
+    [[ ":$cp:" != *":$prefix/share/java/roomfix-lcmtypes.jar:"* ]]; then
     fail "roomfix-spy --print-classpath does not name the packaged jar: $cp"
   fi
 elif grep -q roomfix-spy <<<"$contents"; then

@@ -5,7 +5,7 @@
 #   lcmtypes_jar_test.sh BUILD_DIR SOURCE_DIR CHECKER_CLASS_DIR
 set -euo pipefail
 build=$1 source=$2 checker=$3
-jar=$build/share/java/roomfix_lcmtypes.jar
+jar=$build/share/java/roomfix-lcmtypes.jar
 [[ -f "$jar" ]] || { echo "FAIL: $jar missing"; exit 1; }
 
 listing=$(jar tf "$jar")
