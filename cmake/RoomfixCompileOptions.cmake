@@ -1,5 +1,6 @@
-# Warnings for project code; errors only where ROOMFIX_WERROR is on (the
-# project's developers and CI: `make test` and .ci/run turn it on). A packager
+# Warnings for project code; errors only where ROOMFIX_WERROR is on (every
+# build folder the Makefile configures, from the first, so that `make demo`
+# then `make test` compile each file once; and .ci/run). A packager
 # or a user with another compiler gets the warnings and still a build: a new
 # compiler's new warning must not stop someone who only wants to run roomfix.
 # Third-party headers come from system include directories (and the generated

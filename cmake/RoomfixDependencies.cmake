@@ -80,3 +80,16 @@ if(ROOMFIX_VIEWER_WINDOW AND NOT OpenCV_highgui_FOUND)
   message(FATAL_ERROR "ROOMFIX_VIEWER_WINDOW is on but OpenCV's highgui is missing: "
                       "apt-get install libopencv-highgui-dev, or -DROOMFIX_VIEWER_WINDOW=OFF")
 endif()
+
+# Manual pages of the installed programs, written from their --help by
+# help2man at build time (cmake/RoomfixInstall.cmake); without help2man the
+# package has none (lintian then warns no-manual-page). Not an option: a
+# NOTFOUND result is searched again at the next configure, so installing
+# help2man (scripts/install_deps.sh does, for `make test` and `make package`)
+# is enough.
+find_program(HELP2MAN help2man)
+if(HELP2MAN)
+  set(ROOMFIX_MAN_PAGES ON)
+else()
+  set(ROOMFIX_MAN_PAGES OFF)
+endif()

@@ -5,11 +5,13 @@
 #   <prefix>/share/roomfix/config/    sites, calibrations, bot-procman files
 #   <prefix>/share/roomfix/lcmtypes/  the message definitions (.lcm)
 #   <prefix>/include/roomfix/         the generated C++ message headers
-#   <prefix>/<libdir>/                libroomfix_lcmtypes.a (the constants'
-#                                     definitions lcm-gen 1.3.1 leaves out)
 #   <prefix>/<libdir>/cmake/roomfix/  find_package(roomfix): roomfix::lcmtypes
-#   <prefix>/share/java/              roomfix-lcmtypes.jar (lcm-spy)
-#   <prefix>/share/doc/roomfix/       README and docs
+#                                     (header-only)
+#   <prefix>/share/java/              roomfix-lcmtypes-<version>.jar and its
+#                                     unversioned symlink (lcm-spy)
+#   <prefix>/share/doc/roomfix/       README and docs; copyright (DEP-5) and
+#                                     changelog.gz (packaging/)
+#   <prefix>/share/man/man1/          a manual page per program (help2man)
 # Programs find share/roomfix from their own folder (msgio/install_paths.h),
 # so the tree works wherever it is put. Every library of the project is
 # static: the programs need no RPATH and link system libraries only.
@@ -31,11 +33,76 @@ endif()
 install(FILES README.md DESTINATION ${CMAKE_INSTALL_DOCDIR} COMPONENT runtime)
 install(DIRECTORY docs/ DESTINATION ${CMAKE_INSTALL_DOCDIR}/docs COMPONENT runtime)
 
+# The licence as Debian wants it (docs/install.md, "Licence"): the
+# machine-readable copyright file (DEP-5; it refers to the GPL's text in
+# /usr/share/common-licenses, so LICENSE itself is not installed) and the
+# changelog, compressed without a timestamp (gzip -9n) so that two builds of
+# one version give the same bytes. roomfix is its own upstream, a native
+# package (a version without a Debian revision), whose changelog Debian names
+# changelog.gz (changelog.Debian.gz is for a package of someone else's code).
+install(FILES packaging/copyright DESTINATION ${CMAKE_INSTALL_DOCDIR} COMPONENT runtime)
+file(STRINGS packaging/changelog changelog_head LIMIT_COUNT 1)
+if(NOT changelog_head MATCHES "^roomfix \\(${PROJECT_VERSION}\\) ")
+  message(FATAL_ERROR "packaging/changelog's latest entry (${changelog_head}) is not version "
+                      "${PROJECT_VERSION}: add an entry for it (dch, or by hand)")
+endif()
+set(changelog_gz ${CMAKE_BINARY_DIR}/packaging/changelog.gz)
+add_custom_command(OUTPUT ${changelog_gz}
+  COMMAND ${CMAKE_COMMAND} -E make_directory ${CMAKE_BINARY_DIR}/packaging
+  COMMAND sh -c "gzip -9nc '${CMAKE_SOURCE_DIR}/packaging/changelog' > '${changelog_gz}'"
+  DEPENDS packaging/changelog
+  COMMENT "gzip -9n packaging/changelog"
+  VERBATIM)
+set(man_pages)
+if(ROOMFIX_MAN_PAGES)
+  # What each manual page's NAME line says (`apropos roomfix`).
+  set(man_name_camera_proc "ceiling camera process: finds the robots' markers, publishes poses")
+  set(man_name_trilat_proc "ultrasonic trilateration: a pose from each firing's ranges")
+  set(man_name_fusion_proc "fuses the camera's and the ultrasound's poses of each robot")
+  set(man_name_zigbee_bridge "bridge from the ZigBee coordinator's serial port to LCM range sets")
+  set(man_name_roomfix_logger "records roomfix's LCM channels into log files")
+  set(man_name_roomfix_viewer "shows the room, the robots' poses and every process's health")
+  set(man_name_roomfix_sim "simulates a site: robots, ultrasonic beacons and receivers, cameras")
+  set(man_name_roomfix "roomfix's tool: check-config, listen, log-info, analyze, replay, bench")
+  set(man_name_roomfix-spy "lcm-spy with roomfix's message types")
+  set(man_programs ${ROOMFIX_PROGRAMS})
+  if(ROOMFIX_JAVA)
+    list(APPEND man_programs roomfix-spy)
+  endif()
+  foreach(program IN LISTS man_programs)
+    if(program STREQUAL "roomfix-spy")
+      set(executable ${CMAKE_SOURCE_DIR}/scripts/spy)
+      set(depends ${executable})
+    else()
+      set(executable $<TARGET_FILE:${program}>)
+      set(depends ${program})
+    endif()
+    set(page ${CMAKE_BINARY_DIR}/man/${program}.1)
+    # --version-string names the program (help2man would take the script's
+    # file name, spy); --no-info: there is no info manual. A sanitizer build
+    # runs the programs too: leak checking off, as --help leaks nothing of
+    # interest and LeakSanitizer cannot run under every tracer.
+    add_custom_command(OUTPUT ${page}.gz
+      COMMAND ${CMAKE_COMMAND} -E make_directory ${CMAKE_BINARY_DIR}/man
+      COMMAND ${CMAKE_COMMAND} -E env ASAN_OPTIONS=detect_leaks=0 ${HELP2MAN} --no-info
+              --section=1 --name=${man_name_${program}}
+              "--version-string=${program} (roomfix) ${PROJECT_VERSION}"
+              --output=${page} ${executable}
+      COMMAND gzip -9nf ${page}
+      DEPENDS ${depends}
+      COMMENT "help2man: ${program}.1"
+      VERBATIM)
+    list(APPEND man_pages ${page}.gz)
+  endforeach()
+  install(FILES ${man_pages} DESTINATION ${CMAKE_INSTALL_MANDIR}/man1 COMPONENT runtime)
+endif()
+add_custom_target(roomfix_package_docs ALL DEPENDS ${changelog_gz} ${man_pages})
+install(FILES ${changelog_gz} DESTINATION ${CMAKE_INSTALL_DOCDIR} COMPONENT runtime)
+
 # The message types for other lab software (headers and .lcm files are
 # installed by roomfix_lcm_types, cmake/RoomfixLcmTypes.cmake).
 set_target_properties(roomfix_lcmtypes PROPERTIES EXPORT_NAME lcmtypes)
-install(TARGETS roomfix_lcmtypes EXPORT roomfixTargets
-        ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT dev)
+install(TARGETS roomfix_lcmtypes EXPORT roomfixTargets COMPONENT dev)
 set(ROOMFIX_CMAKE_DIR ${CMAKE_INSTALL_LIBDIR}/cmake/roomfix)
 install(EXPORT roomfixTargets NAMESPACE roomfix:: DESTINATION ${ROOMFIX_CMAKE_DIR}
         COMPONENT dev)
@@ -56,14 +123,19 @@ install(FILES ${CMAKE_CURRENT_BINARY_DIR}/roomfixConfig.cmake
 set(CPACK_GENERATOR DEB)
 set(CPACK_PACKAGE_NAME roomfix)
 set(CPACK_PACKAGE_VERSION ${PROJECT_VERSION})
-set(CPACK_PACKAGE_CONTACT "roomfix maintainers <roomfix@localhost>")
+# The maintainer: the project itself, at an address under a reserved example
+# domain (RFC 2606) until it has one of its own; no person is named.
+set(CPACK_PACKAGE_CONTACT "roomfix developers <roomfix@example.org>")
 set(CPACK_PACKAGE_DESCRIPTION_SUMMARY
     "indoor robot localisation from a ceiling camera and ultrasonic ranges")
-set(CPACK_PACKAGE_DESCRIPTION
-    "Small processes exchanging LCM messages: camera_proc (ceiling camera), zigbee_bridge and \
-trilat_proc (ultrasonic trilateration), fusion_proc, roomfix_logger, roomfix_viewer, \
-roomfix_sim and the roomfix tool; with the message headers, .lcm files, a CMake package \
-(roomfix::lcmtypes) and the Java types jar for other lab software.")
+# The extended description, one line per line of the control file (CPack
+# indents them; Debian wants each under 80 characters).
+set(CPACK_PACKAGE_DESCRIPTION [=[
+Small processes exchanging LCM messages: camera_proc (the ceiling camera),
+zigbee_bridge and trilat_proc (ultrasonic trilateration), fusion_proc,
+roomfix_logger, roomfix_viewer, roomfix_sim and the roomfix tool.
+For other lab software: the message headers, the .lcm files, a CMake
+package (roomfix::lcmtypes) and the Java types jar.]=])
 set(CPACK_PACKAGING_INSTALL_PREFIX /usr)
 set(CPACK_STRIP_FILES ON)
 set(CPACK_DEBIAN_FILE_NAME DEB-DEFAULT)

@@ -11,9 +11,13 @@
 #    satisfies it (this machine's dpkg database, then its apt lists);
 #  - with the Java jar (ROOMFIX_JAVA), the package lists /usr/bin/roomfix-spy
 #    (scripts/spy) and the jar, and roomfix-spy uses the jar unpacked beside it.
-#   deb_test.sh PACKAGE_DIR VERSION SOURCE_DIR JAVA(ON|OFF)
+#  - the licence: /usr/share/doc/roomfix/copyright is a DEP-5 file naming
+#    GPL-3+, changelog.gz is gzip without a timestamp whose latest entry is
+#    this version, and (MAN_PAGES ON) every program in /usr/bin has its
+#    manual page, which man can format.
+#   deb_test.sh PACKAGE_DIR VERSION SOURCE_DIR JAVA(ON|OFF) MAN_PAGES(ON|OFF)
 set -uo pipefail
-package_dir=$1 version=$2 source=$3 java=${4:-OFF}
+package_dir=$1 version=$2 source=$3 java=${4:-OFF} man_pages=${5:-OFF}
 failures=0
 fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
 
@@ -55,9 +59,13 @@ extra=$(cd "$prefix/bin" && ls | grep -vxF -f <(printf '%s\n' "${programs[@]}" "
 # The package's own listing (dpkg-deb -c: "-rwxr-xr-x root/root ... ./usr/bin/x").
 contents=$(dpkg-deb -c "$deb")
 if [[ "$java" == ON ]]; then
-  for f in ./usr/bin/roomfix-spy ./usr/share/java/roomfix-lcmtypes.jar; do
+  for f in ./usr/bin/roomfix-spy "./usr/share/java/roomfix-lcmtypes-$version.jar"; do
     grep -qF " $f" <<<"$contents" || fail "$f is not listed by dpkg-deb -c"
   done
+  # Java policy: the versioned jar, and the name class paths use as a link to it.
+  link=$(readlink "$prefix/share/java/roomfix-lcmtypes.jar")
+  [[ "$link" == "roomfix-lcmtypes-$version.jar" ]] ||
+    fail "/usr/share/java/roomfix-lcmtypes.jar is not a symlink to roomfix-lcmtypes-$version.jar: '$link'"
   grep -qE '^-rwxr-xr-x .* \./usr/bin/roomfix-spy$' <<<"$contents" ||
     fail "/usr/bin/roomfix-spy is not executable: $(grep roomfix-spy <<<"$contents")"
   # Started from the unpacked tree, it must find that tree's jar, not a build's.
@@ -85,6 +93,31 @@ for f in include/roomfix/pose2d_t.hpp share/roomfix/lcmtypes/pose2d_t.lcm \
   share/doc/roomfix/docs/install.md; do
   [[ -f "$prefix/$f" ]] || fail "/usr/$f is not in the package"
 done
+
+# The licence and the changelog (packaging/).
+doc=$prefix/share/doc/roomfix
+copyright=$(cat "$doc/copyright" 2>/dev/null)
+if [[ "$copyright" != "Format: https://www.debian.org/doc/packaging-manuals/copyright-format/1.0/"* ]] ||
+  ! grep -qx 'License: GPL-3+' <<<"$copyright"; then
+  fail "/usr/share/doc/roomfix/copyright is not a DEP-5 file naming GPL-3+"
+fi
+# gzip's header: bytes 4-7 are the modification time, 0 with -n.
+if ! mtime=$(od -An -tu4 -j4 -N4 "$doc/changelog.gz" 2>/dev/null) || ((mtime != 0)); then
+  fail "/usr/share/doc/roomfix/changelog.gz is missing or carries a timestamp (${mtime:-none})"
+elif ! head=$(gzip -dc "$doc/changelog.gz" | head -1) || [[ "$head" != "roomfix ($version) "* ]]; then
+  fail "changelog.gz's latest entry is not $version: $head"
+fi
+if [[ "$man_pages" == ON ]]; then
+  for p in "${programs[@]}" "${scripts[@]}"; do
+    page=$prefix/share/man/man1/$p.1.gz
+    if [[ ! -f "$page" ]]; then fail "no manual page $p.1.gz"; continue; fi
+    # man formats it without a warning, and its NAME line names the program.
+    if ! text=$(LC_ALL=C.UTF-8 MANWIDTH=80 man --warnings -E UTF-8 -l "$page" 2>"$root/man.err") ||
+      [[ -s "$root/man.err" ]] || [[ "$text" != *"$p - "* ]]; then
+      fail "manual page $p.1.gz: $(cat "$root/man.err") $(head -c 300 <<<"$text")"
+    fi
+  done
+fi
 
 # Another lab's program, built against the unpacked package only.
 consumer=$root/consumer
