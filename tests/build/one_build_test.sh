@@ -22,6 +22,9 @@
 set -uo pipefail
 source_dir=$1
 skip=77
+# Run from `make test`, ctest inherits the outer make's flags and command-line
+# variables (MAKEFLAGS); the Makefile is run here as a user would run it.
+unset MAKEFLAGS MFLAGS MAKELEVEL
 failures=0
 fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
 
