@@ -75,9 +75,11 @@ class CsvLine {
     const auto end = std::to_chars(text, text + sizeof(text), v);
     line_.append(text, end.ptr);
   }
-  // Seconds from the log's start, exact to the microsecond.
+  // Seconds from the log's start. Divided, not multiplied by 1e-6 (which
+  // is not exact in binary): the quotient is the double nearest the
+  // decimal, so 1003548 us prints as 1.003548, not 1.0035479999999999.
   void Seconds(int64_t utime, int64_t start_utime) {
-    Real(static_cast<double>(utime - start_utime) * 1e-6);
+    Real(static_cast<double>(utime - start_utime) / 1e6);
   }
   void Text(const std::string& v) {
     Sep();
@@ -364,6 +366,10 @@ void CountByName(std::map<std::string, int64_t>* counts, const std::string& name
   ++it->second;
 }
 
+// Distinct counter names past the column cap are counted up to this many
+// (a hostile log could invent millions; the count then says "at least").
+constexpr size_t kMaxOverCapNamesCounted = 1 << 16;
+
 // The STATUS counter names on each channel (first pass over the log: the
 // header of a STATUS file names every counter its rows will have).
 std::map<std::string, CounterColumns> CollectCounterColumns(const std::string& path,
@@ -387,7 +393,7 @@ std::map<std::string, CounterColumns> CollectCounterColumns(const std::string& p
       if (into->count(name) > 0) return;
       if (rejected.size() + counters.size() < kMaxCsvCounterColumns) {
         into->insert(name);
-      } else {
+      } else if (over_cap.size() < kMaxOverCapNamesCounted) {
         over_cap.insert({event.channel, prefix + name});
       }
     };

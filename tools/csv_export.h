@@ -67,7 +67,8 @@ struct CsvExportReport {
   std::map<std::string, int64_t> refused;
   // Events on channels past the first kMaxCsvFiles (channel, type) pairs.
   int64_t events_not_exported = 0;
-  // Distinct STATUS counter names past kMaxCsvCounterColumns in one file.
+  // Distinct STATUS counter names past kMaxCsvCounterColumns in one file
+  // (counted up to 65536).
   int64_t counter_names_not_exported = 0;
   // Bytes skipped (LogReader): every good event around them is exported.
   bool damaged = false;
