@@ -72,6 +72,14 @@ if(ROOMFIX_JAVA AND NOT (Java_FOUND AND LCM_JAR))
                       "apt-get install default-jdk-headless liblcm-java, or -DROOMFIX_JAVA=OFF")
 endif()
 
+# LCM's Python module (`import lcm`: PyPI wheels since LCM 1.5, not packaged
+# by Debian 12), used only by the test of docs/python.md's bus example: a
+# folder holding lcm/__init__.py and lcm/_lcm*.so, e.g. an LCM 1.5 build's
+# python/ folder. Empty: the test tries python3's own path and skips, saying
+# so, when the module is not there.
+set(ROOMFIX_LCM_PYTHON_DIR "" CACHE PATH
+    "Folder with LCM's Python module (lcm/), for the test of docs/python.md's bus example")
+
 # The viewer's window (OpenCV's highgui, which brings GTK); without it the
 # viewer still renders headless to PNG and video.
 option(ROOMFIX_VIEWER_WINDOW "roomfix_viewer can open a window (OpenCV highgui)"

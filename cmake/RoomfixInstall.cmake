@@ -9,6 +9,9 @@
 #                                     (header-only)
 #   <prefix>/share/java/              roomfix-lcmtypes-<version>.jar and its
 #                                     unversioned symlink (lcm-spy)
+#   <prefix>/lib/python3/dist-packages/roomfix/
+#                                     the Python message types (lcm-gen
+#                                     --python; docs/python.md)
 #   <prefix>/share/doc/roomfix/       README and docs; copyright (DEP-5) and
 #                                     changelog.gz (packaging/)
 #   <prefix>/share/man/man1/          a manual page per program (help2man)
@@ -117,6 +120,20 @@ write_basic_package_version_file(${CMAKE_CURRENT_BINARY_DIR}/roomfixConfigVersio
 install(FILES ${CMAKE_CURRENT_BINARY_DIR}/roomfixConfig.cmake
               ${CMAKE_CURRENT_BINARY_DIR}/roomfixConfigVersion.cmake
         DESTINATION ${ROOMFIX_CMAKE_DIR} COMPONENT dev)
+
+# The Python message types (docs/python.md). The package is `roomfix`, not a
+# name of our choosing: lcm-gen names it after the .lcm files' `package
+# roomfix;` and every generated module imports its nested types as
+# `roomfix.counter_t`, so under any other name they would not import. (The
+# LCM package name cannot change either: it is the C++ namespace and the Java
+# package.) lib/python3/dist-packages is where Debian puts pure-Python
+# modules for every python3 version (Debian's python3 has it on sys.path;
+# python3.11 on Debian 12). The modules are plain Python 3 with no compiled
+# part; no __pycache__ is shipped (Python writes it where it may).
+set(ROOMFIX_INSTALL_PYTHONDIR lib/python3/dist-packages CACHE STRING
+    "Where the Python message types are installed, relative to the prefix")
+install(DIRECTORY ${ROOMFIX_LCMTYPES_PYTHON_DIR} DESTINATION ${ROOMFIX_INSTALL_PYTHONDIR}
+        COMPONENT dev PATTERN __pycache__ EXCLUDE)
 
 # `make package` (cpack -G DEB): roomfix_<version>_amd64.deb for /usr, its
 # Depends worked out by dpkg-shlibdeps from the programs' shared libraries.

@@ -5,7 +5,12 @@
 #    the generated C++ headers (<package>/<type>.hpp), linked with liblcm;
 #  - <name>_java (when ROOMFIX_JAVA is on): the Java classes compiled against
 #    lcm.jar and packed into ${CMAKE_BINARY_DIR}/share/java/<jar-name>, so
-#    lcm-spy decodes the types.
+#    lcm-spy decodes the types;
+#  - <name>_python: the Python modules (lcm-gen --python) in
+#    ${CMAKE_BINARY_DIR}/python/<package>/, one module per struct and an
+#    __init__.py importing them all. They need only Python's standard library
+#    to encode and decode (the `lcm` module is for the bus); the folder is
+#    returned in <name>_PYTHON_DIR and installed by cmake/RoomfixInstall.cmake.
 # Generated file names follow lcm-gen: one header and one class per struct,
 # named after the .lcm file (one struct per file, as DESIGN.md requires).
 function(roomfix_lcm_types)
@@ -14,14 +19,17 @@ function(roomfix_lcm_types)
   set(java_dir ${CMAKE_CURRENT_BINARY_DIR}/java)
   set(class_dir ${CMAKE_CURRENT_BINARY_DIR}/classes)
   set(jar ${CMAKE_BINARY_DIR}/share/java/${ARG_JAR})
+  set(python_dir ${CMAKE_BINARY_DIR}/python)
   set(headers)
   set(java_sources)
+  set(python_sources ${python_dir}/${ARG_PACKAGE}/__init__.py)
   set(lcm_files)
   foreach(src IN LISTS ARG_SOURCES)
     get_filename_component(type ${src} NAME_WE)
     list(APPEND lcm_files ${CMAKE_CURRENT_SOURCE_DIR}/${src})
     list(APPEND headers ${cpp_dir}/${ARG_PACKAGE}/${type}.hpp)
     list(APPEND java_sources ${java_dir}/${ARG_PACKAGE}/${type}.java)
+    list(APPEND python_sources ${python_dir}/${ARG_PACKAGE}/${type}.py)
   endforeach()
 
   add_custom_command(
@@ -33,6 +41,20 @@ function(roomfix_lcm_types)
     COMMENT "lcm-gen: C++ headers and Java sources for ${ARG_TARGET}"
     VERBATIM)
   add_custom_target(${ARG_TARGET}_gen DEPENDS ${headers})
+
+  # lcm-gen adds its imports to an existing __init__.py and never removes
+  # one, so the package folder is made afresh: a type taken out of
+  # lcmtypes/ must not stay importable from the build tree.
+  add_custom_command(
+    OUTPUT ${python_sources}
+    COMMAND ${CMAKE_COMMAND} -E remove_directory ${python_dir}/${ARG_PACKAGE}
+    COMMAND ${CMAKE_COMMAND} -E make_directory ${python_dir}
+    COMMAND ${LCM_GEN} --python --ppath ${python_dir} ${lcm_files}
+    DEPENDS ${lcm_files}
+    COMMENT "lcm-gen: Python modules for ${ARG_TARGET}"
+    VERBATIM)
+  add_custom_target(${ARG_TARGET}_python ALL DEPENDS ${python_sources})
+  set(${ARG_TARGET}_PYTHON_DIR ${python_dir}/${ARG_PACKAGE} PARENT_SCOPE)
 
   # Integer constants: by default lcm-gen 1.3.1 declares them
   # `static const int8_t X = 1;` inside the class and defines them nowhere,

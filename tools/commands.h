@@ -24,6 +24,8 @@ void AddMapCommand(CLI::App* app, int* exit_code);
 void AddRenderCameraCommand(CLI::App* app, int* exit_code);
 void AddSurveyCommand(CLI::App* app, int* exit_code);
 void AddReplayCommand(CLI::App* app, int* exit_code);
+// roomfix export LOG --csv DIR (export_command.cc, csv_export.h).
+void AddExportCommand(CLI::App* app, int* exit_code);
 // Adds `logger` under the `bench` subcommand.
 void AddBenchLoggerCommand(CLI::App* bench, int* exit_code);
 // Adds `radio` under the `bench` subcommand.

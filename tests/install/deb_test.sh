@@ -7,6 +7,8 @@
 #  - `roomfix check-config` accepts the packaged demo site;
 #  - the headers, .lcm files and CMake package build and run a small program
 #    of another lab (tests/install/consumer) through find_package(roomfix);
+#  - the Python types are in /usr/lib/python3/dist-packages/roomfix and
+#    Debian's python3 imports and decodes with them;
 #  - every package the .deb Depends on exists in Debian 12 at a version that
 #    satisfies it (this machine's dpkg database, then its apt lists);
 #  - with the Java jar (ROOMFIX_JAVA), the package lists /usr/bin/roomfix-spy
@@ -117,6 +119,29 @@ if [[ "$man_pages" == ON ]]; then
       fail "manual page $p.1.gz: $(cat "$root/man.err") $(head -c 300 <<<"$text")"
     fi
   done
+fi
+
+# The Python message types (docs/python.md) where Debian's python3 finds
+# them: a module per .lcm file and the package's __init__.py, no bytecode,
+# and Debian's own python3 importing them from the unpacked tree and
+# decoding with them.
+pydist=$prefix/lib/python3/dist-packages
+for t in __init__ $(cd "$source/lcmtypes" && ls -- *.lcm | sed 's/\.lcm$//'); do
+  [[ -f "$pydist/roomfix/$t.py" ]] || fail "/usr/lib/python3/dist-packages/roomfix/$t.py is not in the package"
+done
+grep -q __pycache__ <<<"$contents" && fail "the package ships Python bytecode (__pycache__)"
+if [[ -x /usr/bin/python3 ]]; then
+  debian_path=$(/usr/bin/python3 -c 'import sys; print("\n".join(sys.path))')
+  grep -qx /usr/lib/python3/dist-packages <<<"$debian_path" ||
+    fail "Debian's python3 does not search /usr/lib/python3/dist-packages: $debian_path"
+  if ! py=$(cd "$elsewhere" && PYTHONDONTWRITEBYTECODE=1 PYTHONPATH=$pydist /usr/bin/python3 -c '
+import roomfix
+p = roomfix.pose2d_t()
+p.robot_id, p.x_m = 3, 1.5
+q = roomfix.pose2d_t.decode(p.encode())
+print(roomfix.__file__, q.robot_id, q.x_m)' 2>&1) || [[ "$py" != "$pydist/roomfix/__init__.py 3 1.5" ]]; then
+    fail "python3 with the packaged roomfix types: $py"
+  fi
 fi
 
 # Another lab's program, built against the unpacked package only.

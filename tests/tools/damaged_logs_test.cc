@@ -4,6 +4,7 @@
 // the damage and prints one line naming the bytes skipped.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -230,6 +231,25 @@ TEST_P(DamagedLogTest, AProcessReadingItAsItsLcmUrlReachesTheEnd) {
   EXPECT_EQ(r.exit_code, 1) << r.err;
   EXPECT_NE(r.err.find("end of log " + path_), std::string::npos) << r.err;
   ExpectOneDamageLine(r, "trilat_proc", GetParam());
+}
+
+// roomfix export writes a row for every good event on both sides of the
+// damage, lists the damage in _damage.csv and exits 2 (damaged, exported).
+TEST_P(DamagedLogTest, ExportWritesEveryGoodEventAndListsTheDamage) {
+  const ToolRun r =
+      RunTool(dir_, {BinDir() + "/roomfix", "export", path_, "--csv", dir_.File("csv")});
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  for (const char* channel : {"POSE_GROUND_TRUTH", "POSE_ULTRASOUND"}) {
+    const std::string csv = ReadFile(dir_.File("csv") + "/" + channel + ".csv");
+    // A header line, then one line per pose.
+    EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 1 + 2 * kPosesPerHalf) << channel;
+  }
+  const std::string damage = ReadFile(dir_.File("csv/_damage.csv"));
+  EXPECT_EQ(std::count(damage.begin(), damage.end(), '\n'), 2) << damage;
+  EXPECT_NE(damage.find("," + std::to_string(GetParam().skipped) + "," + GetParam().reason + ","),
+            std::string::npos)
+      << damage;
+  ExpectOneDamageLine(r, "roomfix export", GetParam());
 }
 
 INSTANTIATE_TEST_SUITE_P(Damage, DamagedLogTest, ::testing::ValuesIn(DamagedLogs()),
