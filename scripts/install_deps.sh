@@ -43,6 +43,7 @@ test_packages=(
   zlib1g-dev libgtest-dev libgmock-dev libbenchmark-dev
   procps xvfb xauth x11-apps
   help2man lintian man-db
+  python3-pandas
 )
 packages=("${demo_packages[@]}")
 [[ "$set_name" == demo ]] || packages+=("${test_packages[@]}")
