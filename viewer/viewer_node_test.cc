@@ -50,7 +50,9 @@ class InFolder {
     EXPECT_EQ(::chdir(folder.c_str()), 0) << folder;
   }
   ~InFolder() {
-    if (!back_.empty()) EXPECT_EQ(::chdir(back_.c_str()), 0);
+    if (!back_.empty()) {
+      EXPECT_EQ(::chdir(back_.c_str()), 0);
+    }
   }
 
  private:
