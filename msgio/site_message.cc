@@ -5,14 +5,17 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cstdio>
 #include <cstdlib>
 #include <iterator>
+#include <map>
 #include <mutex>
+#include <set>
+#include <string_view>
 #include <utility>
 
 #include "core/world/file_io.h"
-#include "core/world/yaml_reader.h"
 #include "msgio/log.h"
 #include "msgio/time_limits.h"
 #include "msgio/wire_check.h"
@@ -62,14 +65,39 @@ std::string Who(const std::string& process, const std::string& host, int32_t pid
 }
 
 // --- YAML difference by key path -------------------------------------------
+//
+// A SITE from the bus or a log is compared with --config key by key, and its
+// texts are whatever a publisher wrote (a calibration of a flat map with tens
+// of thousands of keys, anchors whose aliases expand a few bytes into a tree
+// of millions of nodes, an alias inside its own anchor, which yaml-cpp
+// resolves into a cycle). So the walk costs at most linear work in the texts'
+// size whatever they hold:
+// - a mapping's keys are looked up in an index of the other side's keys
+//   (a sorted map: O(n log n) comparisons of keys, never yaml-cpp's
+//   operator[], which scans the mapping and made the comparison quadratic);
+// - every pair of nodes visited is paid from a budget of kVisitsPerByte per
+//   byte of the two texts: text without anchors never exhausts it (a node
+//   takes at least one byte, and a walk visits each node of either side at
+//   most once), and expansions through aliases stop there;
+// - nesting deeper than kMaxDepth (no site or calibration nests beyond 5;
+//   a cycle nests forever) stops the walk too;
+// - a key path is built only for the lines kept, from components clipped to
+//   kShownBytes, so a long key costs its length once, not once per child.
+
+constexpr int64_t kVisitsPerByte = 2;
+constexpr int64_t kMinVisits = 64;
+constexpr int kMaxDepth = 32;
+constexpr size_t kShownBytes = 40;
+
+std::string Clipped(const std::string& text) {
+  return text.size() > kShownBytes ? text.substr(0, kShownBytes - 3) + "..." : text;
+}
 
 std::string Brief(const YAML::Node& node) {
   if (!node.IsDefined() || node.IsNull()) return "absent";
   if (node.IsMap()) return "a mapping";
   if (node.IsSequence()) return "a list of " + std::to_string(node.size());
-  std::string text = node.Scalar();
-  if (text.size() > 40) text = text.substr(0, 37) + "...";
-  return text;
+  return Clipped(node.Scalar());
 }
 
 bool ScalarsEqual(const std::string& a, const std::string& b) {
@@ -82,55 +110,108 @@ bool ScalarsEqual(const std::string& a, const std::string& b) {
   return !a.empty() && !b.empty() && *end_a == '\0' && *end_b == '\0' && x == y;
 }
 
-void DiffNodes(const YAML::Node& a, const YAML::Node& b, const std::string& key,
-               std::vector<std::string>* out) {
-  const bool a_absent = !a.IsDefined() || a.IsNull();
-  const bool b_absent = !b.IsDefined() || b.IsNull();
-  if (a_absent && b_absent) return;
-  const std::string shown = key.empty() ? "(document)" : key;
-  if (a_absent || b_absent || a.Type() != b.Type()) {
-    out->push_back(shown + ": " + Brief(a) + " -> " + Brief(b));
-    return;
+class YamlDiff {
+ public:
+  YamlDiff(std::string prefix, int64_t budget, size_t max_lines, SiteDiff* out)
+      : prefix_(std::move(prefix)), budget_(budget), max_lines_(max_lines), out_(out) {}
+
+  void Walk(const YAML::Node& a, const YAML::Node& b, int depth) {
+    if (!Spend(depth)) return;
+    const bool a_absent = !a.IsDefined() || a.IsNull();
+    const bool b_absent = !b.IsDefined() || b.IsNull();
+    if (a_absent && b_absent) return;
+    if (a_absent || b_absent || a.Type() != b.Type()) return Report(a, b);
+    if (a.IsMap()) return WalkMaps(a, b, depth);
+    if (a.IsSequence()) return WalkSequences(a, b, depth);
+    if (!ScalarsEqual(a.Scalar(), b.Scalar())) Report(a, b);
   }
-  if (a.IsMap()) {
-    std::vector<std::string> keys;
-    std::set<std::string> seen;
-    for (const YAML::Node& m : {a, b}) {
-      for (const auto& kv : m) {
-        const std::string k = kv.first.Scalar();
-        if (seen.insert(k).second) keys.push_back(k);
-      }
+
+ private:
+  bool Spend(int depth) {
+    if (out_->incomplete) return false;
+    ++out_->nodes_visited;
+    if (out_->nodes_visited > budget_ || depth > kMaxDepth) {
+      out_->incomplete = true;
+      return false;
     }
-    for (const std::string& k : keys) {
-      DiffNodes(a[k], b[k], YamlReader::Join(key, k), out);
+    return true;
+  }
+
+  void WalkMaps(const YAML::Node& a, const YAML::Node& b, int depth) {
+    // By key text; a repeated key (refused in a site, possible in a
+    // calibration a publisher did not parse) counts with its first value,
+    // as yaml-cpp's own lookup would.
+    std::map<std::string_view, YAML::Node> b_keys;
+    for (const auto& kv : b) b_keys.emplace(kv.first.Scalar(), kv.second);
+    std::set<std::string_view> a_keys;
+    const YAML::Node absent(YAML::NodeType::Undefined);
+    for (const auto& kv : a) {
+      const std::string& k = kv.first.Scalar();
+      if (!a_keys.insert(k).second) continue;
+      const auto it = b_keys.find(k);
+      path_.push_back(Clipped(k));
+      Walk(kv.second, it == b_keys.end() ? absent : it->second, depth + 1);
+      path_.pop_back();
+      if (out_->incomplete) return;
     }
-    return;
-  }
-  if (a.IsSequence()) {
-    const size_t n = std::max(a.size(), b.size());
-    for (size_t i = 0; i < n; ++i) {
-      const YAML::Node ai = i < a.size() ? a[i] : YAML::Node(YAML::NodeType::Undefined);
-      const YAML::Node bi = i < b.size() ? b[i] : YAML::Node(YAML::NodeType::Undefined);
-      DiffNodes(ai, bi, YamlReader::Index(key, i), out);
+    for (const auto& kv : b) {
+      const std::string& k = kv.first.Scalar();
+      if (!a_keys.insert(k).second) continue;
+      path_.push_back(Clipped(k));
+      Walk(absent, kv.second, depth + 1);
+      path_.pop_back();
+      if (out_->incomplete) return;
     }
-    return;
   }
-  if (!ScalarsEqual(a.Scalar(), b.Scalar())) {
-    out->push_back(shown + ": " + Brief(a) + " -> " + Brief(b));
+
+  void WalkSequences(const YAML::Node& a, const YAML::Node& b, int depth) {
+    const YAML::Node absent(YAML::NodeType::Undefined);
+    auto ia = a.begin();
+    auto ib = b.begin();
+    for (size_t i = 0; ia != a.end() || ib != b.end(); ++i) {
+      path_.push_back("[" + std::to_string(i) + "]");
+      Walk(ia != a.end() ? YAML::Node(*ia) : absent, ib != b.end() ? YAML::Node(*ib) : absent,
+           depth + 1);
+      path_.pop_back();
+      if (out_->incomplete) return;
+      if (ia != a.end()) ++ia;
+      if (ib != b.end()) ++ib;
+    }
   }
-}
+
+  void Report(const YAML::Node& a, const YAML::Node& b) {
+    ++out_->count;
+    if (out_->lines.size() >= max_lines_) return;
+    std::string path;
+    for (const std::string& part : path_) {
+      if (!path.empty() && part[0] != '[') path += '.';
+      path += part;
+    }
+    out_->lines.push_back(prefix_ + (path.empty() ? "(document)" : path) + ": " + Brief(a) +
+                          " -> " + Brief(b));
+  }
+
+  std::string prefix_;
+  int64_t budget_;
+  size_t max_lines_;
+  SiteDiff* out_;
+  std::vector<std::string> path_;
+};
 
 // Texts that passed ParseSite or came from a file; a text that is not YAML
 // (a calibration the publisher could not parse) differs as a whole.
 void DiffTexts(const std::string& a, const std::string& b, const std::string& prefix,
-               std::vector<std::string>* out) {
-  if (a == b) return;
+               size_t max_lines, SiteDiff* out) {
+  if (a == b || out->incomplete) return;
+  const int64_t budget =
+      out->nodes_visited + kMinVisits + kVisitsPerByte * static_cast<int64_t>(a.size() + b.size());
   try {
-    std::vector<std::string> local;
-    DiffNodes(YAML::Load(a), YAML::Load(b), "", &local);
-    for (const auto& line : local) out->push_back(prefix + line);
+    const YAML::Node root_a = YAML::Load(a);
+    const YAML::Node root_b = YAML::Load(b);
+    YamlDiff(prefix, budget, max_lines, out).Walk(root_a, root_b, 0);
   } catch (const YAML::Exception&) {
-    out->push_back(prefix + "(text differs; not YAML)");
+    ++out->count;
+    if (out->lines.size() < max_lines) out->lines.push_back(prefix + "(text differs; not YAML)");
   }
 }
 
@@ -338,35 +419,58 @@ const std::string* SiteCalibrationText(const LoadedSite& loaded, size_t camera_i
   return nullptr;
 }
 
-std::vector<std::string> SiteDifferences(const SiteTexts& a, const SiteTexts& b) {
-  std::vector<std::string> out;
-  DiffTexts(a.site_text, b.site_text, "", &out);
+namespace {
+std::atomic<int64_t> g_site_comparison_nodes{0};
+}  // namespace
+
+int64_t SiteComparisonNodesVisited() { return g_site_comparison_nodes.load(); }
+
+SiteDiff CompareSiteTexts(const SiteTexts& a, const SiteTexts& b, size_t max_lines) {
+  SiteDiff out;
+  DiffTexts(a.site_text, b.site_text, "", max_lines, &out);
   std::set<std::string> names;
   for (const auto& kv : a.files) names.insert(kv.first);
   for (const auto& kv : b.files) names.insert(kv.first);
   for (const std::string& name : names) {
     const auto ia = a.files.find(name);
     const auto ib = b.files.find(name);
-    const std::string prefix = "calibration '" + name + "' ";
+    const std::string prefix = "calibration '" + Clipped(name) + "' ";
     if (ia == a.files.end() || ib == b.files.end()) {
-      out.push_back(prefix + (ia == a.files.end() ? "absent -> present" : "present -> absent"));
+      ++out.count;
+      if (out.lines.size() < max_lines) {
+        out.lines.push_back(prefix +
+                            (ia == a.files.end() ? "absent -> present" : "present -> absent"));
+      }
       continue;
     }
-    DiffTexts(ia->second, ib->second, prefix, &out);
+    DiffTexts(ia->second, ib->second, prefix, max_lines, &out);
   }
+  g_site_comparison_nodes += out.nodes_visited;
   return out;
+}
+
+std::vector<std::string> SiteDifferences(const SiteTexts& a, const SiteTexts& b) {
+  return CompareSiteTexts(a, b).lines;
 }
 
 std::string SiteMismatchWarning(const LoadedSite& a, const std::string& what_a, const LoadedSite& b,
                                 const std::string& what_b, size_t max_keys) {
   if (a.content_hash == b.content_hash) return "";
-  const std::vector<std::string> keys = SiteDifferences(a.texts, b.texts);
+  const SiteDiff diff = CompareSiteTexts(a.texts, b.texts, max_keys);
   std::string line = what_a + " (" + ShortSiteHash(a.content_hash) + ") and " + what_b + " (" +
                      ShortSiteHash(b.content_hash) + ") differ";
-  if (keys.empty()) return line + " only in layout or comments";
-  line += " at " + std::to_string(keys.size()) + (keys.size() == 1 ? " key: " : " keys: ");
-  for (size_t i = 0; i < keys.size() && i < max_keys; ++i) line += (i ? "; " : "") + keys[i];
-  if (keys.size() > max_keys) line += "; and " + std::to_string(keys.size() - max_keys) + " more";
+  if (diff.count == 0 && !diff.incomplete) return line + " only in layout or comments";
+  line += " at " + std::to_string(diff.count) + (diff.incomplete ? " or more" : "") +
+          (diff.count == 1 && !diff.incomplete ? " key: " : " keys: ");
+  for (size_t i = 0; i < diff.lines.size(); ++i) line += (i ? "; " : "") + diff.lines[i];
+  if (diff.count > diff.lines.size()) {
+    line += "; and " + std::to_string(diff.count - diff.lines.size()) + " more";
+  }
+  if (diff.incomplete) {
+    line += " (compared " + std::to_string(diff.nodes_visited) +
+            " nodes and stopped: aliases expand the texts beyond their size, or they nest deeper "
+            "than a site does)";
+  }
   return line;
 }
 
@@ -481,13 +585,24 @@ void SiteListing::Disagreement(std::vector<std::string>* lines) {
 
 namespace {
 
-// Whether two SITE messages carry the same texts (what the hash covers).
-bool SameTexts(const site_t& a, const site_t& b) {
-  if (a.site_text != b.site_text || a.files.size() != b.files.size()) return false;
-  for (size_t i = 0; i < a.files.size(); ++i) {
-    if (a.files[i].name != b.files[i].name || a.files[i].text != b.files[i].text) return false;
+// What a verified SITE message carried beside its hashed texts: a repeat
+// with the same hash, these and texts that hash alike is the same message.
+// Kept instead of the message (up to 5 MiB of texts each: 16 of them cost
+// `compare` 80 MB, issue #28).
+struct VerifiedSite {
+  std::string site_path;
+  std::string missing;
+};
+
+// The content hash of the texts a message carries, as SiteContentHash; ""
+// when a file name repeats (LoadSiteFromMessage refuses that).
+std::string HashOfCarriedTexts(const site_t& msg) {
+  SiteTexts texts;
+  texts.site_text = msg.site_text;
+  for (const auto& f : msg.files) {
+    if (!texts.files.emplace(f.name, f.text).second) return "";
   }
-  return a.site_path == b.site_path && a.missing == b.missing;
+  return SiteContentHash(texts);
 }
 
 }  // namespace
@@ -497,8 +612,9 @@ bool ReadSiteFromLog(const std::string& log_path, SiteFromLog* out, std::string*
   if (reader == nullptr) return false;
   SiteFromLog result;
   SiteHashTracker tracker;
-  // By content hash: the first verified message, for skipping repeats.
-  std::map<std::string, site_t> verified;
+  // By content hash: what the first verified message carried, for skipping
+  // repeats; one small entry per distinct site (bounded by the log's size).
+  std::map<std::string, VerifiedSite> verified;
   LogEvent event;
   while (reader->Next(&event)) {
     const bool is_site = event.channel == kSiteChannel;
@@ -527,9 +643,11 @@ bool ReadSiteFromLog(const std::string& log_path, SiteFromLog* out, std::string*
     }
     const std::string who = Who(msg.process, msg.host, 0);
     // A repeat of a verified message (same hash, same texts) is valid as
-    // that one was: no YAML parse and no hash again.
+    // that one was: its texts are hashed again (SHA-256, linear and fast),
+    // not parsed again.
     const auto verified_it = verified.find(msg.content_hash);
-    if (verified_it != verified.end() && SameTexts(msg, verified_it->second)) {
+    if (verified_it != verified.end() && verified_it->second.site_path == msg.site_path &&
+        verified_it->second.missing == msg.missing && HashOfCarriedTexts(msg) == msg.content_hash) {
       ++result.repeats_not_reparsed;
     } else {
       const std::string origin = log_path + ": SITE from " + Who(msg.process, msg.host, msg.pid);
@@ -539,7 +657,7 @@ bool ReadSiteFromLog(const std::string& log_path, SiteFromLog* out, std::string*
         refuse(reason, why);
         continue;
       }
-      if (verified.size() < SiteFromLog::kMaxSiteHashes) verified.emplace(msg.content_hash, msg);
+      verified.emplace(msg.content_hash, VerifiedSite{msg.site_path, msg.missing});
       if (result.accepted == 0) {
         result.site = std::move(loaded);
         result.event_utime = event.utime;
@@ -557,6 +675,7 @@ bool ReadSiteFromLog(const std::string& log_path, SiteFromLog* out, std::string*
     }
   }
   result.disagreement = tracker.Disagreement();
+  result.distinct_sites = static_cast<int64_t>(verified.size());
   if (result.accepted == 0) {
     *error = log_path + " holds no SITE message";
     if (result.refused > 0) {
@@ -610,9 +729,13 @@ bool ResolveToolSite(const std::string& config_path, const std::string& log_path
       *error = log_path.empty() ? "no site: give --config" : log_error;
       return false;
     }
-    if (from_log.publishers_by_hash.size() > 1) {
-      *error = log_path + " holds SITE messages of " +
-               std::to_string(from_log.publishers_by_hash.size()) + " different sites:";
+    if (from_log.distinct_sites > 1) {
+      *error = log_path + " holds SITE messages of " + std::to_string(from_log.distinct_sites) +
+               " different sites";
+      if (from_log.distinct_sites > static_cast<int64_t>(from_log.publishers_by_hash.size())) {
+        *error += " (the first " + std::to_string(from_log.publishers_by_hash.size()) + " named)";
+      }
+      *error += ":";
       bool first = true;
       for (const auto& [hash, who] : from_log.publishers_by_hash) {
         *error += (first ? " " : "; ") + ShortSiteHash(hash) + " by ";

@@ -111,10 +111,36 @@ const std::string* SiteCalibrationText(const LoadedSite& loaded, size_t camera_i
 // 2.5 -> 2.55", "cameras[0].calibration file 'x.yaml': intrinsics.fx_px: ...").
 // Both site texts are parsed as YAML and compared key by key (numbers
 // numerically, so 2.50 equals 2.5); the calibration files carried are
-// compared the same way by name. Empty when they agree.
+// compared the same way by name.
+//
+// A site from the bus or a log holds whatever its publisher wrote, so the
+// comparison costs at most linear work in the texts' size: keys are matched
+// through an index (O(n log n)), and at most 2 YAML nodes per byte of the
+// two texts (plus 64) are visited, and at most 32 levels deep: only anchors
+// whose aliases expand a text beyond its size, or a cycle (an alias inside
+// its own anchor), reach either limit, and the comparison then stops
+// (`incomplete`). Key components and values are shown clipped to 40 bytes.
+struct SiteDiff {
+  // The first max_lines differences, in document order.
+  std::vector<std::string> lines;
+  // Every difference found; lines holds the first of them.
+  size_t count = 0;
+  // The visit budget or the depth limit stopped the comparison: count is
+  // then a lower bound.
+  bool incomplete = false;
+  // Pairs of YAML nodes visited: the work done.
+  int64_t nodes_visited = 0;
+};
+SiteDiff CompareSiteTexts(const SiteTexts& a, const SiteTexts& b, size_t max_lines = 64);
+// The node pairs every CompareSiteTexts of this process has visited: the
+// work tools and processes spent comparing sites (tests bound it against the
+// texts' size; one counter for the process, safe from any thread).
+int64_t SiteComparisonNodesVisited();
+// CompareSiteTexts(a, b).lines: the first 64 differences. Empty when they agree.
 std::vector<std::string> SiteDifferences(const SiteTexts& a, const SiteTexts& b);
 // One warning line for two sites: "" when the hashes are equal, otherwise
-// "<what_a> and <what_b> differ at N keys: k1, k2, ... (and M more)".
+// "<what_a> and <what_b> differ at N keys: k1, k2, ... (and M more)" (with
+// "N or more" and why when the comparison stopped).
 std::string SiteMismatchWarning(const LoadedSite& a, const std::string& what_a, const LoadedSite& b,
                                 const std::string& what_b, size_t max_keys = 8);
 
@@ -208,8 +234,13 @@ struct SiteFromLog {
   // than one: the log holds several sites, and a tool must be told which
   // (ResolveToolSite refuses to pick one without --config).
   std::map<std::string, std::set<std::string>> publishers_by_hash;
-  // Valid SITE events whose texts equal an already verified message's, so
-  // they were not parsed again (a live process repeats its site every 5 s).
+  // How many different sites (content hashes) the valid SITE messages
+  // carry: the true count, where publishers_by_hash lists the first
+  // kMaxSiteHashes.
+  int64_t distinct_sites = 0;
+  // Valid SITE events whose texts equal an already verified message's (same
+  // hash, and texts that hash to it), so they were not parsed again (a live
+  // process repeats its site every 5 s).
   int64_t repeats_not_reparsed = 0;
   static constexpr size_t kMaxSiteHashes = 16;
 };

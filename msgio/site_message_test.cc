@@ -1,6 +1,7 @@
 #include "msgio/site_message.h"
 
 #include <gtest/gtest.h>
+#include <yaml-cpp/yaml.h>
 
 #include <string>
 #include <vector>
@@ -11,6 +12,7 @@
 #include "msgio/wire_check.h"
 #include "msgio/wire_test_messages.h"
 #include "tests/testing/demo_site.h"
+#include "tests/testing/forged_site.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -166,6 +168,97 @@ TEST(SiteMessage, ACommentOnlyChangeIsADifferentHashButNoKey) {
   commented.content_hash = SiteContentHash(commented.texts);
   EXPECT_NE(SiteMismatchWarning(original, "a", commented, "b").find("only in layout or comments"),
             std::string::npos);
+}
+
+// Issue #28, item 1: one forged SITE of 259 KB (a calibration of a flat map
+// of tens of thousands of keys, with a valid hash) held `roomfix listen
+// --config` about 20 s, because each key was looked up by yaml-cpp's
+// operator[], which scans the mapping. The work is now counted: at most 2
+// node pairs per byte of the texts compared (plus 64 per text), and doubling
+// the keys doubles the work (a quadratic walk would quadruple it).
+constexpr int64_t kVisitsPerByte = 2;
+constexpr int64_t kVisitsPerText = 64;
+// A walk linear in the keys visits twice the pairs for twice the keys, give
+// or take the few keys of the real calibration on the other side; a
+// quadratic one would visit four times as many.
+constexpr double kLinearGrowthMax = 2.1;
+// The calibration text of the issue's 259 KB message (the demo site's text
+// is the rest), under the 256 KiB a site_t carries per file.
+constexpr size_t kForgedCalibrationBytes = 250 * 1024;
+
+SiteTexts TextsOf(const site_t& msg) {
+  LoadedSite loaded;
+  std::string error;
+  EXPECT_TRUE(LoadSiteFromMessage(msg, "forged SITE", &loaded, &error)) << error;
+  return loaded.texts;
+}
+
+int64_t Bytes(const SiteTexts& a, const SiteTexts& b) {
+  int64_t n = static_cast<int64_t>(a.site_text.size() + b.site_text.size());
+  for (const auto& [name, text] : a.files) n += static_cast<int64_t>(text.size());
+  for (const auto& [name, text] : b.files) n += static_cast<int64_t>(text.size());
+  return n;
+}
+
+TEST(SiteMessage, ComparingAFlatMapOfTensOfThousandsOfKeysIsLinearInItsSize) {
+  const LoadedSite config = LoadDemo();
+  const size_t keys = testing::FlatKeysForBytes(kForgedCalibrationBytes);
+  ASSERT_GT(keys, 10000u);
+  const site_t forged_msg = testing::ForgedSiteWithFlatCalibration(keys, 1, "forger");
+  EXPECT_GE(Encode(forged_msg).size(), 259000u);
+  const SiteTexts forged = TextsOf(forged_msg);
+  const SiteDiff diff = CompareSiteTexts(config.texts, forged);
+  // Every forged key is absent from the real calibration, and every real
+  // top-level key (intrinsics, pose, ...) from the forged one.
+  const size_t real_keys = YAML::Load(config.texts.files.begin()->second).size();
+  EXPECT_EQ(diff.count, keys + real_keys);
+  EXPECT_FALSE(diff.incomplete);
+  EXPECT_EQ(diff.lines.size(), 64u);  // the default: the first 64 are spelt out
+  EXPECT_LE(diff.nodes_visited, kVisitsPerByte * Bytes(config.texts, forged) + 2 * kVisitsPerText);
+  // Half the keys, half the work.
+  const SiteTexts half = TextsOf(testing::ForgedSiteWithFlatCalibration(keys / 2, 1, "forger"));
+  const SiteDiff diff_half = CompareSiteTexts(config.texts, half);
+  EXPECT_EQ(diff_half.count, keys / 2 + real_keys);
+  EXPECT_LE(static_cast<double>(diff.nodes_visited),
+            kLinearGrowthMax * static_cast<double>(diff_half.nodes_visited));
+  // The warning names the count and the first keys, not all of them.
+  LoadedSite forged_site;
+  std::string error;
+  ASSERT_TRUE(LoadSiteFromMessage(forged_msg, "SITE from forger", &forged_site, &error));
+  const std::string warning = SiteMismatchWarning(config, "--config", forged_site, "SITE");
+  EXPECT_NE(warning.find("differ at " + std::to_string(keys + real_keys) + " keys: "),
+            std::string::npos)
+      << warning.substr(0, 300);
+  EXPECT_LT(warning.size(), 2000u);
+}
+
+TEST(SiteMessage, AliasesThatExpandATextBeyondItsSizeStopTheComparison) {
+  // 9 levels of 10 aliases: 300 bytes of text, 10^9 leaves as a tree, every
+  // one differing between the two sites.
+  const SiteTexts x = TextsOf(testing::ForgedSiteWithAliasBomb(9, 10, "x", "forger"));
+  const SiteTexts y = TextsOf(testing::ForgedSiteWithAliasBomb(9, 10, "y", "forger"));
+  const SiteDiff diff = CompareSiteTexts(x, y);
+  EXPECT_TRUE(diff.incomplete);
+  EXPECT_GE(diff.count, 1u);
+  EXPECT_LE(diff.nodes_visited, kVisitsPerByte * Bytes(x, y) + 2 * kVisitsPerText);
+  LoadedSite site_x, site_y;
+  std::string error;
+  ASSERT_TRUE(LoadSiteFromMessage(testing::ForgedSiteWithAliasBomb(9, 10, "x", "forger"), "SITE",
+                                  &site_x, &error));
+  ASSERT_TRUE(LoadSiteFromMessage(testing::ForgedSiteWithAliasBomb(9, 10, "y", "forger"), "SITE",
+                                  &site_y, &error));
+  const std::string warning = SiteMismatchWarning(site_x, "--config", site_y, "SITE");
+  EXPECT_NE(warning.find(" or more keys: "), std::string::npos) << warning;
+  EXPECT_NE(warning.find("and stopped"), std::string::npos) << warning;
+
+  // An alias inside its own anchor: yaml-cpp makes it a cycle (or refuses
+  // it); either way the comparison ends, within the same budget.
+  SiteTexts cycle_x = x, cycle_y = x;
+  cycle_x.files.begin()->second = "a: &a [x, *a]\n";
+  cycle_y.files.begin()->second = "a: &a [y, *a]\n";
+  const SiteDiff cyclic = CompareSiteTexts(cycle_x, cycle_y);
+  EXPECT_GE(cyclic.count, 1u);
+  EXPECT_LE(cyclic.nodes_visited, kVisitsPerByte * Bytes(cycle_x, cycle_y) + 2 * kVisitsPerText);
 }
 
 TEST(SiteMessage, HostileSiteMessagesAreRefusedWithAReason) {

@@ -3,10 +3,11 @@
 #include <gtest/gtest.h>
 #include <sys/resource.h>
 
+#include <algorithm>
+#include <cctype>
 #include <climits>
 #include <fstream>
 #include <map>
-#include <regex>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -300,6 +301,42 @@ TEST(WireCheck, AcceptsOnlyTheConstantsOfEveryEnumField) {
       process_status_t::STATE_FAILED, "process_status_t.state");
 }
 
+// The .lcm lines this test reads, as tokens: "int8_t status;" is
+// {"int8_t", "status", ";"}, "const int8_t OK = 0;" is {"const", "int8_t",
+// "OK", "=", "0", ";"}. Tokenised by hand rather than with std::regex, whose
+// std::function internals GCC 12 under AddressSanitizer reports as
+// -Wmaybe-uninitialized (a false positive, GCC bug 105616), which stopped
+// `make test SANITIZE=1` here (issue #28).
+std::vector<std::string> LcmTokens(const std::string& line) {
+  std::string spaced;
+  for (const char c : line) {
+    if (c == ';' || c == '=') {
+      spaced += ' ';
+      spaced += c;
+      spaced += ' ';
+    } else {
+      spaced += c;
+    }
+  }
+  std::istringstream in(spaced);
+  std::vector<std::string> tokens;
+  for (std::string t; in >> t;) tokens.push_back(t);
+  return tokens;
+}
+
+bool IsIdentifier(const std::string& t) {
+  if (t.empty() || std::isdigit(static_cast<unsigned char>(t[0]))) return false;
+  return std::all_of(t.begin(), t.end(),
+                     [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; });
+}
+
+bool IsInteger(const std::string& t) {
+  const size_t start = !t.empty() && t[0] == '-' ? 1 : 0;
+  return t.size() > start && std::all_of(t.begin() + static_cast<long>(start), t.end(), [](char c) {
+           return std::isdigit(static_cast<unsigned char>(c));
+         });
+}
+
 // The field tables against lcmtypes/*.lcm: every int8 field followed by
 // `const int8_t` constants is an enum, and its table entry is a kEnum bounded
 // by the largest constant, the constants running 0, 1, 2 ... without a gap
@@ -318,8 +355,6 @@ TEST(WireCheck, EveryEnumOfTheLcmFilesIsCheckedWithItsLargestConstant) {
       {"site_file_t", &wire::LayoutOf(static_cast<const site_file_t*>(nullptr))},
       {"site_t", &wire::LayoutOf(static_cast<const site_t*>(nullptr))},
   };
-  const std::regex field_re(R"(^\s*int8_t\s+(\w+)\s*;)");
-  const std::regex const_re(R"(^\s*const\s+int8_t\s+\w+\s*=\s*(-?\d+)\s*;)");
   int enums_found = 0;
   for (const auto& [type, layout] : layouts) {
     const std::string path = DataFile("lcmtypes/" + type + ".lcm");
@@ -330,12 +365,13 @@ TEST(WireCheck, EveryEnumOfTheLcmFilesIsCheckedWithItsLargestConstant) {
     std::string field;
     for (std::string line; std::getline(in, line);) {
       line = line.substr(0, line.find("//"));
-      std::smatch m;
-      if (std::regex_search(line, m, field_re)) {
-        field = m[1];
-      } else if (std::regex_search(line, m, const_re)) {
+      const std::vector<std::string> t = LcmTokens(line);
+      if (t.size() == 3 && t[0] == "int8_t" && IsIdentifier(t[1]) && t[2] == ";") {
+        field = t[1];
+      } else if (t.size() == 6 && t[0] == "const" && t[1] == "int8_t" && IsIdentifier(t[2]) &&
+                 t[3] == "=" && IsInteger(t[4]) && t[5] == ";") {
         ASSERT_FALSE(field.empty()) << path << ": a constant before any int8 field";
-        constants[field].push_back(std::stoi(m[1]));
+        constants[field].push_back(std::stoi(t[4]));
       } else if (line.find(';') != std::string::npos) {
         field.clear();  // another field: constants after it are not this enum's
       }

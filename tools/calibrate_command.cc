@@ -84,6 +84,19 @@ struct Flags {
 constexpr double kMaxOutlierFraction = 0.2;
 constexpr int kMaxOutliers = 50;
 
+// The most point rows a CSV may hold: each costs the fit work on every
+// iteration and possibly a refit as an outlier (issue #28: 315 rows took
+// 8.6 s, 3 000 were still running after 60 s). A calibration needs a few
+// dozen points spread over the image; 500 is ten times the reference's 36
+// with margin for several heights.
+constexpr int kMaxPointRows = 500;
+// Coordinates beyond these are no camera's pixels or room's metres: a
+// value of 1e308 reached the fit and came out as "all points lie on a line".
+constexpr double kMaxAbsPixel = 1e5;
+constexpr double kMaxAbsMetres = 1e4;
+
+std::string Fixed(double v, int digits);
+
 // Thrown inside the command for a one-line refusal.
 struct Refusal : std::runtime_error {
   using std::runtime_error::runtime_error;
@@ -155,6 +168,18 @@ std::vector<Correspondence> ReadPoints(const std::string& path, std::vector<int>
         throw Refusal(path + ":" + std::to_string(number) + ": " + names[k] +
                       ": expected a number, got '" + fields[static_cast<size_t>(column[k])] + "'");
       }
+    }
+    for (int k = 0; k < 5; ++k) {
+      const double limit = k < 2 ? kMaxAbsPixel : kMaxAbsMetres;
+      if (std::abs(v[k]) > limit) {
+        throw Refusal(path + ":" + std::to_string(number) + ": " + names[k] + ": " +
+                      fields[static_cast<size_t>(column[k])] + " is out of range (at most " +
+                      Fixed(limit, 0) + (k < 2 ? " px" : " m") + " either way)");
+      }
+    }
+    if (points.size() >= static_cast<size_t>(kMaxPointRows)) {
+      throw Refusal(path + ":" + std::to_string(number) + ": more than " +
+                    std::to_string(kMaxPointRows) + " points (the cap of a calibration CSV)");
     }
     points.push_back(Correspondence{v[0], v[1], v[2], v[3], v[4]});
     lines->push_back(number);
@@ -666,6 +691,23 @@ std::string Fixed(double v, int digits) {
   return buffer;
 }
 
+// For a refused full model: the point worst off the last fit tried, by its
+// CSV line (0 for a chessboard corner), since one wrong row can pull every
+// point off the fit; "" when the fit gave no residuals.
+std::string WorstPoint(const CameraFitSummary& fit, const std::vector<int>& lines) {
+  size_t worst = fit.residual_px.size();
+  for (size_t i = 0; i < fit.residual_px.size() && i < lines.size(); ++i) {
+    if (std::isfinite(fit.residual_px[i]) &&
+        (worst == fit.residual_px.size() || fit.residual_px[i] > fit.residual_px[worst])) {
+      worst = i;
+    }
+  }
+  if (worst == fit.residual_px.size()) return "";
+  return "; the worst is point " + std::to_string(worst) + " (line " +
+         std::to_string(lines[worst]) + "), " + Fixed(fit.residual_px[worst], 1) +
+         " px off: check that row first";
+}
+
 void Run(const Flags& f) {
   if (f.points.empty() && f.chessboards.empty() && f.marker_images.empty() &&
       f.shared_images.empty()) {
@@ -779,7 +821,7 @@ void Run(const Flags& f) {
       calib::FitRegions(points, calib::ThirdsRegionModel(width_px, height_px));
 
   const bool want_full = f.model == "full";
-  if (want_full && !full.usable) throw Refusal("full model: " + full_why);
+  if (want_full && !full.usable) throw Refusal("full model: " + full_why + WorstPoint(full, lines));
   if (!want_full && !regions.usable) throw Refusal("9-region model: " + regions.message);
 
   Calibration full_cal, region_cal;

@@ -1,13 +1,18 @@
 #include <CLI/CLI.hpp>
 #include <chrono>
+#include <condition_variable>
 #include <cstdint>
 #include <cstdio>
+#include <deque>
 #include <iostream>
 #include <map>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <string>
 #include <thread>
+#include <utility>
+#include <vector>
 
 #include "msgio/bus.h"
 #include "msgio/log.h"
@@ -33,31 +38,65 @@ struct ListenOptions {
 // Live: says on stderr which site each process publishes on SITE (once per
 // distinct site), warns when one differs from --config, and when processes
 // disagree (SITE or STATUS site_hash), whatever --channel prints.
+//
+// SITE and STATUS are examined on a thread of their own. Verifying a new
+// SITE parses its texts as YAML (up to 1 MiB of site and 16 x 256 KiB of
+// calibration, about a quarter of a second each for yaml-cpp at 1 MiB) and
+// comparing it with --config parses them again: on the receive thread, a
+// stream of forged SITEs (issue #28: each a new site with a valid hash)
+// would hold every other message behind them. The receive thread only
+// decodes and queues; at most kMaxPending messages wait, and further ones
+// are counted and said at exit (the real site's SITE comes again every
+// kSitePeriodUs). At exit the waiting ones are examined first: bounded work.
 class LiveSiteWatch {
  public:
+  static constexpr size_t kMaxPending = 8;
+
+  ~LiveSiteWatch() { Finish(); }
+
   bool Init(const std::string& config_path, std::string* error) {
-    if (config_path.empty()) return true;
-    if (!LoadSiteWithTexts(config_path, &config_, error)) return false;
-    listing_ = SiteListing(&config_);
-    std::cerr << "roomfix listen: site from --config " << config_path << ": "
-              << DescribeSite(config_) << "\n";
+    if (!config_path.empty()) {
+      if (!LoadSiteWithTexts(config_path, &config_, error)) return false;
+      listing_ = SiteListing(&config_);
+      std::cerr << "roomfix listen: site from --config " << config_path << ": "
+                << DescribeSite(config_) << "\n";
+    }
+    worker_ = std::thread([this] { Work(); });
     return true;
   }
+  // On the receive thread: decode and queue, never parse.
   void Observe(const MessageInfo& info, const void* data, int size) {
-    std::vector<std::string> lines;
-    if (info.channel == kSiteChannel) {
-      site_t msg;
+    Pending p;
+    p.recv_utime = info.recv_utime;
+    p.is_site = info.channel == kSiteChannel;
+    if (p.is_site) {
       std::string reason;
-      if (!DecodeChecked(data, size, &msg, &reason)) return;  // counted by PrintMessage
-      listing_.ObserveSite(msg, info.recv_utime, &lines);
+      if (!DecodeChecked(data, size, &p.site, &reason)) return;  // counted by PrintMessage
     } else if (info.channel == kStatusChannel) {
-      process_status_t status;
-      if (!DecodeChecked(data, size, &status, nullptr)) return;
-      listing_.ObserveStatus(status, info.recv_utime, &lines);
+      if (!DecodeChecked(data, size, &p.status, nullptr)) return;
+    } else {
+      return;
     }
-    for (const std::string& line : lines) std::cerr << "roomfix listen: " << line << "\n";
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (queue_.size() >= kMaxPending) {
+        ++not_examined_;
+        return;
+      }
+      queue_.push_back(std::move(p));
+    }
+    wake_.notify_one();
   }
-  // At exit: the SITE messages refused or not described.
+  // Examines what waits, then stops the thread.
+  void Finish() {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      stop_ = true;
+    }
+    wake_.notify_one();
+    if (worker_.joinable()) worker_.join();
+  }
+  // At exit, after Finish: the SITE messages refused or not described.
   void Summary() const {
     if (listing_.refused() > 0) {
       std::cerr << "roomfix listen: warning: " << listing_.refused()
@@ -69,11 +108,49 @@ class LiveSiteWatch {
                 << " SITE messages of sites over the first " << SiteListing::kMaxListed
                 << " not described\n";
     }
+    if (not_examined_ > 0) {
+      std::cerr << "roomfix listen: warning: " << not_examined_
+                << " SITE and STATUS messages not examined for the site (more than " << kMaxPending
+                << " waited at once)\n";
+    }
   }
 
  private:
+  struct Pending {
+    bool is_site = false;
+    int64_t recv_utime = 0;
+    site_t site;
+    process_status_t status;
+  };
+
+  void Work() {
+    for (;;) {
+      Pending p;
+      {
+        std::unique_lock<std::mutex> lock(mutex_);
+        wake_.wait(lock, [this] { return stop_ || !queue_.empty(); });
+        if (queue_.empty()) return;  // stopped, nothing waits
+        p = std::move(queue_.front());
+        queue_.pop_front();
+      }
+      std::vector<std::string> lines;
+      if (p.is_site) {
+        listing_.ObserveSite(p.site, p.recv_utime, &lines);
+      } else {
+        listing_.ObserveStatus(p.status, p.recv_utime, &lines);
+      }
+      for (const std::string& line : lines) std::cerr << "roomfix listen: " << line << "\n";
+    }
+  }
+
   LoadedSite config_;
   SiteListing listing_{nullptr};
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  std::deque<Pending> queue_;
+  bool stop_ = false;
+  int64_t not_examined_ = 0;
+  std::thread worker_;
 };
 
 // One message as one JSON line; a message refused before decoding is a line
@@ -217,6 +294,7 @@ void AddListenCommand(CLI::App* app, int* exit_code) {
     loop.duration_s = o->timeout_s;
     *exit_code = RunLoop(
         bus.get(), [](int64_t) {}, loop);
+    sites.Finish();
     WarnRefused(refused);
     sites.Summary();
     if (*exit_code == 0 && o->count > 0 && received < o->count) {

@@ -14,6 +14,7 @@
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -215,8 +216,23 @@ int Run(const SurveyArgs& a) {
     alignment = survey::AlignToReference(reference, kMaxReferenceGap_us, &firings);
   }
 
+  // Only the receivers the beacon was heard by are unknowns: the normal
+  // matrix grows with the square of the receivers estimated and its
+  // eigen-decomposition with the cube, so a site's receivers that no range
+  // names (a site from a log names what its publisher wrote, up to
+  // kMaxSiteReceivers of core/world/site_limits.h) cost nothing; they are
+  // listed as not heard.
+  std::set<int> heard;
+  for (const survey::Firing& f : firings) {
+    for (const survey::RangeObservation& o : f.ranges) heard.insert(o.receiver_id);
+  }
   std::vector<survey::ReceiverModel> site_models;
+  std::vector<int> not_heard;
   for (const Receiver& r : site.receivers) {
+    if (heard.count(r.id) == 0) {
+      not_heard.push_back(r.id);
+      continue;
+    }
     site_models.push_back(
         {r.id, Eigen::Map<const Eigen::Vector3d>(r.position_m.data()), r.range_offset_m, 1.0});
   }
@@ -297,6 +313,15 @@ int Run(const SurveyArgs& a) {
          {"ranges_rejected", e->ranges_rejected}});
   }
   std::printf("\n");
+  if (!not_heard.empty()) {
+    std::string ids;
+    for (size_t i = 0; i < not_heard.size() && i < 16; ++i) {
+      ids += (i ? ", " : "") + std::to_string(not_heard[i]);
+    }
+    if (not_heard.size() > 16) ids += ", ...";
+    std::printf("note: %zu receivers of the site never heard from beacon %d, not surveyed (%s)\n",
+                not_heard.size(), beacon->id, ids.c_str());
+  }
   for (const auto& n : result.notes) std::printf("note: %s\n", n.c_str());
   if (can_evaluate) {
     std::printf(
@@ -347,6 +372,7 @@ int Run(const SurveyArgs& a) {
                 {"condition_number", Number(result.condition_number)},
                 {"scale_estimated", result.scale_estimated},
                 {"receivers", receivers},
+                {"receivers_not_heard", not_heard},
                 {"notes", result.notes}};
     if (can_evaluate) {
       out["held_out"] = {{"before", ErrorJson(before)}, {"after", ErrorJson(after)}};

@@ -8,15 +8,18 @@
 
 namespace roomfix::viewer {
 
-std::vector<CameraFootprint> CameraFootprints(const Site& site, double height_m) {
+std::vector<CameraFootprint> CameraFootprints(const Site& site,
+                                              const std::map<int, std::string>& calibration_texts,
+                                              double height_m) {
   std::vector<CameraFootprint> out;
   for (const Camera& camera : site.cameras) {
     CameraFootprint f;
     f.camera_id = camera.id;
     calib::Calibration calibration;
     std::string error;
-    if (!camera.calibration_file.empty() &&
-        calib::LoadCalibration(camera.calibration_file, &calibration, &error) &&
+    const auto text = calibration_texts.find(camera.id);
+    if (text != calibration_texts.end() &&
+        calib::ParseCalibration(text->second, camera.calibration_file, &calibration, &error) &&
         calibration.model == calib::Calibration::Model::kFull &&
         calibration.camera.intrinsics.width_px == camera.width_px &&
         calibration.camera.intrinsics.height_px == camera.height_px) {

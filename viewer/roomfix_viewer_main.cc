@@ -166,8 +166,10 @@ int main(int argc, char** argv) {
   }
   auto ctx = roomfix::StartProcess("roomfix_viewer", process, &error);
   if (ctx == nullptr) return Fail(error);
+  // The site with the texts it carries: the footprints use the calibration
+  // texts, never a file the site names (a log's names paths of its host).
+  roomfix::LoadedSite site;
   if (!flags.log.empty()) {
-    roomfix::LoadedSite site;
     std::string used;
     std::vector<std::string> warnings;
     if (!roomfix::ResolveToolSite(config_path, flags.log, &site, &used, &warnings, &error)) {
@@ -175,8 +177,11 @@ int main(int argc, char** argv) {
     }
     std::cerr << "roomfix_viewer: " << used << "\n";
     for (const auto& w : warnings) std::cerr << "roomfix_viewer: warning: " << w << "\n";
-    ctx->site = site.site;
+  } else if (!roomfix::LoadSiteWithTexts(config_path, &site, &error)) {
+    return Fail(error);
   }
+  ctx->site = site.site;
+  options.calibration_texts = roomfix::CalibrationTextsById(site);
   if (process.check) {
     std::cout << "roomfix_viewer: ok: " << (flags.headless ? "headless" : "window") << ", "
               << render.width_px << "x" << render.height_px << ", "

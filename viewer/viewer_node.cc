@@ -77,11 +77,21 @@ bool ViewerNodeOptions::IsValid(std::string* error) const {
   return true;
 }
 
+std::map<int, std::string> CalibrationTextsById(const LoadedSite& loaded) {
+  std::map<int, std::string> texts;
+  for (size_t i = 0; i < loaded.site.cameras.size(); ++i) {
+    const std::string* text = SiteCalibrationText(loaded, i);
+    if (text != nullptr) texts.emplace(loaded.site.cameras[i].id, *text);
+  }
+  return texts;
+}
+
 ViewerNode::ViewerNode(const Site& site, Bus* bus, const ViewerNodeOptions& options,
                        int64_t start_utime)
     : bus_(bus), options_(options), status_("roomfix_viewer", start_utime) {
   state_.site = site;
-  state_.footprints = viewer::CameraFootprints(site, viewer::FootprintHeight(site));
+  state_.footprints =
+      viewer::CameraFootprints(site, options.calibration_texts, viewer::FootprintHeight(site));
   state_.trail_s = options.trail_s;
   state_.stale_after_s = options.stale_after_s;
   state_.now_utime = start_utime;

@@ -36,9 +36,16 @@ struct ViewerNodeOptions {
   // At most this many process rows; STATUS from further names is refused
   // (too_many_processes) until a row expires.
   int max_processes = 64;
+  // Each camera's calibration text by camera id, for its footprint: the
+  // texts the site carries (CalibrationTextsById), never files it names.
+  std::map<int, std::string> calibration_texts;
 
   bool IsValid(std::string* error) const;
 };
+
+// The calibration texts a loaded site carries, by camera id
+// (SiteCalibrationText): cameras without one are left out.
+std::map<int, std::string> CalibrationTextsById(const LoadedSite& loaded);
 
 // Keeps the viewer's picture of the system up to date from the bus: every
 // pose2d_t on POSE_.*, the range sets on RANGES, the STATUS heartbeats, the

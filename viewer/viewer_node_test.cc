@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 #include <time.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -10,6 +11,7 @@
 #include <string>
 
 #include "msgio/log.h"
+#include "msgio/site_message.h"
 #include "msgio/test_messages.h"
 #include "roomfix/pose2d_t.hpp"
 #include "roomfix/process_status_t.hpp"
@@ -36,6 +38,26 @@ pose2d_t Pose(int8_t source, int64_t utime, double x_m, double y_m) {
   p.latency_us = 12'000;
   return p;
 }
+
+std::string TwoCamerasPath() { return testing::SourceDir() + "/config/sites/two_cameras.yaml"; }
+
+// Runs in another working folder and comes back.
+class InFolder {
+ public:
+  explicit InFolder(const std::string& folder) {
+    char here[4096];
+    if (::getcwd(here, sizeof(here)) != nullptr) back_ = here;
+    EXPECT_EQ(::chdir(folder.c_str()), 0) << folder;
+  }
+  ~InFolder() {
+    if (!back_.empty()) {
+      EXPECT_EQ(::chdir(back_.c_str()), 0);
+    }
+  }
+
+ private:
+  std::string back_;
+};
 
 TEST(ViewerNode, KeepsEachSourcesTrackWithItsRateLatencyAndTrail) {
   const Site site = DemoSite();
@@ -381,12 +403,14 @@ namespace {
 // Several cameras (issue 19): each camera's footprint from its calibration,
 // and which camera sees which robot.
 TEST(ViewerNode, DrawsEachCamerasFootprintAndWhichCameraSeesARobot) {
-  Site site;
+  LoadedSite loaded;
   std::string error;
-  ASSERT_TRUE(LoadSite(testing::SourceDir() + "/config/sites/two_cameras.yaml", &site, &error))
-      << error;
+  ASSERT_TRUE(LoadSiteWithTexts(TwoCamerasPath(), &loaded, &error)) << error;
+  const Site& site = loaded.site;
   LoopbackBus bus;
-  ViewerNode node(site, &bus, {}, kT0);
+  ViewerNodeOptions options;
+  options.calibration_texts = CalibrationTextsById(loaded);
+  ViewerNode node(site, &bus, options, kT0);
   const viewer::ViewState& empty = node.StateAt(kT0);
   ASSERT_EQ(empty.footprints.size(), 2u);
   // At the marker height (0.2 m) the middle of each 82-degree image's left
@@ -433,6 +457,45 @@ TEST(ViewerNode, DrawsEachCamerasFootprintAndWhichCameraSeesARobot) {
 // The bus must not call into a destroyed node: its six handlers capture
 // `this`. (Junk bytes: delivered to the handlers, refused before the node's
 // code.)
+
+// Issue #28, item 3: with --log and no --config the viewer loaded each
+// camera's calibration by the path the log's SITE names, relative to the
+// working folder (`../calibration/...`), or absolute (`/etc/passwd`). A
+// site from a log refers only to the texts it carries: here camera 0 carries
+// camera 1's calibration under its own name and camera 1 carries none, run
+// from config/sites/, where both names resolve to the real files on disk.
+TEST(ViewerNode, ASiteFromALogDrawsOnlyTheCalibrationsItCarries) {
+  LoadedSite file;
+  std::string error;
+  ASSERT_TRUE(LoadSiteWithTexts(TwoCamerasPath(), &file, &error)) << error;
+  ASSERT_EQ(file.texts.files.size(), 2u);
+  const std::string cam0 = "../calibration/two_cameras_cam0.yaml";
+  const std::string cam1 = "../calibration/two_cameras_cam1.yaml";
+  LoadedSite forged = file;
+  forged.texts.files[cam0] = file.texts.files.at(cam1);
+  forged.texts.files.erase(cam1);
+  forged.content_hash = SiteContentHash(forged.texts);
+  site_t msg;
+  ASSERT_TRUE(MakeSiteMessage(forged, "trilat_proc", kT0, &msg, &error)) << error;
+  LoadedSite from_log;
+  ASSERT_TRUE(LoadSiteFromMessage(msg, "test.lcm: SITE", &from_log, &error)) << error;
+  ASSERT_EQ(from_log.site.cameras[1].calibration_file, cam1);
+
+  InFolder sites(testing::SourceDir() + "/config/sites");
+  LoopbackBus bus;
+  ViewerNodeOptions options;
+  options.calibration_texts = CalibrationTextsById(from_log);
+  ViewerNode node(from_log.site, &bus, options, kT0);
+  const viewer::ViewState& s = node.StateAt(kT0);
+  ASSERT_EQ(s.footprints.size(), 2u);
+  // Camera 0 drawn with the text it carries (camera 1's lens, fitted at
+  // x 6.00006 m), not the file its name resolves to here (a lens at 2 m).
+  constexpr double kFittedMountM = 0.001;
+  EXPECT_TRUE(s.footprints[0].calibrated);
+  EXPECT_NEAR(s.footprints[0].lens_m[0], 6.0, kFittedMountM);
+  // Camera 1 carries none: the nominal model, though its file is on disk.
+  EXPECT_FALSE(s.footprints[1].calibrated);
+}
 TEST(ViewerNode, ADestroyedNodeReceivesNothingMore) {
   const Site site = DemoSite();
   LoopbackBus bus;

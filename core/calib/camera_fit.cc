@@ -312,6 +312,7 @@ bool FitLeavingOutOutliers(Problem* problem, OutlierFit* fit, std::string* why) 
   fit->residual_px.assign(n, 0.0);
   std::vector<bool>& outlier = fit->outlier;
   std::vector<double>& residual = fit->residual_px;
+  int above_before = -1;  // points off the fit before the last one was left out
   for (;;) {
     const SolveResult r = Solve(problem);
     fit->iterations += r.iterations;
@@ -337,7 +338,16 @@ bool FitLeavingOutOutliers(Problem* problem, OutlierFit* fit, std::string* why) 
         left_out += outlier[i] ? 1 : 0;
         above += !outlier[i] && residual[i] > options.outlier_px ? 1 : 0;
       }
-      if (left_out + above > options.max_outliers) {
+      // One wrong row (a swapped or mistyped coordinate) pulls the whole
+      // least-squares fit, so that every point may be off by more than
+      // outlier_px while it is in: leaving the worst out and refitting is
+      // then what shows it (issue #28: all 36 points were called off for
+      // one wrong row). So the worst is left out while that brings the
+      // points off the fit down by more than itself; refused when it does
+      // not, with every residual against the last fit (the caller names the
+      // worst point).
+      const bool leaving_out_helped = above_before < 0 || above < above_before - 1;
+      if (left_out + above > options.max_outliers && !leaving_out_helped) {
         std::ostringstream os;
         os << left_out + above << " of " << n << " points are more than " << options.outlier_px
            << " px off the fit, over the " << options.max_outliers
@@ -345,6 +355,7 @@ bool FitLeavingOutOutliers(Problem* problem, OutlierFit* fit, std::string* why) 
         *why = os.str();
         return false;
       }
+      above_before = above;
     }
     outlier[worst] = true;
     problem->used.erase(
@@ -427,6 +438,8 @@ CameraFitSummary FitCamera(const std::vector<Correspondence>& points, const Came
   if (!FitLeavingOutOutliers(&problem, &fit, &why)) {
     Reject(why, initial, &s);
     s.iterations = fit.iterations;
+    // Against the last fit tried: the caller names the worst point.
+    s.residual_px = fit.residual_px;
     return s;
   }
   Summarise(fit, problem.used.size(), options, &s);

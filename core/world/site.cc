@@ -15,6 +15,7 @@
 #include <utility>
 
 #include "core/world/file_io.h"
+#include "core/world/site_limits.h"
 #include "core/world/yaml_reader.h"
 
 namespace roomfix {
@@ -46,6 +47,17 @@ class Reader : public YamlReader {
       Fail(node, key, "expected a 16-bit short address below 0xFFFE, e.g. 0x1234");
     }
     return static_cast<uint16_t>(value);
+  }
+
+  // A list (ExpectSequence) of at most `cap` entries (site.h, "The most of
+  // each list"): checked before any entry is read.
+  void ExpectListOfAtMost(const YAML::Node& node, const std::string& key, size_t cap) const {
+    ExpectSequence(node, key);
+    if (node.size() > cap) {
+      Fail(node, key,
+           "lists " + std::to_string(node.size()) + " entries, over the cap of " +
+               std::to_string(cap) + " (docs/site_file.md, \"Limits\")");
+    }
   }
 
   // Reads the required integer `field` of an entry and checks that no
@@ -156,7 +168,7 @@ void ParseRadios(const Reader& r, const YAML::Node& root, Site* site) {
   };
 
   const YAML::Node receivers = r.Required(root, "", "receivers");
-  r.ExpectSequence(receivers, "receivers");
+  r.ExpectListOfAtMost(receivers, "receivers", kMaxSiteReceivers);
   std::set<int> receiver_ids;
   for (size_t i = 0; i < receivers.size(); ++i) {
     const YAML::Node node = receivers[i];
@@ -192,7 +204,7 @@ void ParseRadios(const Reader& r, const YAML::Node& root, Site* site) {
 
   const YAML::Node beacons = root["beacons"];
   if (!beacons) return;
-  r.ExpectSequence(beacons, "beacons");
+  r.ExpectListOfAtMost(beacons, "beacons", kMaxSiteBeacons);
   std::set<int> beacon_ids;
   for (size_t i = 0; i < beacons.size(); ++i) {
     const YAML::Node node = beacons[i];
@@ -220,7 +232,7 @@ void ParseRadios(const Reader& r, const YAML::Node& root, Site* site) {
 void ParseRobots(const Reader& r, const YAML::Node& root, Site* site) {
   const YAML::Node robots = root["robots"];
   if (!robots) return;
-  r.ExpectSequence(robots, "robots");
+  r.ExpectListOfAtMost(robots, "robots", kMaxSiteRobots);
   std::set<int> ids;
   std::set<int> beacons_used;
   for (size_t i = 0; i < robots.size(); ++i) {
@@ -372,7 +384,7 @@ void ParseCameraRobots(const Reader& r, const YAML::Node& node, const std::strin
                        [&](const MarkerClass& mc) { return mc.name == name; });
   };
   const YAML::Node robots = r.Required(node, key, "robots");
-  r.ExpectSequence(robots, key + ".robots");
+  r.ExpectListOfAtMost(robots, key + ".robots", kMaxSiteRobots);
   std::set<int> robot_ids;
   // Per class: the first robot using it as a position and as a heading
   // marker (for the role check without a code); per code: its robot.
@@ -455,7 +467,7 @@ void ParseCameras(const Reader& r, const YAML::Node& root, const std::string& ba
                   Site* site) {
   const YAML::Node cameras = root["cameras"];
   if (!cameras) return;
-  r.ExpectSequence(cameras, "cameras");
+  r.ExpectListOfAtMost(cameras, "cameras", kMaxSiteCameras);
   std::set<int> ids;
   static const std::set<std::string> kProperties = {
       "brightness", "contrast", "saturation", "hue",           "gamma",
@@ -532,7 +544,7 @@ void ParseCameras(const Reader& r, const YAML::Node& root, const std::string& ba
     if (const YAML::Node code = node["marker_code"])
       cam.marker_code = ParseMarkerCode(r, code, code_key);
     const YAML::Node classes = r.Required(node, key, "marker_classes");
-    r.ExpectSequence(classes, key + ".marker_classes");
+    r.ExpectListOfAtMost(classes, key + ".marker_classes", kMaxCameraMarkerClasses);
     for (size_t c = 0; c < classes.size(); ++c) {
       const std::string ckey = K::Index(key + ".marker_classes", c);
       MarkerClass mc = ParseMarkerClass(r, classes[c], ckey, cam.marker_code, code_key);
@@ -593,7 +605,7 @@ std::shared_ptr<const Trajectory> ParseTrajectory(const Reader& r, const YAML::N
     r.OnlyKeys(node, key, {"type", "points_m", "speed_mps", "loop"});
     WaypointTrajectoryOptions o;
     const YAML::Node points = r.Required(node, key, "points_m");
-    r.ExpectSequence(points, key + ".points_m");
+    r.ExpectListOfAtMost(points, key + ".points_m", kMaxWaypoints);
     for (size_t i = 0; i < points.size(); ++i) {
       const auto p = r.Doubles<2>(points[i], K::Index(key + ".points_m", i));
       o.points_m.emplace_back(p[0], p[1]);
@@ -726,7 +738,7 @@ void ParseSimulation(const Reader& r, const YAML::Node& root, Site* site) {
   }
   const YAML::Node robots = sim["robots"];
   if (!robots) return;
-  r.ExpectSequence(robots, "simulation.robots");
+  r.ExpectListOfAtMost(robots, "simulation.robots", kMaxSiteRobots);
   std::set<int> ids;
   for (size_t i = 0; i < robots.size(); ++i) {
     const std::string key = K::Index("simulation.robots", i);
@@ -787,7 +799,7 @@ void ParseAcoustics(const Reader& r, const YAML::Node& root, Site* site) {
 void ParseRadioNetworks(const Reader& r, const YAML::Node& root, Site* site) {
   const YAML::Node radios = root["radios"];
   if (!radios) return;
-  r.ExpectSequence(radios, "radios");
+  r.ExpectListOfAtMost(radios, "radios", kMaxSiteRadios);
   std::set<int> ids;
   std::map<int, std::string> owner;
   for (size_t i = 0; i < radios.size(); ++i) {
@@ -799,7 +811,7 @@ void ParseRadioNetworks(const Reader& r, const YAML::Node& root, Site* site) {
     radio.id = r.UniqueId(node, key, "id", "radio", &ids);
     if (node["device"]) radio.device = r.String(node["device"], key + ".device");
     const YAML::Node receivers = r.Required(node, key, "receivers");
-    r.ExpectSequence(receivers, key + ".receivers");
+    r.ExpectListOfAtMost(receivers, key + ".receivers", kMaxSiteReceivers);
     for (size_t j = 0; j < receivers.size(); ++j) {
       const std::string rkey = K::Index(key + ".receivers", j);
       const int id = r.Int(receivers[j], rkey);

@@ -1,5 +1,6 @@
 #include "tests/testing/demo_site.h"
 
+#include <cstdio>
 #include <filesystem>
 #include <system_error>
 
@@ -31,6 +32,27 @@ std::string WriteDemoSiteVariant(const TempDir& dir, const std::string& name,
     return "";
   }
   return path;
+}
+
+std::string DemoSiteTextWithReceivers(size_t extra) {
+  std::string text = ReadFile(DemoSitePath());
+  const std::string last =
+      "  - {id: 4, address: \"0x0013A20041000004\", position_m: [0.0, 3.0, 2.5], "
+      "range_offset_m: 0.0}\n";
+  const size_t at = text.find(last);
+  if (at == std::string::npos) return "";
+  std::string more;
+  for (size_t i = 0; i < extra; ++i) {
+    char line[160];
+    std::snprintf(line, sizeof(line),
+                  "  - {id: %zu, address: \"0x0013A20043%06zX\", position_m: [%.1f, %.1f, 2.5], "
+                  "range_offset_m: 0.0}\n",
+                  1001 + i, i, 0.1 * static_cast<double>(i % 40),
+                  0.1 * static_cast<double>((i / 40) % 30));
+    more += line;
+  }
+  text.insert(at + last.size(), more);
+  return text;
 }
 
 }  // namespace roomfix::testing

@@ -291,6 +291,61 @@ TEST(RoomfixCalibrate, RefusesTwoThousandRandomPointsQuickly) {
   }
 }
 
+// Issue #28, item 8: one wrong row (a u off by 400 px, a mistyped digit)
+// pulled the least-squares fit so that every point was "more than 3 px
+// off" and the set was refused without saying which row was wrong. The
+// worst is left out and the fit judged again: the wrong row is named.
+constexpr double kWrongRowPx = 400.0;
+
+TEST(RoomfixCalibrate, OneWrongRowIsNamedRatherThanEveryPointCalledOff) {
+  TempDir dir;
+  std::istringstream in(PointsCsv());
+  std::string line, csv;
+  for (int i = -1; std::getline(in, line); ++i) {
+    if (i == 7) {
+      const size_t comma = line.find(',');
+      line = std::to_string(std::stod(line.substr(0, comma)) + kWrongRowPx) + line.substr(comma);
+    }
+    csv += line + "\n";
+  }
+  ASSERT_TRUE(WriteFile(dir.File("p.csv"), csv));
+  const RunResult r =
+      Roomfix({"calibrate", "--points", dir.File("p.csv"), "--out", dir.File("cal.yaml"), "--site",
+               DemoSitePath(), "--pixel-sigma", "0.3"});
+  EXPECT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("outlier: point 7 (line 9)"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("outlier: point 1 "), std::string::npos) << r.out;
+}
+
+// Issue #28, item 8: no cap on the rows (3 000 still running after 60 s),
+// and a coordinate of 1e308 reported as "all points lie on a line".
+TEST(RoomfixCalibrate, RefusesTooManyRowsAndCoordinatesOutOfRangeNamingTheLine) {
+  TempDir dir;
+  std::string csv = "u,v,x_m,y_m,height_m\n";
+  for (int i = 0; i < 501; ++i) csv += "960,540,2,1.5,0\n";
+  ASSERT_TRUE(WriteFile(dir.File("many.csv"), csv));
+  RunResult r = Roomfix({"calibrate", "--points", dir.File("many.csv"), "--out",
+                         dir.File("cal.yaml"), "--site", DemoSitePath()},
+                        /*stderr_only=*/true);
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("many.csv:502: more than 500 points (the cap of a calibration CSV)"),
+            std::string::npos)
+      << r.out;
+
+  std::string huge = PointsCsv();
+  huge.replace(huge.find('\n') + 1, 0, "1e308,540,2,1.5,0.2\n");
+  ASSERT_TRUE(WriteFile(dir.File("huge.csv"), huge));
+  r = Roomfix({"calibrate", "--points", dir.File("huge.csv"), "--out", dir.File("cal.yaml"),
+               "--site", DemoSitePath()},
+              /*stderr_only=*/true);
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("huge.csv:2: u: 1e308 is out of range (at most 100000 px either way)"),
+            std::string::npos)
+      << r.out;
+  EXPECT_EQ(r.out.find("on a line"), std::string::npos) << r.out;
+  EXPECT_FALSE(std::filesystem::exists(dir.File("cal.yaml")));
+}
+
 // Every file calibrate writes reports a failed write: exit 1 and the reason.
 TEST(RoomfixCalibrate, AFullDiskIsAFailedRunNamingTheFile) {
   TempDir dir;
