@@ -483,10 +483,11 @@ PipelineReplaySummary ReplayPipelineFile(const std::string& in_path, const Site&
   }
   if (!summary.ok) {
     ::unlink(partial.c_str());
-    // The reason names the file the user gave, not the partial one.
-    for (size_t at = summary.error.find(partial); at != std::string::npos;
-         at = summary.error.find(partial)) {
-      summary.error.replace(at, partial.size(), out_path);
+    // A failed write of the new log names the file the user gave, not the
+    // partial one, as every writer does: "OUT: cannot write: REASON".
+    if (summary.error.rfind(partial, 0) == 0) {
+      summary.error = out_path + ": cannot write: " +
+                      summary.error.substr(summary.error.rfind(": ") + 2);
     }
   }
   return summary;
