@@ -519,6 +519,12 @@ void CameraNode::OnMarkerPixels(const marker_pixels_t& msg, int64_t now_utime) {
   // Another camera's pixels are another node's input.
   if (msg.camera_id != camera_.id) return;
   status_.AddInputs();
+  // A frame dated far from its log time would move the tracker's clock and
+  // publish poses at that time (the same window as every node's input).
+  if (!UtimeNear(msg.utime, now_utime)) {
+    status_.Reject("utime_out_of_range");
+    return;
+  }
   if (last_seq_ >= 0 && msg.frame_seq > last_seq_ + 1)
     status_.AddDropped(msg.frame_seq - last_seq_ - 1);
   last_seq_ = msg.frame_seq;
@@ -697,6 +703,9 @@ Eigen::Vector2d CameraNode::Velocity(size_t robot) const {
 }
 
 void CameraNode::PublishPoses(int64_t capture_utime, int64_t frame_seq, int64_t latency_us) {
+  // A recorded processing time is a log's word (OnMarkerPixels): never a
+  // negative latency on the bus.
+  latency_us = std::max<int64_t>(latency_us, 0);
   ObserveCaptureTime(capture_utime, frame_seq);
   recent_poses_.resize(observations_.size());
   const double timing_sigma_s = TimingSigmaS();

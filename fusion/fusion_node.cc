@@ -98,8 +98,9 @@ void FusionNode::OnPose(const pose2d_t& pose, const MessageInfo& info, fusion::S
                      info.recv_utime);
   };
   if (!UtimeNear(pose.utime, info.recv_utime)) {
-    refuse("utime_out_of_range", "measurement time " + std::to_string(pose.utime) +
-                                     " us is more than an hour from its receive time");
+    refuse("utime_out_of_range",
+           "measurement time " + std::to_string(pose.utime) +
+               " us is more than an hour before or 0.1 s after its receive time");
     return;
   }
   if (site_robots_.count(pose.robot_id) == 0) {
@@ -215,7 +216,7 @@ void FusionNode::Publish(int32_t robot_id, const fusion::Estimate& e, double z_m
   p.z_m = z_m;
   p.status = e.valid ? StatusOf(e.status) : PoseStatus::kLost;
   p.num_measurements = e.num_measurements;
-  p.latency_us = SaturatingDifferenceUs(now_utime, e.utime);
+  p.latency_us = LatencyUs(now_utime, e.utime);
   p.residual_m = std::isfinite(e.innovation_m) ? e.innovation_m : kNaN;
   // The filter only ever takes finite input, but its state is arithmetic on
   // it: an estimate that overflowed is not a position.

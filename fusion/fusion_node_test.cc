@@ -15,6 +15,7 @@
 #include "core/fusion/synthetic_streams.h"
 #include "core/world/site.h"
 #include "core/world/trajectory.h"
+#include "msgio/time_limits.h"
 #include "roomfix/pose2d_t.hpp"
 
 namespace roomfix {
@@ -455,6 +456,26 @@ TEST_F(FusionNodeTest, RefusesAPoseWhoseTimeIsFarFromItsReceiveTime) {
   EXPECT_EQ(node.status().rejected("utime_out_of_range"), 5);
   EXPECT_TRUE(fused_.empty());
   EXPECT_EQ(node.filter(1), nullptr);
+}
+
+// Issue #28, item 7: one POSE_CAMERA dated +0.5 s gave a degraded
+// POSE_FUSED with a negative latency. Beyond kMaxUtimeAheadUs it is refused;
+// within it (another host's clock offset) it is fused with latency 0, and no
+// fused pose ever carries a negative latency.
+TEST_F(FusionNodeTest, RefusesAPoseFromTheFutureAndNeverPublishesANegativeLatency) {
+  FusionNode node(site_, &bus_, FusionNodeOptions(), fusion::synthetic::kStartUtime);
+  pose2d_t p = PoseOf(MakeStream(*circle_, StreamOptions()).front());
+  const int64_t recv = p.utime;
+  p.utime = recv + 500'000;
+  Deliver(p, recv);
+  EXPECT_EQ(node.status().rejected("utime_out_of_range"), 1);
+  EXPECT_EQ(node.filter(1), nullptr);
+  p.utime = recv + kMaxUtimeAheadUs;
+  Deliver(p, recv);
+  node.Tick(recv);
+  EXPECT_EQ(node.status().rejected("utime_out_of_range"), 1);
+  ASSERT_FALSE(fused_.empty());
+  for (const pose2d_t& f : fused_) EXPECT_GE(f.latency_us, 0) << f.utime;
 }
 
 TEST_F(FusionNodeTest, RefusesNonFiniteValuesAndNeverPublishesThem) {

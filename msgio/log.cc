@@ -325,6 +325,15 @@ bool LogWriter::Flush(std::string* error) {
   return true;
 }
 
+bool LogWriter::Sync(std::string* error) {
+  if (!Flush(error)) return false;
+  if (::fsync(::fileno(file_->getFilePtr())) != 0) {
+    if (error != nullptr) *error = path_ + ": write failed: " + std::strerror(errno);
+    return false;
+  }
+  return true;
+}
+
 bool ReadLogEvents(const std::string& path, std::vector<LogEvent>* events, std::string* error) {
   events->clear();
   auto reader = LogReader::Open(path, error);

@@ -144,6 +144,10 @@ class LogWriter {
              std::string* error);
   // Pushes buffered events to the operating system.
   bool Flush(std::string* error);
+  // Flush, then fsync: with delayed allocation a full disk shows only when
+  // the data is written back. For a log that is finished (roomfix replay's
+  // new log is renamed into place only after this succeeds).
+  bool Sync(std::string* error);
   int64_t events_written() const { return events_written_; }
   const std::string& path() const { return path_; }
 

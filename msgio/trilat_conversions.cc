@@ -45,7 +45,7 @@ pose2d_t PoseFromFix(const trilat::Fix& fix, const range_set_t& set, int32_t rob
       p.status = PoseStatus::kLost;
       break;
   }
-  p.latency_us = SaturatingDifferenceUs(publish_utime, set.utime);
+  p.latency_us = LatencyUs(publish_utime, set.utime);
   return ToMessage(p);
 }
 

@@ -15,6 +15,7 @@
 #include <sstream>
 #include <utility>
 
+#include "camera_proc/video_file.h"
 #include "core/world/file_io.h"
 
 namespace roomfix::sim {
@@ -1125,7 +1126,8 @@ bool WriteSequence(const SyntheticCamera& camera, const SequenceOptions& options
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   std::error_code ec;
   const bool folder = fs::is_directory(path, ec) || ext.empty();
-  cv::VideoWriter video;
+  // Whole or absent: checked and renamed into place at the end.
+  camera::CheckedVideoWriter video;
   std::string truth_path;
   if (folder) {
     fs::create_directories(path, ec);
@@ -1140,15 +1142,17 @@ bool WriteSequence(const SyntheticCamera& camera, const SequenceOptions& options
     } else {
       return fail("unknown extension '" + ext + "': write to a folder, .avi or .mp4");
     }
-    if (!video.open(out_path, fourcc, options.fps, cv::Size(camera.width_px(), camera.height_px()),
-                    true) ||
-        !video.isOpened()) {
-      return fail("cannot open the video for writing");
+    std::string open_error;
+    if (!video.Open(out_path, fourcc, options.fps, cv::Size(camera.width_px(), camera.height_px()),
+                    &open_error)) {
+      if (error) *error = open_error;
+      return false;
     }
     truth_path = (path.parent_path() / path.stem()).string() + "_truth.csv";
   }
-  std::ofstream csv(truth_path);
-  if (!csv) return fail("cannot write " + truth_path);
+  // Collected, and written with every step checked at the end: a truth file
+  // that stops short would look like a shorter run.
+  std::ostringstream csv;
   csv << "frame,t_s,utime,robot_id,colour_class,role,x_m,y_m,z_m,u_px,v_px,centroid_u_px,"
          "centroid_v_px,visible,heading_rad,capture_utime,exposure_mid_t_s,exposure_mid_x_m,"
          "exposure_mid_y_m,exposure_mid_z_m,robot_x_m,robot_y_m,robot_heading_rad,"
@@ -1180,7 +1184,7 @@ bool WriteSequence(const SyntheticCamera& camera, const SequenceOptions& options
         return fail(write_error);
       }
     } else {
-      video.write(image);
+      video.Write(image);
     }
     for (const auto& m : truth) {
       double heading = std::numeric_limits<double>::quiet_NaN();
@@ -1200,9 +1204,15 @@ bool WriteSequence(const SyntheticCamera& camera, const SequenceOptions& options
           << '\n';
     }
   }
-  // close() flushes: a full disk shows here if not before.
-  csv.close();
-  if (!csv) return fail("cannot write " + truth_path + ": " + std::strerror(errno));
+  std::string write_error;
+  if (!folder && !video.Close(&write_error)) {
+    if (error) *error = write_error;
+    return false;
+  }
+  if (!WriteOutputFile(truth_path, csv.str(), &write_error)) {
+    return fail("cannot write " + truth_path + ": " +
+                write_error.substr(write_error.rfind(": ") + 2));
+  }
   return true;
 }
 

@@ -953,11 +953,16 @@ void Run(const Flags& f) {
     header << "Valid only for markers at " << regions.model.calibration_height_m
            << " m (the 9-region model knows one height).";
   }
+  // The residual picture first and the calibration last, each whole or
+  // absent (WriteOutputFile): a run that fails never leaves a calibration
+  // beside a picture that stops short, and a new calibration file means the
+  // run finished (issue #28: a full disk left a complete YAML and a partial
+  // PNG).
+  Render(f, chosen, points, outlier, room_xy_m, grid_m);
   std::string error;
   if (!calib::SaveCalibration(f.out, chosen, header.str(), &error)) throw Refusal(error);
-  std::cout << "wrote " << f.out << "\n";
-  Render(f, chosen, points, outlier, room_xy_m, grid_m);
   std::cout << "wrote " << f.png << "\n";
+  std::cout << "wrote " << f.out << "\n";
 }
 
 }  // namespace

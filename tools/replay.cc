@@ -1,15 +1,22 @@
 #include "tools/replay.h"
 
 #include <sys/stat.h>
+#include <unistd.h>
 
+#include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
 #include <functional>
 #include <memory>
 #include <optional>
 #include <vector>
 
 #include "core/radio/range_assembler.h"
+#include "core/world/file_io.h"
 #include "msgio/process.h"
 #include "msgio/time_limits.h"
 #include "msgio/wire_check.h"
@@ -81,7 +88,56 @@ bool RestampRanges(const Site& site, std::vector<uint8_t>* data, PipelineReplayS
 
 int64_t SaturatingAddUs(int64_t a, int64_t b) { return a > INT64_MAX - b ? INT64_MAX : a + b; }
 
+// |a - b| without overflow, saturated at INT64_MAX.
+int64_t DistanceUs(int64_t a, int64_t b) {
+  const int64_t d = SaturatingDifferenceUs(a, b);
+  return d == INT64_MIN ? INT64_MAX : (d < 0 ? -d : d);
+}
+
+// An event's size in an LCM log file: the 28-byte header, channel, payload.
+int64_t LoggedSize(const std::string& channel, size_t payload) {
+  constexpr int64_t kLcmEventHeaderBytes = 28;
+  return kLcmEventHeaderBytes + static_cast<int64_t>(channel.size() + payload);
+}
+
 }  // namespace
+
+bool EventTimeScreen::Plausible(int64_t utime) const {
+  std::vector<int64_t> window(accepted_.begin(), accepted_.end());
+  window.push_back(utime);
+  for (const LogEvent& e : ahead_) window.push_back(e.utime);
+  std::sort(window.begin(), window.end());
+  const size_t n = window.size();
+  int64_t median = window[(n - 1) / 2];
+  if (n % 2 == 0 && !accepted_.empty() &&
+      DistanceUs(window[n / 2], accepted_.back()) < DistanceUs(median, accepted_.back())) {
+    median = window[n / 2];
+  }
+  return DistanceUs(utime, median) <= kMaxEventTimeOffsetUs;
+}
+
+bool EventTimeScreen::Next(LogEvent* event) {
+  for (;;) {
+    while (!end_ && ahead_.size() <= static_cast<size_t>(kEventTimeNeighbours)) {
+      LogEvent e;
+      if (!in_->Next(&e)) {
+        end_ = true;
+        break;
+      }
+      ahead_.push_back(std::move(e));
+    }
+    if (ahead_.empty()) return false;
+    *event = std::move(ahead_.front());
+    ahead_.pop_front();
+    if (!Plausible(event->utime)) {
+      ++refused_;
+      continue;
+    }
+    accepted_.push_back(event->utime);
+    if (accepted_.size() > static_cast<size_t>(kEventTimeNeighbours)) accepted_.pop_front();
+    return true;
+  }
+}
 
 bool MakeReplaySiteMessage(const LoadedSite& loaded, site_t* msg, std::string* error) {
   if (!MakeSiteMessage(loaded, "roomfix replay", 0, msg, error)) return false;
@@ -185,6 +241,13 @@ PipelineReplaySummary ReplayPipeline(LogReader* in, const Site& site,
     out->Write(utime, channel, data, size, &write_error);
   };
 
+  // Input bytes read so far, and when each node last had a heartbeat
+  // written (kStatusRepeatInputRatio). The node is the one being ticked or
+  // stopped (camera nodes share a process name): trilat 0, fusion 1, the
+  // cameras 2...
+  int64_t input_bytes_read = 0;
+  int publishing_node = -1;
+  std::map<int, int64_t> input_at_last_status;
   std::unique_ptr<ReplayBus> bus;
   bus = std::make_unique<ReplayBus>([&](const std::string& channel, const void* data, int size) {
     if (channel != kStatusChannel) {
@@ -199,6 +262,14 @@ PipelineReplaySummary ReplayPipeline(LogReader* in, const Site& site,
     status.pid = 0;
     std::vector<uint8_t> buffer(static_cast<size_t>(status.getEncodedSize()));
     status.encode(buffer.data(), 0, static_cast<int>(buffer.size()));
+    const auto last = input_at_last_status.find(publishing_node);
+    if (last != input_at_last_status.end() &&
+        input_bytes_read - last->second <
+            kStatusRepeatInputRatio * LoggedSize(kReplayStatusChannel, buffer.size())) {
+      ++summary.heartbeats_thinned;
+      return;
+    }
+    input_at_last_status[publishing_node] = input_bytes_read;
     ++summary.new_outputs[kReplayStatusChannel];
     write(bus->now_utime(), kReplayStatusChannel, buffer.data(), static_cast<int>(buffer.size()));
   });
@@ -226,14 +297,22 @@ PipelineReplaySummary ReplayPipeline(LogReader* in, const Site& site,
   int64_t next_tick = 0;
   auto tick = [&](int64_t now) {
     bus->set_now_utime(now);
+    publishing_node = 0;
     if (trilat) trilat->Tick(now);
+    publishing_node = 1;
     if (fusion) fusion->Tick(now);
-    for (auto& c : cameras) c->Tick(now);
+    for (size_t i = 0; i < cameras.size(); ++i) {
+      publishing_node = 2 + static_cast<int>(i);
+      cameras[i]->Tick(now);
+    }
+    publishing_node = -1;
     ++summary.ticks;
   };
 
   LogEvent event;
-  while (write_error.empty() && in->Next(&event)) {
+  EventTimeScreen screen(in);
+  while (write_error.empty() && screen.Next(&event)) {
+    input_bytes_read += LoggedSize(event.channel, event.data.size());
     if (summary.events_read == 0) {
       summary.first_utime = event.utime;
       bus->set_now_utime(event.utime);
@@ -316,20 +395,28 @@ PipelineReplaySummary ReplayPipeline(LogReader* in, const Site& site,
   }
   if (summary.events_read > 0 && write_error.empty()) {
     tick(summary.last_utime);
+    // Each node's last word is always written.
+    input_at_last_status.clear();
+    publishing_node = 0;
     if (trilat) {
       trilat->Stop(summary.last_utime);
       summary.trilat_status = trilat->status().Make(summary.last_utime, nullptr);
     }
+    publishing_node = 1;
     if (fusion) {
       fusion->Stop(summary.last_utime);
       summary.fusion_status = fusion->status().Make(summary.last_utime, nullptr);
     }
-    for (auto& c : cameras) {
-      c->Stop(summary.last_utime);
-      summary.camera_status.push_back(c->status().Make(summary.last_utime, nullptr));
+    for (size_t i = 0; i < cameras.size(); ++i) {
+      publishing_node = 2 + static_cast<int>(i);
+      cameras[i]->Stop(summary.last_utime);
+      summary.camera_status.push_back(cameras[i]->status().Make(summary.last_utime, nullptr));
     }
+    publishing_node = -1;
   }
   if (write_error.empty()) out->Flush(&write_error);
+  summary.events_time_refused = screen.refused();
+  summary.events_read += screen.refused();
   summary.refused = bus->stats().refused;
   summary.damaged = in->damaged();
   summary.bytes_skipped = in->bytes_skipped();
@@ -362,9 +449,48 @@ PipelineReplaySummary ReplayPipelineFile(const std::string& in_path, const Site&
   }
   auto reader = LogReader::Open(in_path, &summary.error);
   if (reader == nullptr) return summary;
-  auto writer = LogWriter::Create(out_path, overwrite, &summary.error);
-  if (writer == nullptr) return summary;
-  return ReplayPipeline(reader.get(), site, options, writer.get());
+  // The new log is written to a hidden partial file beside out_path and
+  // renamed into place only when the whole replay was written and synced:
+  // a full disk leaves no new log that stops short (issue #28).
+  // A device or FIFO (/dev/null) cannot be replaced: written in place.
+  if (::stat(out_path.c_str(), &out_stat) == 0 && !S_ISREG(out_stat.st_mode)) {
+    auto writer = LogWriter::Create(out_path, overwrite, &summary.error);
+    if (writer == nullptr) return summary;
+    return ReplayPipeline(reader.get(), site, options, writer.get());
+  }
+  std::string target = out_path;  // A link is replaced at the file it names.
+  if (char* real = ::realpath(out_path.c_str(), nullptr)) {
+    target = real;
+    std::free(real);
+  }
+  const std::string partial = PartialPathFor(target) + "-" + std::to_string(::getpid());
+  auto writer = LogWriter::Create(partial, /*overwrite=*/true, &summary.error);
+  if (writer == nullptr) {
+    summary.error =
+        out_path + ": cannot create: " + summary.error.substr(summary.error.rfind(": ") + 2);
+    return summary;
+  }
+  summary = ReplayPipeline(reader.get(), site, options, writer.get());
+  std::string sync_error;
+  if (summary.ok && !writer->Sync(&sync_error)) {
+    summary.ok = false;
+    summary.error = sync_error;
+  }
+  writer.reset();
+  if (summary.ok && std::rename(partial.c_str(), target.c_str()) != 0) {
+    summary.ok = false;
+    summary.error = out_path + ": cannot write: " + std::strerror(errno);
+  }
+  if (!summary.ok) {
+    ::unlink(partial.c_str());
+    // A failed write of the new log names the file the user gave, not the
+    // partial one, as every writer does: "OUT: cannot write: REASON".
+    if (summary.error.rfind(partial, 0) == 0) {
+      summary.error = out_path + ": cannot write: " +
+                      summary.error.substr(summary.error.rfind(": ") + 2);
+    }
+  }
+  return summary;
 }
 
 }  // namespace roomfix

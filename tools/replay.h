@@ -2,6 +2,7 @@
 #define ROOMFIX_TOOLS_REPLAY_H_
 
 #include <cstdint>
+#include <deque>
 #include <map>
 #include <optional>
 #include <string>
@@ -83,9 +84,18 @@ struct PipelineReplaySummary {
   // for trilat to refuse (unknown_receiver). restamped + kept + this is
   // every range of every range set read.
   int64_t ranges_unknown_receiver = 0;
+  // Events whose log time cannot be right (EventTimeScreen: farther than
+  // kMaxEventTimeOffsetUs from the median of their neighbours): left out of
+  // the new log, not delivered, and never moving the replay's clock.
+  int64_t events_time_refused = 0;
+  // Re-run nodes' heartbeats not written because the input since that
+  // node's last written one was under kStatusRepeatInputRatio times its size
+  // (a sparse log); each node's first heartbeat is always written.
+  int64_t heartbeats_thinned = 0;
   int64_t ticks = 0;
   // Grid ticks not run because they fell in a gap longer than kMaxCatchUpUs.
   int64_t ticks_skipped = 0;
+  // The first and last accepted event's log time.
   int64_t first_utime = 0;
   int64_t last_utime = 0;
   // The log's damage as LogReader counts it: every good event around it was
@@ -180,6 +190,51 @@ inline constexpr int64_t kMaxCatchUpUs = 3'000'000;
 // text) never outweighs a sparse log: SITE bytes stay below 1/4 of the input
 // plus the first copy.
 inline constexpr int64_t kSiteRepeatInputRatio = 4;
+
+// A re-run node's heartbeat is written once at least this many times its
+// size of input (the input log's bytes, headers included) has been read
+// since that node's last written heartbeat. The catch-up limit alone lets
+// each node beat three times in a gap just under kMaxCatchUpUs: 20 000 empty
+// events 2.99 s apart (586 KB) replayed into 20.3 MB (issue #28). With N
+// nodes the heartbeats then add at most N / 2 times the input, plus one
+// heartbeat per node. A live-rate log (kilobytes per second per node's
+// ~300-byte heartbeat) is never thinned.
+inline constexpr int64_t kStatusRepeatInputRatio = 2;
+
+// An event whose log time is farther than this from the median time of its
+// neighbours (kEventTimeNeighbours on each side, the candidate included;
+// behind it only the events accepted so far) cannot be right: the logger
+// stamps each event with its receive time in order, so a recorded log's
+// times rise, and a host clock step moves all the events after it together
+// and never makes one event an outlier. Such an event is refused and
+// counted (events_time_refused) and never moves the replay's clock: one
+// event at INT64_MAX 10 % into the demo log changed 1 056 of its 1 170
+// fused poses, and placed first it stopped the heartbeats (issue #28). One
+// second is a tenth of kMaxCatchUpUs and a hundred times the logger's
+// queueing jitter. A run of more than kEventTimeNeighbours forged events in
+// a row is a new stretch of log, not an outlier.
+inline constexpr int64_t kMaxEventTimeOffsetUs = 1'000'000;
+inline constexpr int kEventTimeNeighbours = 8;
+
+// Reads a log's events through the time screen above. When the window has
+// an even number of times, the median is the middle one nearer the last
+// accepted time (the lower one before any was accepted).
+class EventTimeScreen {
+ public:
+  explicit EventTimeScreen(LogReader* in) : in_(in) {}
+  // The next event whose time is plausible; false at the end of the log.
+  bool Next(LogEvent* event);
+  int64_t refused() const { return refused_; }
+
+ private:
+  bool Plausible(int64_t utime) const;
+
+  LogReader* in_;
+  bool end_ = false;
+  std::deque<LogEvent> ahead_;
+  std::deque<int64_t> accepted_;  // the last kEventTimeNeighbours accepted
+  int64_t refused_ = 0;
+};
 
 // The same run for a path: refuses `out_path` equal to `in_path` (the same
 // file, also through a link) and an existing `out_path` unless overwrite.

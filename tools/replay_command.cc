@@ -170,6 +170,8 @@ int RunReplayCommand(const ReplayCommandArgs& args) {
                         {"ranges_unknown_receiver", s.ranges_unknown_receiver},
                         {"ticks", s.ticks},
                         {"ticks_skipped", s.ticks_skipped},
+                        {"events_time_refused", s.events_time_refused},
+                        {"heartbeats_thinned", s.heartbeats_thinned},
                         {"refused", s.refused},
                         {"log_span_s", span_s},
                         {"wall_s", wall_s},
@@ -199,12 +201,21 @@ int RunReplayCommand(const ReplayCommandArgs& args) {
     std::printf("  ticks:    %lld run, %lld skipped in gaps over %.0f s\n",
                 static_cast<long long>(s.ticks), static_cast<long long>(s.ticks_skipped),
                 kMaxCatchUpUs * 1e-6);
+    if (s.heartbeats_thinned > 0) {
+      std::printf("  heartbeats: %lld not written (a sparse log)\n",
+                  static_cast<long long>(s.heartbeats_thinned));
+    }
     std::printf("  ran in %.3f s: %.0fx real time\n", wall_s, speedup);
   }
   std::fflush(stdout);
   if (!s.refused.empty()) {
     std::cerr << "roomfix replay: warning: " << args.log_path
               << ": recorded messages refused before decoding: " << Counts(s.refused) << "\n";
+  }
+  if (s.events_time_refused > 0) {
+    std::cerr << "roomfix replay: warning: " << args.log_path << ": " << s.events_time_refused
+              << " events whose time is more than " << kMaxEventTimeOffsetUs * 1e-6
+              << " s from their neighbours' refused (events_time_refused)\n";
   }
   if (s.inputs_not_loggable > 0) {
     std::cerr << "roomfix replay: warning: " << args.log_path << ": " << s.inputs_not_loggable

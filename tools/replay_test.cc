@@ -413,9 +413,10 @@ TEST(PipelineReplay, ADamagedLogIsReplayedAroundTheDamageAndCounted) {
 }
 
 // A hostile log's timestamps jump by a century, to the end of int64 and
-// back to 0: the replay ticks once per jump, never
-// overflows, and every message is still delivered (and judged by the node:
-// a range set far from its receive time is refused as utime_out_of_range).
+// back to 0: none of those three times can be right (each is far from its
+// neighbours' median), so each is refused and counted, and the replay's
+// clock stays on the first event. Before issue #28 all four were delivered
+// and the clock followed them to INT64_MAX.
 TEST(PipelineReplay, TimestampsThatJumpCostBoundedTicks) {
   TempDir dir;
   std::vector<LogEvent> events;
@@ -437,10 +438,88 @@ TEST(PipelineReplay, TimestampsThatJumpCostBoundedTicks) {
     }
   }
   const PipelineReplaySummary s = Replay(dir.File("jumps.lcm"), dir.File("new.lcm"));
-  EXPECT_EQ(s.inputs_written, 4);
-  EXPECT_LE(s.ticks, 5);  // One per event and the final one.
-  EXPECT_EQ(s.trilat_status.inputs, 4);
-  EXPECT_EQ(s.new_outputs.at("POSE_ULTRASOUND"), 1);  // Only the first is on time.
+  EXPECT_EQ(s.events_read, 4);
+  EXPECT_EQ(s.events_time_refused, 3);
+  EXPECT_EQ(s.inputs_written, 1);
+  EXPECT_EQ(s.ticks, 2);  // The first event's and the final one.
+  EXPECT_EQ(s.ticks_skipped, 0);
+  EXPECT_EQ(s.last_utime, ranges[0].utime);
+  EXPECT_EQ(s.trilat_status.inputs, 1);
+  EXPECT_EQ(s.new_outputs.at("POSE_ULTRASOUND"), 1);
+}
+
+// The pipeline log with one event (a copy of the event before it) dated
+// INT64_MAX inserted at `index`.
+void WriteWithAbsurdEvent(const std::string& path, size_t index) {
+  std::vector<LogEvent> events;
+  std::string error;
+  ASSERT_TRUE(ReadLogEvents(LivePath(), &events, &error)) << error;
+  ASSERT_LT(index, events.size());
+  LogEvent absurd = events[index == 0 ? 0 : index - 1];
+  absurd.utime = INT64_MAX;
+  events.insert(events.begin() + static_cast<std::ptrdiff_t>(index), absurd);
+  auto writer = LogWriter::Create(path, false, &error);
+  ASSERT_NE(writer, nullptr) << error;
+  for (const LogEvent& e : events) {
+    ASSERT_TRUE(
+        writer->Write(e.utime, e.channel, e.data.data(), static_cast<int>(e.data.size()), &error));
+  }
+}
+
+// Issue #28, item 5: one event at INT64_MAX 10 % into the demo log changed
+// 1 056 of 1 170 fused poses and made ticks_skipped read 9.2e14; placed
+// first, it stopped the heartbeats. Wherever it is, it is refused and
+// counted, and the new log is byte for byte the clean log's replay.
+TEST(PipelineReplay, OneAbsurdTimestampChangesNothingButACounter) {
+  TempDir dir;
+  const PipelineReplaySummary clean = Replay(LivePath(), dir.File("clean.lcm"));
+  const std::string clean_bytes = ReadFile(dir.File("clean.lcm"));
+  std::vector<LogEvent> events;
+  std::string error;
+  ASSERT_TRUE(ReadLogEvents(LivePath(), &events, &error)) << error;
+  for (size_t index : {size_t{0}, events.size() / 10, events.size() - 1}) {
+    SCOPED_TRACE(index);
+    const std::string in = dir.File("absurd" + std::to_string(index) + ".lcm");
+    const std::string out = dir.File("new" + std::to_string(index) + ".lcm");
+    WriteWithAbsurdEvent(in, index);
+    const PipelineReplaySummary s = Replay(in, out);
+    EXPECT_EQ(s.events_time_refused, 1);
+    EXPECT_EQ(s.events_read, clean.events_read + 1);
+    EXPECT_EQ(s.ticks, clean.ticks);
+    EXPECT_EQ(s.ticks_skipped, clean.ticks_skipped);
+    EXPECT_EQ(s.new_outputs, clean.new_outputs);
+    EXPECT_TRUE(ReadFile(out) == clean_bytes) << "the new log differs from the clean replay";
+  }
+}
+
+// Issue #28, item 5: 20 000 empty events 2.99 s apart (just under
+// kMaxCatchUpUs, so every grid tick ran and each node beat three times per
+// gap) replayed into 34 times their size. Each node's heartbeat now waits
+// for twice its size of input: 2 000 such events (the ratio does not depend
+// on the count) stay within a small constant factor.
+TEST(PipelineReplay, ALogOfEmptyEventsJustUnderTheCatchUpLimitStaysSmall) {
+  TempDir dir;
+  constexpr int kEvents = 2000;
+  constexpr int64_t kGapUs = 2'990'000;
+  constexpr int64_t kStartUtime = 1'700'000'000'000'000;
+  std::string error;
+  {
+    auto writer = LogWriter::Create(dir.File("empty.lcm"), false, &error);
+    ASSERT_NE(writer, nullptr) << error;
+    for (int i = 0; i < kEvents; ++i) {
+      ASSERT_TRUE(writer->Write(kStartUtime + i * kGapUs, "EMPTY", nullptr, 0, &error)) << error;
+    }
+  }
+  const PipelineReplaySummary s = Replay(dir.File("empty.lcm"), dir.File("new.lcm"));
+  EXPECT_EQ(s.inputs_written, kEvents);
+  EXPECT_EQ(s.events_time_refused, 0);
+  EXPECT_GT(s.heartbeats_thinned, 0);
+  // The input copied, and two nodes' heartbeats at most half the input each
+  // (kStatusRepeatInputRatio), plus one heartbeat per node at start and stop.
+  constexpr double kMaxGrowth = 2.5;
+  const double in_bytes = static_cast<double>(ReadFile(dir.File("empty.lcm")).size());
+  const double out_bytes = static_cast<double>(ReadFile(dir.File("new.lcm")).size());
+  EXPECT_LE(out_bytes, kMaxGrowth * in_bytes) << out_bytes << " from " << in_bytes;
 }
 
 // A sparse log: 300 range sets 20 s apart (a robot seen now and then over

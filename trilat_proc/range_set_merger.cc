@@ -30,8 +30,8 @@ RangeSetMerger::RangeSetMerger(const RangeSetMergerOptions& options) : options_(
   }
 }
 
-void RangeSetMerger::Release(std::map<std::pair<int32_t, int32_t>, Open>::iterator it,
-                             int64_t recv_utime, const char* why, std::vector<Ready>* ready) {
+void RangeSetMerger::Release(OpenMap::iterator it, int64_t recv_utime, const char* why,
+                             std::vector<Ready>* ready) {
   ++counters_[why];
   released_.push_back({it->first, it->second.set.utime});
   if (released_.size() > kMaxReleased) released_.pop_front();
@@ -81,13 +81,25 @@ void RangeSetMerger::Add(const range_set_t& set, int64_t recv_utime, std::vector
   ++counters_["parts"];
   const std::pair<int32_t, int32_t> key{set.beacon_id,
                                         static_cast<int32_t>(set.firing_seq & 0xFFFF)};
-  auto it = open_.find(key);
   const int64_t same_us = static_cast<int64_t>(options_.same_firing_s * 1e6);
   // Saturating: utime is a publisher's word, INT64_MIN included.
   auto apart = [&](int64_t a, int64_t b) {
     const int64_t d = SaturatingDifferenceUs(a, b);
     return d == INT64_MIN ? INT64_MAX : std::llabs(d);
   };
+  // The open merge of this firing: same key and a firing time within
+  // same_firing_s. A part of the same number far in time (a restarted
+  // beacon, the number an hour on, a forged or far-dated part) is another
+  // firing and leaves this one alone: releasing it early would give its
+  // real parts a pose each (issue #28: a +30 min part between the two real
+  // parts of each firing gave three poses per firing).
+  auto it = open_.end();
+  for (auto [first, last] = open_.equal_range(key); first != last; ++first) {
+    if (apart(first->second.set.utime, set.utime) <= same_us) {
+      it = first;
+      break;
+    }
+  }
   if (it == open_.end()) {
     // A part of a firing already solved (its sibling came after the
     // deadline): a second pose for one firing would repeat its number with
@@ -99,12 +111,6 @@ void RangeSetMerger::Add(const range_set_t& set, int64_t recv_utime, std::vector
         return;
       }
     }
-  }
-  if (it != open_.end() && apart(it->second.set.utime, set.utime) > same_us) {
-    // The same 16-bit number an hour apart, or a restarted beacon: another
-    // firing. What was open is released as it is.
-    Release(it, recv_utime, "deadline", ready);
-    it = open_.end();
   }
   std::vector<int32_t> signature = PartSignature(set);
   // A part's own count, never negative: a merge completes only when the
@@ -127,7 +133,7 @@ void RangeSetMerger::Add(const range_set_t& set, int64_t recv_utime, std::vector
     open.first_recv_utime = recv_utime;
     Merge(set, &open);
     open.parts.insert(std::move(signature));
-    it = open_.emplace(key, std::move(open)).first;
+    it = open_.emplace(key, std::move(open));
   } else {
     Open& open = it->second;
     if (!open.parts.insert(std::move(signature)).second) {

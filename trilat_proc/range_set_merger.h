@@ -29,7 +29,12 @@ namespace roomfix {
 // later unwraps from a different base), and firing times within
 // same_firing_s of each other (the announcement's arrival on two hosts:
 // radio latency and the hosts' clock offset, a few ms under NTP; one beacon
-// fires at most every slot, 2^16 firings apart is an hour).
+// fires at most every slot, 2^16 firings apart is an hour). A part with the
+// same beacon and number but a firing time farther than same_firing_s from
+// an open merge is another firing (a restarted beacon, or a forged or
+// far-dated part): it opens a merge of its own and never releases, joins or
+// splits the open one, so a firing gets at most one pose whatever parts
+// arrive between its own.
 struct RangeSetMergerOptions {
   double deadline_s = 0.05;
   double same_firing_s = 0.5;
@@ -80,11 +85,14 @@ class RangeSetMerger {
   // What identifies where a part came from (see Open::parts).
   std::vector<int32_t> PartSignature(const range_set_t& set) const;
   void Merge(const range_set_t& set, Open* open);
-  void Release(std::map<std::pair<int32_t, int32_t>, Open>::iterator it, int64_t recv_utime,
-               const char* why, std::vector<Ready>* ready);
+  using OpenMap = std::multimap<std::pair<int32_t, int32_t>, Open>;
+  void Release(OpenMap::iterator it, int64_t recv_utime, const char* why,
+               std::vector<Ready>* ready);
 
   RangeSetMergerOptions options_;
-  std::map<std::pair<int32_t, int32_t>, Open> open_;
+  // By (beacon, firing number mod 2^16); several merges share a key only
+  // when their firing times are more than same_firing_s apart.
+  OpenMap open_;
   // The firings released last (key, firing time), to recognise late parts.
   static constexpr size_t kMaxReleased = 256;
   std::deque<std::pair<std::pair<int32_t, int32_t>, int64_t>> released_;

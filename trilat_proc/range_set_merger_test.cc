@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <map>
+
 namespace roomfix {
 namespace {
 
@@ -87,11 +89,41 @@ TEST(RangeSetMerger, DifferentFiringsAndBeaconsStayApart) {
   m.Add(Part(3, 11, 1'100'000, {4, 5, 6}, 3), 1'120'000, &ready);  // its next firing
   EXPECT_TRUE(ready.empty());
   EXPECT_EQ(m.open(), 3u);
-  // Same 16-bit number but 2 s later: another firing; the old one goes.
-  m.Add(Part(3, 10 + 65536, 3'000'000, {4, 5, 6}, 3), 3'020'000, &ready);
-  ASSERT_EQ(ready.size(), 1u);
+  // Same 16-bit number but 2 s later: another firing, with a merge of its
+  // own; the old one is left to its deadline.
+  m.Add(Part(3, 10 + 65536, 3'000'000, {4, 5, 6}, 3), 1'030'000, &ready);
+  EXPECT_TRUE(ready.empty());
+  EXPECT_EQ(m.open(), 4u);
+  m.Expire(1'070'000, &ready);
+  ASSERT_EQ(ready.size(), 2u);  // beacon 3's and beacon 4's firing 10
   EXPECT_EQ(ready[0].set.num_ranges, 3);
   EXPECT_EQ(ready[0].set.utime, 1'000'000);
+}
+
+// Issue #28, item 6: on a two-radio site a part of the same beacon and
+// number dated 30 minutes ahead, sent between the two real parts of each
+// firing, split every firing into three poses. It is another firing: the
+// real parts still merge into one set of all six ranges.
+TEST(RangeSetMerger, AFarDatedPartBetweenTheRealPartsDoesNotSplitTheFiring) {
+  constexpr int64_t kThirtyMinutesUs = int64_t{30} * 60 * 1'000'000;
+  RangeSetMerger m(SixReceivers());
+  std::vector<RangeSetMerger::Ready> ready;
+  for (int firing = 0; firing < 5; ++firing) {
+    const int64_t t = 1'000'000 + firing * 200'000;
+    m.Add(Part(3, firing, t, {1, 2, 3}, 3), t + 20'000, &ready);
+    m.Add(Part(3, firing, t + kThirtyMinutesUs, {4, 5, 6}, 3), t + 21'000, &ready);
+    m.Add(Part(3, firing, t + 2'000, {4, 5, 6}, 3), t + 22'000, &ready);
+  }
+  m.Flush(2'500'000, &ready);
+  int whole = 0;
+  std::map<int64_t, int> poses_per_firing_time;
+  for (const RangeSetMerger::Ready& r : ready) {
+    ++poses_per_firing_time[r.set.utime];
+    if (r.set.num_ranges == 6) ++whole;
+  }
+  EXPECT_EQ(whole, 5);
+  EXPECT_EQ(m.counters().at("complete"), 5);
+  for (const auto& [utime, poses] : poses_per_firing_time) EXPECT_EQ(poses, 1) << utime;
 }
 
 TEST(RangeSetMerger, AReceiverInTwoPartsIsKeptOnceAndCounted) {
@@ -165,11 +197,14 @@ TEST(RangeSetMerger, AnExtremeFiringTimeIsAnotherFiringWithoutOverflow) {
   std::vector<RangeSetMerger::Ready> ready;
   m.Add(Part(3, 10, INT64_MAX, {1, 2, 3}, 3), 1'000'000, &ready);
   m.Add(Part(3, 10, INT64_MIN, {4, 5, 6}, 3), 1'001'000, &ready);
-  // Not the same firing (an impossible distance apart): the first is
-  // released as it was, the second waits for its sibling.
-  ASSERT_EQ(ready.size(), 1u);
+  // Not the same firing (an impossible distance apart): each waits for its
+  // own sibling, and neither joins nor releases the other.
+  EXPECT_TRUE(ready.empty());
+  EXPECT_EQ(m.open(), 2u);
+  m.Flush(1'100'000, &ready);
+  ASSERT_EQ(ready.size(), 2u);
   EXPECT_EQ(ready[0].set.num_ranges, 3);
-  EXPECT_EQ(m.open(), 1u);
+  EXPECT_EQ(ready[1].set.num_ranges, 3);
 }
 
 }  // namespace

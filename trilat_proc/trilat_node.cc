@@ -110,9 +110,10 @@ bool TrilatNode::Admissible(const range_set_t& set, const MessageInfo& info) {
     return false;
   };
   if (!UtimeNear(set.utime, info.recv_utime)) {
-    return refuse("utime_out_of_range", "firing time " + std::to_string(set.utime) +
-                                            " us is more than an hour from its receive time " +
-                                            std::to_string(info.recv_utime) + " us");
+    return refuse("utime_out_of_range",
+                  "firing time " + std::to_string(set.utime) +
+                      " us is more than an hour before or 0.1 s after its receive time " +
+                      std::to_string(info.recv_utime) + " us");
   }
   if (!std::isfinite(set.speed_of_sound_mps) || !std::isfinite(set.temperature_c)) {
     return refuse("non_finite", "speed of sound or temperature is not a finite number");

@@ -8,6 +8,7 @@
 #include <limits>
 #include <map>
 
+#include "msgio/time_limits.h"
 #include "roomfix/pose2d_t.hpp"
 #include "roomfix/process_status_t.hpp"
 #include "tests/testing/test_paths.h"
@@ -265,6 +266,24 @@ TEST_F(TrilatNodeTest, RefusesASetWhoseTimeIsFarFromItsReceiveTime) {
   Deliver(Firing(10, 2, kNow - kHour_us, 1.0, 1.0, 1.3), kNow);
   ASSERT_EQ(poses_.size(), 1u);
   EXPECT_EQ(poses_[0].latency_us, kHour_us);
+}
+
+// Issue #28, item 7: a set dated +3 590 s (inside the old symmetric hour)
+// gave an ok pose an hour ahead with latency_us -3.59e9. The future side is
+// kMaxUtimeAheadUs (a host's clock offset); within it the latency is 0.
+TEST_F(TrilatNodeTest, RefusesASetFromTheFutureAndNeverPublishesANegativeLatency) {
+  TrilatNode node(site_, &bus_, TrilatNodeOptions(), 0);
+  constexpr int64_t kNow = 1'700'000'000'000'000;
+  for (int64_t ahead_us : {int64_t{3'590'000'000}, int64_t{500'000}, kMaxUtimeAheadUs + 1}) {
+    Deliver(Firing(10, 1, kNow + ahead_us, 1.0, 1.0, 1.3), kNow);
+  }
+  EXPECT_TRUE(poses_.empty());
+  EXPECT_EQ(node.status().rejected("utime_out_of_range"), 3);
+  // Dated 0.1 s ahead: another host's clock offset, solved with latency 0.
+  Deliver(Firing(10, 2, kNow + kMaxUtimeAheadUs, 1.0, 1.0, 1.3), kNow);
+  ASSERT_EQ(poses_.size(), 1u);
+  EXPECT_EQ(poses_[0].utime, kNow + kMaxUtimeAheadUs);
+  EXPECT_EQ(poses_[0].latency_us, 0);
 }
 
 TEST_F(TrilatNodeTest, RefusesNonFiniteValuesAndNeverPublishesThem) {

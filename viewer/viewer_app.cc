@@ -51,6 +51,8 @@ class FramePipe {
   bool WritePng(std::string* error) {
     return options_.png.empty() || camera::WriteImageChecked(options_.png, frame_, error);
   }
+  // A video that stopped short (a full disk) fails here, and is removed.
+  bool CloseVideo(std::string* error) { return options_.video.empty() || video_.Close(error); }
   bool video_failed() const { return video_failed_; }
   int64_t frames_written() const { return video_.frames(); }
 
@@ -84,12 +86,7 @@ bool FrameSink::Open(const std::string& target, double fps, cv::Size size, std::
   if (EndsWith(target, ".mp4") || EndsWith(target, ".avi") || EndsWith(target, ".mkv")) {
     const int fourcc = EndsWith(target, ".avi") ? cv::VideoWriter::fourcc('M', 'J', 'P', 'G')
                                                 : cv::VideoWriter::fourcc('m', 'p', '4', 'v');
-    writer_.open(target, fourcc, fps, size);
-    if (!writer_.isOpened()) {
-      *error = target + ": cannot open a video writer (codec missing?)";
-      return false;
-    }
-    return true;
+    return writer_.Open(target, fourcc, fps, size, error);
   }
   folder_ = target;
   if (::mkdir(folder_.c_str(), 0755) != 0 && errno != EEXIST) {
@@ -101,14 +98,16 @@ bool FrameSink::Open(const std::string& target, double fps, cv::Size size, std::
 
 bool FrameSink::Write(const cv::Mat& frame) {
   ++frames_;
-  if (writer_.isOpened()) {
-    writer_.write(frame);
+  if (writer_.is_open()) {
+    writer_.Write(frame);
     return true;
   }
   char name[32];
   std::snprintf(name, sizeof(name), "/frame_%06lld.png", static_cast<long long>(frames_));
   return camera::WriteImageChecked(folder_ + name, frame, &error_);
 }
+
+bool FrameSink::Close(std::string* error) { return !writer_.is_open() || writer_.Close(error); }
 
 ReplayPacer::ReplayPacer(int64_t frame_us, int64_t max_gap_us)
     : frame_us_(frame_us), max_gap_us_(max_gap_us) {}
@@ -208,7 +207,7 @@ int ReplayIntoView(const Site& site, const ViewerNodeOptions& node_options, Rend
     spdlog::warn("{}: {}; replayed every good event", options.log, summary.damage);
   }
   pipe.RenderOnly(node.StateAt(summary.last_utime));
-  if (!pipe.WritePng(error)) return 1;
+  if (!pipe.WritePng(error) || !pipe.CloseVideo(error)) return 1;
   // The last picture stays up until the user quits.
   while (pipe.Show(100)) {
   }
@@ -239,7 +238,7 @@ int RunLiveView(const Site& site, Bus* bus, const ViewerNodeOptions& node_option
       },
       loop);
   pipe.RenderOnly(node.StateAt(NowUtime()));
-  if (!pipe.WritePng(error)) return 1;
+  if (!pipe.WritePng(error) || !pipe.CloseVideo(error)) return 1;
   node.Stop(NowUtime());
   return pipe.video_failed() ? 1 : rc;
 }

@@ -9,9 +9,9 @@
 #include <cstdint>
 #include <functional>
 #include <opencv2/core.hpp>
-#include <opencv2/videoio.hpp>
 #include <string>
 
+#include "camera_proc/video_file.h"
 #include "core/world/site.h"
 #include "msgio/bus.h"
 #include "viewer/render.h"
@@ -42,12 +42,15 @@ class FrameSink {
  public:
   bool Open(const std::string& target, double fps, cv::Size size, std::string* error);
   bool Write(const cv::Mat& frame);
+  // Finishes a video file: checked and renamed into place, or removed
+  // (camera::CheckedVideoWriter). True for an image sequence.
+  bool Close(std::string* error);
   int64_t frames() const { return frames_; }
   // Why the last image of a sequence could not be written.
   const std::string& error() const { return error_; }
 
  private:
-  cv::VideoWriter writer_;
+  camera::CheckedVideoWriter writer_;
   std::string folder_;
   std::string error_;
   int64_t frames_ = 0;

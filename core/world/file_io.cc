@@ -4,7 +4,9 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 
 namespace roomfix {
@@ -102,27 +104,88 @@ LineRead ReadBoundedLine(std::istream& in, std::string* line, size_t max_bytes) 
   }
 }
 
-bool WriteOutputFile(const std::string& path, const std::string& bytes, std::string* error) {
-  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC | O_NOCTTY, 0666);
-  if (fd < 0) {
-    SetError(error, path + ": cannot write: " + std::strerror(errno));
-    return false;
-  }
+namespace {
+
+bool WriteAll(int fd, const std::string& bytes) {
   size_t done = 0;
   while (done < bytes.size()) {
     const ssize_t n = ::write(fd, bytes.data() + done, bytes.size() - done);
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0) {
-      SetError(error, path + ": cannot write: " + std::strerror(n < 0 ? errno : EIO));
-      ::close(fd);
+      if (n == 0) errno = EIO;
       return false;
     }
     done += static_cast<size_t>(n);
   }
-  // close can report a deferred write error (NFS, quota).
-  if (::close(fd) != 0) {
-    SetError(error, path + ": cannot write: " + std::strerror(errno));
+  return true;
+}
+
+}  // namespace
+
+std::string PartialPathFor(const std::string& target) {
+  const size_t slash = target.rfind('/');
+  const std::string folder = slash == std::string::npos ? "" : target.substr(0, slash + 1);
+  const std::string name = slash == std::string::npos ? target : target.substr(slash + 1);
+  return folder + "." + name + ".partial";
+}
+
+namespace {
+
+bool CreatePartialFile(const std::string& target, std::string* partial, int* fd) {
+  // O_EXCL on a name of our own: the mode is 0666 less the umask, as for a
+  // file opened in place, and two writers never share a partial file.
+  static std::atomic<unsigned> counter{0};
+  for (int attempt = 0; attempt < 100; ++attempt) {
+    *partial =
+        PartialPathFor(target) + "-" + std::to_string(::getpid()) + "-" + std::to_string(counter++);
+    *fd = ::open(partial->c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC | O_NOCTTY, 0666);
+    if (*fd >= 0 || errno != EEXIST) return *fd >= 0;
+  }
+  return false;
+}
+
+}  // namespace
+
+bool WriteOutputFile(const std::string& path, const std::string& bytes, std::string* error) {
+  auto fail = [&](int err) {
+    SetError(error, path + ": cannot write: " + std::strerror(err));
     return false;
+  };
+  struct stat st {};
+  if (::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode)) {
+    // A device, FIFO or terminal (/dev/stdout, /dev/full) cannot be
+    // replaced: written in place, every step checked.
+    const int fd = ::open(path.c_str(), O_WRONLY | O_TRUNC | O_CLOEXEC | O_NOCTTY);
+    if (fd < 0) return fail(errno);
+    if (!WriteAll(fd, bytes)) {
+      const int err = errno;
+      ::close(fd);
+      return fail(err);
+    }
+    // close can report a deferred write error (NFS, quota).
+    return ::close(fd) == 0 || fail(errno);
+  }
+  // A link is replaced at the file it names, not turned into a file.
+  std::string target = path;
+  if (char* real = ::realpath(path.c_str(), nullptr)) {
+    target = real;
+    std::free(real);
+  }
+  std::string partial;
+  int fd = -1;
+  if (!CreatePartialFile(target, &partial, &fd)) return fail(errno);
+  // fsync: with delayed allocation a full disk shows only when the data is
+  // written back, after every write() has succeeded.
+  if (!WriteAll(fd, bytes) || ::fsync(fd) != 0) {
+    const int err = errno;
+    ::close(fd);
+    ::unlink(partial.c_str());
+    return fail(err);
+  }
+  if (::close(fd) != 0 || ::rename(partial.c_str(), target.c_str()) != 0) {
+    const int err = errno;
+    ::unlink(partial.c_str());
+    return fail(err);
   }
   return true;
 }

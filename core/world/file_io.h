@@ -24,11 +24,20 @@ inline constexpr size_t kConfigFileCapBytes = size_t{4} << 20;
 bool ReadConfigFile(const std::string& path, std::string* text, std::string* error,
                     size_t cap_bytes = kConfigFileCapBytes);
 
-// Writes `bytes` to `path` (created or truncated) and checks every step:
-// open, each write, and close. False with "PATH: cannot write: REASON"
-// (REASON from errno, e.g. "No space left on device" for /dev/full). A
-// partial file may remain on failure.
+// Writes `bytes` to `path` and checks every step: open, each write, fsync
+// and close. False with "PATH: cannot write: REASON" (REASON from errno, e.g.
+// "No space left on device"). A regular file (or a new one) is written to a
+// hidden partial file in the same folder (PartialPathFor, with the pid and a
+// count appended) and renamed over `path` only once it is complete, so a
+// failed write leaves the old file or none, never a file that stops short
+// (issue #28); a link is replaced at the file it names. A device, FIFO or
+// terminal (/dev/stdout, /dev/full) is written in place.
 bool WriteOutputFile(const std::string& path, const std::string& bytes, std::string* error);
+
+// ".NAME.partial" in the folder of `target`: the prefix of the hidden file a
+// writer fills before renaming it to `target` (WriteOutputFile,
+// camera::CheckedVideoWriter). A leftover one (a killed writer) is named so.
+std::string PartialPathFor(const std::string& target);
 
 // The longest line a streaming text input (roomfix map, solve: CSV or JSON
 // lines, possibly standard input) may have: 64 KiB. Their real lines are

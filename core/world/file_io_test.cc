@@ -3,13 +3,17 @@
 #include "core/world/file_io.h"
 
 #include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 
 #include <algorithm>
 #include <chrono>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include "core/calib/calibration_file.h"
 #include "core/world/site.h"
@@ -206,6 +210,51 @@ TEST(WriteOutputFile, WritesAndTruncates) {
   EXPECT_EQ(testing::ReadFile(dir.File("o.txt")), "short\n");
   EXPECT_FALSE(WriteOutputFile(dir.File("no/such/o.txt"), "x", &error));
   EXPECT_EQ(error, dir.File("no/such/o.txt") + ": cannot write: No such file or directory");
+}
+
+// Issue #28: a write that fails part way (here the process's file size
+// limit, RLIMIT_FSIZE, which fails a write() with EFBIG exactly as a disk
+// that fills up fails it with ENOSPC) leaves the old file as it was and no
+// partial file beside it; before, the file was truncated and half written.
+TEST(WriteOutputFile, AWriteThatFailsPartWayLeavesTheOldFileAndNoPartialOne) {
+  constexpr rlim_t kLimitBytes = 4096;
+  TempDir dir;
+  std::string error;
+  ASSERT_TRUE(WriteOutputFile(dir.File("cal.yaml"), "old: 1\n", &error)) << error;
+  struct sigaction ignore {};
+  struct sigaction old_action {};
+  ignore.sa_handler = SIG_IGN;  // else SIGXFSZ ends the process
+  ASSERT_EQ(::sigaction(SIGXFSZ, &ignore, &old_action), 0);
+  struct rlimit old_limit {};
+  ASSERT_EQ(::getrlimit(RLIMIT_FSIZE, &old_limit), 0);
+  struct rlimit limit = old_limit;
+  limit.rlim_cur = kLimitBytes;
+  ASSERT_EQ(::setrlimit(RLIMIT_FSIZE, &limit), 0);
+  const bool ok = WriteOutputFile(dir.File("cal.yaml"), std::string(3 * kLimitBytes, 'x'), &error);
+  const bool new_ok =
+      WriteOutputFile(dir.File("new.yaml"), std::string(3 * kLimitBytes, 'x'), &error);
+  ::setrlimit(RLIMIT_FSIZE, &old_limit);
+  ::sigaction(SIGXFSZ, &old_action, nullptr);
+  EXPECT_FALSE(ok);
+  EXPECT_FALSE(new_ok);
+  EXPECT_EQ(error, dir.File("new.yaml") + ": cannot write: File too large");
+  EXPECT_EQ(testing::ReadFile(dir.File("cal.yaml")), "old: 1\n");
+  std::vector<std::string> names;
+  for (const auto& entry : std::filesystem::directory_iterator(dir.path())) {
+    names.push_back(entry.path().filename().string());
+  }
+  EXPECT_EQ(names, std::vector<std::string>{"cal.yaml"}) << "no new.yaml, no partial file";
+}
+
+// A link is replaced at the file it names, and stays a link.
+TEST(WriteOutputFile, ReplacesTheFileALinkNames) {
+  TempDir dir;
+  std::string error;
+  ASSERT_TRUE(WriteOutputFile(dir.File("real.txt"), "old\n", &error)) << error;
+  std::filesystem::create_symlink(dir.File("real.txt"), dir.File("link.txt"));
+  ASSERT_TRUE(WriteOutputFile(dir.File("link.txt"), "new\n", &error)) << error;
+  EXPECT_TRUE(std::filesystem::is_symlink(dir.File("link.txt")));
+  EXPECT_EQ(testing::ReadFile(dir.File("real.txt")), "new\n");
 }
 
 TEST(SaveCalibration, ReportsAFullDevice) {

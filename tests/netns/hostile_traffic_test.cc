@@ -39,10 +39,12 @@
 #include <sstream>
 #include <thread>
 
+#include "core/world/site.h"
 #include "msgio/bus.h"
 #include "msgio/process.h"
 #include "roomfix/pose2d_t.hpp"
 #include "roomfix/process_status_t.hpp"
+#include "roomfix/range_set_t.hpp"
 #include "tests/testing/demo_site.h"
 #include "tests/testing/forged_site.h"
 #include "tests/testing/test_paths.h"
@@ -654,6 +656,118 @@ TEST_F(HostileTraffic, FusionProcKeepsOnlyTheSitesRobotsAndCountsTheRest) {
   EXPECT_EQ(fused_robots, std::set<int32_t>{1}) << "POSE_FUSED only for the site's robot 1";
   EXPECT_LE(listener.LongestHeartbeatGapS("fusion_proc"), kHeartbeatGapMaxS);
   ExpectMemoryBounded(fusion.pid(), rss);
+  fusion.Signal(SIGINT);
+  EXPECT_EQ(fusion.Wait(5), 0);
+}
+
+// Issue #28, items 6 and 7: times from the future. On the two-radio site a
+// RANGES part dated +30 min sent between the two real parts of each firing
+// split every firing into three poses; a whole set dated +3 590 s (inside
+// the old symmetric hour) gave an ok pose an hour ahead with latency_us
+// -3.59e9. Each firing must get one pose from all eight ranges, and no pose
+// may be dated ahead or carry a negative latency.
+range_set_t TwoRadiosPart(const Site& site, int radio_id, int64_t firing_seq, int64_t utime) {
+  constexpr double kBeaconX_m = 6.0, kBeaconY_m = 4.0, kBeaconZ_m = 1.0;  // two_radios.yaml
+  constexpr double kSpeedOfSound_mps = 343.4;
+  range_set_t s{};
+  s.utime = utime;
+  s.beacon_id = 1;
+  s.firing_seq = firing_seq;
+  s.speed_of_sound_mps = kSpeedOfSound_mps;
+  s.temperature_c = 20.0;
+  for (const RadioNetwork& radio : site.radios) {
+    if (radio.id != radio_id) continue;
+    for (int id : radio.receiver_ids) {
+      const Receiver* receiver = site.FindReceiver(id);
+      range_t r{};
+      r.receiver_id = id;
+      for (int k = 0; k < 3; ++k) r.receiver_position_m[k] = receiver->position_m[k];
+      r.range_m =
+          std::hypot(receiver->position_m[0] - kBeaconX_m, receiver->position_m[1] - kBeaconY_m,
+                     receiver->position_m[2] - kBeaconZ_m);
+      r.time_of_flight_us = r.range_m / kSpeedOfSound_mps * 1e6;
+      r.arrival_utime = utime + 20'000;
+      s.ranges.push_back(r);
+    }
+  }
+  s.num_ranges = static_cast<int32_t>(s.ranges.size());
+  s.num_expected = s.num_ranges;
+  return s;
+}
+
+TEST_F(HostileTraffic, FarDatedPartsNeitherSplitAFiringNorGiveAPoseFromTheFuture) {
+  constexpr int64_t kThirtyMinutesUs = int64_t{30} * 60 * 1'000'000;
+  constexpr int64_t kAlmostAnHourUs = int64_t{3'590} * 1'000'000;
+  constexpr int kFirings = 10;
+  constexpr int64_t kFutureSeq = 900;
+  const std::string site_path = testing::SourceDir() + "/config/sites/two_radios.yaml";
+  Site site;
+  std::string error;
+  ASSERT_TRUE(LoadSite(site_path, &site, &error)) << error;
+  Listener listener("POSE_ULTRASOUND");
+  ChildProcess trilat({BinDir() + "/trilat_proc", "--config", site_path, "--method", "robust",
+                       "--log-level", "error"});
+  double rss = 0;
+  ASSERT_TRUE(WaitReady(&listener, "trilat_proc", &trilat, &rss));
+  for (int k = 0; k < kFirings; ++k) {
+    const int64_t t = NowUtime();
+    sender_.Publish("RANGES", Encode(TwoRadiosPart(site, 1, k, t)));
+    sender_.Publish("RANGES", Encode(TwoRadiosPart(site, 2, k, t + kThirtyMinutesUs)));
+    sender_.Publish("RANGES", Encode(TwoRadiosPart(site, 2, k, t + 1'000)));
+    SleepS(0.2);
+  }
+  range_set_t whole = TwoRadiosPart(site, 1, kFutureSeq, NowUtime() + kAlmostAnHourUs);
+  const range_set_t east = TwoRadiosPart(site, 2, kFutureSeq, whole.utime);
+  whole.ranges.insert(whole.ranges.end(), east.ranges.begin(), east.ranges.end());
+  whole.num_ranges = whole.num_expected = static_cast<int32_t>(whole.ranges.size());
+  const auto last = Clock::now();
+  sender_.Publish("RANGES", Encode(whole));
+  process_status_t s;
+  ASSERT_TRUE(listener.StatusAfter("trilat_proc", last, 3.0, &s)) << "no STATUS after the attack";
+  std::map<int64_t, std::vector<int32_t>> ranges_per_firing;
+  for (const auto& p : listener.Poses()) {
+    if (p.channel != "POSE_ULTRASOUND") continue;
+    ranges_per_firing[p.p.measurement_seq].push_back(p.p.num_measurements);
+    EXPECT_GE(p.p.latency_us, 0) << "firing " << p.p.measurement_seq;
+    EXPECT_LE(p.p.utime, NowUtime()) << "firing " << p.p.measurement_seq << " dated ahead";
+  }
+  for (int k = 0; k < kFirings; ++k) {
+    EXPECT_EQ(ranges_per_firing[k], std::vector<int32_t>{8}) << "firing " << k << "\n"
+                                                             << Describe(s);
+  }
+  EXPECT_EQ(ranges_per_firing.count(kFutureSeq), 0u) << "the set dated +3 590 s was solved";
+  EXPECT_GE(Rejected(s, "utime_out_of_range"), kFirings + 1) << Describe(s);
+  trilat.Signal(SIGINT);
+  EXPECT_EQ(trilat.Wait(5), 0);
+}
+
+// Issue #28, item 7: one POSE_CAMERA dated +0.5 s gave a degraded POSE_FUSED
+// with a negative latency. It is refused; no fused pose is ever dated ahead
+// of its publication or carries a negative latency.
+TEST_F(HostileTraffic, FusionProcRefusesAPoseFromTheFutureAndNeverPublishesANegativeLatency) {
+  constexpr int64_t kHalfASecondUs = 500'000;
+  Listener listener("POSE_FUSED");
+  ChildProcess fusion(
+      {BinDir() + "/fusion_proc", "--config", DemoSitePath(), "--log-level", "error"});
+  double rss = 0;
+  ASSERT_TRUE(WaitReady(&listener, "fusion_proc", &fusion, &rss));
+  for (int64_t seq = 1; seq <= 20; ++seq) {
+    const int64_t ahead_us = seq % 2 == 0 ? kHalfASecondUs : 0;
+    sender_.Publish("POSE_CAMERA",
+                    Encode(hostile::GoodPose(pose2d_t::SOURCE_CAMERA, seq, NowUtime() + ahead_us)));
+    SleepS(0.05);
+  }
+  const auto last = Clock::now();
+  process_status_t s;
+  ASSERT_TRUE(listener.StatusAfter("fusion_proc", last, 3.0, &s)) << "no STATUS after the attack";
+  EXPECT_GE(Rejected(s, "utime_out_of_range"), 1) << Describe(s);
+  int fused = 0;
+  for (const auto& p : listener.Poses()) {
+    if (p.channel != "POSE_FUSED") continue;
+    ++fused;
+    EXPECT_GE(p.p.latency_us, 0) << "measurement " << p.p.measurement_seq;
+  }
+  EXPECT_GT(fused, 0) << "the poses on time were fused";
   fusion.Signal(SIGINT);
   EXPECT_EQ(fusion.Wait(5), 0);
 }
