@@ -80,3 +80,37 @@ if(ROOMFIX_VIEWER_WINDOW AND NOT OpenCV_highgui_FOUND)
   message(FATAL_ERROR "ROOMFIX_VIEWER_WINDOW is on but OpenCV's highgui is missing: "
                       "apt-get install libopencv-highgui-dev, or -DROOMFIX_VIEWER_WINDOW=OFF")
 endif()
+
+# Firmware in the loop (roomfix_sim --devices firmware, sim/firmware/): the
+# beacon's and the receivers' AVR firmware run instruction by instruction in
+# simavr (libsimavr-dev, GPL-3+), and the tests build their own AVR programs
+# with avr-gcc (gcc-avr, avr-libc). Either missing: the firmware device model
+# is not built and its tests are skipped, saying so.
+# simavr.pc names libelf as a private requirement, and Debian 12's
+# libsimavr-dev does not pull in libelf-dev, so pkg-config fails where the
+# library is fine (libsimavr.so links libelf.so.1 itself): the headers and
+# the library are found directly.
+find_path(SIMAVR_INCLUDE_DIR sim_avr.h PATH_SUFFIXES simavr)
+find_library(SIMAVR_LIBRARY simavr)
+find_program(AVR_GCC avr-gcc)
+if(SIMAVR_INCLUDE_DIR AND SIMAVR_LIBRARY)
+  set(ROOMFIX_HAVE_SIMAVR ON)
+  add_library(roomfix_simavr INTERFACE)
+  add_library(roomfix::simavr ALIAS roomfix_simavr)
+  # Its headers include each other as "sim_avr.h" and "avr/...": the folder
+  # itself on the path, as a system folder (they are not ours to warn on).
+  target_include_directories(roomfix_simavr SYSTEM INTERFACE ${SIMAVR_INCLUDE_DIR})
+  target_link_libraries(roomfix_simavr INTERFACE ${SIMAVR_LIBRARY})
+  message(STATUS "simavr (${SIMAVR_LIBRARY}): roomfix_sim --devices firmware is built")
+else()
+  set(ROOMFIX_HAVE_SIMAVR OFF)
+  message(STATUS "simavr not found (apt-get install libsimavr-dev simavr): no firmware device "
+                 "model, its tests are skipped")
+endif()
+if(AVR_GCC)
+  set(ROOMFIX_HAVE_AVR_GCC ON)
+else()
+  set(ROOMFIX_HAVE_AVR_GCC OFF)
+  message(STATUS "avr-gcc not found (apt-get install gcc-avr avr-libc): the firmware-in-the-loop "
+                 "tests' AVR programs are not built, the tests are skipped")
+endif()

@@ -41,6 +41,8 @@ test_packages=(
   liblcm-java libjchart2d-java default-jdk-headless
   zlib1g-dev libgtest-dev libgmock-dev libbenchmark-dev
   procps xvfb xauth x11-apps
+  # firmware in the loop: simavr runs the AVR firmware, avr-gcc builds test programs
+  libsimavr-dev simavr gcc-avr avr-libc
 )
 packages=("${demo_packages[@]}")
 [[ "$set_name" == demo ]] || packages+=("${test_packages[@]}")
