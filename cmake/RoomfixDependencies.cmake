@@ -80,3 +80,23 @@ if(ROOMFIX_VIEWER_WINDOW AND NOT OpenCV_highgui_FOUND)
   message(FATAL_ERROR "ROOMFIX_VIEWER_WINDOW is on but OpenCV's highgui is missing: "
                       "apt-get install libopencv-highgui-dev, or -DROOMFIX_VIEWER_WINDOW=OFF")
 endif()
+
+# The devices' firmware (firmware/, docs/devices.md): avr-gcc and avr-libc
+# build it; simavr runs it in the tests. Without avr-gcc the firmware is not
+# built and its tests skip, saying so.
+find_program(AVR_GCC avr-gcc)
+find_program(AVR_OBJCOPY avr-objcopy)
+find_program(AVR_SIZE avr-size)
+if(AVR_GCC AND AVR_OBJCOPY AND AVR_SIZE AND EXISTS /usr/lib/avr/include/avr/io.h)
+  set(roomfix_firmware_default ON)
+else()
+  set(roomfix_firmware_default OFF)
+endif()
+option(ROOMFIX_FIRMWARE "Build the beacon and receiver firmware (gcc-avr, binutils-avr, avr-libc)"
+       ${roomfix_firmware_default})
+if(ROOMFIX_FIRMWARE AND NOT roomfix_firmware_default)
+  message(FATAL_ERROR "ROOMFIX_FIRMWARE is on but avr-gcc, avr-objcopy, avr-size or avr-libc is "
+                      "missing: apt-get install gcc-avr binutils-avr avr-libc, or -DROOMFIX_FIRMWARE=OFF")
+endif()
+# libsimavr (GPL-3+; only the tests link it): runs the firmware images.
+pkg_check_modules(SIMAVR IMPORTED_TARGET simavr)
