@@ -98,5 +98,14 @@ if(ROOMFIX_FIRMWARE AND NOT roomfix_firmware_default)
   message(FATAL_ERROR "ROOMFIX_FIRMWARE is on but avr-gcc, avr-objcopy, avr-size or avr-libc is "
                       "missing: apt-get install gcc-avr binutils-avr avr-libc, or -DROOMFIX_FIRMWARE=OFF")
 endif()
-# libsimavr (GPL-3+; only the tests link it): runs the firmware images.
-pkg_check_modules(SIMAVR IMPORTED_TARGET simavr)
+# libsimavr (GPL-3+; only the tests and the simulator link it): runs the
+# firmware images. Found by hand: Debian's simavr.pc requires libelf.pc,
+# which only libelf-dev has, though libsimavr.so links libelf itself.
+find_path(SIMAVR_INCLUDE_DIR sim_avr.h PATH_SUFFIXES simavr)
+find_library(SIMAVR_LIBRARY simavr)
+if(SIMAVR_INCLUDE_DIR AND SIMAVR_LIBRARY AND NOT TARGET Simavr::simavr)
+  add_library(Simavr::simavr UNKNOWN IMPORTED)
+  set_target_properties(Simavr::simavr PROPERTIES
+    IMPORTED_LOCATION ${SIMAVR_LIBRARY}
+    INTERFACE_INCLUDE_DIRECTORIES ${SIMAVR_INCLUDE_DIR})
+endif()
