@@ -81,36 +81,40 @@ if(ROOMFIX_VIEWER_WINDOW AND NOT OpenCV_highgui_FOUND)
                       "apt-get install libopencv-highgui-dev, or -DROOMFIX_VIEWER_WINDOW=OFF")
 endif()
 
-# Firmware in the loop (roomfix_sim --devices firmware, sim/firmware/): the
-# beacon's and the receivers' AVR firmware run instruction by instruction in
-# simavr (libsimavr-dev, GPL-3+), and the tests build their own AVR programs
-# with avr-gcc (gcc-avr, avr-libc). Either missing: the firmware device model
-# is not built and its tests are skipped, saying so.
-# simavr.pc names libelf as a private requirement, and Debian 12's
-# libsimavr-dev does not pull in libelf-dev, so pkg-config fails where the
-# library is fine (libsimavr.so links libelf.so.1 itself): the headers and
-# the library are found directly.
+# The devices' firmware (firmware/, docs/devices.md): avr-gcc and avr-libc
+# build it; simavr runs it in the tests. Without avr-gcc the firmware is not
+# built and its tests skip, saying so.
+find_program(AVR_GCC avr-gcc)
+find_program(AVR_OBJCOPY avr-objcopy)
+find_program(AVR_SIZE avr-size)
+if(AVR_GCC AND AVR_OBJCOPY AND AVR_SIZE AND EXISTS /usr/lib/avr/include/avr/io.h)
+  set(roomfix_firmware_default ON)
+else()
+  set(roomfix_firmware_default OFF)
+endif()
+option(ROOMFIX_FIRMWARE "Build the beacon and receiver firmware (gcc-avr, binutils-avr, avr-libc)"
+       ${roomfix_firmware_default})
+if(ROOMFIX_FIRMWARE AND NOT roomfix_firmware_default)
+  message(FATAL_ERROR "ROOMFIX_FIRMWARE is on but avr-gcc, avr-objcopy, avr-size or avr-libc is "
+                      "missing: apt-get install gcc-avr binutils-avr avr-libc, or -DROOMFIX_FIRMWARE=OFF")
+endif()
+# libsimavr (GPL-3+; only the tests and the simulator link it): runs the
+# firmware images. Found by hand: Debian's simavr.pc requires libelf.pc,
+# which only libelf-dev has, though libsimavr.so links libelf itself.
 find_path(SIMAVR_INCLUDE_DIR sim_avr.h PATH_SUFFIXES simavr)
 find_library(SIMAVR_LIBRARY simavr)
-find_program(AVR_GCC avr-gcc)
-if(SIMAVR_INCLUDE_DIR AND SIMAVR_LIBRARY)
+if(SIMAVR_INCLUDE_DIR AND SIMAVR_LIBRARY AND NOT TARGET Simavr::simavr)
+  add_library(Simavr::simavr UNKNOWN IMPORTED)
+  set_target_properties(Simavr::simavr PROPERTIES
+    IMPORTED_LOCATION ${SIMAVR_LIBRARY}
+    INTERFACE_INCLUDE_DIRECTORIES ${SIMAVR_INCLUDE_DIR})
+endif()
+# The firmware device model (sim/firmware/: roomfix_sim --devices firmware)
+# needs simavr; its tests' own AVR programs need avr-gcc too.
+if(TARGET Simavr::simavr)
   set(ROOMFIX_HAVE_SIMAVR ON)
-  add_library(roomfix_simavr INTERFACE)
-  add_library(roomfix::simavr ALIAS roomfix_simavr)
-  # Its headers include each other as "sim_avr.h" and "avr/...": the folder
-  # itself on the path, as a system folder (they are not ours to warn on).
-  target_include_directories(roomfix_simavr SYSTEM INTERFACE ${SIMAVR_INCLUDE_DIR})
-  target_link_libraries(roomfix_simavr INTERFACE ${SIMAVR_LIBRARY})
-  message(STATUS "simavr (${SIMAVR_LIBRARY}): roomfix_sim --devices firmware is built")
 else()
   set(ROOMFIX_HAVE_SIMAVR OFF)
   message(STATUS "simavr not found (apt-get install libsimavr-dev simavr): no firmware device "
-                 "model, its tests are skipped")
-endif()
-if(AVR_GCC)
-  set(ROOMFIX_HAVE_AVR_GCC ON)
-else()
-  set(ROOMFIX_HAVE_AVR_GCC OFF)
-  message(STATUS "avr-gcc not found (apt-get install gcc-avr avr-libc): the firmware-in-the-loop "
-                 "tests' AVR programs are not built, the tests are skipped")
+                 "model (roomfix_sim --devices firmware), its tests are skipped")
 endif()

@@ -35,14 +35,14 @@ demo_packages=(
   gnuplot-nox iproute2 util-linux
 )
 # The rest of `make test`: the tests and benchmarks, the Java types jar, the
-# viewer's window tests under a virtual X server, the Debian package test.
+# viewer's window tests under a virtual X server, the Debian package test,
+# the device firmware (firmware/: avr-gcc, avr-libc) and its simavr tests.
 test_packages=(
   git dpkg-dev file
   liblcm-java libjchart2d-java default-jdk-headless
   zlib1g-dev libgtest-dev libgmock-dev libbenchmark-dev
   procps xvfb xauth x11-apps
-  # firmware in the loop: simavr runs the AVR firmware, avr-gcc builds test programs
-  libsimavr-dev simavr gcc-avr avr-libc
+  gcc-avr binutils-avr avr-libc simavr libsimavr-dev
 )
 packages=("${demo_packages[@]}")
 [[ "$set_name" == demo ]] || packages+=("${test_packages[@]}")
