@@ -213,8 +213,11 @@ void AvrCore::RunUntil(uint64_t cycle) {
 void AvrCore::Reset() {
   events_.clear();
   event_timer_cycle_ = 0;
-  // avr_reset calls OnResetHook, which re-arms the timers.
+  // avr_reset calls OnResetHook, which re-arms the timers. It clears the
+  // I/O registers, MCUSR too: a power cycle leaves PORF set.
   avr_reset(avr_);
+  constexpr uint16_t kMcusr = 0x54;
+  avr_->data[kMcusr] |= 0x01;
 }
 
 void AvrCore::Queue(uint64_t cycle, const Event& event) {
@@ -292,6 +295,15 @@ void AvrCore::WatchUart(UartWatcher watcher) { uart_watchers_.push_back(std::mov
 
 void AvrCore::OnUartOutput(avr_irq_t*, uint32_t value, void* param) {
   auto* core = static_cast<AvrCore*>(param);
+  // simavr's USART has no transmit double buffer: UDRE0 rises only when a
+  // byte has gone out, so a firmware writing a frame byte by byte on UDRE0
+  // sees TXC0 set after every byte, where the chip (the next byte already
+  // waiting in UDR0 when the shift register empties) sets it after the
+  // last one only. A firmware that clears TXC0 before a frame and waits for
+  // it after the last byte would then return at once, one byte early. A
+  // write means the transmitter has more to send: TXC0 is cleared here.
+  constexpr uint8_t kTxc0 = 1 << 6;
+  core->avr_->data[kUcsr0a] &= static_cast<uint8_t>(~kTxc0);
   ++core->counters_.uart_bytes_out;
   for (auto& w : core->uart_watchers_) w(core->avr_->cycle, static_cast<uint8_t>(value));
 }

@@ -12,10 +12,11 @@ namespace roomfix::firmware {
 namespace {
 
 constexpr uint64_t kBroadcast64 = 0x000000000000FFFFull;
-constexpr uint64_t kCoordinator64 = 0;
 // XBee API frame types a device's firmware may send its module, and the
 // module's answers (Digi's 802.15.4 and ZigBee user guides).
 constexpr uint8_t kTx64Request = 0x00;
+constexpr uint8_t kTx16Request = 0x01;
+constexpr uint16_t kBroadcast16 = 0xFFFF;
 constexpr uint8_t kAtCommand = 0x08;
 constexpr uint8_t kZigbeeTxRequest = 0x10;
 constexpr uint8_t kAtResponse = 0x88;
@@ -193,7 +194,7 @@ bool FirmwareWorld::AddDevices(std::string* error) {
   }
   auto coordinator = std::make_unique<Module>(options_.coordinator_api_mode);
   coordinator->coordinator = true;
-  coordinator->address = kCoordinator64;
+  coordinator->address = options_.coordinator_address;
   modules_.push_back(std::move(coordinator));
   last_burst_edge_.assign(devices_.size(), -1);
   high_until_.assign(devices_.size(), {0, 0});
@@ -300,9 +301,13 @@ void FirmwareWorld::OnModuleFrame(size_t module, uint64_t cycle, const uint8_t* 
     WriteToModuleUart(module, ready, {kAtResponse, d[1], d[2], d[3], 0x00});
     return;
   }
+  // Transmit requests: ZigBee 0x10 (frame id, 64-bit and 16-bit
+  // destination, radius, options), 802.15.4 0x00 (frame id, 64-bit
+  // destination, options) and 0x01 (frame id, 16-bit destination, options).
   const bool zigbee = type == kZigbeeTxRequest && size >= 14;
   const bool tx64 = type == kTx64Request && size >= 11;
-  if (!zigbee && !tx64) {
+  const bool tx16 = type == kTx16Request && size >= 5;
+  if (!zigbee && !tx64 && !tx16) {
     ++counters_.unknown_frame_types;
     return;
   }
@@ -316,8 +321,11 @@ void FirmwareWorld::OnModuleFrame(size_t module, uint64_t cycle, const uint8_t* 
     ready = m.hold_until;
   }
   const uint8_t frame_id = d[1];
-  const uint64_t dest = ReadBe64(d + 2);
-  const size_t header = zigbee ? 14 : 11;
+  // A 16-bit destination other than broadcast names a module by MY, which
+  // no module here has (MY = 0xFFFE everywhere): it goes unacknowledged.
+  const uint64_t dest =
+      tx16 ? (((d[2] << 8) | d[3]) == kBroadcast16 ? kBroadcast64 : ~0ull) : ReadBe64(d + 2);
+  const size_t header = zigbee ? 14 : (tx64 ? 11 : 5);
   std::vector<uint8_t> payload(d + header, d + size);
   SendOverAir(module, ready, dest, frame_id, std::move(payload));
 }

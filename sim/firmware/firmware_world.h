@@ -65,7 +65,7 @@ struct DeviceWiring {
   // The receiver's echo detector (ICP1, rising edge) and its second,
   // higher-threshold comparator.
   AvrPin detector_pin{'B', 0};
-  AvrPin strong_echo_pin{'D', 7};
+  AvrPin strong_echo_pin{'D', 2};
 };
 
 // The detector's physics.
@@ -121,8 +121,11 @@ struct FirmwareWorldOptions {
   radio::ApiMode coordinator_api_mode = radio::ApiMode::kEscaped;
   uint8_t rx_frame_type = radio::kRx64FrameType;
   // The devices' modules' serial lines (their BD) and API mode (AP).
-  double device_baud = 115200.0;
+  double device_baud = 250000.0;
   radio::ApiMode device_api_mode = radio::ApiMode::kEscaped;
+  // The coordinator module's 64-bit address (the receivers' reports are
+  // sent there, unless they broadcast).
+  uint64_t coordinator_address = 0;
   // Lockstep quantum, cycles (see above).
   uint64_t quantum_cycles = 1600;
   uint32_t frequency_hz = 16000000;

@@ -26,6 +26,10 @@ FirmwareWorldOptions MiniOptions(int32_t latency_ns) {
   FirmwareWorldOptions o;
   o.beacon_elf = Program("mini_beacon");
   o.receiver_elf = Program("mini_receiver");
+  // The mini programs talk to their modules at 115200 baud and send their
+  // reports to the coordinator's address 0.
+  o.device_baud = 115200.0;
+  o.coordinator_address = 0;
   o.beacon_eeprom = [](const Beacon& b) {
     return std::vector<uint8_t>{static_cast<uint8_t>(b.id)};
   };
@@ -128,14 +132,19 @@ TEST_F(MiniFirmware, TimeOfFlightAgainstTheAcousticTruthPerDistance) {
   const double bias_s = sum / errors.size();
   // The constant part: the radio path from the burst (started as the
   // announcement's last byte goes into UDR0) to the announcement's start
-  // delimiter being readable at the receiver: the last byte's 87 us on the
-  // wire, the module's processing (350-400 us), CCA and turnaround (320
-  // us), 33 bytes of air (1056 us), the other module's processing (150-175
-  // us) and the delimiter's own 87 us: 2050 to 2125 us. The mini receiver
-  // does not subtract it (latency 0); the detector's threshold crossing
-  // (up to 60 us for the weakest echo) takes from it.
-  constexpr double kRadioPathMinS = 2.050e-3 - 60e-6;
-  constexpr double kRadioPathMaxS = 2.125e-3;
+  // delimiter being readable at the receiver: the last byte on the wire
+  // (87 us at 115200), the module's processing, CCA and turnaround, the
+  // frame on the air, the other module's processing and the delimiter's
+  // own byte. The mini receiver does not subtract it (latency 0); the
+  // detector's threshold crossing (up to 60 us for the weakest echo) takes
+  // from it.
+  const XbeeTimingOptions timing;
+  constexpr double kByteS = 10.0 / 115200.0;
+  constexpr double kDetectorMaxS = 60e-6;
+  const double fixed_s = 2 * kByteS + kCcaS + kTurnaroundS + AirTimeS(10, true);
+  const double kRadioPathMinS =
+      fixed_s + timing.tx_processing_min_s + timing.rx_processing_min_s - kDetectorMaxS;
+  const double kRadioPathMaxS = fixed_s + timing.tx_processing_max_s + timing.rx_processing_max_s;
   EXPECT_LT(-bias_s, kRadioPathMaxS);
   EXPECT_GT(-bias_s, kRadioPathMinS);
   // Per half-metre of path: mean and spread about the overall bias.
