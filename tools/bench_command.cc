@@ -31,6 +31,9 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
 #ifdef ROOMFIX_BENCH_MICRO
   AddBenchMicroCommand(bench, exit_code);
 #endif
+#ifdef ROOMFIX_HAVE_SIMAVR
+  AddBenchFirmwareCommand(bench, exit_code);
+#endif
 }
 
 }  // namespace roomfix

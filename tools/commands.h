@@ -40,6 +40,9 @@ void AddBenchCapacityCommand(CLI::App* bench, int* exit_code);
 // camera path's kernels against baselines in the same run; built only
 // with Google Benchmark (ROOMFIX_BENCH_MICRO).
 void AddBenchMicroCommand(CLI::App* bench, int* exit_code);
+// roomfix bench firmware (bench_firmware.cc): the firmware-in-the-loop
+// simulator's speed; built with simavr (ROOMFIX_HAVE_SIMAVR).
+void AddBenchFirmwareCommand(CLI::App* bench, int* exit_code);
 
 }  // namespace roomfix
 
