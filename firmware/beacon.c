@@ -93,8 +93,7 @@ static void Fire(uint16_t seq, uint32_t burst_at) {
   const uint32_t start = burst_at - fire_ticks - (uint32_t)n * FW_TICKS_PER_UART_BYTE;
   while ((int32_t)(fw_now() - start) < 0) {
   }
-  fw_uart_clear_sent();
-  fw_uart_write(wire, n);
+  fw_uart_write_timed(wire, n);
   cli();
   const uint32_t sent = fw_uart_wait_sent_locked();
   ArmBurst(sent + fire_ticks);

@@ -172,7 +172,7 @@ TEST(BeaconFirmware, BurstsAt40kHzAFixedDelayAfterEachAnnouncement) {
   const DeviceConfig config = DemoBeacon();
   AvrDevice d;
   Boot(&d, "beacon", radio::EncodeDeviceConfig(config));
-  ASSERT_TRUE(d.RunUntil(4 * config.frame_us * kUs + 10 * kMs));
+  ASSERT_TRUE(d.RunUntil(3 * config.frame_us * kUs + 10 * kMs));
   const std::vector<TxFrame> frames = Frames(d);
   const auto pb1 = EdgesOf(d, 1);
   const auto pb2 = EdgesOf(d, 2);
@@ -190,9 +190,22 @@ TEST(BeaconFirmware, BurstsAt40kHzAFixedDelayAfterEachAnnouncement) {
       const auto& e2 = pb2[burst * per_burst + i];
       EXPECT_EQ(e1.high, i % 2 == 0) << "PB1 starts rising and ends low";
       EXPECT_EQ(e2.high, i % 2 == 0) << "PB2 too, half a period later";
-      EXPECT_EQ(e1.cycle, pb1[burst * per_burst].cycle + i * kHalfPeriod);
-      EXPECT_EQ(e2.cycle, e1.cycle + kHalfPeriod);
+      // simavr reports a pin change at the end of the instruction in
+      // progress when the compare unit toggled it (up to 4 cycles).
+      constexpr double kInstructionCycles = 4;
+      EXPECT_NEAR(static_cast<double>(e1.cycle),
+                  static_cast<double>(pb1[burst * per_burst].cycle + i * kHalfPeriod),
+                  kInstructionCycles);
+      EXPECT_NEAR(static_cast<double>(e2.cycle), static_cast<double>(e1.cycle + kHalfPeriod),
+                  kInstructionCycles);
     }
+    // Over the burst those quantisations do not add up: the compare unit's
+    // schedule is exact, so the mean half period is 200 cycles to within
+    // one instruction over 2N - 1 half periods.
+    const double mean_half =
+        static_cast<double>(pb1[(burst + 1) * per_burst - 1].cycle - pb1[burst * per_burst].cycle) /
+        static_cast<double>(per_burst - 1);
+    EXPECT_NEAR(mean_half, 200.0, 4.0 / static_cast<double>(per_burst - 1));
     after_last_byte.push_back(static_cast<int64_t>(pb1[burst * per_burst].cycle) -
                               static_cast<int64_t>(frames[burst].last_cycle) -
                               static_cast<int64_t>(config.fire_delay_us * kUs));
@@ -202,8 +215,8 @@ TEST(BeaconFirmware, BurstsAt40kHzAFixedDelayAfterEachAnnouncement) {
   // a fixed few tens of cycles. The constant is in tof_offset_ns's
   // calibration; what matters is its spread, one polling loop (5 cycles).
   constexpr int64_t kTxcAfterWrite = 640;
-  constexpr int64_t kReadCycles = 64;  // 4 us: bound on the poll and the read
-  constexpr int64_t kPollJitter = 5;   // sbrs/rjmp/lds: one loop pass
+  constexpr int64_t kReadCycles = 128;  // 8 us: bound on the poll and the read (75)
+  constexpr int64_t kPollJitter = 5;    // sbrs/rjmp/lds: one loop pass
   for (int64_t delay : after_last_byte) {
     EXPECT_GE(delay, kTxcAfterWrite);
     EXPECT_LE(delay, kTxcAfterWrite + kReadCycles);
@@ -212,7 +225,7 @@ TEST(BeaconFirmware, BurstsAt40kHzAFixedDelayAfterEachAnnouncement) {
   EXPECT_LE(*hi - *lo, kPollJitter);
   // Bursts a frame apart on the crystal; the start of sending is polled in
   // the main loop (a pass is a few us), and each burst is TXC-relative.
-  constexpr int64_t kMainLoopCycles = 2 * 16;  // 2 us
+  constexpr int64_t kMainLoopCycles = 64;  // 4 us: one pass of the wait loop
   for (size_t burst = 1; burst < 3; ++burst) {
     const int64_t period = static_cast<int64_t>(pb1[burst * per_burst].cycle) -
                            static_cast<int64_t>(pb1[(burst - 1) * per_burst].cycle);
@@ -243,11 +256,25 @@ TEST(BeaconFirmware, TakesItsSlotFromAnotherBeaconsAnnouncement) {
   const uint64_t stamp = sent + kByte;
   const int64_t expected = static_cast<int64_t>(
       stamp + (config.fire_delay_us - config.radio_latency_us) * kUs + config.slot_us * kUs);
-  constexpr int64_t kStampAndLoop = 64;  // 4 us: ISR entry, the main loop's pass
-  EXPECT_NEAR(static_cast<int64_t>(pb1[0].cycle), expected + kStampAndLoop / 2, kStampAndLoop / 2);
-  // Its announcement numbers its own firings from 0.
+  // Our announcement starts a fire delay and its own length (n bytes of
+  // 640 cycles) before that burst; the wait for that start is polled in the
+  // main loop and the stamp is read in the ISR: a few us in all, against a
+  // slot guard of 1 ms.
   const std::vector<TxFrame> frames = Frames(d);
   ASSERT_EQ(frames.size(), 1u);
+  const int64_t n = static_cast<int64_t>(frames[0].wire.size());
+  const int64_t expected_start =
+      expected - static_cast<int64_t>(config.fire_delay_us * kUs) - n * static_cast<int64_t>(kByte);
+  constexpr int64_t kScheduleCycles = 256;  // 16 us: ISR entry and polling
+  EXPECT_NEAR(static_cast<int64_t>(d.uart_out().front().cycle),
+              expected_start + kScheduleCycles / 2, kScheduleCycles / 2);
+  // The burst is tied to the frame's end, as in every firing.
+  const int64_t after_last_byte = static_cast<int64_t>(pb1[0].cycle) -
+                                  static_cast<int64_t>(frames[0].last_cycle) -
+                                  static_cast<int64_t>(config.fire_delay_us * kUs);
+  EXPECT_GE(after_last_byte, 640);
+  EXPECT_LE(after_last_byte, 640 + 128);
+  // Its announcement numbers its own firings from 0.
   EXPECT_EQ(frames[0].payload()[2], 1);
   EXPECT_EQ(frames[0].payload()[4], 0);
 }
@@ -327,20 +354,22 @@ std::vector<Report> Reports(const AvrDevice& d) {
 }
 
 // Announces firing `seq` now and raises the detector (and, when `strong`,
-// the second comparator) `echo_after_stamp` cycles after the stamp's
-// nominal cycle; returns the cycle the bytes were queued.
-uint64_t Fire(AvrDevice* d, uint16_t seq, int64_t echo_after_stamp, bool strong) {
-  const uint64_t sent = d->cycle();
+// the second comparator) about `echo_after_stamp` cycles after the stamp's
+// nominal cycle (the 0x7E's byte time after the bytes were queued). Returns
+// the edge's cycle less that nominal stamp, exactly: simavr stops between
+// instructions, so the edge comes up to a few cycles after the target.
+int64_t Fire(AvrDevice* d, uint16_t seq, int64_t echo_after_stamp, bool strong) {
+  const uint64_t stamp = d->cycle() + kByte;
   d->SendBytes(AnnouncementFrame(1, seq, 0x0013A20042000001ull));
-  if (echo_after_stamp >= 0) {
-    EXPECT_TRUE(d->RunUntil(sent + kByte + static_cast<uint64_t>(echo_after_stamp)));
-    d->SetPin('B', 0, true);
-    if (strong) d->SetPin('D', 2, true);
-    EXPECT_TRUE(d->RunFor(100 * kUs));
-    d->SetPin('B', 0, false);
-    d->SetPin('D', 2, false);
-  }
-  return sent;
+  if (echo_after_stamp < 0) return -1;
+  EXPECT_TRUE(d->RunUntil(stamp + static_cast<uint64_t>(echo_after_stamp)));
+  const int64_t edge = static_cast<int64_t>(d->cycle() - stamp);
+  d->SetPin('B', 0, true);
+  if (strong) d->SetPin('D', 2, true);
+  EXPECT_TRUE(d->RunFor(100 * kUs));
+  d->SetPin('B', 0, false);
+  d->SetPin('D', 2, false);
+  return edge;
 }
 
 TEST(ReceiverFirmware, ReportsTheEchoToTheTick) {
@@ -350,11 +379,10 @@ TEST(ReceiverFirmware, ReportsTheEchoToTheTick) {
   Boot(&d, "receiver", radio::EncodeDeviceConfig(config));
   ASSERT_TRUE(d.RunUntil(5 * kMs));
   // Two firings, the second's echo 1234 cycles (77.125 us) later.
-  const int64_t echo1 = (config.fire_delay_us - config.radio_latency_us) * kUs + 8 * kMs;
-  const int64_t echo2 = echo1 + 1234;
-  Fire(&d, 300, echo1, true);
+  const int64_t target = (config.fire_delay_us - config.radio_latency_us) * kUs + 8 * kMs;
+  const int64_t echo1 = Fire(&d, 300, target, true);
   ASSERT_TRUE(d.RunFor(config.window_close_us * kUs + 5 * kMs));
-  Fire(&d, 301, echo2, true);
+  const int64_t echo2 = Fire(&d, 301, target + 1234, true);
   ASSERT_TRUE(d.RunFor(config.window_close_us * kUs + 5 * kMs));
   const std::vector<Report> reports = Reports(d);
   ASSERT_EQ(reports.size(), 2u);
@@ -365,21 +393,28 @@ TEST(ReceiverFirmware, ReportsTheEchoToTheTick) {
     EXPECT_EQ(reports[i].message.firing_seq, 300 + i);
     EXPECT_EQ(reports[i].message.flags, 0) << "a strong echo: no flag";
   }
-  // The difference is the edges' difference, to the tick: 1234 x 62.5 ns.
+  // The difference is the edges' difference, to the tick (62.5 ns), give
+  // or take the stamp's one jitter term: the receive interrupt waits for
+  // the instruction in progress (1 to 4 cycles; 250 ns is 0.09 mm of sound).
   constexpr double kTruncationNs = 0.5;  // 62.5 x odd counts truncates 0.5 ns
+  constexpr double kIsrEntryJitterNs = 4 * 62.5;
   const double t1 = reports[0].message.time_of_flight_ns;
   const double t2 = reports[1].message.time_of_flight_ns;
-  EXPECT_NEAR(t2 - t1, 1234 * 62.5, 2 * kTruncationNs);
+  EXPECT_NEAR(t2 - t1, static_cast<double>(echo2 - echo1) * 62.5,
+              kIsrEntryJitterNs + 2 * kTruncationNs);
   // The absolute value: the edge's cycle from the 0x7E's receive interrupt,
   // less the configured offset. The stamp is read at the ISR's entry, a
   // fixed number of cycles after the byte (vector, prologue); both firings
   // give the same.
   const double stamp_delay_1 = echo1 - (t1 + config.tof_offset_ns) / 62.5;
   const double stamp_delay_2 = echo2 - (t2 + config.tof_offset_ns) / 62.5;
-  constexpr double kIsrEntryMaxCycles = 64;  // 4 us: the vector and prologue
+  // The vector and the ISR prologue (17 instructions before TCNT1 is read,
+  // about 40 cycles) and simavr's own delivery of the byte: 102 cycles
+  // measured, a constant that the offset calibration absorbs.
+  constexpr double kIsrEntryMaxCycles = 128;
   EXPECT_GE(stamp_delay_1, 0.0);
   EXPECT_LE(stamp_delay_1, kIsrEntryMaxCycles);
-  EXPECT_NEAR(stamp_delay_1, stamp_delay_2, 2 * kTruncationNs / 62.5);
+  EXPECT_NEAR(stamp_delay_1, stamp_delay_2, (kIsrEntryJitterNs + 2 * kTruncationNs) / 62.5);
 }
 
 TEST(ReceiverFirmware, FlagsAWeakEchoAndANoEcho) {
