@@ -34,6 +34,7 @@ struct DevicesArgs {
   double min_temperature_c = 0.0;
   double rate_hz = 10.0;
   uint32_t report_spacing_us = 2000;
+  double radio_latency_us = 0.0;
   std::string show;
 };
 
@@ -105,6 +106,7 @@ int RunWrite(const DevicesArgs& a) {
   o.min_temperature_c = a.min_temperature_c;
   o.rate_hz = a.rate_hz;
   o.report_spacing_us = a.report_spacing_us;
+  o.radio_latency_us = a.radio_latency_us;
   std::vector<radio::DeviceImage> images;
   if (!radio::DeviceConfigsForSite(site, o, &images, &error)) {
     std::cerr << "roomfix devices: " << a.site << ": " << error << "\n";
@@ -176,6 +178,12 @@ void AddDevicesCommand(CLI::App* app, int* exit_code) {
                    "Time between two receivers' reports")
       ->capture_default_str()
       ->check(CLI::Range(0u, 20000u));
+  devices
+      ->add_option("--radio-latency-us", a->radio_latency_us,
+                   "Beacon's last byte to the receivers' first byte, as measured on the parts "
+                   "(docs/devices.md, bring-up 6); 0: the nominal 1616 us")
+      ->capture_default_str()
+      ->check(FiniteAtLeast(0.0, "a latency of 0 us or more"));
   auto* show = devices->add_subcommand(
       "show", "Read an image back with the firmware's checks and print what the device will do");
   show->add_option("image", a->show, "DEVICE.eep.hex")->required();
