@@ -10,6 +10,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
+#include <iterator>
 #include <vector>
 
 #include "core/radio/device_config.h"
@@ -462,6 +464,66 @@ TEST(ReceiverFirmware, WithoutAConfigurationSaysSoAndNeverReports) {
   EXPECT_TRUE(Reports(d).empty());
   const std::vector<uint8_t> expected = {3, 3};  // FW_FAULT_CONFIG_VERSION at 0 and 1 s
   EXPECT_EQ(FaultsSent(d), expected);
+}
+
+// ------------------------------------------------ roomfix devices, end to end
+
+std::string ReadText(const std::string& path) {
+  std::ifstream in(path);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+TEST(DevicesCommand, ItsImagesRunTheFirmwareAndACorruptOneIsRefusedByBoth) {
+  REQUIRE_ELF("receiver");
+  const std::string roomfix = BinDir() + "/roomfix";
+  struct stat st{};
+  if (stat(roomfix.c_str(), &st) != 0) GTEST_SKIP() << roomfix << " is not built";
+  TempDir dir;
+  ChildProcess write({roomfix, "devices", "--config", DemoSitePath(), "--out", dir.File("devices"),
+                      "--coordinator-address", "0x0013A20040000001"},
+                     dir.File("devices.txt"));
+  ASSERT_EQ(write.Wait(60), 0) << ReadText(dir.File("devices.txt"));
+  // The receiver's file as avrdude would write it, read back from the hex.
+  const std::string path = dir.File("devices/receiver-1.eep.hex");
+  std::vector<uint8_t> image;
+  std::string error;
+  ASSERT_TRUE(radio::DecodeIntelHex(ReadText(path), &image, &error)) << error;
+  EXPECT_EQ(image, radio::EncodeDeviceConfig([] {
+              DeviceConfig c = DemoReceiver();
+              c.coordinator_address = 0x0013A20040000001ull;
+              return c;
+            }()));
+  {
+    AvrDevice d;
+    Boot(&d, "receiver", image);
+    ASSERT_TRUE(d.RunUntil(5 * kMs));
+    const DeviceConfig config = DemoReceiver();
+    Fire(&d, 5, (config.fire_delay_us - config.radio_latency_us) * kUs + 3 * kMs, true);
+    ASSERT_TRUE(d.RunFor(config.window_close_us * kUs + 5 * kMs));
+    const std::vector<Report> reports = Reports(d);
+    ASSERT_EQ(reports.size(), 1u);
+    EXPECT_EQ(reports[0].destination, 0x0013A20040000001ull);
+    EXPECT_EQ(reports[0].message.firing_seq, 5);
+  }
+  // One data digit changed and the record's checksum fixed up, as a bad
+  // copy or a hand edit would leave it: the tool refuses it...
+  std::vector<uint8_t> corrupt = image;
+  corrupt[40] ^= 0x10;  // window_close_us
+  const std::string bad_path = dir.File("bad.eep.hex");
+  {
+    std::ofstream out(bad_path);
+    out << radio::EncodeIntelHex(corrupt);
+  }
+  ChildProcess show({roomfix, "devices", "show", bad_path}, dir.File("show.txt"));
+  EXPECT_EQ(show.Wait(60), 2);
+  // ...and so does the firmware: a status frame with fault 2, no report.
+  AvrDevice d;
+  Boot(&d, "receiver", corrupt);
+  ASSERT_TRUE(d.RunUntil(5 * kMs));
+  Fire(&d, 6, 3 * kMs, true);
+  ASSERT_TRUE(d.RunUntil(500 * kMs));
+  EXPECT_TRUE(Reports(d).empty());
+  EXPECT_EQ(FaultsSent(d), std::vector<uint8_t>{2});
 }
 
 }  // namespace
