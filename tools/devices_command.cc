@@ -8,15 +8,13 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <iostream>
-#include <iterator>
 #include <memory>
-#include <sstream>
 #include <string>
 #include <vector>
 
 #include "core/radio/device_config.h"
+#include "core/world/file_io.h"
 #include "core/world/site.h"
 #include "tools/commands.h"
 #include "tools/flag_checks.h"
@@ -62,12 +60,15 @@ void PrintConfig(const radio::DeviceConfig& c) {
 }
 
 int RunShow(const DevicesArgs& a) {
-  std::ifstream in(a.show);
-  if (!in) {
-    std::cerr << "roomfix devices show: cannot read " << a.show << "\n";
+  // An EEPROM image's hex is under 300 bytes; 64 kB refuses a wrong file
+  // (a log, /dev/zero) at once.
+  constexpr size_t kImageFileCapBytes = 64 * 1024;
+  std::string text;
+  std::string read_error;
+  if (!ReadConfigFile(a.show, &text, &read_error, kImageFileCapBytes)) {
+    std::cerr << "roomfix devices show: " << read_error << "\n";
     return 1;
   }
-  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   std::vector<uint8_t> image;
   std::string error;
   if (!radio::DecodeIntelHex(text, &image, &error)) {
@@ -118,11 +119,9 @@ int RunWrite(const DevicesArgs& a) {
   }
   for (const radio::DeviceImage& image : images) {
     const std::string path = a.out + "/" + image.name + ".eep.hex";
-    std::ofstream file(path);
-    file << radio::EncodeIntelHex(radio::EncodeDeviceConfig(image.config));
-    file.close();
-    if (!file) {
-      std::cerr << "roomfix devices: cannot write " << path << "\n";
+    if (!WriteOutputFile(path, radio::EncodeIntelHex(radio::EncodeDeviceConfig(image.config)),
+                         &error)) {
+      std::cerr << "roomfix devices: " << error << "\n";
       return 1;
     }
     std::printf("%s\n", path.c_str());

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "core/radio/device_config.h"
+#include "core/radio/range_assembler.h"
 #include "core/radio/wall_payload.h"
 #include "core/radio/xbee_frame.h"
 #include "fw_codec.h"
@@ -119,6 +120,26 @@ TEST(FirmwareCodec, StatusPayloadIsTheDocumentedBytes) {
   // The bridge refuses it as an unknown type (a counter), never a crash.
   WallMessage m;
   EXPECT_EQ(DecodeWallMessage(status, sizeof status, &m), PayloadError::kUnknownType);
+}
+
+TEST(FirmwareCodec, TheBridgeCountsADeviceStatusAndCarriesOn) {
+  Site site;
+  std::string error;
+  ASSERT_TRUE(LoadSite(testing::DemoSitePath(), &site, &error)) << error;
+  RangeAssembler assembler(site, {});
+  uint8_t status[FW_STATUS_BYTES];
+  fw_encode_status(1, FW_FAULT_CONFIG_MISSING, 0x01, status);
+  RadioPacket p;
+  p.has_address64 = true;
+  p.address64 = site.receivers[0].address;
+  p.payload = status;
+  p.payload_size = sizeof status;
+  p.arrival_utime = 1'700'000'000'000'000;
+  std::vector<AssembledSet> closed;
+  EXPECT_STREQ(assembler.OnPacket(p, &closed), "malformed_payload");
+  EXPECT_NE(assembler.last_rejection().find("unknown message type 0x03"), std::string::npos)
+      << assembler.last_rejection();
+  EXPECT_EQ(assembler.open_firings(), 0);
 }
 
 class FrameCollector : public FrameSink {

@@ -10,13 +10,12 @@
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
-#include <iterator>
 #include <vector>
 
 #include "core/radio/device_config.h"
 #include "core/radio/wall_payload.h"
 #include "core/radio/xbee_frame.h"
+#include "core/world/file_io.h"
 #include "tests/firmware/avr_device.h"
 #include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
@@ -469,14 +468,16 @@ TEST(ReceiverFirmware, WithoutAConfigurationSaysSoAndNeverReports) {
 // ------------------------------------------------ roomfix devices, end to end
 
 std::string ReadText(const std::string& path) {
-  std::ifstream in(path);
-  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::string text;
+  std::string error;
+  EXPECT_TRUE(ReadConfigFile(path, &text, &error)) << error;
+  return text;
 }
 
 TEST(DevicesCommand, ItsImagesRunTheFirmwareAndACorruptOneIsRefusedByBoth) {
   REQUIRE_ELF("receiver");
   const std::string roomfix = BinDir() + "/roomfix";
-  struct stat st{};
+  struct stat st {};
   if (stat(roomfix.c_str(), &st) != 0) GTEST_SKIP() << roomfix << " is not built";
   TempDir dir;
   ChildProcess write({roomfix, "devices", "--config", DemoSitePath(), "--out", dir.File("devices"),
@@ -510,10 +511,7 @@ TEST(DevicesCommand, ItsImagesRunTheFirmwareAndACorruptOneIsRefusedByBoth) {
   std::vector<uint8_t> corrupt = image;
   corrupt[40] ^= 0x10;  // window_close_us
   const std::string bad_path = dir.File("bad.eep.hex");
-  {
-    std::ofstream out(bad_path);
-    out << radio::EncodeIntelHex(corrupt);
-  }
+  ASSERT_TRUE(WriteOutputFile(bad_path, radio::EncodeIntelHex(corrupt), &error)) << error;
   ChildProcess show({roomfix, "devices", "show", bad_path}, dir.File("show.txt"));
   EXPECT_EQ(show.Wait(60), 2);
   // ...and so does the firmware: a status frame with fault 2, no report.
