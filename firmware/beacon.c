@@ -66,11 +66,22 @@ ISR(TIMER1_COMPB_vect) {
   TCCR1A &= (uint8_t)~_BV(COM1B0);
   TIMSK1 &= (uint8_t)~_BV(OCIE1B);
   toggles_left = 0;
+  UCSR0B |= _BV(RXCIE0); /* listen again (see ArmBurst) */
 }
 
 /* Arms the burst's first edge at tick `at` (less than one wrap ahead).
- * Interrupts are off. */
+ * Interrupts are off.
+ *
+ * The compare ISR must run within 200 cycles of each match, or the next
+ * half period is lost for a whole Timer1 wrap (4 ms). The receive ISR can
+ * take longer than that when a frame completes (its CRC), so the beacon
+ * stops taking serial input from here to the burst's end (fire delay +
+ * burst, 3.4 ms by default). A frame arriving then overruns the USART and
+ * is dropped and counted (fw_frames_bad); by the schedule none should: the
+ * other beacons announce in other slots and the receivers report to the
+ * coordinator. */
 static void ArmBurst(uint32_t at) {
+  UCSR0B &= (uint8_t)~_BV(RXCIE0);
   const uint16_t first = (uint16_t)at;
   OCR1A = first;
   OCR1B = (uint16_t)(first + FW_HALF_CARRIER_TICKS);
@@ -93,8 +104,7 @@ static void Fire(uint16_t seq, uint32_t burst_at) {
   const uint32_t start = burst_at - fire_ticks - (uint32_t)n * FW_TICKS_PER_UART_BYTE;
   while ((int32_t)(fw_now() - start) < 0) {
   }
-  fw_uart_clear_sent();
-  fw_uart_write(wire, n);
+  fw_uart_write_timed(wire, n);
   cli();
   const uint32_t sent = fw_uart_wait_sent_locked();
   ArmBurst(sent + fire_ticks);

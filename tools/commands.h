@@ -24,6 +24,9 @@ void AddMapCommand(CLI::App* app, int* exit_code);
 void AddRenderCameraCommand(CLI::App* app, int* exit_code);
 void AddSurveyCommand(CLI::App* app, int* exit_code);
 void AddReplayCommand(CLI::App* app, int* exit_code);
+// roomfix devices: the beacons' and receivers' EEPROM images from the site
+// (tools/devices_command.cc, docs/devices.md).
+void AddDevicesCommand(CLI::App* app, int* exit_code);
 // Adds `logger` under the `bench` subcommand.
 void AddBenchLoggerCommand(CLI::App* bench, int* exit_code);
 // Adds `radio` under the `bench` subcommand.

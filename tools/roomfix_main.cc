@@ -30,6 +30,7 @@ int main(int argc, char** argv) {
   roomfix::AddRenderCameraCommand(&app, &exit_code);
   roomfix::AddSurveyCommand(&app, &exit_code);
   roomfix::AddReplayCommand(&app, &exit_code);
+  roomfix::AddDevicesCommand(&app, &exit_code);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ValidationError& e) {

@@ -180,6 +180,9 @@ bool DeviceConfigOptions::IsValid(std::string* error) const {
   }
   if (!(rate_hz > 0.0 && rate_hz <= 100.0)) return Fail(error, "--rate-hz must be in (0, 100]");
   if (report_spacing_us > 20000) return Fail(error, "--report-spacing-us must be at most 20000");
+  if (!(radio_latency_us >= 0.0 && radio_latency_us <= 10000.0)) {
+    return Fail(error, "--radio-latency-us must be 0 (nominal) .. 10000");
+  }
   return true;
 }
 
@@ -205,7 +208,9 @@ SiteTiming ComputeSiteTiming(const Site& site, const DeviceConfigOptions& o) {
   t.slot_us = static_cast<uint32_t>(std::ceil(decay.slot_s * 1e6));
   t.frame_us = std::max(static_cast<uint32_t>(n) * t.slot_us,
                         static_cast<uint32_t>(std::ceil(1e6 / o.rate_hz)));
-  const double latency_us = NominalRadioLatencyUs(kFiringPayloadBytes, o.radio);
+  const double latency_us = o.radio_latency_us > 0.0
+                                ? o.radio_latency_us
+                                : NominalRadioLatencyUs(kFiringPayloadBytes, o.radio);
   t.latency_us = static_cast<uint16_t>(std::lround(latency_us));
   // From the receiver's stamp to the pulse leaving the beacon.
   const double pulse_after_stamp_us = static_cast<double>(o.fire_delay_us) - t.latency_us;

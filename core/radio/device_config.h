@@ -132,6 +132,9 @@ struct DeviceConfigOptions {
   // Where receivers send reports.
   uint64_t coordinator_address = 0xFFFF;
   RadioTimingModel radio;
+  // The radio latency measured on the real parts (docs/devices.md,
+  // bring-up step 6), us; 0: NominalRadioLatencyUs of `radio`.
+  double radio_latency_us = 0.0;
 
   bool IsValid(std::string* error) const;
 };

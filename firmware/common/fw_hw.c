@@ -91,7 +91,14 @@ void fw_uart_write(const uint8_t* data, uint8_t size) {
   }
 }
 
-void fw_uart_clear_sent(void) { UCSR0A |= _BV(TXC0); }
+void fw_uart_write_timed(const uint8_t* data, uint8_t size) {
+  if (size == 0) return;
+  fw_uart_write(data, (uint8_t)(size - 1));
+  while (!(UCSR0A & _BV(UDRE0))) {
+  }
+  UCSR0A |= _BV(TXC0); /* a flag bit: writing one clears it */
+  UDR0 = data[size - 1];
+}
 
 uint32_t fw_uart_wait_sent_locked(void) {
   while (!(UCSR0A & _BV(TXC0))) {

@@ -32,9 +32,15 @@ uint32_t fw_extend_locked(uint16_t low);
 /* Sends bytes on the USART, waiting for room (interrupts stay on, so
  * reception continues; 40 us a byte). */
 void fw_uart_write(const uint8_t* data, uint8_t size);
-/* Clears TXC0 so that the next fw_uart_wait_sent sees this frame's end. */
-void fw_uart_clear_sent(void);
-/* With interrupts off: waits until the last byte written has left the
+/* Sends a frame whose end is to be timed: all but the last byte as
+ * fw_uart_write, then, once UDR0 has room, clears TXC0 and writes the last
+ * byte, so that TXC0 next rises when that byte's stop bit has left. (With
+ * the double-buffered UDR0 kept full TXC0 only rises at the end anyway;
+ * clearing it just before the last byte also makes that true of a USART,
+ * or a simulator such as simavr 1.6, that raises TXC0 after every byte.) */
+void fw_uart_write_timed(const uint8_t* data, uint8_t size);
+/* With interrupts off, after fw_uart_write_timed: waits until the last
+ * byte has left the
  * shift register (TXC0) and returns the tick count at that moment, to one
  * polling loop (3-5 cycles). Interrupts stay off on return. */
 uint32_t fw_uart_wait_sent_locked(void);
