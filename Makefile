@@ -11,6 +11,8 @@
 #                                (four cameras, two radios, eight robots)
 #             [DEMO_CAMERA_FPS=N] ... cameras at N fps (default: the site's,
 #                                10 with fewer than 2 cores per camera)
+#             [DEMO_DEVICES=firmware] ... the beacon and the receivers as their
+#                                firmware in simavr (docs/firmware_in_the_loop.md)
 #   make test [SANITIZE=1]       the whole suite through ctest (ASan+UBSan build);
 #                                turns the tests and the Java jar on in the
 #                                build folder
@@ -32,6 +34,7 @@ SANITIZE ?= 0
 WERROR ?= 1
 DEMO_SECONDS ?= 30
 DEMO_CAMERA ?= 1
+DEMO_DEVICES ?= behavioural
 JOBS ?= $(shell nproc)
 BUILD_TYPE ?= RelWithDebInfo
 RELEASE_DIR ?= build/release
@@ -84,8 +87,10 @@ configure-demo: configure
 
 demo: configure-demo
 	@cmake --build $(BUILD_DIR) -j $(JOBS) --target demo -- --no-print-directory || $(WERROR_HINT)
+	@if [ "$(DEMO_DEVICES)" = firmware ]; then \
+	  cmake --build $(BUILD_DIR) -j $(JOBS) --target firmware -- --no-print-directory; fi
 	@DEMO_CAMERA=$(DEMO_CAMERA) DEMO_SITE=$(DEMO_SITE) DEMO_CAMERA_FPS=$(DEMO_CAMERA_FPS) \
-	  scripts/demo.sh $(BUILD_DIR) $(DEMO_SECONDS)
+	  DEMO_DEVICES=$(DEMO_DEVICES) scripts/demo.sh $(BUILD_DIR) $(DEMO_SECONDS)
 
 package: BUILD_DIR = $(RELEASE_DIR)
 package: BUILD_TYPE = Release

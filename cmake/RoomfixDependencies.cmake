@@ -101,3 +101,41 @@ if(HELP2MAN)
 else()
   set(ROOMFIX_MAN_PAGES OFF)
 endif()
+
+# The devices' firmware (firmware/, docs/devices.md): avr-gcc and avr-libc
+# build it; simavr runs it in the tests. Without avr-gcc the firmware is not
+# built and its tests skip, saying so.
+find_program(AVR_GCC avr-gcc)
+find_program(AVR_OBJCOPY avr-objcopy)
+find_program(AVR_SIZE avr-size)
+if(AVR_GCC AND AVR_OBJCOPY AND AVR_SIZE AND EXISTS /usr/lib/avr/include/avr/io.h)
+  set(roomfix_firmware_default ON)
+else()
+  set(roomfix_firmware_default OFF)
+endif()
+option(ROOMFIX_FIRMWARE "Build the beacon and receiver firmware (gcc-avr, binutils-avr, avr-libc)"
+       ${roomfix_firmware_default})
+if(ROOMFIX_FIRMWARE AND NOT roomfix_firmware_default)
+  message(FATAL_ERROR "ROOMFIX_FIRMWARE is on but avr-gcc, avr-objcopy, avr-size or avr-libc is "
+                      "missing: apt-get install gcc-avr binutils-avr avr-libc, or -DROOMFIX_FIRMWARE=OFF")
+endif()
+# libsimavr (GPL-3+; only the tests and the simulator link it): runs the
+# firmware images. Found by hand: Debian's simavr.pc requires libelf.pc,
+# which only libelf-dev has, though libsimavr.so links libelf itself.
+find_path(SIMAVR_INCLUDE_DIR sim_avr.h PATH_SUFFIXES simavr)
+find_library(SIMAVR_LIBRARY simavr)
+if(SIMAVR_INCLUDE_DIR AND SIMAVR_LIBRARY AND NOT TARGET Simavr::simavr)
+  add_library(Simavr::simavr UNKNOWN IMPORTED)
+  set_target_properties(Simavr::simavr PROPERTIES
+    IMPORTED_LOCATION ${SIMAVR_LIBRARY}
+    INTERFACE_INCLUDE_DIRECTORIES ${SIMAVR_INCLUDE_DIR})
+endif()
+# The firmware device model (sim/firmware/: roomfix_sim --devices firmware)
+# needs simavr; its tests' own AVR programs need avr-gcc too.
+if(TARGET Simavr::simavr)
+  set(ROOMFIX_HAVE_SIMAVR ON)
+else()
+  set(ROOMFIX_HAVE_SIMAVR OFF)
+  message(STATUS "simavr not found (apt-get install libsimavr-dev simavr): no firmware device "
+                 "model (roomfix_sim --devices firmware), its tests are skipped")
+endif()

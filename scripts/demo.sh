@@ -26,6 +26,14 @@ if [[ "$camera" != 0 && "$camera" != 1 ]]; then
   exit 2
 fi
 export DEMO_CAMERA=$camera
+# DEMO_DEVICES=firmware plays the beacon and the receivers as their firmware
+# in simavr (roomfix_sim --devices firmware) instead of the behavioural model.
+devices=${DEMO_DEVICES:-behavioural}
+if [[ "$devices" != behavioural && "$devices" != firmware ]]; then
+  echo "demo.sh: DEMO_DEVICES must be behavioural or firmware, not '$devices'" >&2
+  exit 2
+fi
+export DEMO_DEVICES=$devices
 here=$(cd "$(dirname "$0")/.." && pwd)
 site=${DEMO_SITE:-$here/config/sites/demo_room.yaml}
 [[ "$site" == /* ]] || site=$PWD/$site
@@ -124,12 +132,18 @@ if [[ "${3:-}" == "--inner" ]]; then
   # zigbee_bridge reads it as it would a ZigBee coordinator on /dev/ttyUSB0.
   radio=$out/radio
   rm -f "$radio"
+  # With DEMO_DEVICES=firmware the devices are their firmware: the noise is
+  # the model's (radio timing, detector), the faults those with a place there
+  # (a lost frame, a buffering module).
+  if [[ "$devices" == firmware ]]; then
+    device_args=(--devices firmware --buffering 0.05 --buffer-hold 0.04 --lost-report 0.01)
+  else
+    device_args=(--range-noise 0.02 --nlos-probability 0.05 --dropout-probability 0.02
+      --buffering 0.05 --buffer-hold 0.04 --reorder 0.01 --duplicate 0.05 --lost-report 0.01
+      --foreign 0.1 --corrupt-byte 0.0002 --garbage 0.01)
+  fi
   "$bin/roomfix_sim" --config "$site" --log-level info --start-utime "$start_utime" \
-    --radio-pty --pty-link "$radio" \
-    --range-noise 0.02 --nlos-probability 0.05 --dropout-probability 0.02 \
-    --buffering 0.05 --buffer-hold 0.04 --reorder 0.01 --duplicate 0.05 --lost-report 0.01 \
-    --foreign 0.1 \
-    --corrupt-byte 0.0002 --garbage 0.01 \
+    --radio-pty --pty-link "$radio" "${device_args[@]}" \
     > "$out/roomfix_sim.path" 2> >(sed 's/^/  /') &
   sim=$!
   # One coordinator (the site names no radios) or one per radio, each on
@@ -171,6 +185,8 @@ fi
 mkdir -p "$out"
 echo "roomfix demo: ${seconds} s on the simulator, site $site"
 ((camera)) || echo "  without the ceiling camera (DEMO_CAMERA=0): the ultrasound path alone"
+[[ "$devices" != firmware ]] ||
+  echo "  devices: the beacon's and receivers' firmware in simavr, one ATmega328P each (DEMO_DEVICES=firmware)"
 if [[ -n "$camera_fps" ]]; then
   echo "  ${#camera_ids[@]} cameras at $camera_fps fps, below the site's rate: $(nproc) cores" \
     "carry fewer than 2 per camera (DEMO_CAMERA_FPS sets it; full rate: docs/operations.md, \"A hall\")"
@@ -203,6 +219,7 @@ echo "  log:     $out/demo.lcm (replay: lcm-logplayer $out/demo.lcm)"
 echo "  report:  $out/analysis/report.md (figures in $out/analysis/)"
 echo "  viewer:  $out/viewer.png"
 echo "  summary: $out/summary.json"
+echo "  devices: $devices$([[ "$devices" != firmware ]] || echo " (build/firmware/*.elf in simavr)")"
 if [[ -n "$camera_fps" ]]; then
   echo "  cameras: ${#camera_ids[@]} at $camera_fps fps (reduced for this machine's $(nproc) cores)"
 fi

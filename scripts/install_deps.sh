@@ -36,7 +36,8 @@ demo_packages=(
 )
 # The rest of `make test`: the tests and benchmarks, the Java types jar, the
 # viewer's window tests under a virtual X server, the Debian package test
-# (help2man writes the manual pages, lintian checks the package, man reads them).
+# (help2man writes the manual pages, lintian checks the package, man reads them),
+# the device firmware (firmware/: avr-gcc, avr-libc) and its simavr tests.
 test_packages=(
   git dpkg-dev file
   liblcm-java libjchart2d-java default-jdk-headless
@@ -44,6 +45,7 @@ test_packages=(
   procps xvfb xauth x11-apps
   help2man lintian man-db
   python3-pandas
+  gcc-avr binutils-avr avr-libc simavr libsimavr-dev
 )
 packages=("${demo_packages[@]}")
 [[ "$set_name" == demo ]] || packages+=("${test_packages[@]}")

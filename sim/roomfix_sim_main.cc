@@ -86,6 +86,16 @@ void AddRadioFlags(CLI::App* app, SimFlags* f) {
   radio->add_flag("--radio-pty", s.radio_pty,
                   "Play the beacon and the wall receivers: write the coordinator's XBee API "
                   "frames to a pseudo-terminal whose path is printed on stdout");
+  radio
+      ->add_option("--devices", s.devices,
+                   "What plays the devices: behavioural (a model of what they send) or firmware "
+                   "(the beacon's and receivers' firmware run in simavr, one ATmega328P each, "
+                   "with an XBee and an acoustic model; docs/devices_simulation.md)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"behavioural", "firmware"}));
+  radio->add_option("--firmware-dir", s.firmware_dir,
+                    "Folder of beacon.elf and receiver.elf for --devices firmware (default: the "
+                    "build tree's firmware/)");
   radio->add_option("--pty-link", s.pty_link,
                     "Also make this symlink to the pseudo-terminal (a stable path for "
                     "zigbee_bridge --port across restarts)");

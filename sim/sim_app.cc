@@ -7,6 +7,7 @@
 #include <memory>
 #include <vector>
 
+#include "sim/firmware_devices.h"
 #include "sim/pseudo_terminal.h"
 #include "sim/shared_air.h"
 
@@ -26,6 +27,14 @@ bool SimAppOptions::IsValid(std::string* error) const {
     *error =
         "--ranges and --radio-pty exclude each other: the ideal radio publishes RANGES itself, "
         "the virtual devices feed zigbee_bridge";
+    return false;
+  }
+  if (devices != "behavioural" && devices != "firmware") {
+    *error = "--devices must be behavioural or firmware";
+    return false;
+  }
+  if (devices == "firmware" && !radio_pty) {
+    *error = "--devices firmware plays the devices behind --radio-pty; give it too";
     return false;
   }
   if (!wall.IsValid(&why)) {
@@ -72,9 +81,37 @@ void PrintCheckLine(const ProcessContext& ctx, const SimAppOptions& options) {
   std::cout << "roomfix_sim: ok: " << ctx.site.simulation.robots.size() << " robot(s) at "
             << options.ground_truth.rate_hz << " Hz on " << ctx.options.lcm_url;
   if (options.radio_pty) {
-    std::cout << ", wall devices on a pseudo-terminal (faults " << options.faults_preset << ")";
+    std::cout << ", wall devices (" << options.devices << ") on a pseudo-terminal (faults "
+              << options.faults_preset << ")";
   }
   std::cout << "\n";
+}
+
+// The firmware devices' tick: run them to now (at most 50 ms of simulated
+// time a tick, so the bus is still served on a machine too slow for real
+// time, which is logged), and write their coordinator's bytes to every
+// pseudo-terminal: the reports are broadcasts every coordinator hears, and
+// each bridge (--radio) keeps its own receivers'.
+void TickFirmware(FirmwareDevices* firmware,
+                  const std::vector<std::unique_ptr<PseudoTerminal>>& ptys, int64_t now,
+                  int64_t start_utime, std::vector<uint8_t>* bytes, int64_t* write_failures) {
+  constexpr double kMaxStepS = 0.05;
+  constexpr double kBehindWarnS = 1.0;
+  static double warned_at_s = 0.0;
+  bytes->clear();
+  firmware->Advance(now, kMaxStepS, bytes);
+  const double behind_s = (now - start_utime) * 1e-6 - firmware->simulated_s();
+  if (behind_s > kBehindWarnS && firmware->simulated_s() - warned_at_s > 10.0) {
+    warned_at_s = firmware->simulated_s();
+    spdlog::warn("firmware devices {:.1f} s behind real time (this machine simulates slower)",
+                 behind_s);
+  }
+  std::string write_error;
+  for (const auto& pty : ptys) {
+    if (!bytes->empty() && !pty->Write(bytes->data(), bytes->size(), &write_error)) {
+      if ((*write_failures)++ % 100 == 0) spdlog::warn("{}", write_error);
+    }
+  }
 }
 
 }  // namespace
@@ -108,7 +145,18 @@ int RunSimulator(ProcessContext* ctx, const SimAppOptions& options, std::string*
   // the same announcements; each writes its own receivers' reports.
   const std::vector<std::unique_ptr<PseudoTerminal>>& ptys = coordinators.ptys;
   std::vector<std::unique_ptr<VirtualWallDevices>> devices;
-  for (size_t k = 0; k < ptys.size(); ++k) {
+  std::unique_ptr<FirmwareDevices> firmware;
+  if (options.devices == "firmware") {
+    FirmwareDevicesOptions f;
+    f.firmware_dir = options.firmware_dir;
+    f.faults = options.wall.faults;
+    f.seed = options.wall.seed;
+    f.start_utime = start_utime;
+    firmware = FirmwareDevices::Create(site, f, error);
+    if (firmware == nullptr) return 1;
+    spdlog::info("wall devices: the firmware in simavr ({})", firmware->Summary());
+  }
+  for (size_t k = 0; k < ptys.size() && firmware == nullptr; ++k) {
     WallDevicesOptions w = options.wall;
     w.start_utime = start_utime;
     w.radio_id = coordinators.radio_ids[k];
@@ -127,6 +175,10 @@ int RunSimulator(ProcessContext* ctx, const SimAppOptions& options, std::string*
       [&](int64_t now) {
         node.Tick(now);
         if (options.publish_ranges) ranges_node.Tick(now);
+        if (firmware != nullptr) {
+          TickFirmware(firmware.get(), ptys, now, start_utime, &bytes, &write_failures);
+          return;
+        }
         for (size_t k = 0; k < ptys.size(); ++k) {
           bytes.clear();
           devices[k]->Advance(now, &bytes);
@@ -136,6 +188,7 @@ int RunSimulator(ProcessContext* ctx, const SimAppOptions& options, std::string*
         }
       },
       loop);
+  if (firmware != nullptr) spdlog::info("wall devices (firmware): {}", firmware->Summary());
   for (size_t k = 0; k < devices.size(); ++k) {
     const AirCounters& a = devices[k]->air().counters();
     spdlog::info(

@@ -28,6 +28,12 @@ struct SimAppOptions {
   // pseudo-terminal per coordinator, for zigbee_bridge.
   WallDevicesOptions wall;
   bool radio_pty = false;
+  // What plays the wall devices behind the pseudo-terminal: "behavioural"
+  // (VirtualWallDevices, the default) or "firmware" (the devices' firmware
+  // in simavr, sim/firmware_devices.h; its images from firmware_dir, ""
+  // for the build tree's).
+  std::string devices = "behavioural";
+  std::string firmware_dir;
   // Also a symlink to the pseudo-terminal; with several radios, LINK-<id>.
   std::string pty_link;
   // The --faults preset, named in --check's line only (its values are

@@ -29,6 +29,7 @@ void AddBenchCommand(CLI::App* app, int* exit_code) {
   AddBenchReplayCommand(bench, exit_code);
   AddBenchCapacityCommand(bench, exit_code);
   AddBenchMicroCommand(bench, exit_code);
+  AddBenchFirmwareCommand(bench, exit_code);
 }
 
 }  // namespace roomfix

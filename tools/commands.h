@@ -26,6 +26,9 @@ void AddSurveyCommand(CLI::App* app, int* exit_code);
 void AddReplayCommand(CLI::App* app, int* exit_code);
 // roomfix export LOG --csv DIR (export_command.cc, csv_export.h).
 void AddExportCommand(CLI::App* app, int* exit_code);
+// roomfix devices: the beacons' and receivers' EEPROM images from the site
+// (tools/devices_command.cc, docs/devices.md).
+void AddDevicesCommand(CLI::App* app, int* exit_code);
 // Adds `logger` under the `bench` subcommand.
 void AddBenchLoggerCommand(CLI::App* bench, int* exit_code);
 // Adds `radio` under the `bench` subcommand.
@@ -42,6 +45,10 @@ void AddBenchCapacityCommand(CLI::App* bench, int* exit_code);
 // camera path's kernels against baselines in the same run; without Google
 // Benchmark (bench_micro_absent.cc) a command that says it is missing.
 void AddBenchMicroCommand(CLI::App* bench, int* exit_code);
+// roomfix bench firmware (bench_firmware.cc): the firmware-in-the-loop
+// simulator's speed; without simavr (bench_firmware_absent.cc) a command
+// that says it is missing.
+void AddBenchFirmwareCommand(CLI::App* bench, int* exit_code);
 
 }  // namespace roomfix
 
