@@ -58,8 +58,8 @@ void SimRangesNode::Tick(int64_t now_utime) {
     const int64_t fire_utime = firing.fire_utime;
     const double t_s = (fire_utime - options_.start_utime) * 1e-6;
     const GroundTruthPose truth = f.trajectory->PoseAt(t_s);
-    const auto ranges = SimulateRanges(site_, {truth.x_m, truth.y_m, f.beacon->height_m},
-                                       site_.simulation.temperature_c, options_.noise, &rng_);
+    const auto ranges = SimulateRangesAt(site_, t_s, {truth.x_m, truth.y_m, f.beacon->height_m},
+                                         site_.simulation.temperature_c, options_.noise, &rng_);
     // Site receiver order; a receiver that dropped out hears nothing.
     std::vector<double> own_tof_s(site_.receivers.size(), std::nan(""));
     for (const SimulatedRange& s : ranges) {

@@ -219,23 +219,27 @@ void VirtualWallDevices::Fire(Firer* firer, const SharedAir::Firing& firing) {
   // nothing still answers, with a no-echo report.
   UltrasoundNoise noise = faults.ultrasound;
   noise.dropout_probability = 0.0;
-  const std::vector<SimulatedRange> ranges = SimulateRanges(
-      site_, {truth.x_m, truth.y_m, firer->beacon->height_m}, temperature_c, noise, &rng_);
-  // What each receiver's detector times among the other beacons' pulses
-  // (ranges come in site receiver order, dropouts being off above).
-  std::vector<double> own_tof_s;
-  for (const SimulatedRange& r : ranges) own_tof_s.push_back(r.time_of_flight_s);
+  const std::vector<SimulatedRange> ranges = SimulateRangesAt(
+      site_, t_s, {truth.x_m, truth.y_m, firer->beacon->height_m}, temperature_c, noise, &rng_);
+  // What each receiver's detector times among the other beacons' pulses, in
+  // site receiver order; NaN for a receiver no audible path reaches (an
+  // obstacle in the way, core/world/acoustic_paths.h), which answers no echo.
+  std::vector<double> own_tof_s(site_.receivers.size(), std::nan(""));
+  for (const SimulatedRange& r : ranges) {
+    const Receiver* receiver = site_.FindReceiver(r.receiver_id);
+    own_tof_s[static_cast<size_t>(receiver - site_.receivers.data())] = r.time_of_flight_s;
+  }
   const std::vector<Detection> detections = air_.Detect(firing, own_tof_s);
   const double period_us = air_.frame_s() * 1e6;
-  for (size_t i = 0; i < ranges.size(); ++i) {
-    const Receiver& receiver = *site_.FindReceiver(ranges[i].receiver_id);
-    const size_t receiver_index = static_cast<size_t>(&receiver - site_.receivers.data());
+  for (size_t i = 0; i < site_.receivers.size(); ++i) {
+    const Receiver& receiver = site_.receivers[i];
+    const size_t receiver_index = i;
     // A receiver on another coordinator's network: another pty carries it.
     const bool on_this_radio = options_.radio_id == 0 ||
                                site_.RadioOfReceiver(receiver.id) == nullptr ||
                                site_.RadioOfReceiver(receiver.id)->id == options_.radio_id;
     FiringRecord::Report report;
-    report.receiver_id = ranges[i].receiver_id;
+    report.receiver_id = receiver.id;
     report.air = detections[i].kind;
     // A dropout (the receiver missed its own pulse) turns an own detection
     // into no echo; a detector already set off by another pulse stays so.

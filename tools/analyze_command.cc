@@ -196,7 +196,10 @@ class Figures {
  public:
   Figures(std::string dir, bool enabled) : dir_(std::move(dir)), enabled_(enabled) {}
 
-  std::string Trajectory(int robot_id, const std::vector<const PoseTrack*>& tracks) {
+  // `site` (nullptr when no log's site is known) adds its fixed obstacles
+  // as grey footprints behind the tracks: where a receiver could not hear.
+  std::string Trajectory(int robot_id, const std::vector<const PoseTrack*>& tracks,
+                         const Site* site) {
     const std::string name = "trajectory_robot" + std::to_string(robot_id);
     std::string plot;
     for (const PoseTrack* t : tracks) {
@@ -243,7 +246,35 @@ class Figures {
                           ": trajectory of every source" + outside_note +
                           "'\nset xlabel 'x (m)'\nset ylabel 'y (m)'\n"
                           "set size ratio -1\nset key outside right\n" +
-                          range + "plot " + plot + "\n");
+                          ObstacleObjects(site) + range + "plot " + plot + "\n");
+  }
+
+  // gnuplot objects for the site's fixed obstacles: a circle per cylinder,
+  // a polygon per (turned) box; a moving one has no single place.
+  static std::string ObstacleObjects(const Site* site) {
+    if (site == nullptr) return "";
+    std::string out;
+    int n = 0;
+    for (const Obstacle& o : site->obstacles) {
+      if (o.trajectory != nullptr) continue;
+      const std::string style = " behind fc rgb '#96a0aa' fs solid 0.6 border rgb '#5a646e'\n";
+      ++n;
+      if (o.shape == Obstacle::Shape::kCylinder) {
+        out += "set object " + std::to_string(n) + " circle at " + Fixed(o.centre_m[0], 4) + "," +
+               Fixed(o.centre_m[1], 4) + " size " + Fixed(o.radius_m, 4) + style;
+        continue;
+      }
+      const double cs = std::cos(o.yaw_rad), sn = std::sin(o.yaw_rad);
+      std::string corners;
+      for (const auto& [u, v] : {std::pair{1, 1}, {-1, 1}, {-1, -1}, {1, -1}, {1, 1}}) {
+        const double du = 0.5 * u * o.size_m[0], dv = 0.5 * v * o.size_m[1];
+        corners += (corners.empty() ? " from " : " to ") +
+                   Fixed(o.centre_m[0] + cs * du - sn * dv, 4) + "," +
+                   Fixed(o.centre_m[1] + sn * du + cs * dv, 4);
+      }
+      out += "set object " + std::to_string(n) + " polygon" + corners + style;
+    }
+    return out;
   }
 
   std::string Intervals(const std::string& stem, const analysis::Timing& t) {
@@ -488,9 +519,13 @@ int RunAnalyze(const AnalyzeOptions& options) {
 
   out["robots"] = json::object();
   std::string quality_table;
+  const Site* known_site = nullptr;
+  for (const ToolSite& site : sites) {
+    if (site.known && known_site == nullptr) known_site = &site.site.site;
+  }
   for (const auto& [robot_id, tracks] : by_robot) {
     md << "\n## Robot " << robot_id << "\n\n";
-    const std::string trajectory = figures.Trajectory(robot_id, tracks);
+    const std::string trajectory = figures.Trajectory(robot_id, tracks, known_site);
     if (!trajectory.empty()) md << "![trajectory](" << trajectory << ")\n\n";
     const PoseTrack* truth = nullptr;
     const PoseTrack* camera = nullptr;

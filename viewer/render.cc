@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <cstring>
 #include <ctime>
+#include <functional>
 #include <map>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -474,6 +475,52 @@ void DrawCameras(Canvas* c, const Site& site, const std::vector<CameraFootprint>
   }
 }
 
+// Fixed obstacles (site `obstacles`) as filled footprints with their names:
+// what hides the robot from a receiver. A moving one (a person on a
+// trajectory) has no place in the background and the viewer does not know
+// the simulation's time, so it is not drawn.
+const cv::Scalar kObstacleColour(150, 160, 170);
+const cv::Scalar kObstacleOutlineColour(90, 100, 110);
+constexpr int kCylinderPolygonSides = 48;
+
+void DrawObstacles(Canvas* c, const Site& site) {
+  for (const Obstacle& o : site.obstacles) {
+    if (o.trajectory != nullptr) continue;
+    std::vector<std::array<double, 2>> corners_m;
+    if (o.shape == Obstacle::Shape::kCylinder) {
+      for (int k = 0; k < kCylinderPolygonSides; ++k) {
+        const double a = 2.0 * CV_PI * k / kCylinderPolygonSides;
+        corners_m.push_back(
+            {o.centre_m[0] + o.radius_m * std::cos(a), o.centre_m[1] + o.radius_m * std::sin(a)});
+      }
+    } else {
+      const double cs = std::cos(o.yaw_rad);
+      const double sn = std::sin(o.yaw_rad);
+      for (const auto& [u, v] : {std::pair{1, 1}, {-1, 1}, {-1, -1}, {1, -1}}) {
+        const double du = 0.5 * u * o.size_m[0];
+        const double dv = 0.5 * v * o.size_m[1];
+        corners_m.push_back({o.centre_m[0] + cs * du - sn * dv, o.centre_m[1] + sn * du + cs * dv});
+      }
+    }
+    std::vector<cv::Point> polygon;
+    bool finite = true;
+    for (const auto& q : corners_m) {
+      const cv::Point2d px = c->map.ToPixel(q[0], q[1]);
+      finite = finite && Finite(px.x, px.y) && std::fabs(px.x) < 1e6 && std::fabs(px.y) < 1e6;
+      polygon.push_back(Canvas::ToInt(px));
+    }
+    if (!finite) continue;
+    cv::fillPoly(c->image, std::vector<std::vector<cv::Point>>{polygon}, kObstacleColour,
+                 cv::LINE_AA);
+    cv::polylines(c->image, polygon, true, kObstacleOutlineColour, 1, cv::LINE_AA);
+    const cv::Point2d centre = c->map.ToPixel(o.centre_m[0], o.centre_m[1]);
+    if (!o.name.empty() && c->Inside(centre)) {
+      HaloText(c->image, o.name, Canvas::ToInt(centre) + cv::Point(-12, 4), kSmallFontScale,
+               kTextColour);
+    }
+  }
+}
+
 void DrawReceivers(Canvas* c, const Site& site) {
   for (const Receiver& r : site.receivers) {
     const cv::Point2d p = c->map.ToPixel(r.position_m[0], r.position_m[1]);
@@ -541,6 +588,12 @@ std::vector<double> BackgroundKey(const Site& site, const std::vector<CameraFoot
   for (const Receiver& rx : site.receivers) {
     key.insert(key.end(), {static_cast<double>(rx.id), rx.position_m[0], rx.position_m[1]});
   }
+  key.push_back(static_cast<double>(site.obstacles.size()));
+  for (const Obstacle& ob : site.obstacles) {
+    key.insert(key.end(), {static_cast<double>(ob.shape), ob.trajectory != nullptr ? 1.0 : 0.0,
+                           ob.centre_m[0], ob.centre_m[1], ob.size_m[0], ob.size_m[1], ob.yaw_rad,
+                           ob.radius_m, static_cast<double>(std::hash<std::string>{}(ob.name))});
+  }
   for (const Camera& cam : site.cameras) {
     key.insert(key.end(),
                {static_cast<double>(cam.id), cam.mount_position_m[0], cam.mount_position_m[1],
@@ -570,6 +623,7 @@ void DrawBackground(const Site& site, const std::vector<CameraFootprint>& footpr
   DrawRoom(&canvas, site.room);
   DrawCameras(&canvas, site, footprints);
   DrawAxes(&canvas);
+  DrawObstacles(&canvas, site);
   DrawReceivers(&canvas, site);
   if (o.panel_px > 0) {
     cv::Mat panel = (*background)(cv::Rect(floor_w, 0, o.panel_px, o.height_px));
@@ -1170,6 +1224,7 @@ cv::Scalar SourceColour(Source source) {
 
 cv::Scalar WarningColour() { return {30, 30, 215}; }
 cv::Scalar ReceiverColour() { return {120, 30, 120}; }
+cv::Scalar ObstacleColour() { return kObstacleColour; }
 cv::Scalar StaleColour() { return {175, 175, 175}; }
 cv::Scalar FloorColour() { return {247, 246, 242}; }
 

@@ -42,6 +42,8 @@ cv::Scalar WarningColour();
 // Receivers (dark purple squares): apart from every source colour, so that a
 // range circle's centre is not mistaken for a track.
 cv::Scalar ReceiverColour();
+// Fill of a fixed obstacle's footprint (site `obstacles`, blue-grey).
+cv::Scalar ObstacleColour();
 // Fill of a stale track's disc (grey), under a dark 'X'.
 cv::Scalar StaleColour();
 // The room's floor (off-white); outside the room is a shade darker.

@@ -323,6 +323,31 @@ TEST(Render, DrawsEachReceiverWhereTheSiteGeometryPutsIt) {
   EXPECT_LE(Distance(At(image, m.ToPixel(1.75, 1.25)), FloorColour()), kExact);
 }
 
+TEST(Render, DrawsEachFixedObstacleAsItsFootprint) {
+  ViewState state = DemoState();
+  Obstacle pillar;
+  pillar.shape = Obstacle::Shape::kCylinder;
+  pillar.centre_m = {2.5, 2.0};
+  pillar.radius_m = 0.25;
+  pillar.top_m = 3.0;
+  Obstacle cupboard;
+  cupboard.shape = Obstacle::Shape::kBox;
+  cupboard.centre_m = {1.0, 0.6};
+  cupboard.size_m = {0.8, 0.4};
+  cupboard.yaw_rad = M_PI / 2;  // now 0.4 m along x, 0.8 m along y
+  cupboard.top_m = 2.0;
+  state.site.obstacles = {pillar, cupboard};
+  const RenderOptions o;
+  const FloorMapping m = MakeFloorMapping(state.site, o);
+  cv::Mat image;
+  Render(state, o, &image);
+  // Inside each footprint (clear of the outline's antialiasing), and just
+  // outside the turned box where the unturned one would have been.
+  EXPECT_LE(Distance(At(image, m.ToPixel(2.5, 2.1)), ObstacleColour()), kExact);
+  EXPECT_LE(Distance(At(image, m.ToPixel(1.0, 0.9)), ObstacleColour()), kExact);
+  EXPECT_LE(Distance(At(image, m.ToPixel(1.3, 0.6)), FloorColour()), kExact);
+}
+
 TEST(Render, DrawsEachVisibleSourceAsADiscInItsColourAtThePose) {
   ViewState state = DemoState();
   const double xs[kNumSources] = {1.0, 2.0, 3.0, 1.0};

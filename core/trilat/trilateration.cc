@@ -300,6 +300,8 @@ struct Workspace {
   std::vector<int> best_subset;
   std::vector<int> excluded;
   std::vector<int> sorted_ids;
+  std::vector<double> excess;
+  std::vector<double> sorted_excess;
 };
 
 Workspace& ThreadWorkspace() {
@@ -801,6 +803,80 @@ void AdoptConsensus(const SolveContext<D>& ctx, const Consensus<D>& cs, double w
   }
 }
 
+// The one-sided IRLS of kRobust above max_consensus_ranges: rounds and
+// Levenberg-Marquardt iterations per round. Each round is warm-started from
+// the last, so a few iterations suffice; the bounds make the work at most
+// kOneSidedRounds * (kOneSidedIterations + 2) * n residuals, linear in n.
+constexpr int kOneSidedRounds = 20;
+constexpr int kOneSidedIterations = 20;
+
+// The median of the active ranges' excesses at p (filled into w.excess in
+// active order), clamped at 0: the level the ranges share. A shared bias
+// (a wrong speed of sound, an uncalibrated offset common to all) moves the
+// level, and a range is suspected only for its excess over the level, so
+// the ranges are never sorted out by a bias they share. Clamped at 0
+// because ranges shorter on the whole than the fix predicts are not a
+// reflection's signature.
+template <int D>
+double SharedLevel(const SolveContext<D>& ctx, const Eigen::Matrix<double, D, 1>& p) {
+  Workspace& w = ctx.workspace;
+  w.excess.clear();
+  for (int i : ctx.ranges->active) w.excess.push_back(Excess(*ctx.ranges, i, p));
+  w.sorted_excess = w.excess;
+  const size_t mid = w.sorted_excess.size() / 2;
+  std::nth_element(w.sorted_excess.begin(), w.sorted_excess.begin() + mid, w.sorted_excess.end());
+  return std::max(0.0, w.sorted_excess[mid]);
+}
+
+// kRobust for a set too large for the consensus search (more than
+// max_consensus_ranges ranges): iteratively reweighted least squares with a
+// one-sided loss. A reflection only lengthens a range, so a range whose
+// excess over the shared level (SharedLevel) is e > 0 gets the Cauchy weight
+// 1 / (1 + (e / c)^2), c = 2.3849 sigma, and a range that is short or on the
+// level keeps weight 1 (the Gaussian's). Ranges still long by more than the
+// outlier threshold at the end are rejected as reflections when enough
+// remain to over-determine the fix, and the rest are refitted with unit
+// weights (the covariance is that of an ordinary fit on them). Cost linear
+// in the ranges (kOneSidedRounds). Failure mode: when more than about half
+// the ranges are long by different amounts the median level is itself long
+// and the fix is pulled; the status then says so (inconsistent_ranges).
+template <int D>
+void ReweightOneSided(const SolveContext<D>& ctx, Eigen::Matrix<double, D, 1>* p, bool* converged) {
+  Ranges<D>* r = ctx.ranges;
+  Fix* fix = ctx.fix;
+  Workspace& w = ctx.workspace;
+  const double c = 2.3849 * ctx.options.range_sigma_m;
+  const int iterations = std::min(ctx.options.max_iterations, kOneSidedIterations);
+  for (int round = 0; round < kOneSidedRounds; ++round) {
+    const double level = SharedLevel(ctx, *p);
+    for (size_t k = 0; k < r->active.size(); ++k) {
+      const double e = w.excess[k] - level;
+      r->w[r->active[k]] = e <= 0.0 ? 1.0 : 1.0 / (1.0 + (e / c) * (e / c));
+    }
+    const Eigen::Matrix<double, D, 1> previous = *p;
+    fix->iterations += Refine(*r, r->active, iterations, p, converged);
+    if ((*p - previous).norm() < kStepTolerance_m) break;
+  }
+  const double level = SharedLevel(ctx, *p);
+  w.subset.clear();
+  for (size_t k = 0; k < r->active.size(); ++k) {
+    if (w.excess[k] - level <= ctx.threshold) w.subset.push_back(r->active[k]);
+  }
+  for (int i : r->active) r->w[i] = 1.0;
+  if (w.subset.size() == r->active.size() ||
+      static_cast<int>(w.subset.size()) < SolveContext<D>::kOverDetermined) {
+    return;
+  }
+  for (size_t k = 0; k < r->active.size(); ++k) {
+    if (w.excess[k] - level > ctx.threshold) {
+      fix->rejected.push_back({r->ids[r->active[k]], RangeRejection::kOutlier});
+    }
+  }
+  r->active = w.subset;
+  fix->flags |= kOutliersRejected;
+  fix->iterations += Refine(*r, r->active, ctx.options.max_iterations, p, converged);
+}
+
 // kRobust: when the full set's fix p leaves a residual above the threshold
 // (or lies beyond the prior with no more than one redundant range), the
 // consensus: the fewest excluded ranges such that
@@ -834,6 +910,10 @@ void RejectOutliers(const SolveContext<D>& ctx, Eigen::Matrix<double, D, 1>* p, 
   const bool far = prior != nullptr && DistanceToPrior(*p, *prior) > prior->radius_m;
   const bool search = worst > ctx.threshold || (far && n <= over_determined);
   if (!search || max_out <= 0) return;
+  if (n > ctx.options.max_consensus_ranges) {
+    ReweightOneSided(ctx, p, converged);
+    return;
+  }
   Consensus<D> cs;
   cs.best_p = *p;
   cs.best_size = n;
@@ -1137,6 +1217,7 @@ bool SolverOptions::IsValid(std::string* error) const {
   if (max_iterations < 1) return fail("max_iterations must be at least 1");
   if (max_ranges < 1) return fail("max_ranges must be at least 1");
   if (max_consensus_solves < 0) return fail("max_consensus_solves must not be negative");
+  if (max_consensus_ranges < 0) return fail("max_consensus_ranges must not be negative");
   return true;
 }
 

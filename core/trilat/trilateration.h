@@ -75,7 +75,17 @@ struct SolverOptions {
   // when it runs out it keeps the best consistent subset found so far, or
   // flags kConsensusBudgetExhausted. So a solve evaluates at most about
   // (max_consensus_solves + 3) * n * (max_iterations + 6) range residuals.
-  int max_ranges = 64;
+  //
+  // Above max_consensus_ranges ranges kRobust does not search subsets at
+  // all but reweights with a one-sided loss (ReweightOneSided in
+  // trilateration.cc: a reflection only lengthens a range), whose work is
+  // linear in the ranges, so no well-posed set is refused for its size:
+  // max_ranges only bounds the memory one set may claim (an external test
+  // suite's 100 anchors are fine, a hostile 800 solve in milliseconds).
+  // 19 is where the exhaustive search over 2 outliers (190 subsets) still
+  // fits max_consensus_solves.
+  int max_ranges = 4096;
+  int max_consensus_ranges = 19;
   int max_consensus_solves = 200;
   // A fix whose position standard deviation (the covariance's largest
   // eigenvalue, square-rooted) exceeds this is flagged: poor geometry.

@@ -254,7 +254,9 @@ std::vector<RangeMeasurement> InconsistentRanges(int n) {
 }
 
 TEST(Solve, RefusesMoreRangesThanMaxRangesBeforeAnyWork) {
-  const Fix fix = Solve(InconsistentRanges(800), FixedHeight(Method::kRobust));
+  SolverOptions o = FixedHeight(Method::kRobust);
+  o.max_ranges = 64;
+  const Fix fix = Solve(InconsistentRanges(800), o);
   EXPECT_EQ(fix.status, FixStatus::kFailed);
   EXPECT_EQ(fix.flags, static_cast<uint32_t>(kTooManyRanges)) << DescribeFlags(fix.flags);
   EXPECT_EQ(fix.range_evaluations, 0);
@@ -269,7 +271,8 @@ TEST(Solve, RefusesMoreRangesThanMaxRangesBeforeAnyWork) {
 TEST(Solve, RobustConsensusWorkIsBoundedHoweverManyRangesArrive) {
   for (int n : {400, 800}) {
     SolverOptions o = FixedHeight(Method::kRobust);
-    o.max_ranges = 1000;
+    // The consensus forced on sets it is never used for by default.
+    o.max_consensus_ranges = 1000;
     const std::vector<RangeMeasurement> ranges = InconsistentRanges(n);
     const auto start = std::chrono::steady_clock::now();
     const Fix fix = Solve(ranges, o);
@@ -292,6 +295,57 @@ TEST(Solve, RobustConsensusWorkIsBoundedHoweverManyRangesArrive) {
     EXPECT_NE(fix.flags & kInconsistentRanges, 0u) << DescribeFlags(fix.flags);
     EXPECT_EQ(fix.status, FixStatus::kDegraded);
   }
+}
+
+// Above max_consensus_ranges the robust solver reweights with a one-sided
+// loss instead of searching subsets: its work is linear in the ranges, so a
+// hostile set of 800 mutually inconsistent ranges is answered (degraded: the
+// ranges disagree), never refused and never searched.
+TEST(Solve, RobustWorkIsLinearAboveTheConsensusSize) {
+  for (int n : {400, 800}) {
+    const SolverOptions o = FixedHeight(Method::kRobust);
+    const Fix fix = Solve(InconsistentRanges(n), o);
+    std::printf("robust solve of %d inconsistent ranges: %lld range evaluations\n", n,
+                static_cast<long long>(fix.range_evaluations));
+    // 20 rounds of at most 20 Levenberg-Marquardt iterations (each evaluates
+    // every range at most twice) and two excess passes, the first fit, the
+    // final refit and the covariance: under 60 max_iterations-long solves.
+    const int64_t linear_bound = static_cast<int64_t>(60) * n * (o.max_iterations + 6);
+    EXPECT_LE(fix.range_evaluations, linear_bound) << n << " ranges";
+    EXPECT_EQ(fix.consensus_solves, 0);
+    EXPECT_NE(fix.flags & kInconsistentRanges, 0u) << DescribeFlags(fix.flags);
+    EXPECT_EQ(fix.status, FixStatus::kDegraded);
+  }
+}
+
+// An external trilateration suite's large case: 100 anchors over a 20 x 20 m
+// hall's ceiling (3 m), the tag at 1 m, 2 cm noise, and 14 of the ranges
+// reflected (+0.3 to +1.0 m). The robust solver answers it (no refusal),
+// rejects the reflections and lands within the noise; least squares is
+// pulled by them.
+TEST(Solve, RobustAnswersAHundredRangesWithReflectionsAmongThem) {
+  std::mt19937 rng(100);
+  std::uniform_real_distribution<double> xy(0.0, 20.0), detour(0.3, 1.0);
+  std::normal_distribution<double> noise(0.0, 0.02);
+  const Eigen::Vector3d truth(8.3, 11.7, 1.0);
+  std::vector<RangeMeasurement> ranges;
+  for (int i = 0; i < 100; ++i) {
+    const Eigen::Vector3d a(xy(rng), xy(rng), 3.0);
+    double d = (a - truth).norm() + noise(rng);
+    if (i % 7 == 3) d += detour(rng);  // 14 of the 100
+    ranges.push_back({i + 1, a, d});
+  }
+  const Fix robust = Solve(ranges, FixedHeight(Method::kRobust, 1.0));
+  const Fix plain = Solve(ranges, FixedHeight(Method::kDefault, 1.0));
+  ASSERT_TRUE(robust.has_position()) << DescribeFlags(robust.flags);
+  // 86 good ranges of 2 cm from all around: the Cramer-Rao bound is about
+  // 2 cm x sqrt(2 / 86) = 3 mm; 1 cm is over three times that.
+  constexpr double kHundredRangeTolerance_m = 0.01;
+  EXPECT_LT((robust.position_m - truth).norm(), kHundredRangeTolerance_m);
+  EXPECT_EQ(robust.rejected.size(), 14u);
+  for (const RejectedRange& r : robust.rejected) EXPECT_EQ(r.receiver_id % 7, 4);
+  EXPECT_EQ(robust.status, FixStatus::kDegraded);  // outliers were rejected
+  EXPECT_GT((plain.position_m - truth).norm(), 2.0 * (robust.position_m - truth).norm());
 }
 
 TEST(Solve, TheConsensusBudgetLeavesTheExhaustiveSearchOfARoomIntact) {

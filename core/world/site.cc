@@ -759,6 +759,106 @@ void ParseSimulation(const Reader& r, const YAML::Node& root, Site* site) {
   }
 }
 
+// True when the point lies inside a fixed obstacle (its footprint and its
+// vertical extent, boundaries included).
+bool InsideObstacle(const Obstacle& o, const std::array<double, 3>& p) {
+  if (p[2] < o.bottom_m || p[2] > o.top_m) return false;
+  const double dx = p[0] - o.centre_m[0];
+  const double dy = p[1] - o.centre_m[1];
+  if (o.shape == Obstacle::Shape::kCylinder) return dx * dx + dy * dy <= o.radius_m * o.radius_m;
+  const double c = std::cos(o.yaw_rad);
+  const double s = std::sin(o.yaw_rad);
+  return std::abs(c * dx + s * dy) <= 0.5 * o.size_m[0] &&
+         std::abs(-s * dx + c * dy) <= 0.5 * o.size_m[1];
+}
+
+// Whole-degree yaw bound: a box turned by more than half a turn is the same
+// box turned the other way, so a larger figure is a unit mix-up (radians).
+constexpr double kMaxObstacleYawDeg = 180.0;
+
+Obstacle ParseObstacle(const Reader& r, const YAML::Node& node, const std::string& key,
+                       const Site& site) {
+  r.ExpectMap(node, key);
+  const YAML::Node type_node = r.Required(node, key, "type");
+  const std::string type = r.String(type_node, key + ".type");
+  Obstacle o;
+  if (type == "box") {
+    r.OnlyKeys(node, key, {"type", "name", "centre_m", "size_m", "yaw_deg", "bottom_m", "top_m"});
+    o.shape = Obstacle::Shape::kBox;
+    const YAML::Node size = r.Required(node, key, "size_m");
+    o.size_m = r.Doubles<2>(size, key + ".size_m");
+    if (!(o.size_m[0] > 0.0 && o.size_m[1] > 0.0)) {
+      r.Fail(size, key + ".size_m", "sizes must be positive");
+    }
+    if (const YAML::Node yaw = node["yaw_deg"]) {
+      const double yaw_deg = r.Double(yaw, key + ".yaw_deg");
+      if (std::abs(yaw_deg) > kMaxObstacleYawDeg) {
+        r.Fail(yaw, key + ".yaw_deg", "must be within +-180 degrees");
+      }
+      o.yaw_rad = yaw_deg * M_PI / 180.0;
+    }
+  } else if (type == "cylinder") {
+    r.OnlyKeys(node, key,
+               {"type", "name", "centre_m", "radius_m", "bottom_m", "top_m", "trajectory"});
+    o.shape = Obstacle::Shape::kCylinder;
+    o.radius_m = r.Positive(r.Required(node, key, "radius_m"), key + ".radius_m");
+    if (node["trajectory"] && node["centre_m"]) {
+      r.Fail(node["centre_m"], key + ".centre_m",
+             "give either centre_m (a fixed cylinder) or trajectory (a moving one), not both");
+    }
+    if (node["trajectory"]) {
+      o.trajectory = ParseTrajectory(r, node["trajectory"], key + ".trajectory");
+    }
+  } else {
+    r.Fail(type_node, key + ".type", "unknown obstacle type '" + type + "' (box, cylinder)");
+  }
+  if (node["name"]) o.name = r.String(node["name"], key + ".name");
+  if (o.trajectory == nullptr) {
+    const YAML::Node centre = r.Required(node, key, "centre_m");
+    o.centre_m = r.Doubles<2>(centre, key + ".centre_m");
+    CheckInsideRoom(r, centre, key + ".centre_m", site.room, {o.centre_m[0], o.centre_m[1], 0.0});
+  }
+  if (node["bottom_m"]) o.bottom_m = r.Double(node["bottom_m"], key + ".bottom_m");
+  const YAML::Node top = r.Required(node, key, "top_m");
+  o.top_m = r.Double(top, key + ".top_m");
+  if (o.bottom_m < 0.0 || o.bottom_m >= site.room.height_m) {
+    r.Fail(node["bottom_m"], key + ".bottom_m",
+           "must be at or above the floor and below the ceiling");
+  }
+  if (!(o.top_m > o.bottom_m && o.top_m <= site.room.height_m + kOutsideRoomTolerance_m)) {
+    r.Fail(top, key + ".top_m", "must be above bottom_m and at most the ceiling's height");
+  }
+  return o;
+}
+
+// `obstacles:` (optional), after the receivers: a receiver inside a fixed
+// obstacle could hear nothing, which is a typo, not a room.
+void ParseObstacles(const Reader& r, const YAML::Node& root, Site* site) {
+  const YAML::Node obstacles = root["obstacles"];
+  if (!obstacles) return;
+  r.ExpectSequence(obstacles, "obstacles");
+  if (obstacles.size() > kMaxObstacles) {
+    r.Fail(obstacles, "obstacles",
+           std::to_string(obstacles.size()) + " obstacles, over the cap of " +
+               std::to_string(kMaxObstacles) + " (each simulated range is tested against all)");
+  }
+  for (size_t i = 0; i < obstacles.size(); ++i) {
+    const std::string key = K::Index("obstacles", i);
+    const Obstacle o = ParseObstacle(r, obstacles[i], key, *site);
+    if (o.trajectory == nullptr) {
+      for (size_t j = 0; j < site->receivers.size(); ++j) {
+        if (InsideObstacle(o, site->receivers[j].position_m)) {
+          r.Fail(obstacles[i], key,
+                 "receivers[" + std::to_string(j) + "] (id " +
+                     std::to_string(site->receivers[j].id) +
+                     ") lies inside this obstacle: it could hear nothing");
+        }
+      }
+    }
+    site->obstacles.push_back(o);
+  }
+}
+
 // `acoustics:` (optional): every key optional, each checked against the
 // bounds in which the decay model of core/world/air_model.h means something.
 void ParseAcoustics(const Reader& r, const YAML::Node& root, Site* site) {
@@ -880,6 +980,12 @@ const RadioNetwork* Site::RadioOfReceiver(int receiver_id) const {
   return nullptr;
 }
 
+std::array<double, 2> Obstacle::CentreAt(double t_s) const {
+  if (trajectory == nullptr) return centre_m;
+  const GroundTruthPose p = trajectory->PoseAt(t_s);
+  return {p.x_m, p.y_m};
+}
+
 const Robot* Site::FindRobot(int id) const {
   return FindIf(robots, [id](const Robot& r) { return r.id == id; });
 }
@@ -968,7 +1074,7 @@ bool ParseSite(const std::string& yaml_text, const std::string& name, const std:
         const Reader r(base);
         r.OnlyKeys(root, "",
                    {"name", "room", "receivers", "beacons", "robots", "cameras", "acoustics",
-                    "radios", "simulation"});
+                    "radios", "obstacles", "simulation"});
         parsed.name = r.String(r.Required(root, "", "name"), "name");
         parsed.room = ParseRoom(r, r.Required(root, "", "room"));
         ParseRadios(r, root, &parsed);
@@ -976,6 +1082,7 @@ bool ParseSite(const std::string& yaml_text, const std::string& name, const std:
         ParseCameras(r, root, base_dir, &parsed);
         ParseAcoustics(r, root, &parsed);
         ParseRadioNetworks(r, root, &parsed);
+        ParseObstacles(r, root, &parsed);
         ParseSimulation(r, root, &parsed);
       },
       error);

@@ -251,6 +251,40 @@ struct RadioNetwork {
   std::vector<int> receiver_ids;
 };
 
+// Something solid in the room that ultrasound does not pass through: a
+// cupboard (a box), a pillar or a table leg (a vertical cylinder), a person
+// walking (a cylinder following a trajectory). The simulator blocks a range's
+// direct path where the segment from beacon to receiver meets one and takes
+// the shortest reflected path instead (core/world/acoustic_paths.h); the
+// viewer and `roomfix analyze` draw them. A site holds at most kMaxObstacles:
+// each simulated range tests every mirror's path against every obstacle, so
+// the work per firing grows with their square.
+inline constexpr size_t kMaxObstacles = 32;
+
+struct Obstacle {
+  enum class Shape { kBox, kCylinder };
+  Shape shape = Shape::kBox;
+  // For figures and messages; "" when the site gives none.
+  std::string name;
+  // Centre of the footprint on the floor (room frame). A moving cylinder's
+  // centre at time t is its trajectory's position instead (CentreAt).
+  std::array<double, 2> centre_m{};
+  // Box: full extent along its own x and y axes, which are the room's turned
+  // by yaw_rad about z.
+  std::array<double, 2> size_m{};
+  double yaw_rad = 0.0;
+  // Cylinder: radius of the vertical cylinder.
+  double radius_m = 0.0;
+  // Vertical extent: bottom_m <= z <= top_m (a table top has bottom_m > 0).
+  double bottom_m = 0.0;
+  double top_m = 0.0;
+  // A cylinder that moves (a person); null for a fixed obstacle. Time is the
+  // simulation's, s since its start, as for simulation.robots.
+  std::shared_ptr<const Trajectory> trajectory;
+
+  std::array<double, 2> CentreAt(double t_s) const;
+};
+
 struct Simulation {
   double temperature_c = 20.0;
   std::vector<SimulatedRobot> robots;
@@ -270,6 +304,8 @@ struct Site {
   Acoustics acoustics;
   // Empty: one coordinator carries every receiver.
   std::vector<RadioNetwork> radios;
+  // Solid things in the room (site key `obstacles`); empty: an open floor.
+  std::vector<Obstacle> obstacles;
   Simulation simulation;
 
   const Receiver* FindReceiver(int id) const;

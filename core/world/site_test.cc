@@ -454,3 +454,43 @@ TEST(SiteFinders, FindCameraOrFirstTakesTheFirstCameraWhenNoIdIsGiven) {
 
 }  // namespace
 }  // namespace roomfix
+
+namespace roomfix {
+namespace {
+
+// Degrees to radians is one product: a few ulps.
+constexpr double kYawTolerance_rad = 1e-12;
+
+TEST(Site, ReadsObstaclesWithTheirShapesExtentsAndMotion) {
+  const std::string text = std::string(kTwoReceivers) +
+                           "  - {id: 3, address: '0x0000000000000003', position_m: [4, 3, 2]}\n"
+                           "obstacles:\n"
+                           "  - {type: box, name: cupboard, centre_m: [1, 2.7], size_m: [1.2, 0.5],"
+                           " yaw_deg: 90, top_m: 2.0}\n"
+                           "  - {type: cylinder, centre_m: [2, 1.5], radius_m: 0.25, bottom_m: 0.1,"
+                           " top_m: 3}\n"
+                           "  - type: cylinder\n    radius_m: 0.2\n    top_m: 1.8\n"
+                           "    trajectory: {type: static, position_m: [3, 1]}\n";
+  Site site;
+  std::string error;
+  ASSERT_TRUE(ParseSite(text, "o.yaml", ".", &site, &error)) << error;
+  ASSERT_EQ(site.obstacles.size(), 3u);
+  const Obstacle& box = site.obstacles[0];
+  EXPECT_EQ(box.shape, Obstacle::Shape::kBox);
+  EXPECT_EQ(box.name, "cupboard");
+  EXPECT_EQ(box.size_m, (std::array<double, 2>{1.2, 0.5}));
+  EXPECT_NEAR(box.yaw_rad, M_PI / 2, kYawTolerance_rad);
+  EXPECT_EQ(box.bottom_m, 0.0);
+  EXPECT_EQ(box.top_m, 2.0);
+  const Obstacle& pillar = site.obstacles[1];
+  EXPECT_EQ(pillar.shape, Obstacle::Shape::kCylinder);
+  EXPECT_EQ(pillar.radius_m, 0.25);
+  EXPECT_EQ(pillar.bottom_m, 0.1);
+  EXPECT_EQ(pillar.CentreAt(100.0), (std::array<double, 2>{2, 1.5}));
+  const Obstacle& person = site.obstacles[2];
+  ASSERT_NE(person.trajectory, nullptr);
+  EXPECT_EQ(person.CentreAt(5.0), (std::array<double, 2>{3, 1}));
+}
+
+}  // namespace
+}  // namespace roomfix

@@ -5,6 +5,7 @@
 #include <random>
 #include <vector>
 
+#include "core/world/acoustic_paths.h"
 #include "core/world/site.h"
 
 namespace roomfix {
@@ -17,8 +18,14 @@ double SpeedOfSound(double temperature_c);
 struct UltrasoundNoise {
   // Gaussian range noise, m.
   double sigma_m = 0.01;
+  // Non-line-of-sight from the site's obstacles (core/world/acoustic_paths.h):
+  // a receiver whose direct path is blocked measures the shortest audible
+  // reflection, or nothing. No effect in a site without obstacles.
+  bool geometric_nlos = true;
   // Probability that a range took a reflected, longer path (non-line of
-  // sight), which adds a uniform nlos_min_m..nlos_max_m.
+  // sight) that the geometry does not explain (a person, a door, an open
+  // window: the random NLOS of earlier versions), which adds a uniform
+  // nlos_min_m..nlos_max_m, independently per range and per firing.
   double nlos_probability = 0.0;
   double nlos_min_m = 0.3;
   double nlos_max_m = 1.0;
@@ -34,11 +41,25 @@ struct SimulatedRange {
   // the receiver's calibrated range_offset_m: what its timer measures.
   double measured_m = 0.0;
   double time_of_flight_s = 0.0;
+  // Which path the geometry gave (kDirect in a site without obstacles, or
+  // with geometric_nlos off) and its detour over the direct segment, m.
+  AudiblePath::Kind path = AudiblePath::Kind::kDirect;
+  double detour_m = 0.0;
+  // True when the random NLOS lengthened this range.
+  bool random_nlos = false;
 };
 
 // What each receiver of the site measures for a beacon at `beacon_m` (room
-// frame). Receivers that drop out are absent from the result. Deterministic
-// for a given generator state.
+// frame) at simulation time t_s (which places moving obstacles). Receivers
+// that drop out, or that no audible path reaches, are absent from the
+// result. Deterministic for a given generator state; the generator advances
+// by the same draws whatever the geometry, so obstacles do not reshuffle
+// the noise.
+std::vector<SimulatedRange> SimulateRangesAt(const Site& site, double t_s,
+                                             const std::array<double, 3>& beacon_m,
+                                             double temperature_c, const UltrasoundNoise& noise,
+                                             std::mt19937_64* rng);
+// As SimulateRangesAt at t_s = 0 (fixed obstacles need no time).
 std::vector<SimulatedRange> SimulateRanges(const Site& site, const std::array<double, 3>& beacon_m,
                                            double temperature_c, const UltrasoundNoise& noise,
                                            std::mt19937_64* rng);
