@@ -34,6 +34,11 @@ if(ROOMFIX_JAVA)
           COMPONENT dev)
 endif()
 install(FILES README.md DESTINATION ${CMAKE_INSTALL_DOCDIR} COMPONENT runtime)
+# The devices' firmware images for avrdude (docs/devices.md), when built.
+if(ROOMFIX_FIRMWARE)
+  install(FILES ${CMAKE_BINARY_DIR}/firmware/beacon.hex ${CMAKE_BINARY_DIR}/firmware/receiver.hex
+          DESTINATION ${CMAKE_INSTALL_DATADIR}/roomfix/firmware COMPONENT runtime)
+endif()
 install(DIRECTORY docs/ DESTINATION ${CMAKE_INSTALL_DOCDIR}/docs COMPONENT runtime)
 
 # The licence as Debian wants it (docs/install.md, "Licence"): the
