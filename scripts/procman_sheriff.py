@@ -81,7 +81,12 @@ def main():
     GLib.io_add_watch(lc, GLib.IOCondition.IN, lambda *_: lc.handle() or True)
     GLib.timeout_add(1000, lambda *_: sheriff.send_orders() or True)
     finished = []
-    sheriff.script_finished.connect(lambda script: finished.append(script.name))
+
+    # libbot2's Signal holds its slots weakly: a lambda would be collected
+    # at once and never called; this function lives as long as main.
+    def on_script_finished(script):
+        finished.append(script.name)
+    sheriff.script_finished.connect(on_script_finished)
 
     def spin_until(done, timeout_s):
         """Runs the loop until done() or the timeout; True when done."""
