@@ -95,7 +95,7 @@ CalibrationError CalibrationErrorOverRoom(const calib::CameraModel& truth,
 // kSimCalibrationToleranceM RMS of that lens over the floor at every
 // robot's marker height, else one line saying by how much it is off. The
 // RMS, not the largest: a good fit still drifts in the corners it had no
-// points in (demo_room_webcam.yaml: 0.3 mm RMS, 2.6 mm in the worst corner).
+// points in (demo_room_webcam.yaml: up to 2.6 mm in a corner of the floor).
 // Issue #32: the demo site's sim:webcam with the site's calibration (of the
 // nominal lens) was 2.3 cm off on the reference circle.
 inline constexpr double kSimCalibrationToleranceM = 0.002;
