@@ -94,11 +94,13 @@ CalibrationError CalibrationErrorOverRoom(const calib::CameraModel& truth,
 // it misplaces every pose: "" when the chosen calibration is within
 // kSimCalibrationToleranceM RMS of that lens over the floor at every
 // robot's marker height, else one line saying by how much it is off. The
-// RMS, not the largest: a good fit still drifts in the corners it had no
-// points in (demo_room_webcam.yaml: up to 2.6 mm in a corner of the floor).
-// Issue #32: the demo site's sim:webcam with the site's calibration (of the
-// nominal lens) was 2.3 cm off on the reference circle.
-inline constexpr double kSimCalibrationToleranceM = 0.002;
+// RMS over the floor, not the largest: a good fit drifts in the corners it
+// had no points in. Measured on the demo room: demo_room_webcam.yaml, fitted
+// to the webcam's images, 1.8 mm RMS and 2.6 mm at most (the fit also
+// absorbs that a disc's centroid is not its centre's projection); the
+// site's calibration of the nominal lens 29.8 mm RMS, 82.6 mm at most (2.3
+// cm on the reference circle, issue #32). 5 mm sits between them.
+inline constexpr double kSimCalibrationToleranceM = 0.005;
 std::string SimCalibrationMismatch(const Site& site, const CameraChoice& choice,
                                    const CameraProcOptions& options);
 
