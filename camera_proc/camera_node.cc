@@ -838,6 +838,12 @@ void CameraNode::OnSourceDown(const std::string& error, int64_t now_utime) {
   status_.Publish(bus_, now_utime);
 }
 
+void CameraNode::OnSetupProblem(const std::string& counter, const std::string& error,
+                                int64_t now_utime) {
+  status_.Count(counter);
+  status_.SetError(error, now_utime);
+}
+
 void CameraNode::OnEndOfStream(int64_t now_utime) {
   spdlog::info("end of the frame source after {} frames", frames_processed_);
   status_.Publish(bus_, now_utime);

@@ -144,6 +144,11 @@ class CameraNode {
   void OnSourceUp(const std::string& description, const std::vector<std::string>& refused,
                   int64_t now_utime);
   void OnSourceDown(const std::string& error, int64_t now_utime);
+  // A set-up problem found before the first frame that makes every pose
+  // wrong by a known amount but leaves the camera running (a synthetic
+  // camera's calibration of another lens, SimCalibrationMismatch): counted
+  // under `counter` and kept as the last error, so STATUS shows it.
+  void OnSetupProblem(const std::string& counter, const std::string& error, int64_t now_utime);
   void OnEndOfStream(int64_t now_utime);
   void Tick(int64_t now_utime);
   void Stop(int64_t now_utime);

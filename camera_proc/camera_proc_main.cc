@@ -90,6 +90,8 @@ int main(int argc, char** argv) {
   if (ctx == nullptr) return Fail(error);
   roomfix::CameraChoice choice;
   if (!roomfix::ChooseCamera(ctx->site, run, &choice, &error)) return Fail(error);
+  const std::string mismatch = roomfix::SimCalibrationMismatch(ctx->site, choice, run);
+  if (!mismatch.empty()) spdlog::warn("{}", mismatch);
   int64_t start_utime = run.start_utime;
   if (start_utime == 0 && roomfix::IsSimDevice(choice.device) && !process.check) {
     start_utime = roomfix::WaitForSimClock(ctx->bus.get(), run.sim_wait_s);
@@ -112,6 +114,9 @@ int main(int argc, char** argv) {
   roomfix::CameraNode node(ctx->site, choice.camera, choice.calibration, ctx->bus.get(), options,
                            roomfix::NowUtime());
   if (!node.ok(&error)) return Fail(error);
+  if (!mismatch.empty()) {
+    node.OnSetupProblem("calibration_not_of_sim_lens", mismatch, roomfix::NowUtime());
+  }
   if (!choice.calibration) {
     spdlog::warn("no calibration for camera {}: publishing MARKER_PIXELS only", choice.camera.id);
   }

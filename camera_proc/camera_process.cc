@@ -103,6 +103,60 @@ bool ChooseCamera(const Site& site, const CameraProcOptions& options, CameraChoi
   return true;
 }
 
+CalibrationError CalibrationErrorOverRoom(const calib::CameraModel& truth,
+                                          const calib::Calibration& calibration, const Room& room,
+                                          double height_m) {
+  CalibrationError result;
+  double sum2 = 0.0;
+  std::string why;
+  for (double v = 0.0; v < truth.intrinsics.height_px; v += kCalibrationCheckGridPx) {
+    for (double u = 0.0; u < truth.intrinsics.width_px; u += kCalibrationCheckGridPx) {
+      double x_m = 0.0, y_m = 0.0, cx_m = 0.0, cy_m = 0.0;
+      if (!truth.PixelToFloor(u, v, height_m, &x_m, &y_m)) continue;
+      if (x_m < room.min_x_m || x_m > room.min_x_m + room.size_x_m || y_m < room.min_y_m ||
+          y_m > room.min_y_m + room.size_y_m) {
+        continue;
+      }
+      if (!calibration.PixelToFloor(u, v, height_m, &cx_m, &cy_m, &why)) continue;
+      const double d_m = std::hypot(cx_m - x_m, cy_m - y_m);
+      sum2 += d_m * d_m;
+      result.max_m = std::max(result.max_m, d_m);
+      ++result.points;
+    }
+  }
+  if (result.points > 0) result.rms_m = std::sqrt(sum2 / result.points);
+  return result;
+}
+
+std::string SimCalibrationMismatch(const Site& site, const CameraChoice& choice,
+                                   const CameraProcOptions& options) {
+  if (!IsSimDevice(choice.device) || !choice.calibration) return "";
+  sim::SimScenario scenario;
+  calib::CameraModel lens;
+  std::string error;
+  if (!sim::ParseSimScenario(choice.device, site, &scenario, &error) ||
+      !SimLens(choice.camera, options.sim_lens_path, &lens, &error)) {
+    return "";  // MakeCameraSource refuses these with the reason
+  }
+  const calib::CameraModel truth = sim::TruthLens(lens, scenario);
+  CalibrationError worst;
+  for (const CameraRobot& robot : choice.camera.robots) {
+    const CalibrationError e =
+        CalibrationErrorOverRoom(truth, *choice.calibration, site.room, robot.marker_height_m);
+    if (e.rms_m > worst.rms_m) worst = e;
+  }
+  if (worst.rms_m <= kSimCalibrationToleranceM) return "";
+  std::ostringstream text;
+  text.precision(1);
+  text << std::fixed << "calibration " << choice.calibration_path << " is not the lens "
+       << choice.device << " renders through: it puts markers " << worst.rms_m * 1e3
+       << " mm RMS (up to " << worst.max_m * 1e3
+       << " mm) from where they are on the floor (the webcam scenario's lens has its own fit, "
+          "config/calibration/demo_room_webcam.yaml for the demo room; give it with "
+          "--calibration)";
+  return text.str();
+}
+
 int64_t WaitForSimClock(Bus* bus, double wait_s) {
   int64_t start_utime = 0;
   const auto sub = bus->Subscribe<process_status_t>(

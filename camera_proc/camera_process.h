@@ -73,6 +73,37 @@ struct CameraChoice {
 bool ChooseCamera(const Site& site, const CameraProcOptions& options, CameraChoice* choice,
                   std::string* error);
 
+// How far `calibration` puts a marker at `height_m` from where the lens
+// `truth` shows it, over pixels every kCalibrationCheckGridPx whose marker,
+// through `truth`, lies on the room's floor: the RMS and the largest floor
+// distance. points is 0 when no such pixel maps under both (a 9-region model
+// of another height).
+inline constexpr double kCalibrationCheckGridPx = 20.0;
+struct CalibrationError {
+  double rms_m = 0.0;
+  double max_m = 0.0;
+  int points = 0;
+};
+CalibrationError CalibrationErrorOverRoom(const calib::CameraModel& truth,
+                                          const calib::Calibration& calibration, const Room& room,
+                                          double height_m);
+
+// A synthetic camera (sim:) renders through a lens camera_proc knows
+// exactly (the nominal lens, --sim-lens, and the webcam scenario's lens_k
+// and principal offset), so a calibration of another lens is caught before
+// it misplaces every pose: "" when the chosen calibration is within
+// kSimCalibrationToleranceM RMS of that lens over the floor at every
+// robot's marker height, else one line saying by how much it is off. The
+// RMS over the floor, not the largest: a good fit drifts in the corners it
+// had no points in. Measured on the demo room: demo_room_webcam.yaml, fitted
+// to the webcam's images, 1.8 mm RMS and 2.6 mm at most (the fit also
+// absorbs that a disc's centroid is not its centre's projection); the
+// site's calibration of the nominal lens 29.8 mm RMS, 82.6 mm at most (2.3
+// cm on the reference circle, issue #32). 5 mm sits between them.
+inline constexpr double kSimCalibrationToleranceM = 0.005;
+std::string SimCalibrationMismatch(const Site& site, const CameraChoice& choice,
+                                   const CameraProcOptions& options);
+
 // The synthetic camera must share roomfix_sim's t = 0 to show the robot where
 // the simulator says it is: its STATUS time minus its uptime, from the first
 // heartbeat heard on `bus` within wait_s (so separately started processes,

@@ -907,6 +907,16 @@ WebcamSimulation WithoutWebcamEffects(WebcamSimulation w) {
   return w;
 }
 
+calib::CameraModel TruthLens(const calib::CameraModel& model, const SimScenario& scenario) {
+  calib::CameraModel truth = model;
+  if (scenario.webcam_effects) {
+    for (size_t k = 0; k < 4; ++k) truth.intrinsics.k[k] += scenario.webcam.lens_k[k];
+    truth.intrinsics.cx_px += scenario.webcam.lens_principal_offset_px[0];
+    truth.intrinsics.cy_px += scenario.webcam.lens_principal_offset_px[1];
+  }
+  return truth;
+}
+
 SyntheticCamera::SyntheticCamera(const Site& site, const Camera& camera,
                                  const calib::CameraModel& model, SimScenario scenario,
                                  SyntheticCameraOptions options)
@@ -921,14 +931,8 @@ SyntheticCamera::SyntheticCamera(const Site& site, const Camera& camera,
   impl->sim_robots = site.simulation.robots;
   impl->scenario = std::move(scenario);
   impl->options = options;
-  impl->model = model;
-  if (impl->scenario.webcam_effects) {
-    // The truth lens: the real lens is not the nominal one.
-    for (size_t k = 0; k < 4; ++k) impl->model.intrinsics.k[k] += impl->scenario.webcam.lens_k[k];
-    impl->model.intrinsics.cx_px += impl->scenario.webcam.lens_principal_offset_px[0];
-    impl->model.intrinsics.cy_px += impl->scenario.webcam.lens_principal_offset_px[1];
-    model_ = impl->model;
-  }
+  impl->model = TruthLens(model, impl->scenario);
+  model_ = impl->model;
   impl->w = camera.width_px > 0 ? camera.width_px : model.intrinsics.width_px;
   impl->h = camera.height_px > 0 ? camera.height_px : model.intrinsics.height_px;
   impl->px = model.pose.position_m.x();

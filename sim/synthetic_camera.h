@@ -153,6 +153,12 @@ struct SyntheticCameraOptions {
   double body_height_m = 0.05;
 };
 
+// The lens a scenario renders through, given the model it was asked for:
+// `model` itself, or with the webcam scenario's lens_k added to its k and
+// lens_principal_offset_px to its principal point (the real lens is not
+// the nominal one). SyntheticCamera::model() is this.
+calib::CameraModel TruthLens(const calib::CameraModel& model, const SimScenario& scenario);
+
 // Renders the site's floor, its 0.5 m grid, robots with their markers at
 // their true height, distractors, lighting and noise through a fisheye camera
 // model (core/calib, the model calibration fits), at the camera's resolution

@@ -85,6 +85,32 @@ std::map<int64_t, std::pair<double, double>> ReadTruth(const std::string& path) 
   return truth;
 }
 
+// The words of command `name`'s exec in a bot-procman file, as the deputy
+// runs it: split at spaces (roomfix's .pmd files quote nothing inside an
+// exec), ${NAME} replaced from `variables`, the program taken from BinDir()
+// (the deputy finds it on its PATH).
+std::vector<std::string> PmdCommand(const std::string& pmd_path, const std::string& name,
+                                    const std::map<std::string, std::string>& variables) {
+  const std::string text = testing::ReadFile(pmd_path);
+  const size_t cmd = text.find("cmd \"" + name + "\"");
+  const size_t exec = text.find("exec = \"", cmd);
+  EXPECT_NE(cmd, std::string::npos) << name << " in " << pmd_path;
+  if (cmd == std::string::npos || exec == std::string::npos) return {};
+  const size_t begin = exec + 8;
+  std::string line = text.substr(begin, text.find('"', begin) - begin);
+  for (const auto& [variable, value] : variables) {
+    const std::string token = "${" + variable + "}";
+    for (size_t at = line.find(token); at != std::string::npos; at = line.find(token, at)) {
+      line.replace(at, token.size(), value);
+    }
+  }
+  std::vector<std::string> words;
+  std::istringstream in(line);
+  for (std::string word; in >> word;) words.push_back(word);
+  if (!words.empty()) words[0] = BinDir() + "/" + words[0];
+  return words;
+}
+
 class CameraProcess : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -239,6 +265,53 @@ TEST_F(CameraProcess, TheLiveSyntheticCameraAgreesWithTheSimulatorsGroundTruth) 
   camera.Signal(SIGINT);
   sim.Signal(SIGINT);
   EXPECT_EQ(camera.Wait(5), 0);
+}
+
+// Issue #32: under bot-procman (config/procman/sim_demo.pmd) the synthetic
+// webcam was 2.3 cm off roomfix_sim's ground truth, a constant offset, while
+// make demo gave 3 mm. Not the clock handshake (t = 0 from the heartbeat
+// agrees to the frame): the site's device, sim:webcam, renders through the
+// webcam's own lens (principal point 6, -4 px off the nominal, k1 0.03),
+// and the .pmd gave camera_proc the site's calibration of the nominal lens:
+// 7.2 px at 3.2 mm/px. scripts/demo.sh passed demo_room_webcam.yaml and
+// --start-utime, so it never ran this pair. Here both commands run as the
+// .pmd spells them, started separately with no shared flag.
+TEST_F(CameraProcess, TheSimDemoPmdsCameraAgreesWithItsSimulatorsGroundTruth) {
+  const std::map<std::string, std::string> variables = {{"ROOMFIX_HOME", SourceDir()},
+                                                        {"ROOMFIX_RUN_DIR", dir_.path()}};
+  const std::string pmd = SourceDir() + "/config/procman/sim_demo.pmd";
+  const std::vector<std::string> sim_argv = PmdCommand(pmd, "roomfix_sim", variables);
+  const std::vector<std::string> camera_argv = PmdCommand(pmd, "camera_proc", variables);
+  ASSERT_FALSE(sim_argv.empty());
+  ASSERT_FALSE(camera_argv.empty());
+  for (const std::string& word : camera_argv) ASSERT_NE(word, "--start-utime");
+  // The deputy starts the world's group together: camera_proc first here,
+  // so it must wait for the heartbeat (roomfix_sim's first STATUS after 1 s).
+  ChildProcess camera(camera_argv, dir_.File("camera_proc.out"));
+  ChildProcess sim(sim_argv, dir_.File("roomfix_sim.out"));
+  // 90 poses: 3 s of the circle at 30 fps, or longer on a loaded machine.
+  constexpr size_t kPoses = 90;
+  ASSERT_TRUE(HandleUntil(
+      bus_.get(), [&] { return poses_.size() >= kPoses; }, 60))
+      << poses_.size()
+      << " poses; camera_proc: " << testing::ReadFile(dir_.File("camera_proc.out"));
+  std::vector<analysis::TimedPosition> estimates, reference;
+  for (const pose2d_t& p : poses_) estimates.push_back({p.utime, p.x_m, p.y_m});
+  for (const pose2d_t& p : truth_) reference.push_back({p.utime, p.x_m, p.y_m});
+  const analysis::ErrorSummary e = analysis::CompareToReference(estimates, reference, 200'000);
+  ASSERT_GT(e.compared, static_cast<int>(kPoses / 2));
+  std::printf(
+      "sim_demo.pmd's camera_proc and roomfix_sim: %d poses, %.2f mm RMS, %.2f mm max "
+      "against ground truth\n",
+      e.compared, e.rmse_m * 1e3, e.max_m * 1e3);
+  // make demo's figure for the webcam on the circle is 2.9 mm (the robot's
+  // lean and rocking, README); kRmseTargetM leaves room for a loaded machine
+  // and is a fifth of the 23 mm the nominal lens's calibration gave.
+  EXPECT_LT(e.rmse_m, kRmseTargetM);
+  camera.Signal(SIGINT);
+  sim.Signal(SIGINT);
+  EXPECT_EQ(camera.Wait(10), 0);
+  EXPECT_EQ(sim.Wait(10), 0);
 }
 
 }  // namespace
