@@ -103,17 +103,25 @@ int64_t LoggedSize(const std::string& channel, size_t payload) {
 }  // namespace
 
 bool EventTimeScreen::Plausible(int64_t utime) const {
-  std::vector<int64_t> window(accepted_.begin(), accepted_.end());
-  window.push_back(utime);
-  for (const LogEvent& e : ahead_) window.push_back(e.utime);
-  std::sort(window.begin(), window.end());
-  const size_t n = window.size();
-  int64_t median = window[(n - 1) / 2];
-  if (n % 2 == 0 && !accepted_.empty() &&
-      DistanceUs(window[n / 2], accepted_.back()) < DistanceUs(median, accepted_.back())) {
-    median = window[n / 2];
+  // A recorded log's times rise, so a time can be judged only against the
+  // order: an event far ahead of most of the events after it, or far behind
+  // the last accepted one while the events after it do not follow it there
+  // (which would be a host clock stepped back), cannot be right. A sparse
+  // log, however far apart its events, is never refused.
+  bool have_ahead = !ahead_.empty();
+  int64_t ahead_median = 0;
+  if (have_ahead) {
+    std::vector<int64_t> ahead;
+    for (const LogEvent& e : ahead_) ahead.push_back(e.utime);
+    std::sort(ahead.begin(), ahead.end());
+    ahead_median = ahead[(ahead.size() - 1) / 2];
+    if (SaturatingDifferenceUs(utime, ahead_median) > kMaxEventTimeOffsetUs) return false;
   }
-  return DistanceUs(utime, median) <= kMaxEventTimeOffsetUs;
+  if (!accepted_.empty() &&
+      SaturatingDifferenceUs(accepted_.back(), utime) > kMaxEventTimeOffsetUs) {
+    return have_ahead && DistanceUs(ahead_median, utime) <= kMaxEventTimeOffsetUs;
+  }
+  return true;
 }
 
 bool EventTimeScreen::Next(LogEvent* event) {

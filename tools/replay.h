@@ -201,24 +201,22 @@ inline constexpr int64_t kSiteRepeatInputRatio = 4;
 // ~300-byte heartbeat) is never thinned.
 inline constexpr int64_t kStatusRepeatInputRatio = 2;
 
-// An event whose log time is farther than this from the median time of its
-// neighbours (kEventTimeNeighbours on each side, the candidate included;
-// behind it only the events accepted so far) cannot be right: the logger
-// stamps each event with its receive time in order, so a recorded log's
-// times rise, and a host clock step moves all the events after it together
-// and never makes one event an outlier. Such an event is refused and
-// counted (events_time_refused) and never moves the replay's clock: one
-// event at INT64_MAX 10 % into the demo log changed 1 056 of its 1 170
-// fused poses, and placed first it stopped the heartbeats (issue #28). One
-// second is a tenth of kMaxCatchUpUs and a hundred times the logger's
-// queueing jitter. A run of more than kEventTimeNeighbours forged events in
-// a row is a new stretch of log, not an outlier.
+// An event whose log time cannot be right: more than this ahead of the
+// median time of the kEventTimeNeighbours events after it, or more than this
+// behind the last accepted event while the events after it do not follow it
+// there. The logger stamps each event with its receive time in order, so a
+// recorded log's times rise (a sparse log is never refused, however far
+// apart its events), and a host clock step moves all the events after it
+// together. Such an event is refused and counted (events_time_refused) and
+// never moves the replay's clock: one event at INT64_MAX 10 % into the demo
+// log changed 1 056 of its 1 170 fused poses, and placed first it stopped
+// the heartbeats (issue #28). One second is a third of kMaxCatchUpUs and far
+// above the logger's queueing jitter. The last event of a log has nothing
+// after it to be judged against.
 inline constexpr int64_t kMaxEventTimeOffsetUs = 1'000'000;
 inline constexpr int kEventTimeNeighbours = 8;
 
-// Reads a log's events through the time screen above. When the window has
-// an even number of times, the median is the middle one nearer the last
-// accepted time (the lower one before any was accepted).
+// Reads a log's events through the time screen above.
 class EventTimeScreen {
  public:
   explicit EventTimeScreen(LogReader* in) : in_(in) {}
