@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdint>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -388,9 +389,17 @@ TEST(PipelineReplay, ADamagedLogIsReplayedAroundTheDamageAndCounted) {
   // end cut in the middle of an event (a writer killed by -9).
   std::string garbage(777, '\0');
   for (size_t i = 0; i < garbage.size(); ++i) garbage[i] = static_cast<char>(i * 131 + 7);
-  const std::string hostile = testing::RawLogEvent(0, 1, "RANGES", "not a range set", 6, 15);
   const size_t sync = bytes.find("\xED\xA1\xDA\x01", 30'000);
   ASSERT_NE(sync, std::string::npos);
+  // The hostile event is dated as the event it precedes (its header's
+  // big-endian timestamp, bytes 12-19 after the sync word): a plausible time,
+  // so replay's time screen passes it and the decoder is what refuses it.
+  int64_t neighbour_utime = 0;
+  for (size_t i = 0; i < 8; ++i) {
+    neighbour_utime = (neighbour_utime << 8) | static_cast<uint8_t>(bytes[sync + 12 + i]);
+  }
+  const std::string hostile =
+      testing::RawLogEvent(0, neighbour_utime, "RANGES", "not a range set", 6, 15);
   const std::string damaged =
       bytes.substr(0, sync) + garbage + hostile + bytes.substr(sync, bytes.size() - sync - 50);
   ASSERT_TRUE(WriteFile(dir.File("damaged.lcm"), damaged));
