@@ -81,7 +81,7 @@ test: configure-test
 # configured with the tests and the jar off (their packages may be absent); one
 # that has a cache (after `make test`, say) keeps its settings, so nothing is
 # rebuilt.
-configure-demo: DEPS_SET = demo
+configure-demo: DEPS_SET = demo$(if $(filter firmware,$(DEMO_DEVICES)), firmware)
 configure-demo: CMAKE_FLAGS += $(if $(wildcard $(BUILD_DIR)/CMakeCache.txt),,-DBUILD_TESTING=OFF -DROOMFIX_JAVA=OFF)
 configure-demo: configure
 

@@ -113,8 +113,14 @@ if(AVR_GCC AND AVR_OBJCOPY AND AVR_SIZE AND EXISTS /usr/lib/avr/include/avr/io.h
 else()
   set(roomfix_firmware_default OFF)
 endif()
-option(ROOMFIX_FIRMWARE "Build the beacon and receiver firmware (gcc-avr, binutils-avr, avr-libc)"
-       ${roomfix_firmware_default})
+# Not an option() with the found state as its default: that would be cached
+# by the first configure, so a `make demo` on a machine without avr-gcc would
+# keep the firmware off after `make test` installs it. Given on the command
+# line (-DROOMFIX_FIRMWARE=OFF or ON) it is the user's; otherwise it follows
+# what is installed at every configure.
+if(NOT DEFINED ROOMFIX_FIRMWARE)
+  set(ROOMFIX_FIRMWARE ${roomfix_firmware_default})
+endif()
 if(ROOMFIX_FIRMWARE AND NOT roomfix_firmware_default)
   message(FATAL_ERROR "ROOMFIX_FIRMWARE is on but avr-gcc, avr-objcopy, avr-size or avr-libc is "
                       "missing: apt-get install gcc-avr binutils-avr avr-libc, or -DROOMFIX_FIRMWARE=OFF")

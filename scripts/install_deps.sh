@@ -14,12 +14,16 @@ set -euo pipefail
 
 set_name=all
 check=0
+# `firmware` adds the AVR toolchain and simavr to the demo set
+# (make demo DEMO_DEVICES=firmware); `all` has them anyway.
+with_firmware=0
 for arg in "$@"; do
   case "$arg" in
     --check) check=1 ;;
     demo | all) set_name=$arg ;;
+    firmware) with_firmware=1 ;;
     *)
-      echo "usage: install_deps.sh [--check] [demo|all]" >&2
+      echo "usage: install_deps.sh [--check] [demo|all] [firmware]" >&2
       exit 2
       ;;
   esac
@@ -37,7 +41,7 @@ demo_packages=(
 # The rest of `make test`: the tests and benchmarks, the Java types jar, the
 # viewer's window tests under a virtual X server, the Debian package test
 # (help2man writes the manual pages, lintian checks the package, man reads them),
-# the device firmware (firmware/: avr-gcc, avr-libc) and its simavr tests.
+# and python3-pandas for docs/export.md's pandas example (python.export_pandas).
 test_packages=(
   git dpkg-dev file
   liblcm-java libjchart2d-java default-jdk-headless
@@ -45,9 +49,12 @@ test_packages=(
   procps xvfb xauth x11-apps
   help2man lintian man-db
   python3-pandas
-  gcc-avr binutils-avr avr-libc simavr libsimavr-dev
 )
+# The devices' firmware (firmware/: avr-gcc, avr-libc) and simavr, which runs
+# it in the tests and in roomfix_sim --devices firmware.
+firmware_packages=(gcc-avr binutils-avr avr-libc simavr libsimavr-dev)
 packages=("${demo_packages[@]}")
+[[ "$set_name" == all || $with_firmware == 1 ]] && packages+=("${firmware_packages[@]}")
 [[ "$set_name" == demo ]] || packages+=("${test_packages[@]}")
 
 missing=()
