@@ -1,5 +1,6 @@
 #include "viewer/viewer_app.h"
 
+#include <opencv2/videoio.hpp>
 #include <spdlog/spdlog.h>
 #include <sys/stat.h>
 
