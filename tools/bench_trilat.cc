@@ -1,5 +1,7 @@
 #include "tools/bench_trilat.h"
 
+#include <Eigen/LU>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
