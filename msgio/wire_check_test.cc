@@ -326,8 +326,9 @@ std::vector<std::string> LcmTokens(const std::string& line) {
 
 bool IsIdentifier(const std::string& t) {
   if (t.empty() || std::isdigit(static_cast<unsigned char>(t[0]))) return false;
-  return std::all_of(t.begin(), t.end(),
-                     [](char c) { return std::isalnum(static_cast<unsigned char>(c)) || c == '_'; });
+  return std::all_of(t.begin(), t.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || c == '_';
+  });
 }
 
 bool IsInteger(const std::string& t) {

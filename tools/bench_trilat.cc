@@ -1,7 +1,6 @@
 #include "tools/bench_trilat.h"
 
 #include <Eigen/LU>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>

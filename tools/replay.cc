@@ -494,8 +494,8 @@ PipelineReplaySummary ReplayPipelineFile(const std::string& in_path, const Site&
     // A failed write of the new log names the file the user gave, not the
     // partial one, as every writer does: "OUT: cannot write: REASON".
     if (summary.error.rfind(partial, 0) == 0) {
-      summary.error = out_path + ": cannot write: " +
-                      summary.error.substr(summary.error.rfind(": ") + 2);
+      summary.error =
+          out_path + ": cannot write: " + summary.error.substr(summary.error.rfind(": ") + 2);
     }
   }
   return summary;

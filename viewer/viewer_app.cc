@@ -1,12 +1,12 @@
 #include "viewer/viewer_app.h"
 
-#include <opencv2/videoio.hpp>
 #include <spdlog/spdlog.h>
 #include <sys/stat.h>
 
 #include <algorithm>
 #include <cerrno>
 #include <cstdio>
+#include <opencv2/videoio.hpp>
 
 #include "camera_proc/image_file.h"
 #include "msgio/log.h"

@@ -29,8 +29,8 @@ uint8_t fw_xbee_encode(const uint8_t* data, uint8_t size, uint8_t* out, uint8_t 
 /* Incremental API mode 2 decoder. A raw 0x7E always starts a frame (mode 2
  * escapes every data 0x7E), so any damage costs at most the frame it hits. */
 enum fw_xbee_result {
-  FW_XBEE_MORE = 0,       /* byte taken, frame not complete */
-  FW_XBEE_FRAME = 1,      /* a complete, checksummed frame is in data[0..length) */
+  FW_XBEE_MORE = 0,  /* byte taken, frame not complete */
+  FW_XBEE_FRAME = 1, /* a complete, checksummed frame is in data[0..length) */
   FW_XBEE_BAD_CHECKSUM = -1,
   FW_XBEE_BAD_ESCAPE = -2,
   FW_XBEE_TRUNCATED = -3, /* a start delimiter inside a frame */

@@ -35,7 +35,8 @@ static uint16_t crc16(const uint8_t* p, uint8_t n) {
   uint16_t crc = 0xFFFF;
   while (n--) {
     crc ^= (uint16_t)(*p++) << 8;
-    for (uint8_t i = 0; i < 8; ++i) crc = (crc & 0x8000) ? (uint16_t)((crc << 1) ^ 0x1021) : (uint16_t)(crc << 1);
+    for (uint8_t i = 0; i < 8; ++i)
+      crc = (crc & 0x8000) ? (uint16_t)((crc << 1) ^ 0x1021) : (uint16_t)(crc << 1);
   }
   return crc;
 }
