@@ -93,7 +93,8 @@ TEST_F(RunSimulatorTest, CheckPrintsWhatWouldRunWithoutABus) {
   // the robots' trajectories to stdout first: the check line comes last.
   const std::string out = ::testing::internal::GetCapturedStdout();
   const std::string line =
-      "roomfix_sim: ok: 1 robot(s) at 30 Hz on memq://, wall devices on a pseudo-terminal "
+      "roomfix_sim: ok: 1 robot(s) at 30 Hz on memq://, wall devices (behavioural) on a "
+      "pseudo-terminal "
       "(faults all)\n";
   ASSERT_GE(out.size(), line.size()) << out;
   EXPECT_EQ(out.substr(out.size() - line.size()), line) << out;
