@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 #include <sys/resource.h>
 
+#include <algorithm>
 #include <cctype>
 #include <cstdio>
 #include <nlohmann/json.hpp>
@@ -235,8 +236,17 @@ TEST(ToolSiteFromLog, AForgedSiteOfTensOfThousandsOfKeysCostsWorkLinearInItsSize
   }
   ASSERT_EQ(real_keys, 5u);
   const std::string differ = "differ at " + std::to_string(keys + real_keys) + " keys: ";
-  ASSERT_EQ(warnings.size(), 1u);
-  EXPECT_NE(warnings[0].find(differ), std::string::npos) << warnings[0].substr(0, 300);
+  // The copied log keeps its recorded SITEs beside the forged one, so the
+  // tool also says the processes disagree; the comparison is one warning.
+  const auto compared = std::find_if(warnings.begin(), warnings.end(), [&](const std::string& w) {
+    return w.find(" differ at ") != std::string::npos;
+  });
+  ASSERT_NE(compared, warnings.end());
+  EXPECT_EQ(std::count_if(
+                warnings.begin(), warnings.end(),
+                [](const std::string& w) { return w.find(" differ at ") != std::string::npos; }),
+            1);
+  EXPECT_NE(compared->find(differ), std::string::npos) << compared->substr(0, 300);
 
   // Every tool says so and goes on.
   ToolRun run = RunTool(dir, "roomfix",
