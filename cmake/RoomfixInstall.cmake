@@ -163,6 +163,10 @@ set(CPACK_STRIP_FILES ON)
 set(CPACK_DEBIAN_FILE_NAME DEB-DEFAULT)
 set(CPACK_DEBIAN_PACKAGE_SECTION science)
 set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)
+# The Python message types in /usr/lib/python3/dist-packages/roomfix need
+# python3 (lintian: python-package-missing-depends-on-python); dpkg-shlibdeps
+# adds the libraries' packages to it.
+set(CPACK_DEBIAN_PACKAGE_DEPENDS "python3")
 # lcm-logplayer and lcm-spy; the C++ headers need liblcm-dev, the jar lcm.jar.
 set(CPACK_DEBIAN_PACKAGE_RECOMMENDS "liblcm-bin")
 set(CPACK_DEBIAN_PACKAGE_SUGGESTS "liblcm-dev, liblcm-java, default-jre-headless")
