@@ -237,8 +237,9 @@ bool StatusReporter::Publish(Bus* bus, int64_t now_utime) {
     std::lock_guard<std::mutex> lock(mutex_);
     last_publish_utime_ = now_utime;
   }
-  // The site travels beside the heartbeat: at the first one and every
-  // kSitePeriodUs, whichever node of the process beats.
+  // The site travels beside the heartbeat, when the process's
+  // SitePublishSchedule says (start, period when elected, a newcomer),
+  // whichever node of the process beats.
   MaybePublishProcessSite(bus, now_utime);
   bus->RefreshStats();
   const BusStats stats = bus->stats();
@@ -380,6 +381,9 @@ std::unique_ptr<ProcessContext> StartProcess(const std::string& name, const Proc
   if (options.check) return ctx;
   ctx->bus = OpenBus(options.lcm_url, error, options.direct_udpm);
   if (ctx->bus == nullptr) return nullptr;
+  // Heard on the receiving thread of each node's loop: the other publishers
+  // of this site and newcomers decide when the site is sent again.
+  if (ProcessSite() != nullptr) FollowSitePeers(ctx->bus.get());
   return ctx;
 }
 

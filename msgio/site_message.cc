@@ -17,6 +17,7 @@
 
 #include "core/world/file_io.h"
 #include "msgio/log.h"
+#include "msgio/process.h"
 #include "msgio/time_limits.h"
 #include "msgio/wire_check.h"
 
@@ -219,7 +220,7 @@ void DiffTexts(const std::string& a, const std::string& b, const std::string& pr
 
 std::mutex g_site_mutex;
 std::shared_ptr<const site_t> g_site;
-int64_t g_site_last_publish_utime = -1;
+SitePublishSchedule g_site_schedule;
 
 }  // namespace
 
@@ -765,10 +766,80 @@ bool ResolveToolSite(const std::string& config_path, const std::string& log_path
   return true;
 }
 
+// --- when to publish ---------------------------------------------------------
+
+void SitePublishSchedule::Reset(const site_t& own) {
+  self_ = Identity(own.process, own.host, own.pid);
+  hash_ = own.content_hash;
+  last_publish_utime_ = -1;
+  smaller_heard_utime_ = INT64_MIN;
+  newcomer_pending_ = false;
+  last_reason_ = "";
+}
+
+bool SitePublishSchedule::WorthVerifying(const site_t& msg, int64_t recv_utime) const {
+  if (msg.content_hash != hash_) return false;
+  if (!(Identity(msg.process, msg.host, msg.pid) < self_)) return false;
+  return smaller_heard_utime_ == INT64_MIN || recv_utime - smaller_heard_utime_ >= kSiteAnswerGapUs;
+}
+
+void SitePublishSchedule::ObserveSite(const site_t& msg, int64_t recv_utime) {
+  if (msg.content_hash != hash_) return;
+  if (!(Identity(msg.process, msg.host, msg.pid) < self_)) return;
+  smaller_heard_utime_ = std::max(smaller_heard_utime_, recv_utime);
+}
+
+void SitePublishSchedule::ObserveStatus(const process_status_t& msg, int64_t recv_utime) {
+  const Identity who(msg.process, msg.host, msg.pid);
+  if (who == self_) return;
+  auto it = peers_.find(who);
+  if (it == peers_.end()) {
+    if (peers_.size() >= kMaxPeers) {
+      auto oldest = peers_.begin();
+      for (auto p = peers_.begin(); p != peers_.end(); ++p) {
+        if (p->second < oldest->second) oldest = p;
+      }
+      peers_.erase(oldest);
+    }
+    peers_.emplace(who, recv_utime);
+    newcomer_pending_ = true;
+    return;
+  }
+  // Time going backwards (a log replayed twice) is no return.
+  if (recv_utime - it->second > kNewcomerAfterUs) newcomer_pending_ = true;
+  it->second = std::max(it->second, recv_utime);
+}
+
+bool SitePublishSchedule::elected(int64_t now_utime) const {
+  return smaller_heard_utime_ == INT64_MIN || now_utime - smaller_heard_utime_ > kSiteElectionWindowUs ||
+         now_utime < smaller_heard_utime_ - kSiteElectionWindowUs;
+}
+
+bool SitePublishSchedule::Due(int64_t now_utime) {
+  const char* reason = nullptr;
+  if (last_publish_utime_ < 0) {
+    reason = "start";
+  } else if (elected(now_utime)) {
+    const int64_t since = now_utime - last_publish_utime_;
+    if (since >= kSitePeriodUs || since < 0) {
+      reason = "period";
+    } else if (newcomer_pending_ && since >= kSiteAnswerGapUs) {
+      reason = "newcomer";
+    }
+  }
+  if (reason == nullptr) return false;
+  last_publish_utime_ = now_utime;
+  newcomer_pending_ = false;
+  last_reason_ = reason;
+  return true;
+}
+
+// --- the process's site -------------------------------------------------------
+
 void SetProcessSite(std::shared_ptr<const site_t> msg) {
   std::lock_guard<std::mutex> lock(g_site_mutex);
   g_site = std::move(msg);
-  g_site_last_publish_utime = -1;
+  g_site_schedule.Reset(g_site != nullptr ? *g_site : site_t{});
 }
 
 std::shared_ptr<const site_t> ProcessSite() {
@@ -780,16 +851,31 @@ bool MaybePublishProcessSite(Bus* bus, int64_t now_utime) {
   std::shared_ptr<const site_t> site;
   {
     std::lock_guard<std::mutex> lock(g_site_mutex);
-    if (g_site == nullptr) return false;
-    if (g_site_last_publish_utime >= 0 && now_utime - g_site_last_publish_utime < kSitePeriodUs) {
-      return false;
-    }
-    g_site_last_publish_utime = now_utime;
+    if (g_site == nullptr || !g_site_schedule.Due(now_utime)) return false;
     site = g_site;
   }
   site_t msg = *site;
   msg.utime = now_utime;
   return bus->Publish(kSiteChannel, msg);
+}
+
+void FollowSitePeers(Bus* bus) {
+  bus->Subscribe<site_t>(kSiteChannel, [](const site_t& msg, const MessageInfo& info) {
+    {
+      std::lock_guard<std::mutex> lock(g_site_mutex);
+      if (!g_site_schedule.WorthVerifying(msg, info.recv_utime)) return;
+    }
+    // Hashing the texts (linear in their size) outside the lock: a SITE of
+    // another process counts only when its texts are what it claims.
+    if (HashOfCarriedTexts(msg) != msg.content_hash) return;
+    std::lock_guard<std::mutex> lock(g_site_mutex);
+    g_site_schedule.ObserveSite(msg, info.recv_utime);
+  });
+  bus->Subscribe<process_status_t>(
+      kStatusChannel, [](const process_status_t& msg, const MessageInfo& info) {
+        std::lock_guard<std::mutex> lock(g_site_mutex);
+        g_site_schedule.ObserveStatus(msg, info.recv_utime);
+      });
 }
 
 }  // namespace roomfix

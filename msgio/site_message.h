@@ -3,7 +3,8 @@
 
 // The site travels with the data: every process that loads a site publishes
 // it as a site_t on SITE (its text, its calibration files' texts, their
-// SHA-256), at start and every kSitePeriodUs, and states the hash in STATUS
+// SHA-256), at start, and one process per site every kSitePeriodUs
+// (SitePublishSchedule), and states the hash in STATUS
 // (the `site_hash` counter). Tools reading a log take the site from there when
 // no --config is given (docs/messages.md, docs/site_file.md).
 //
@@ -19,6 +20,7 @@
 #include <memory>
 #include <set>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -30,9 +32,9 @@
 namespace roomfix {
 
 inline constexpr char kSiteChannel[] = "SITE";
-// How often a process republishes its site: a log started (or a logger
-// restarted) mid-run holds a SITE within this long. 5 s of a few kB is
-// negligible beside the poses and ranges.
+// How often the process elected for a site republishes it: a log started
+// (or a logger restarted) mid-run holds a SITE within this long. One site of
+// a few kB every 5 s is about 2 % of a demo log (docs/messages.md).
 inline constexpr int64_t kSitePeriodUs = 5000000;
 // The STATUS counter (a gauge, StatusReporter::SetCounter) holding the first
 // 60 bits of the site's SHA-256: the first 15 hex digits of content_hash read
@@ -164,9 +166,9 @@ class SiteHashTracker {
   std::string Disagreement() const;
   size_t distinct_hashes() const;
 
-  // Three SITE periods: a live process publishes its site every
-  // kSitePeriodUs and its STATUS every second, so one missing for three
-  // periods has stopped.
+  // Three SITE periods: a live process publishes its STATUS every second
+  // (and its site at start, and every kSitePeriodUs when elected), so one
+  // missing for three periods has stopped.
   static constexpr int64_t kSiteExpiryUs = 3 * kSitePeriodUs;
   // At most this many processes are tracked (a flood of invented names must
   // not grow memory); further ones are counted as unlisted until they expire.
@@ -267,16 +269,79 @@ bool ResolveToolSite(const std::string& config_path, const std::string& log_path
                      std::string* used_line, std::vector<std::string>* warnings,
                      std::string* error);
 
+// When a process publishes its site (issue #28: the whole SITE from every
+// process every 5 s was the loudest stream on the bus, 18 % of a demo log).
+// A SITE is sent when it matters:
+//  - at the process's first heartbeat, and after its site changes (Reset);
+//  - by the one process elected for its site, every kSitePeriodUs, so that
+//    a log started mid-run (lcm-logger cannot ask) holds the site within
+//    that long; the elected one is the smallest publisher identity
+//    (process, host, pid) of a verified SITE with the same content hash
+//    heard within kSiteElectionWindowUs, self included. Each site in use
+//    has its own: two processes that disagree both keep their texts in the
+//    log;
+//  - by the elected one, at most every kSiteAnswerGapUs, when a newcomer
+//    appears (a STATUS from a process not heard within kNewcomerAfterUs):
+//    a viewer or a process started on another host has the site within a
+//    second instead of a period.
+// Failure modes, bounded: a forged STATUS flood of invented names makes the
+// elected one answer at most once per kSiteAnswerGapUs; a forged SITE can
+// silence the elected one's period only by carrying the same verified
+// texts, which keeps the log self-describing all the same; if the elected
+// one stops, the next one takes over kSiteElectionWindowUs later. Time is
+// the caller's (receive times and heartbeats); the class is not
+// thread-safe (the process's schedule is guarded by the site mutex).
+class SitePublishSchedule {
+ public:
+  static constexpr int64_t kSiteElectionWindowUs = 2 * kSitePeriodUs + kSitePeriodUs / 2;
+  static constexpr int64_t kSiteAnswerGapUs = 1000000;
+  // STATUS comes every second: three missed and a process counts as gone,
+  // so its return is a newcomer.
+  static constexpr int64_t kNewcomerAfterUs = 3000000;
+  // Processes followed for newcomers; past it the oldest is forgotten (a
+  // flood of names is bounded in memory and in answers by the gap above).
+  static constexpr size_t kMaxPeers = 64;
+
+  // `process`, `host`, `pid` and `content_hash` of this process's site_t.
+  void Reset(const site_t& own);
+  // A SITE heard (after its texts were verified to hash to content_hash).
+  void ObserveSite(const site_t& msg, int64_t recv_utime);
+  // Whether ObserveSite would change anything: only a SITE of this
+  // process's hash from a smaller identity that is not already known to
+  // have published within the last kSiteAnswerGapUs is worth hashing.
+  bool WorthVerifying(const site_t& msg, int64_t recv_utime) const;
+  void ObserveStatus(const process_status_t& msg, int64_t recv_utime);
+  // True when the process should publish now (and records that it did).
+  bool Due(int64_t now_utime);
+  bool elected(int64_t now_utime) const;
+  // Why the last Due() was true: "start", "period", "newcomer".
+  const char* last_reason() const { return last_reason_; }
+
+ private:
+  using Identity = std::tuple<std::string, std::string, int32_t>;
+  Identity self_;
+  std::string hash_;
+  int64_t last_publish_utime_ = -1;
+  int64_t smaller_heard_utime_ = INT64_MIN;
+  bool newcomer_pending_ = false;
+  std::map<Identity, int64_t> peers_;
+  const char* last_reason_ = "";
+};
+
 // The site this process loaded: StartProcess sets it, and every
-// StatusReporter of the process then publishes it on SITE (at its first
-// heartbeat and every kSitePeriodUs) and its hash in STATUS. One per
+// StatusReporter of the process then publishes it on SITE as the
+// process's SitePublishSchedule says, and its hash in STATUS. One per
 // process because every node builds its own StatusReporter while the
 // process has one site.
 void SetProcessSite(std::shared_ptr<const site_t> msg);
 std::shared_ptr<const site_t> ProcessSite();
-// Publishes the process's site when one is set and kSitePeriodUs has
-// passed since the last time (or never published). True when it published.
+// Publishes the process's site when one is set and its schedule says so.
+// True when it published.
 bool MaybePublishProcessSite(Bus* bus, int64_t now_utime);
+// Subscribes the process's schedule to SITE and STATUS on `bus`, so that it
+// hears the other publishers of its site and newcomers (StartProcess does
+// this). Without it every process publishes as if elected.
+void FollowSitePeers(Bus* bus);
 
 }  // namespace roomfix
 

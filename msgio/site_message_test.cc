@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <yaml-cpp/yaml.h>
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -622,6 +623,131 @@ TEST(ProcessSite, PublishedAtTheFirstHeartbeatAndEveryFiveSeconds) {
   SetProcessSite(nullptr);
   status.Publish(&bus, t0 + 20000000);
   EXPECT_EQ(site_utimes.size(), 3u);
+}
+
+// --- SitePublishSchedule: the site is sent when it matters (issue #28) ------
+
+site_t Publisher(const std::string& process, int32_t pid, const std::string& hash) {
+  site_t m;
+  m.process = process;
+  m.host = "lab-pc";
+  m.pid = pid;
+  m.content_hash = hash;
+  return m;
+}
+
+process_status_t StatusOf(const std::string& process, int32_t pid) {
+  process_status_t m;
+  m.process = process;
+  m.host = "lab-pc";
+  m.pid = pid;
+  return m;
+}
+
+constexpr int64_t kT0 = 1700000000000000;
+constexpr int64_t kSecondUs = 1000000;
+
+// The publish times of `schedule` over `seconds` of heartbeats every 100 ms,
+// with `hear(t)` called before each.
+std::vector<int64_t> PublishTimes(SitePublishSchedule* schedule, int seconds,
+                                  const std::function<void(int64_t)>& hear) {
+  std::vector<int64_t> times;
+  for (int64_t t = kT0; t <= kT0 + seconds * kSecondUs; t += kSecondUs / 10) {
+    hear(t);
+    if (schedule->Due(t)) times.push_back(t - kT0);
+  }
+  return times;
+}
+
+TEST(SitePublishSchedule, AloneItPublishesAtStartAndEveryPeriod) {
+  SitePublishSchedule schedule;
+  schedule.Reset(Publisher("trilat_proc", 20, "aaaa"));
+  EXPECT_EQ(PublishTimes(&schedule, 11, [](int64_t) {}),
+            (std::vector<int64_t>{0, kSitePeriodUs, 2 * kSitePeriodUs}));
+  EXPECT_STREQ(schedule.last_reason(), "period");
+}
+
+TEST(SitePublishSchedule, OnlyTheSmallestPublisherOfASiteRepeatsIt) {
+  SitePublishSchedule trilat;
+  trilat.Reset(Publisher("trilat_proc", 20, "aaaa"));
+  // fusion_proc sorts first and publishes the same site every period.
+  const site_t fusion = Publisher("fusion_proc", 30, "aaaa");
+  const auto hear = [&](int64_t t) {
+    if ((t - kT0) % kSitePeriodUs == 0) trilat.ObserveSite(fusion, t);
+  };
+  EXPECT_EQ(PublishTimes(&trilat, 30, hear), (std::vector<int64_t>{0}));
+  EXPECT_FALSE(trilat.elected(kT0 + 30 * kSecondUs));
+}
+
+TEST(SitePublishSchedule, APublisherOfAnotherSiteOrALargerNameSilencesNothing) {
+  SitePublishSchedule fusion;
+  fusion.Reset(Publisher("fusion_proc", 30, "aaaa"));
+  const site_t other_site = Publisher("camera_proc", 10, "bbbb");
+  const site_t larger = Publisher("trilat_proc", 20, "aaaa");
+  const auto hear = [&](int64_t t) {
+    fusion.ObserveSite(other_site, t);
+    fusion.ObserveSite(larger, t);
+  };
+  EXPECT_EQ(PublishTimes(&fusion, 11, hear),
+            (std::vector<int64_t>{0, kSitePeriodUs, 2 * kSitePeriodUs}));
+}
+
+TEST(SitePublishSchedule, WhenTheElectedOneStopsTheNextTakesOverWithinTheWindow) {
+  SitePublishSchedule trilat;
+  trilat.Reset(Publisher("trilat_proc", 20, "aaaa"));
+  const site_t fusion = Publisher("fusion_proc", 30, "aaaa");
+  // fusion_proc publishes at 0 and 5 s, then stops.
+  const auto hear = [&](int64_t t) {
+    if (t - kT0 <= kSitePeriodUs && (t - kT0) % kSitePeriodUs == 0) trilat.ObserveSite(fusion, t);
+  };
+  const std::vector<int64_t> times = PublishTimes(&trilat, 20, hear);
+  ASSERT_EQ(times.size(), 2u);
+  // trilat_proc's own start, then the first heartbeat after the election
+  // window has passed since fusion_proc's last SITE (5 s).
+  EXPECT_EQ(times[0], 0);
+  EXPECT_EQ(times[1], kSitePeriodUs + SitePublishSchedule::kSiteElectionWindowUs + kSecondUs / 10);
+}
+
+TEST(SitePublishSchedule, TheElectedOneAnswersANewcomerWithinAboutASecond) {
+  SitePublishSchedule fusion;
+  fusion.Reset(Publisher("fusion_proc", 30, "aaaa"));
+  // trilat_proc sends STATUS every second from 0 s; a viewer appears at 2.5 s.
+  const auto hear = [&](int64_t t) {
+    if ((t - kT0) % kSecondUs == 0) fusion.ObserveStatus(StatusOf("trilat_proc", 20), t);
+    if (t - kT0 >= 2500000 && (t - kT0 - 2500000) % kSecondUs == 0) {
+      fusion.ObserveStatus(StatusOf("roomfix_viewer", 40), t);
+    }
+  };
+  // 0: start (which also serves trilat_proc, new at 0 s); 2.5 s: the
+  // viewer, at its first STATUS; then the period, counted from the last SITE.
+  EXPECT_EQ(PublishTimes(&fusion, 8, hear), (std::vector<int64_t>{0, 2500000, 7500000}));
+  EXPECT_STREQ(fusion.last_reason(), "period");
+}
+
+TEST(SitePublishSchedule, AFloodOfInventedNamesGetsAtMostOneAnswerPerGap) {
+  SitePublishSchedule fusion;
+  fusion.Reset(Publisher("fusion_proc", 30, "aaaa"));
+  int32_t pid = 1000;
+  // 100 new names every 100 ms for 10 s (10 000 in all).
+  const auto hear = [&](int64_t t) {
+    for (int i = 0; i < 100; ++i) fusion.ObserveStatus(StatusOf("forged", pid++), t);
+  };
+  const std::vector<int64_t> times = PublishTimes(&fusion, 10, hear);
+  EXPECT_EQ(times.size(), 11u);  // start, then one per kSiteAnswerGapUs
+  for (size_t i = 1; i < times.size(); ++i) {
+    EXPECT_GE(times[i] - times[i - 1], SitePublishSchedule::kSiteAnswerGapUs);
+  }
+}
+
+TEST(SitePublishSchedule, ANewSiteIsPublishedAtOnceWhateverWasHeard) {
+  SitePublishSchedule trilat;
+  trilat.Reset(Publisher("trilat_proc", 20, "aaaa"));
+  EXPECT_TRUE(trilat.Due(kT0));
+  trilat.ObserveSite(Publisher("fusion_proc", 30, "aaaa"), kT0);
+  EXPECT_FALSE(trilat.Due(kT0 + kSitePeriodUs));
+  trilat.Reset(Publisher("trilat_proc", 20, "cccc"));
+  EXPECT_TRUE(trilat.Due(kT0 + kSitePeriodUs + 1));
+  EXPECT_STREQ(trilat.last_reason(), "start");
 }
 
 }  // namespace

@@ -177,5 +177,73 @@ TEST(SiteOnTheBus, ListenNamesTheKeyWhereAPublishedSiteDiffersFromConfig) {
       << err;
 }
 
+// Issue #28 (the site was the loudest stream on the bus): of processes that
+// share a site only the first by name repeats it every period; the others
+// send it at start; a newcomer hears it within about a second of its first
+// STATUS instead of a period.
+TEST(SiteOnTheBus, OnlyOneProcessOfASiteRepeatsItAndANewcomerHearsItAtOnce) {
+  TempDir dir;
+  const std::string demo = DemoSitePath();
+  ChildProcess logger({"lcm-logger", "-q", "-f", dir.File("run.lcm")});
+  ASSERT_TRUE(logger.started());
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  ChildProcess fusion({BinDir() + "/fusion_proc", "--config", demo, "--log-level", "warn"});
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  ChildProcess trilat({BinDir() + "/trilat_proc", "--config", demo, "--log-level", "warn"});
+  std::this_thread::sleep_for(std::chrono::milliseconds(6000));
+  ChildProcess newcomer({BinDir() + "/trilat_proc", "--config", demo, "--log-level", "warn"});
+  std::this_thread::sleep_for(std::chrono::milliseconds(6000));
+  for (ChildProcess* p : {&fusion, &trilat, &newcomer}) p->Signal(SIGINT);
+  for (ChildProcess* p : {&fusion, &trilat, &newcomer}) EXPECT_EQ(p->Wait(10), 0);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  logger.Signal(SIGINT);
+  logger.Wait(5);
+
+  std::string error;
+  auto reader = LogReader::Open(dir.File("run.lcm"), &error);
+  ASSERT_NE(reader, nullptr) << error;
+  std::map<int32_t, std::vector<int64_t>> site_utimes;  // by pid
+  std::map<int32_t, int64_t> first_status_utime;
+  std::map<int32_t, std::string> name;
+  LogEvent e;
+  while (reader->Next(&e)) {
+    const int n = static_cast<int>(e.data.size());
+    if (e.channel == kSiteChannel) {
+      site_t m;
+      if (DecodeChecked(e.data.data(), n, &m, nullptr)) {
+        site_utimes[m.pid].push_back(e.utime);
+        name[m.pid] = m.process;
+      }
+    } else if (e.channel == "STATUS") {
+      process_status_t m;
+      if (DecodeChecked(e.data.data(), n, &m, nullptr)) first_status_utime.emplace(m.pid, e.utime);
+    }
+  }
+  ASSERT_EQ(site_utimes.size(), 3u);
+  const int32_t fusion_pid = fusion.pid();
+  const int32_t trilat_pid = trilat.pid();
+  const int32_t newcomer_pid = newcomer.pid();
+  // The two trilat_procs: once each, at start.
+  EXPECT_EQ(site_utimes[trilat_pid].size(), 1u);
+  EXPECT_EQ(site_utimes[newcomer_pid].size(), 1u);
+  // fusion_proc (first by name): never more than a period between its SITEs.
+  const std::vector<int64_t>& elected = site_utimes[fusion_pid];
+  ASSERT_GE(elected.size(), 3u);
+  for (size_t i = 1; i < elected.size(); ++i) {
+    EXPECT_LE(elected[i] - elected[i - 1], kSitePeriodUs + kPeriodToleranceUs) << i;
+  }
+  // ... and it answered the newcomer's first STATUS at its next heartbeat
+  // (once a second) at least the answer gap after its previous SITE: within
+  // the gap plus a heartbeat (and scheduling) of the newcomer's arrival.
+  constexpr int64_t kHeartbeatUs = 1000000;
+  const int64_t arrived = first_status_utime.at(newcomer_pid);
+  bool answered = false;
+  for (int64_t t : elected) {
+    answered |= t >= arrived && t - arrived <= SitePublishSchedule::kSiteAnswerGapUs +
+                                                   kHeartbeatUs + kPeriodToleranceUs;
+  }
+  EXPECT_TRUE(answered) << "newcomer's first STATUS at " << arrived;
+}
+
 }  // namespace
 }  // namespace roomfix
