@@ -165,6 +165,16 @@ int main(void) {
       ++seq; /* 65535 wraps to 0, as the protocol says */
       fw_firings = seq;
       next_burst += frame_ticks;
+      continue;
+    }
+    /* Sleep while a wake-up (at most FW_WAKE_TICKS away) still comes
+     * before the lead; the last stretch is polled, so the burst keeps its
+     * tick. An announcement heard meanwhile wakes the loop (receive ISR). */
+    cli();
+    if (!heard_valid && (int32_t)(next_burst - fw_now_locked()) > (int32_t)(lead + FW_WAKE_TICKS)) {
+      fw_sleep_locked();
+    } else {
+      sei();
     }
   }
 }

@@ -115,11 +115,21 @@ int main(void) {
   fw_led(1);
   for (;;) {
     wdt_reset();
-    if (state != kListening) continue;
     cli();
+    if (state != kListening) {
+      /* Nothing until an announcement: its receive ISR wakes us. */
+      fw_sleep_locked();
+      continue;
+    }
     const uint32_t since = fw_now_locked() - window_stamp;
     if (since < report_ticks) {
-      sei();
+      /* Sleep while a wake-up still comes before the report is due; poll
+       * the last stretch, so the report leaves at its own delay. */
+      if (report_ticks - since > FW_WAKE_TICKS) {
+        fw_sleep_locked();
+      } else {
+        sei();
+      }
       continue;
     }
     const uint8_t beacon = window_beacon;

@@ -3,6 +3,7 @@
 
 #include <avr/eeprom.h>
 #include <avr/interrupt.h>
+#include <avr/sleep.h>
 #include <avr/io.h>
 #include <avr/wdt.h>
 
@@ -168,4 +169,12 @@ void fw_fault_loop(uint8_t device_id, uint8_t fault) {
       next_blink += 250000ul * FW_TICKS_PER_US;
     }
   }
+}
+
+void fw_sleep_locked(void) {
+  set_sleep_mode(SLEEP_MODE_IDLE);
+  sleep_enable();
+  sei();
+  sleep_cpu();
+  sleep_disable();
 }

@@ -55,6 +55,23 @@ void fw_on_frame(const uint8_t* frame, uint8_t length, uint32_t start_ticks);
 
 void fw_led(uint8_t on);
 
+/* Timer1 overflows every 65536 ticks (4.096 ms): the longest an idle sleep
+ * lasts, since its interrupt wakes the CPU. */
+#define FW_WAKE_TICKS 65536UL
+
+/* Called with interrupts off (cli) after the caller found nothing to do:
+ * sleeps in IDLE mode until the next interrupt, then returns with
+ * interrupts on. Timer1, the UART and the comparator run on in IDLE, so
+ * the hardware time stamps (input capture, the receive ISR's TCNT1 read)
+ * are as awake; waking adds 4 cycles to an ISR's entry, a constant. sei()
+ * then sleep back to back: the AVR runs the instruction after sei before
+ * any interrupt, so one that arrives after the caller's check still wakes
+ * the sleep rather than being missed until the next overflow. Why sleep at
+ * all: a busy loop spends every cycle polling (a beacon on a battery), and
+ * the firmware-in-the-loop simulator must execute every one of those
+ * cycles, where a sleeping core jumps to its next interrupt. */
+void fw_sleep_locked(void);
+
 /* Power-on self test: the CRC against its published check value, Timer1
  * counting, and a walking-bit test of a RAM buffer. Returns 1 on success. */
 uint8_t fw_self_test(void);
