@@ -37,7 +37,16 @@ using testing::WaitForPath;
 using Clock = std::chrono::steady_clock;
 
 // The issue's requirement: output resumes this soon after a restart.
+#ifdef __SANITIZE_ADDRESS__
+// AddressSanitizer slows a process's start (shadow memory, interceptors)
+// and everything it does two to five times: camera_proc's first pose came
+// 2.12 s after its restart in `make test SANITIZE=1` (issue #28). The
+// sanitizer build judges that each process recovers; the ordinary build
+// holds the issue's 2 s.
+constexpr double kRecoveryLimit_s = 5.0;
+#else
 constexpr double kRecoveryLimit_s = 2.0;
+#endif
 // How long each killed process stays dead: long enough for several missed
 // heartbeats (1 Hz) and a gap no jitter explains.
 constexpr double kDead_s = 2.5;
