@@ -74,7 +74,8 @@ configure-test: configure
 
 test: configure-test
 	@cmake --build $(BUILD_DIR) -j $(JOBS) -- --no-print-directory || $(WERROR_HINT)
-	@cd $(BUILD_DIR) && ctest --output-on-failure -j $(JOBS) --timeout 600
+	@cd $(BUILD_DIR) && $(if $(filter 1,$(SANITIZE)),LSAN_OPTIONS=suppressions=$(CURDIR)/tests/lsan_suppressions.txt) \
+	  ctest --output-on-failure -j $(JOBS) --timeout 600
 
 # Only what scripts/demo.sh runs: no test, no GoogleTest, no Java. The
 # packages of the demo only; a build folder without a CMake cache yet is

@@ -90,7 +90,6 @@ AvrCore::~AvrCore() {
   free(avr_);
 }
 
-namespace {
 // What elf_read_firmware allocated; avr_load_firmware has copied it.
 void FreeElf(elf_firmware_t* elf) {
   free(elf->flash);
@@ -102,7 +101,6 @@ void FreeElf(elf_firmware_t* elf) {
   free(elf->symbol);
 #endif
 }
-}  // namespace
 
 std::unique_ptr<AvrCore> AvrCore::Create(const AvrCoreOptions& options, std::string* error) {
   if (!options.IsValid(error)) return nullptr;

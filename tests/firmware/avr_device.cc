@@ -7,6 +7,7 @@
 #include "avr_uart.h"
 #include "sim_avr.h"
 #include "sim_elf.h"
+#include "sim/firmware/avr_core.h"
 
 namespace roomfix::testing {
 
@@ -26,6 +27,7 @@ bool AvrDevice::Load(const std::string& elf_path, const std::vector<uint8_t>& ee
   }
   avr_ = avr_make_mcu_by_name("atmega328p");
   if (!avr_) {
+    roomfix::firmware::FreeElf(&firmware);
     *error = "simavr has no atmega328p";
     return false;
   }
@@ -33,6 +35,7 @@ bool AvrDevice::Load(const std::string& elf_path, const std::vector<uint8_t>& ee
   avr_->log = LOG_NONE;
   firmware.frequency = kHz;
   avr_load_firmware(avr_, &firmware);
+  roomfix::firmware::FreeElf(&firmware);
   if (!eeprom.empty()) {
     avr_eeprom_desc_t desc = {};
     desc.ee = const_cast<uint8_t*>(eeprom.data());

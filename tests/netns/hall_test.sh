@@ -24,11 +24,23 @@
 #
 #   hall_test.sh BIN_DIR SOURCE_DIR
 #
-# Exits 77 (ctest's skip code) when the machine does not allow the namespaces.
+# Exits 77 (ctest's skip code) when the machine does not allow the namespaces,
+# and in the sanitizer build (below).
 set -euo pipefail
 
 bin=${1:?usage: hall_test.sh BIN_DIR SOURCE_DIR}
 src=${2:?usage: hall_test.sh BIN_DIR SOURCE_DIR}
+# The hall judges thirteen processes keeping up with real time on two cores
+# (four cameras, eight robots). AddressSanitizer slows each several times:
+# in `make test SANITIZE=1` the cameras fell to 5-16 fps with 450 ms of
+# latency and the ultrasound to 1.1 Hz, and a robot lost a fused pose
+# (issue #28). What it then measures is the sanitizer's cost, not roomfix:
+# skipped there, saying so. The same processes' code runs under the
+# sanitizer in multi_host_test, two_radios_test and kill_restart_test.
+if ldd "$bin/roomfix_sim" 2>/dev/null | grep -q libasan; then
+  echo "SKIP: a sanitizer build (roomfix_sim links libasan) cannot keep the hall's 13 processes in real time on this machine"
+  exit 77
+fi
 seconds=${ROOMFIX_HALL_SECONDS:-60}
 fps=${ROOMFIX_HALL_FPS:-10}
 site=$src/config/sites/hall.yaml

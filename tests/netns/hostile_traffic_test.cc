@@ -326,6 +326,9 @@ class HostileTraffic : public ::testing::Test {
  protected:
   // Good messages sent among the 64 MiB fragments that got no answer.
   int64_t good_missed_amid_huge_ = 0;
+  // What SendEveryClass judges against, and how long a probe is waited for.
+  double answer_within_s_ = kAnswerWithinS;
+  double probe_timeout_s_ = kProbeTimeoutS;
 
   void SetUp() override { ASSERT_TRUE(sender_.ok()) << sender_.error(); }
 
@@ -335,7 +338,7 @@ class HostileTraffic : public ::testing::Test {
     const int64_t id = next_probe_id_++;
     const auto start = Clock::now();
     probe.send(id);
-    while (Seconds(Clock::now() - start) < kProbeTimeoutS) {
+    while (Seconds(Clock::now() - start) < probe_timeout_s_) {
       if (probe.answered(id)) return Seconds(Clock::now() - start);
       std::this_thread::sleep_for(std::chrono::microseconds(500));
     }
@@ -358,7 +361,8 @@ class HostileTraffic : public ::testing::Test {
       }
       if (probe == nullptr) return;
       const double t = AnswerTimeS(*probe);
-      EXPECT_LE(t, kAnswerWithinS) << "good traffic after " << what << " answered in " << t << " s";
+      EXPECT_LE(t, answer_within_s_)
+          << "good traffic after " << what << " answered in " << t << " s";
     };
     if (probe != nullptr) {
       // Warm: the first answer may pay for start-up work (allocations,
@@ -908,6 +912,16 @@ TEST_F(HostileTraffic, LoggerRecordsGoodTrafficAndItsFileStaysReadable) {
 }
 
 TEST_F(HostileTraffic, ListenPrintsGoodTrafficAndWarnsOfRefusals) {
+#ifdef __SANITIZE_ADDRESS__
+  // `listen --channel '.*'` prints every message, in order, the 20 000
+  // forged poses too: under AddressSanitizer each costs several times more,
+  // and that backlog alone held the next good message 0.8 s and more (issue
+  // #28). Not a defect (nothing is lost, and the ordinary build answers
+  // within kAnswerWithinS after every class); here the good message must
+  // come out, behind the backlog, within 3 s.
+  answer_within_s_ = 3.0;
+  probe_timeout_s_ = 5.0;
+#endif
   TempDir dir;
   const std::string out = dir.File("listen.out");
   const std::string err = dir.File("listen.err");

@@ -364,7 +364,14 @@ TEST(ToolSiteFromLog, ManyLargeSitesCostCompareNoMoreMemoryThanOne) {
   const double peak_mib = PeakChildMiB();
   std::printf("compare: peak %.1f MiB with one 4 MB site, %.1f MiB with %d\n", baseline_mib,
               peak_mib, kLargeSites);
+#ifdef __SANITIZE_ADDRESS__
+  // AddressSanitizer keeps freed memory in its quarantine (256 MiB by
+  // default) and adds shadow memory, so the peak resident size is not the
+  // program's (84 MiB over here, issue #28); the ordinary build judges it.
+  std::printf("memory growth not judged under AddressSanitizer\n");
+#else
   EXPECT_LE(peak_mib - baseline_mib, kMemoryBudgetMiB);
+#endif
 }
 
 }  // namespace
