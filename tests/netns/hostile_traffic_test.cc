@@ -329,6 +329,10 @@ class HostileTraffic : public ::testing::Test {
   // What SendEveryClass judges against, and how long a probe is waited for.
   double answer_within_s_ = kAnswerWithinS;
   double probe_timeout_s_ = kProbeTimeoutS;
+  // 0: a probe is sent once. Otherwise it is sent again this often until
+  // answered (a receiver still draining a flood may find its kernel buffer
+  // full when the first one comes: a counted loss, not a wrong answer).
+  double probe_resend_s_ = 0;
 
   void SetUp() override { ASSERT_TRUE(sender_.ok()) << sender_.error(); }
 
@@ -338,8 +342,13 @@ class HostileTraffic : public ::testing::Test {
     const int64_t id = next_probe_id_++;
     const auto start = Clock::now();
     probe.send(id);
+    auto last_sent = start;
     while (Seconds(Clock::now() - start) < probe_timeout_s_) {
       if (probe.answered(id)) return Seconds(Clock::now() - start);
+      if (probe_resend_s_ > 0 && Seconds(Clock::now() - last_sent) >= probe_resend_s_) {
+        probe.send(id);
+        last_sent = Clock::now();
+      }
       std::this_thread::sleep_for(std::chrono::microseconds(500));
     }
     return std::numeric_limits<double>::infinity();
@@ -916,11 +925,15 @@ TEST_F(HostileTraffic, ListenPrintsGoodTrafficAndWarnsOfRefusals) {
   // `listen --channel '.*'` prints every message, in order, the 20 000
   // forged poses too: under AddressSanitizer each costs several times more,
   // and that backlog alone held the next good message 0.8 s and more (issue
-  // #28). Not a defect (nothing is lost, and the ordinary build answers
-  // within kAnswerWithinS after every class); here the good message must
-  // come out, behind the backlog, within 3 s.
-  answer_within_s_ = 3.0;
-  probe_timeout_s_ = 5.0;
+  // #28), and on a loaded machine listen was still draining the flood when
+  // the good message came, its kernel buffer full: the datagram was
+  // dropped (and counted), never answered. Not a defect of listen (the
+  // ordinary build answers within kAnswerWithinS after every class); here
+  // good traffic must come out once the backlog has drained: a probe sent
+  // again each second, answered within 10 s.
+  answer_within_s_ = 10.0;
+  probe_timeout_s_ = 12.0;
+  probe_resend_s_ = 1.0;
 #endif
   TempDir dir;
   const std::string out = dir.File("listen.out");
