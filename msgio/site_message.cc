@@ -811,7 +811,8 @@ void SitePublishSchedule::ObserveStatus(const process_status_t& msg, int64_t rec
 }
 
 bool SitePublishSchedule::elected(int64_t now_utime) const {
-  return smaller_heard_utime_ == INT64_MIN || now_utime - smaller_heard_utime_ > kSiteElectionWindowUs ||
+  return smaller_heard_utime_ == INT64_MIN ||
+         now_utime - smaller_heard_utime_ > kSiteElectionWindowUs ||
          now_utime < smaller_heard_utime_ - kSiteElectionWindowUs;
 }
 
@@ -871,11 +872,11 @@ void FollowSitePeers(Bus* bus) {
     std::lock_guard<std::mutex> lock(g_site_mutex);
     g_site_schedule.ObserveSite(msg, info.recv_utime);
   });
-  bus->Subscribe<process_status_t>(
-      kStatusChannel, [](const process_status_t& msg, const MessageInfo& info) {
-        std::lock_guard<std::mutex> lock(g_site_mutex);
-        g_site_schedule.ObserveStatus(msg, info.recv_utime);
-      });
+  bus->Subscribe<process_status_t>(kStatusChannel,
+                                   [](const process_status_t& msg, const MessageInfo& info) {
+                                     std::lock_guard<std::mutex> lock(g_site_mutex);
+                                     g_site_schedule.ObserveStatus(msg, info.recv_utime);
+                                   });
 }
 
 }  // namespace roomfix

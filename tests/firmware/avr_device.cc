@@ -5,9 +5,9 @@
 #include "avr_eeprom.h"
 #include "avr_ioport.h"
 #include "avr_uart.h"
+#include "sim/firmware/avr_core.h"
 #include "sim_avr.h"
 #include "sim_elf.h"
-#include "sim/firmware/avr_core.h"
 
 namespace roomfix::testing {
 

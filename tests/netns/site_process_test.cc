@@ -1,7 +1,7 @@
 // Issue #20: real processes publish their site on SITE at start and every
-// 5 s (issue #28: one process per site, and to newcomers), state its hash in STATUS, and a log recorded by LCM's own lcm-logger
-// carries it; two processes started with different sites are named by
-// `roomfix analyze` and the viewer.
+// 5 s (issue #28: one process per site, and to newcomers), state its hash in STATUS, and a log
+// recorded by LCM's own lcm-logger carries it; two processes started with different sites are named
+// by `roomfix analyze` and the viewer.
 #include <gtest/gtest.h>
 #include <signal.h>
 
