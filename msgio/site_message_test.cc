@@ -750,5 +750,40 @@ TEST(SitePublishSchedule, ANewSiteIsPublishedAtOnceWhateverWasHeard) {
   EXPECT_STREQ(trilat.last_reason(), "start");
 }
 
+// A forged SITE from a name that sorts first, claiming this process's hash
+// over other texts, is hashed, found false and ignored: the process keeps
+// repeating its site. The same message with the true texts does silence it
+// (that publisher then carries the site). Real bus plumbing: FollowSitePeers
+// on a loopback bus, the process's StatusReporter beating every second.
+std::vector<int64_t> OwnSitesWhileHearing(const site_t& heard, int seconds) {
+  const LoadedSite original = LoadDemo();
+  SetProcessSite(std::make_shared<site_t>(DemoMessage(original)));
+  LoopbackBus bus;
+  FollowSitePeers(&bus);
+  std::vector<int64_t> own;
+  bus.Subscribe<site_t>(kSiteChannel, [&](const site_t& m, const MessageInfo&) {
+    if (m.process == "trilat_proc") own.push_back(m.utime - kT0);
+  });
+  StatusReporter status("trilat_proc", 0);
+  const std::vector<uint8_t> bytes = Encode(heard);
+  for (int s = 0; s <= seconds; ++s) {
+    bus.Inject(kSiteChannel, bytes.data(), static_cast<int>(bytes.size()), kT0 + s * kSecondUs);
+    status.MaybePublish(&bus, kT0 + s * kSecondUs);
+  }
+  SetProcessSite(nullptr);
+  return own;
+}
+
+TEST(ProcessSite, AForgedSiteWithThisProcesssHashButOtherTextsSilencesNothing) {
+  site_t forged = DemoMessage(LoadDemo());
+  forged.process = "camera_proc";  // sorts before trilat_proc
+  forged.site_text += "\n# forged\n";
+  EXPECT_EQ(OwnSitesWhileHearing(forged, 11),
+            (std::vector<int64_t>{0, kSitePeriodUs, 2 * kSitePeriodUs}));
+  site_t genuine = DemoMessage(LoadDemo());
+  genuine.process = "camera_proc";
+  EXPECT_EQ(OwnSitesWhileHearing(genuine, 11), (std::vector<int64_t>{0}));
+}
+
 }  // namespace
 }  // namespace roomfix
