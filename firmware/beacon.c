@@ -112,20 +112,34 @@ static void Fire(uint16_t seq, uint32_t burst_at) {
 }
 
 /* Realigns the next burst on beacon `heard`'s announcement stamped at
- * `stamp`: that beacon burst at stamp - latency + fire delay; ours is
- * ((k - j) mod n) slots later, moved on by whole frames until it is far
- * enough ahead (`lead`) to send our announcement first. */
+ * `stamp`: that beacon burst at stamp - latency + fire delay, in its slot j;
+ * ours, in slot k, comes (k - j) slots later when k > j, and a frame less
+ * (j - k) slots later when k < j (the frame may be longer than n slots: the
+ * rate bounds it too), moved on by whole frames until it is far enough
+ * ahead (`lead`) to send our announcement first.
+ *
+ * Once firing, a beacon follows only beacons in earlier slots: the one in
+ * the lowest slot heard keeps its own crystal and the others follow it.
+ * Following every beacon fails when two burst together (they booted
+ * together, or one was reset): each would move to the other's time plus
+ * the same offset, and with n = 2 and a frame of 2 slots they would stay
+ * together for ever. A beacon that has not fired yet (`joining`) follows
+ * anyone it hears, so joining a running site never collides. */
 static uint32_t Resync(uint8_t heard, uint32_t stamp, uint32_t next_burst, uint32_t now,
-                       uint32_t lead) {
+                       uint32_t lead, uint8_t joining) {
   const int8_t slot = fw_config_slot_of(&config, heard);
   if (slot < 0) return next_burst; /* not in our site's table */
-  const uint8_t n = config.slot_count;
-  const uint8_t m = (uint8_t)((config.slot_index + n - (uint8_t)slot) % n);
-  if (m == 0) return next_burst; /* two beacons own one slot: keep our own time */
+  const uint8_t k = config.slot_index;
+  const uint8_t j = (uint8_t)slot;
+  if (j == k) return next_burst; /* two beacons own one slot: keep our own time */
+  if (j > k && !joining) return next_burst;
+  const uint32_t slot_ticks = config.slot_us * FW_TICKS_PER_US;
+  const uint32_t frame_ticks = config.frame_us * FW_TICKS_PER_US;
   const uint32_t their_burst =
       stamp + ((uint32_t)config.fire_delay_us - config.radio_latency_us) * FW_TICKS_PER_US;
-  uint32_t next = their_burst + (uint32_t)m * config.slot_us * FW_TICKS_PER_US;
-  const uint32_t frame_ticks = config.frame_us * FW_TICKS_PER_US;
+  const uint32_t offset =
+      k > j ? (uint32_t)(k - j) * slot_ticks : frame_ticks - (uint32_t)(j - k) * slot_ticks;
+  uint32_t next = their_burst + offset;
   while ((int32_t)(next - (now + lead)) < 0) next += frame_ticks;
   return next;
 }
@@ -145,9 +159,13 @@ int main(void) {
   const uint32_t lead = (2u * 24u) * FW_TICKS_PER_UART_BYTE +
                         ((uint32_t)config.fire_delay_us + 1000u) * FW_TICKS_PER_US;
   const uint32_t frame_ticks = config.frame_us * FW_TICKS_PER_US;
-  /* Listen for one frame first: a beacon heard in that time places us. */
-  uint32_t next_burst = fw_now() + frame_ticks + lead;
+  /* Listen for one frame first: a beacon heard in that time places us.
+   * Heard or not, the first burst is in our slot of that frame, so beacons
+   * switched on together (one power supply) start apart. */
+  uint32_t next_burst = fw_now() + frame_ticks + lead +
+                        (uint32_t)config.slot_index * config.slot_us * FW_TICKS_PER_US;
   uint16_t seq = 0;
+  uint8_t joining = 1; /* not fired since boot (seq wraps to 0 later) */
   fw_firings = 0;
   for (;;) {
     wdt_reset();
@@ -158,10 +176,11 @@ int main(void) {
       const uint32_t stamp = heard_ticks;
       heard_valid = 0;
       sei();
-      next_burst = Resync(beacon, stamp, next_burst, now, lead);
+      next_burst = Resync(beacon, stamp, next_burst, now, lead, joining);
     }
     if ((int32_t)(next_burst - now) <= (int32_t)lead) {
       Fire(seq, next_burst);
+      joining = 0;
       ++seq; /* 65535 wraps to 0, as the protocol says */
       fw_firings = seq;
       next_burst += frame_ticks;

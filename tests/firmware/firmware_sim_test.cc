@@ -280,6 +280,81 @@ TEST(BeaconFirmware, TakesItsSlotFromAnotherBeaconsAnnouncement) {
   EXPECT_EQ(frames[0].payload()[4], 0);
 }
 
+// The first burst of a beacon that hears nobody, with a frame longer than
+// its slots (the rate bounds it): its own slot of the listening frame.
+// And a beacon joining in an earlier slot than the one it hears fires a
+// frame less the slots between after it, not (k - j) mod n slots (which
+// holds only for a frame of exactly n slots).
+TEST(BeaconFirmware, AJoiningBeaconInAnEarlierSlotFiresAFrameLessTheSlotsBetweenLater) {
+  REQUIRE_ELF("beacon");
+  DeviceConfig config = DemoBeacon();
+  // This one (id 1) in slot 0 of 2, beacon 5 in slot 1; a frame of 3 slots.
+  config.slot_count = 2;
+  config.slot_index = 0;
+  config.slot_beacon_ids = {1, 5};
+  config.frame_us = 3 * config.slot_us;
+  ASSERT_TRUE(config.IsValid(nullptr));
+  AvrDevice d;
+  Boot(&d, "beacon", radio::EncodeDeviceConfig(config));
+  ASSERT_TRUE(d.RunUntil(20 * kMs));
+  const uint64_t sent = d.cycle();
+  d.SendBytes(AnnouncementFrame(5, 9, 0x0013A20042000005ull));
+  ASSERT_TRUE(d.RunUntil(sent + config.frame_us * kUs));
+  const std::vector<TxFrame> frames = Frames(d);
+  ASSERT_EQ(frames.size(), 1u);
+  const uint64_t stamp = sent + kByte;
+  const int64_t their_burst =
+      static_cast<int64_t>(stamp + (config.fire_delay_us - config.radio_latency_us) * kUs);
+  const int64_t expected =
+      their_burst + static_cast<int64_t>((config.frame_us - config.slot_us) * kUs);
+  // As in TakesItsSlotFromAnotherBeaconsAnnouncement: the announcement
+  // starts a fire delay and its own n bytes before that burst (the burst
+  // then follows its last byte); the start is polled in the main loop and
+  // the stamp read in the ISR: 16 us of slack against a 1 ms slot guard.
+  // The old rule put it a whole slot (100 ms) earlier.
+  const int64_t n = static_cast<int64_t>(frames[0].wire.size());
+  const int64_t expected_start =
+      expected - static_cast<int64_t>(config.fire_delay_us * kUs) - n * static_cast<int64_t>(kByte);
+  constexpr int64_t kScheduleCycles = 256;
+  EXPECT_NEAR(static_cast<int64_t>(d.uart_out().front().cycle),
+              expected_start + kScheduleCycles / 2, kScheduleCycles / 2);
+}
+
+// Once it fires, a beacon follows only beacons in earlier slots: the lowest
+// slot heard keeps its own crystal. Two beacons that burst together (booted
+// together, or one reset) would otherwise each move to the other's time
+// plus one slot and, with two slots in the frame, stay together for ever.
+TEST(BeaconFirmware, AFiringBeaconIgnoresALaterSlotsAnnouncement) {
+  REQUIRE_ELF("beacon");
+  DeviceConfig config = DemoBeacon();
+  config.slot_count = 2;
+  config.slot_index = 0;
+  config.slot_beacon_ids = {1, 5};
+  config.frame_us = 2 * config.slot_us;
+  ASSERT_TRUE(config.IsValid(nullptr));
+  AvrDevice d;
+  Boot(&d, "beacon", radio::EncodeDeviceConfig(config));
+  // Its first burst: after the listening frame, in slot 0.
+  ASSERT_TRUE(d.RunUntil(config.frame_us * kUs + 40 * kMs));
+  const auto first = EdgesOf(d, 1);
+  ASSERT_FALSE(first.empty());
+  const uint64_t first_burst = first.front().cycle;
+  // Beacon 5 announces 30 ms after our burst, out of its slot; the old
+  // rule moved our next burst to a slot after it.
+  d.SendBytes(AnnouncementFrame(5, 3, 0x0013A20042000005ull));
+  ASSERT_TRUE(d.RunUntil(first_burst + config.frame_us * kUs + 20 * kMs));
+  const std::vector<TxFrame> frames = Frames(d);
+  ASSERT_EQ(frames.size(), 2u);
+  const auto pb1 = EdgesOf(d, 1);
+  const size_t per_burst = 2 * config.burst_cycles;
+  ASSERT_GE(pb1.size(), 2 * per_burst);
+  // The second burst a frame after the first, on our crystal, as if
+  // nothing had been heard (the main loop polls the start: 4 us).
+  constexpr int64_t kMainLoopCycles = 64;
+  EXPECT_NEAR(static_cast<int64_t>(pb1[per_burst].cycle - first_burst),
+              static_cast<int64_t>(config.frame_us * kUs), kMainLoopCycles);
+}
+
 TEST(BeaconFirmware, CountsFromZeroAgainAfterAReset) {
   REQUIRE_ELF("beacon");
   const DeviceConfig config = DemoBeacon();

@@ -231,17 +231,11 @@ std::string TwoBeaconSite(const testing::TempDir& dir, std::string* error) {
   return path;
 }
 
-// Disabled: it fails on firmware/beacon.c as merged (fw at 56fcc32), and
-// shows why. Both beacons boot together and fire at boot + frame + lead,
-// whatever their slot; then each hears the other and Resync puts it
-// ((k - j) mod n) = 1 slot after the other's burst, for both: they stay
-// together (152 of 160 arrivals within the room's decay of the other
-// beacon's, reported ranges 1-5 ms off). Resync's offset also holds only
-// when frame_us = n x slot_us: with a longer frame (the rate's bound) a
-// beacon in slot 0 hearing slot 1 must fire frame_us - slot_us later, not
-// slot_us. Enable once the firmware offsets its first burst by its slot and
-// takes the offset modulo the frame.
-TEST_F(ProjectFirmware, DISABLED_TwoBeaconsShareTheAirByTheScheduleWithoutACollision) {
+// Two beacons switched on together (one power supply): each fires first in
+// its own slot of the frame it listened through, and the later one follows
+// the earlier (docs/radio_protocol.md 5a). The firmware's first schedule
+// kept them together (152 of 160 arrivals within the decay of the other's).
+TEST_F(ProjectFirmware, TwoBeaconsShareTheAirByTheScheduleWithoutACollision) {
   const testing::TempDir dir;
   std::string error;
   const std::string path = TwoBeaconSite(dir, &error);
