@@ -73,6 +73,10 @@ if [[ "${3:-}" == "--inner" ]]; then
   # loaded machine can hold one back past the default 0.1 s.
   trilat_args=()
   ((${#radio_ids[@]} < 2)) || trilat_args+=(--merge-deadline 0.5)
+  # The firmware's ranges are 4x finer than the behavioural model's 2 cm
+  # noise: a range sigma of 5 mm from the devices' error budget
+  # (docs/devices.md, "Range sigma"), or every fix's ellipse is too large.
+  [[ "$devices" != firmware ]] || trilat_args+=(--range-sigma 0.005)
   "$bin/trilat_proc" --config "$site" --method robust --log-level info "${trilat_args[@]}" \
     2>"$out/trilat_proc.txt" &
   pids+=($!)
