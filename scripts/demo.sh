@@ -162,10 +162,19 @@ if [[ "${3:-}" == "--inner" ]]; then
       bridge_args+=("$id")
     done
   fi
+  # The firmware's receivers answer after their listening window, one by
+  # one: the bridge's deadline is what `roomfix devices` says it must be
+  # for this site (docs/devices.md, "The bridge's deadline").
+  deadline_args=()
+  if [[ "$devices" == firmware ]]; then
+    deadline_ms=$("$bin/roomfix" devices --config "$site" --out "$out/devices" |
+      sed -n 's/^zigbee_bridge: .* e\.g\. \([0-9]*\) .*/\1/p')
+    [[ -z "$deadline_ms" ]] || deadline_args=(--deadline-ms "$deadline_ms")
+  fi
   bridges=()
   for i in "${!ports[@]}"; do
     for _ in $(seq 100); do [[ -e "${ports[$i]}" ]] && break; sleep 0.05; done
-    args=(--config "$site" --port "${ports[$i]}" --log-level info)
+    args=(--config "$site" --port "${ports[$i]}" --log-level info "${deadline_args[@]}")
     [[ -z "${bridge_args[$i]}" ]] || args+=(--radio "${bridge_args[$i]}")
     "$bin/zigbee_bridge" "${args[@]}" 2> >(sed 's/^/  /') &
     bridges+=($!)

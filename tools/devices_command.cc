@@ -5,6 +5,7 @@
 #include <sys/stat.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -126,6 +127,26 @@ int RunWrite(const DevicesArgs& a) {
     }
     std::printf("%s\n", path.c_str());
     PrintConfig(image.config);
+  }
+  // The bridge publishes a firing's set --deadline-ms after its first packet
+  // (the announcement) whether or not every receiver has answered; with
+  // these devices the last answer comes only after its listening window
+  // and its report delay, plus the radio's latency. A deadline below that
+  // loses the last receivers' ranges of every firing whose set is not
+  // complete earlier; above it by what a buffering module may hold, none.
+  double last_report_ms = 0.0;
+  for (const radio::DeviceImage& image : images) {
+    const radio::DeviceConfig& c = image.config;
+    if (c.role != radio::DeviceRole::kReceiver) continue;
+    last_report_ms = std::max(last_report_ms,
+                              (c.window_close_us + c.report_delay_us + c.radio_latency_us) / 1e3);
+  }
+  if (last_report_ms > 0.0) {
+    std::printf(
+        "zigbee_bridge: the last report reaches the coordinator about %.1f ms after the "
+        "announcement; give --deadline-ms that plus what a buffering module may hold, "
+        "e.g. %.0f (docs/devices.md, \"The bridge's deadline\")\n",
+        last_report_ms, std::ceil((last_report_ms + 40.0) / 10.0) * 10.0);
   }
   if (o.coordinator_address == 0xFFFF) {
     std::printf(

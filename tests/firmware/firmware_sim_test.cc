@@ -559,6 +559,16 @@ TEST(DevicesCommand, ItsImagesRunTheFirmwareAndACorruptOneIsRefusedByBoth) {
                       "--coordinator-address", "0x0013A20040000001"},
                      dir.File("devices.txt"));
   ASSERT_EQ(write.Wait(60), 0) << ReadText(dir.File("devices.txt"));
+  // It tells the bridge's deadline: the fourth receiver reports 3 x 2 ms
+  // after its window closes at 23.308 ms, and its frame reaches the
+  // coordinator the radio's 1.616 ms later: 30.9 ms; 40 ms more for a
+  // buffering module, rounded up to 10 ms.
+  const std::string printed = ReadText(dir.File("devices.txt"));
+  EXPECT_NE(printed.find("the last report reaches the coordinator about 30.9 ms after the "
+                         "announcement"),
+            std::string::npos)
+      << printed;
+  EXPECT_NE(printed.find("e.g. 80 "), std::string::npos) << printed;
   // The receiver's file as avrdude would write it, read back from the hex.
   const std::string path = dir.File("devices/receiver-1.eep.hex");
   std::vector<uint8_t> image;

@@ -47,6 +47,11 @@ constexpr double kRunS = 30.0;
 // The devices' range sigma (docs/devices.md, "Range sigma"), as
 // scripts/demo.sh passes it with DEMO_DEVICES=firmware.
 constexpr const char* kFirmwareRangeSigmaM = "0.005";
+// The firmware's receivers report after their listening window, the last
+// about 31 ms after the announcement in the demo room (`roomfix devices`
+// prints it); a buffering module holds a report up to 40 ms more: 80 ms
+// (docs/devices.md, "The bridge's deadline"), as scripts/demo.sh passes.
+constexpr const char* kFirmwareDeadlineMs = "80";
 // The first seconds: the beacon listens for a frame, the filters start.
 constexpr double kSettleS = 5.0;
 
@@ -94,17 +99,17 @@ TEST_F(FirmwarePipeline, ThirtySecondsFromTheFirmwareToPoseUltrasoundMeetTheDemo
   const std::string link = dir_.File("radio");
   // The demo's firmware faults (scripts/demo.sh): a buffering module, a
   // lost report now and then.
-  ChildProcess trilat({BinDir() + "/trilat_proc", "--config", DemoSitePath(), "--method",
-                       "robust", "--range-sigma", kFirmwareRangeSigmaM, "--log-level", "warn"});
-  ChildProcess fusion({BinDir() + "/fusion_proc", "--config", DemoSitePath(), "--log-level",
-                       "warn"});
+  ChildProcess trilat({BinDir() + "/trilat_proc", "--config", DemoSitePath(), "--method", "robust",
+                       "--range-sigma", kFirmwareRangeSigmaM, "--log-level", "warn"});
+  ChildProcess fusion(
+      {BinDir() + "/fusion_proc", "--config", DemoSitePath(), "--log-level", "warn"});
   ChildProcess sim({BinDir() + "/roomfix_sim", "--config", DemoSitePath(), "--radio-pty",
                     "--pty-link", link, "--devices", "firmware", "--buffering", "0.05",
                     "--buffer-hold", "0.04", "--lost-report", "0.01", "--log-level", "warn"},
                    dir_.File("sim.out"));
   ASSERT_TRUE(testing::WaitForPath(link, 10)) << "roomfix_sim made no pseudo-terminal";
   ChildProcess bridge({BinDir() + "/zigbee_bridge", "--config", DemoSitePath(), "--port", link,
-                       "--log-level", "warn"});
+                       "--deadline-ms", kFirmwareDeadlineMs, "--log-level", "warn"});
   Listen(kSettleS);
   const int64_t from_utime = truth_.empty() ? 0 : truth_.back().utime;
   ASSERT_FALSE(truth_.empty()) << "no ground truth from roomfix_sim";
