@@ -180,9 +180,20 @@ uint64_t AvrCore::OnBoundTimer(avr_t*, uint64_t, void*) { return 0; }
 // parity + stop bits, a parity bit counted whether or not parity is on:
 // 11 bit times for 8N1 instead of 10, so a firmware's frames would leave
 // 10 % slower than on the chip. The UART's own struct (the io port of kind
-// "uart" named '0') is set to the true frame length after every baud-rate
-// write, checked once per RunUntil.
+// "uart" named '0') is set to the true frame length whenever the frame's
+// registers (UBRR0, UCSR0A's U2X0, UCSR0B, UCSR0C) change: RunUntil looks
+// at them after every instruction (four loads; checking once per RunUntil
+// left a firmware that sets its baud rate and sends within one long
+// RunUntil with 11-bit bytes until the call returned).
+uint32_t AvrCore::UartFrameRegisters() const {
+  const uint8_t* d = avr_->data;
+  return static_cast<uint32_t>(d[kUbrr0l]) | (static_cast<uint32_t>(d[kUbrr0h]) << 8) |
+         (static_cast<uint32_t>(d[kUcsr0c]) << 16) |
+         (static_cast<uint32_t>((d[kUcsr0a] & 0x02) | (d[kUcsr0b] & 0x1C)) << 24);
+}
+
 void AvrCore::FixUartPacing() {
+  uart_frame_registers_ = UartFrameRegisters();
   const uint64_t real = uart_byte_cycles();
   if (real == 0) return;
   for (avr_io_t* io = avr_->io_port; io != nullptr; io = io->next) {
@@ -194,7 +205,6 @@ void AvrCore::FixUartPacing() {
 
 void AvrCore::RunUntil(uint64_t cycle) {
   if (avr_->cycle >= cycle) return;
-  FixUartPacing();
   // A sleeping core jumps to its next timer: this one bounds the jump.
   avr_cycle_timer_register(avr_, cycle - avr_->cycle, &AvrCore::OnBoundTimer, this);
   while (avr_->cycle < cycle) {
@@ -203,6 +213,7 @@ void AvrCore::RunUntil(uint64_t cycle) {
       avr_->cycle = cycle;
       break;
     }
+    if (UartFrameRegisters() != uart_frame_registers_) FixUartPacing();
     avr_run(avr_);
     ++counters_.instructions_run;
   }

@@ -113,9 +113,10 @@ class AvrCore {
   // of the write. The byte is on the wire for uart_byte_cycles() from then.
   using UartWatcher = std::function<void(uint64_t cycle, uint8_t byte)>;
   void WatchUart(UartWatcher watcher);
-  // USART0, input: the byte's stop bit ends at `cycle`; from then the
-  // firmware can read it from UDR0. Bytes must come one byte time apart or
-  // more, as on a wire (the caller serialises them).
+  // USART0, input: the byte's start bit at `cycle`; simavr makes it
+  // readable from UDR0 one byte time (uart_byte_cycles) later. Bytes must
+  // come one byte time apart or more, as on a wire (the caller serialises
+  // them).
   void SendUart(uint8_t byte, uint64_t cycle);
   // One 8N1 frame at the baud rate the firmware set (UBRR0, U2X0): the
   // bits of a byte times the cycles per bit. 0 before the firmware set the
@@ -137,6 +138,7 @@ class AvrCore {
   };
   void Queue(uint64_t cycle, const Event& event);
   void FixUartPacing();
+  uint32_t UartFrameRegisters() const;
   void ArmEventTimer();
   void Deliver(const Event& event);
   avr_irq_t* PinIrq(AvrPin pin) const;
@@ -153,6 +155,8 @@ class AvrCore {
   void (*mcu_reset_)(avr_t*) = nullptr;
   std::multimap<uint64_t, Event> events_;
   uint64_t event_timer_cycle_ = 0;
+  // UartFrameRegisters() when FixUartPacing last ran.
+  uint32_t uart_frame_registers_ = 0;
   std::vector<UartWatcher> uart_watchers_;
   struct PinTap {
     AvrCore* core;

@@ -1,95 +1,61 @@
 #include "tests/firmware/avr_device.h"
 
-#include <cstdlib>
-
-#include "avr_eeprom.h"
-#include "avr_ioport.h"
-#include "avr_uart.h"
-#include "sim/firmware/avr_core.h"
 #include "sim_avr.h"
-#include "sim_elf.h"
 
 namespace roomfix::testing {
 
-AvrDevice::~AvrDevice() {
-  if (avr_) {
-    avr_terminate(avr_);
-    free(avr_);
-  }
-}
+// A thin test face on firmware::AvrCore, the simulator's own core, so one
+// piece of code loads an ELF and corrects simavr's defaults for both. (This
+// harness once drove simavr itself with those defaults: bytes paced at 11
+// bits (704 cycles at 250 kb/s, not 640), TXC0 set after every byte, and a
+// usleep whenever the firmware slept, which made a test of a device in its
+// fault loop take 18 s.)
+AvrDevice::~AvrDevice() = default;
 
 bool AvrDevice::Load(const std::string& elf_path, const std::vector<uint8_t>& eeprom,
                      std::string* error) {
-  elf_firmware_t firmware = {};
-  if (elf_read_firmware(elf_path.c_str(), &firmware) != 0) {
-    *error = "simavr cannot read " + elf_path;
-    return false;
-  }
-  avr_ = avr_make_mcu_by_name("atmega328p");
-  if (!avr_) {
-    roomfix::firmware::FreeElf(&firmware);
-    *error = "simavr has no atmega328p";
-    return false;
-  }
-  avr_init(avr_);
-  avr_->log = LOG_NONE;
-  firmware.frequency = kHz;
-  avr_load_firmware(avr_, &firmware);
-  roomfix::firmware::FreeElf(&firmware);
-  if (!eeprom.empty()) {
-    avr_eeprom_desc_t desc = {};
-    desc.ee = const_cast<uint8_t*>(eeprom.data());
-    desc.offset = 0;
-    desc.size = static_cast<uint16_t>(eeprom.size());
-    avr_ioctl(avr_, AVR_IOCTL_EEPROM_SET, &desc);
-  }
-  // No "UART0: ..." lines on stdout: the bytes go to the test.
-  uint32_t flags = 0;
-  avr_ioctl(avr_, AVR_IOCTL_UART_GET_FLAGS('0'), &flags);
-  flags &= ~AVR_UART_FLAG_STDIO;
-  avr_ioctl(avr_, AVR_IOCTL_UART_SET_FLAGS('0'), &flags);
-  avr_irq_register_notify(avr_io_getirq(avr_, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUTPUT),
-                          &AvrDevice::OnUartOut, this);
+  firmware::AvrCoreOptions options;
+  options.elf_path = elf_path;
+  options.frequency_hz = kHz;
+  options.eeprom = eeprom;
+  core_ = firmware::AvrCore::Create(options, error);
+  if (core_ == nullptr) return false;
+  core_->WatchUart([this](uint64_t cycle, uint8_t byte) { uart_out_.push_back({cycle, byte}); });
   for (int pin = 1; pin <= 2; ++pin) {
-    avr_irq_register_notify(avr_io_getirq(avr_, AVR_IOCTL_IOPORT_GETIRQ('B'), pin),
-                            &AvrDevice::OnPortB, this);
+    // simavr notifies every write to the port (and every compare toggle's
+    // update), changed or not: keep the edges.
+    core_->WatchPin({'B', pin}, [this, pin](uint64_t cycle, bool level) {
+      if (pb_level_[pin] == level) return;
+      pb_level_[pin] = level;
+      edges_.push_back({cycle, pin, level});
+    });
   }
   return true;
-}
-
-void AvrDevice::OnUartOut(avr_irq_t* /*irq*/, uint32_t value, void* param) {
-  auto* self = static_cast<AvrDevice*>(param);
-  self->uart_out_.push_back({self->avr_->cycle, static_cast<uint8_t>(value)});
-}
-
-void AvrDevice::OnPortB(avr_irq_t* irq, uint32_t value, void* param) {
-  auto* self = static_cast<AvrDevice*>(param);
-  const int pin = static_cast<int>(irq->irq);
-  const bool high = (value & 0xFF) != 0;
-  if (pin < 0 || pin > 7 || self->pb_level_[pin] == high) return;
-  self->pb_level_[pin] = high;
-  self->edges_.push_back({self->avr_->cycle, pin, high});
 }
 
 bool AvrDevice::RunUntil(uint64_t target) {
-  while (avr_->cycle < target) {
-    const int state = avr_run(avr_);
-    if (state == cpu_Done || state == cpu_Crashed) return false;
-  }
-  return true;
+  core_->RunUntil(target);
+  return core_->state() != cpu_Crashed && core_->state() != cpu_Done;
 }
 
-uint64_t AvrDevice::cycle() const { return avr_->cycle; }
+uint64_t AvrDevice::cycle() const { return core_->cycle(); }
 
 void AvrDevice::SendBytes(const std::vector<uint8_t>& bytes) {
-  avr_irq_t* in = avr_io_getirq(avr_, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_INPUT);
-  for (uint8_t b : bytes) avr_raise_irq(in, b);
+  // As on a wire, back to back from now: AvrCore takes each byte at its
+  // start bit and makes it readable a byte time later.
+  const uint64_t byte_cycles =
+      core_->uart_byte_cycles() > 0 ? core_->uart_byte_cycles() : kCyclesPerUartByte;
+  uint64_t start = cycle();
+  for (uint8_t b : bytes) {
+    core_->SendUart(b, start);
+    start += byte_cycles;
+  }
 }
 
 void AvrDevice::SetPin(char port, int pin, bool high) {
-  avr_raise_irq(avr_io_getirq(avr_, AVR_IOCTL_IOPORT_GETIRQ(port), pin), high ? 1 : 0);
+  core_->DrivePin({port, pin}, high, cycle());
 }
 
-void AvrDevice::Reset() { avr_reset(avr_); }
+void AvrDevice::Reset() { core_->Reset(); }
 
 }  // namespace roomfix::testing

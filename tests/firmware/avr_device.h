@@ -2,20 +2,21 @@
 #define ROOMFIX_TESTS_FIRMWARE_AVR_DEVICE_H_
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
 
-struct avr_t;
-struct avr_irq_t;
+#include "sim/firmware/avr_core.h"
 
 namespace roomfix::testing {
 
 // One simulated ATmega328P at 16 MHz running a firmware ELF in simavr,
 // cycle by cycle: bytes in and out of USART0 with the cycle of each, pin
 // edges on PB1/PB2 (the beacon's drive), pins PB0/PD2 driven by the test.
-// A test-only harness for single-device tests; the simulator's lockstep
-// world (sim/) is the many-device one.
+// A test-only face on the simulator's firmware::AvrCore for single-device
+// tests; the simulator's lockstep world (sim/firmware) is the many-device
+// one.
 class AvrDevice {
  public:
   static constexpr uint64_t kHz = 16000000;
@@ -57,10 +58,7 @@ class AvrDevice {
   }
 
  private:
-  static void OnUartOut(avr_irq_t* irq, uint32_t value, void* param);
-  static void OnPortB(avr_irq_t* irq, uint32_t value, void* param);
-
-  avr_t* avr_ = nullptr;
+  std::unique_ptr<firmware::AvrCore> core_;
   std::vector<Byte> uart_out_;
   std::vector<Edge> edges_;
   bool pb_level_[8] = {};
