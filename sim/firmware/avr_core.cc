@@ -39,6 +39,19 @@ void InstallQuietLogger() {
 // with the wall clock; we pace simulated time ourselves.
 void NoSleep(avr_t*, avr_cycle_count_t) {}
 
+// Frees what simavr's elf_read_firmware allocated in *elf once
+// avr_load_firmware has copied it (simavr 1.6 has no function for it).
+void FreeElf(elf_firmware_t* elf) {
+  free(elf->flash);
+  free(elf->eeprom);
+  free(elf->fuse);
+  free(elf->lockbits);
+#if ELF_SYMBOLS
+  for (uint32_t i = 0; i < elf->symbolcount; ++i) free(elf->symbol[i]);
+  free(elf->symbol);
+#endif
+}
+
 }  // namespace
 
 bool AvrCoreOptions::IsValid(std::string* error) const {
@@ -90,17 +103,6 @@ AvrCore::~AvrCore() {
   free(avr_);
 }
 
-// What elf_read_firmware allocated; avr_load_firmware has copied it.
-void FreeElf(elf_firmware_t* elf) {
-  free(elf->flash);
-  free(elf->eeprom);
-  free(elf->fuse);
-  free(elf->lockbits);
-#if ELF_SYMBOLS
-  for (uint32_t i = 0; i < elf->symbolcount; ++i) free(elf->symbol[i]);
-  free(elf->symbol);
-#endif
-}
 
 std::unique_ptr<AvrCore> AvrCore::Create(const AvrCoreOptions& options, std::string* error) {
   if (!options.IsValid(error)) return nullptr;

@@ -35,7 +35,6 @@
 
 struct avr_t;
 struct avr_irq_t;
-struct elf_firmware_t;
 
 namespace roomfix::firmware {
 
@@ -165,10 +164,6 @@ class AvrCore {
   std::vector<std::unique_ptr<PinTap>> pin_taps_;
   AvrCoreCounters counters_;
 };
-
-// Frees what simavr's elf_read_firmware allocated in *elf once
-// avr_load_firmware has copied it (simavr 1.6 has no function for it).
-void FreeElf(elf_firmware_t* elf);
 
 }  // namespace roomfix::firmware
 
