@@ -103,7 +103,6 @@ AvrCore::~AvrCore() {
   free(avr_);
 }
 
-
 std::unique_ptr<AvrCore> AvrCore::Create(const AvrCoreOptions& options, std::string* error) {
   if (!options.IsValid(error)) return nullptr;
   InstallQuietLogger();
