@@ -168,7 +168,7 @@ int main(void) {
   uint8_t joining = 1; /* not fired since boot (seq wraps to 0 later) */
   fw_firings = 0;
   for (;;) {
-    wdt_reset();
+    fw_watchdog_pet();
     const uint32_t now = fw_now();
     if (heard_valid) {
       cli();

@@ -114,7 +114,7 @@ int main(void) {
   EIMSK = _BV(INT0);
   fw_led(1);
   for (;;) {
-    wdt_reset();
+    fw_watchdog_pet();
     cli();
     if (state != kListening) {
       /* Nothing until an announcement: its receive ISR wakes us. */

@@ -171,6 +171,15 @@ void fw_fault_loop(uint8_t device_id, uint8_t fault) {
   }
 }
 
+void fw_watchdog_pet(void) {
+  static uint32_t last_pet;
+  const uint32_t now = fw_now();
+  if (now != last_pet) {
+    wdt_reset();
+    last_pet = now;
+  }
+}
+
 void fw_sleep_locked(void) {
   set_sleep_mode(SLEEP_MODE_IDLE);
   sleep_enable();

@@ -71,6 +71,13 @@ void fw_led(uint8_t on);
  * the firmware-in-the-loop simulator must execute every one of those
  * cycles, where a sleeping core jumps to its next interrupt. */
 void fw_sleep_locked(void);
+/* The main loops' watchdog petting: wdt_reset only when Timer1 has moved
+ * since the last pet. A loop that spins or sleeps with its clock stopped
+ * (an upset of TCCR1B, a dead overflow interrupt) is the one hang it cannot
+ * see for itself; petting unconditionally kept such a beacon spinning for
+ * ever in the polled stretch before a burst (found by the watchdog test in
+ * tests/firmware/firmware_sim_test.cc). */
+void fw_watchdog_pet(void);
 
 /* Power-on self test: the CRC against its published check value, Timer1
  * counting, and a walking-bit test of a RAM buffer. Returns 1 on success. */

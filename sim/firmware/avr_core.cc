@@ -144,6 +144,7 @@ std::unique_ptr<AvrCore> AvrCore::Create(const AvrCoreOptions& options, std::str
   // so the core is found through the hook table below.
   core->mcu_reset_ = avr->reset;
   avr->reset = &AvrCore::OnResetHook;
+  core->normal_run_ = avr->run;
   RegisterCore(avr, core.get());
   return core;
 }
@@ -218,6 +219,16 @@ void AvrCore::RunUntil(uint64_t cycle) {
     avr_run(avr_);
     ++counters_.instructions_run;
   }
+  // simavr resets for its watchdog through the run callback (it swaps
+  // avr->run for one that calls avr_reset), which takes effect at the next
+  // avr_run; a sleeping core has meanwhile jumped on to its next timer,
+  // here the bound of this call. Run it now, so a watchdog reset due in
+  // this call happens in it (at its end: up to the call's length late, as
+  // an asleep core jumps; FirmwareWorld's short quanta keep that small).
+  if (avr_->run != normal_run_ && !stopped()) {
+    avr_run(avr_);
+    ++counters_.instructions_run;
+  }
 }
 
 void AvrCore::Reset() {
@@ -284,6 +295,21 @@ void AvrCore::Deliver(const Event& event) {
   }
   ++counters_.uart_bytes_in;
   avr_raise_irq(avr_io_getirq(avr_, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_INPUT), event.byte);
+}
+
+bool AvrCore::UpsetRegister(uint16_t address, uint8_t value) {
+  constexpr uint16_t kFirstIo = 0x20;
+  constexpr uint16_t kLastIo = 0xFF;  // the ATmega328P's extended I/O ends here
+  if (address < kFirstIo || address > kLastIo) return false;
+  // As simavr's own store does: the module's write handler when it has one
+  // (it updates the register and its state), else the register alone.
+  const auto& io = avr_->io[AVR_DATA_TO_IO(address)];
+  if (io.w.c != nullptr) {
+    io.w.c(avr_, address, value, io.w.param);
+  } else {
+    avr_->data[address] = value;
+  }
+  return true;
 }
 
 void AvrCore::DrivePin(AvrPin pin, bool level, uint64_t cycle) {

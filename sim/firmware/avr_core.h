@@ -123,6 +123,12 @@ class AvrCore {
   uint64_t uart_byte_cycles() const;
   double uart_baud() const;
 
+  // A fault: the I/O register at data address `address` (0x20..0xFF) takes
+  // `value` now, as an upset would leave it, with the I/O module's side
+  // effects (writing TCCR1B = 0 stops Timer1). For tests of what the
+  // firmware does about it (its watchdog); false for an address outside
+  // the I/O space.
+  bool UpsetRegister(uint16_t address, uint8_t value);
   const AvrCoreCounters& counters() const { return counters_; }
   // simavr's state (cpu_Running, cpu_Sleeping, ...), for messages.
   int state() const;
@@ -152,6 +158,8 @@ class AvrCore {
   AvrCoreOptions options_;
   avr_t* avr_ = nullptr;
   void (*mcu_reset_)(avr_t*) = nullptr;
+  // simavr's run callback as avr_init set it (see RunUntil).
+  void (*normal_run_)(avr_t*) = nullptr;
   std::multimap<uint64_t, Event> events_;
   uint64_t event_timer_cycle_ = 0;
   // UartFrameRegisters() when FixUartPacing last ran.

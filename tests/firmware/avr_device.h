@@ -40,6 +40,12 @@ class AvrDevice {
   void SetPin(char port, int pin, bool high);
   // A reset as the reset pin gives (EEPROM kept).
   void Reset();
+  // An I/O register upset (firmware::AvrCore::UpsetRegister).
+  bool UpsetRegister(uint16_t address, uint8_t value) {
+    return core_->UpsetRegister(address, value);
+  }
+  // Resets so far, asked for or by the watchdog.
+  int64_t resets() const { return core_->counters().resets; }
 
   struct Byte {
     uint64_t cycle;

@@ -373,6 +373,56 @@ TEST(BeaconFirmware, CountsFromZeroAgainAfterAReset) {
   EXPECT_EQ(m.firing_seq, 0);
 }
 
+// A hung beacon is restarted by its watchdog (250 ms, firmware/beacon.c):
+// an upset that stops Timer1 (TCCR1B = 0) leaves its main loop either
+// asleep for an overflow that never comes (mid-frame) or spinning in the
+// polled stretch before a burst (just before it). The loop pets the
+// watchdog only while its clock moves (fw_watchdog_pet), so either way the
+// watchdog resets it and it boots, listens for a frame and fires again
+// from firing 0 (which the bridge's restart detection handles). Petting
+// on every pass, as the firmware first did, kept the spinning one hung.
+TEST(BeaconFirmware, ItsWatchdogRestartsItWhenItsTimerStopsAsleepOrSpinning) {
+  REQUIRE_ELF("beacon");
+  const DeviceConfig config = DemoBeacon();
+  // Upset at 2.5 frames (asleep: the next burst is half a frame away) and
+  // at 3 frames (the polled stretch: the burst at 3 frames + lead is
+  // within FW_WAKE_TICKS).
+  for (const double frames_before_upset : {2.5, 3.0}) {
+    SCOPED_TRACE(frames_before_upset);
+    AvrDevice d;
+    Boot(&d, "beacon", radio::EncodeDeviceConfig(config));
+    ASSERT_TRUE(d.RunUntil(static_cast<uint64_t>(frames_before_upset * config.frame_us) * kUs));
+    ASSERT_EQ(Frames(d).size(), 2u);
+    ASSERT_EQ(d.resets(), 0);
+    constexpr uint16_t kTccr1b = 0x81;  // ATmega328P datasheet, register summary
+    ASSERT_TRUE(d.UpsetRegister(kTccr1b, 0));
+    const uint64_t upset = d.cycle();
+    d.ClearOutput();
+    // The watchdog's period is 250 ms nominal (its own 128 kHz oscillator,
+    // datasheet table 10-3; simavr runs it exact from the last pet, at most
+    // a loop pass before the upset). Within it no burst and no
+    // announcement; past it, one reset.
+    constexpr uint64_t kWatchdogUs = 250000;
+    constexpr uint64_t kMarginUs = 10000;
+    ASSERT_TRUE(d.RunUntil(upset + (kWatchdogUs - kMarginUs) * kUs));
+    EXPECT_TRUE(Frames(d).empty());
+    EXPECT_EQ(d.resets(), 0);
+    ASSERT_TRUE(d.RunUntil(upset + (kWatchdogUs + kMarginUs) * kUs));
+    EXPECT_EQ(d.resets(), 1);
+    // Then it fires again, counting from 0, after its listening frame and
+    // lead: well within two frames.
+    ASSERT_TRUE(d.RunUntil(upset + kWatchdogUs * kUs + 2 * config.frame_us * kUs));
+    const std::vector<TxFrame> frames = Frames(d);
+    ASSERT_GE(frames.size(), 1u);
+    radio::WallMessage m;
+    const std::vector<uint8_t> payload = frames[0].payload();
+    ASSERT_EQ(radio::DecodeWallMessage(payload.data(), payload.size(), &m),
+              radio::PayloadError::kOk);
+    EXPECT_EQ(m.firing_seq, 0);
+    EXPECT_FALSE(EdgesOf(d, 1).empty());
+  }
+}
+
 // The device status payloads a device sent, and its fault codes.
 std::vector<uint8_t> FaultsSent(const AvrDevice& d) {
   std::vector<uint8_t> faults;
