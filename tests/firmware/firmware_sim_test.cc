@@ -9,6 +9,7 @@
 #include <sys/stat.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <vector>
 
@@ -234,14 +235,23 @@ TEST(BeaconFirmware, BurstsAt40kHzAFixedDelayAfterEachAnnouncement) {
   }
 }
 
+// This beacon (id 1) sharing the air with beacon 5: two slots, ours
+// `own_slot`, in a frame of `frame_slots` slots (more than two when the
+// rate bounds the frame).
+DeviceConfig TwoSlotBeacon(uint8_t own_slot, uint32_t frame_slots) {
+  DeviceConfig config = DemoBeacon();
+  config.slot_count = 2;
+  config.slot_index = own_slot;
+  config.slot_beacon_ids = own_slot == 0 ? std::array<uint8_t, radio::kDeviceMaxSlots>{1, 5}
+                                         : std::array<uint8_t, radio::kDeviceMaxSlots>{5, 1};
+  config.frame_us = frame_slots * config.slot_us;
+  return config;
+}
+
 TEST(BeaconFirmware, TakesItsSlotFromAnotherBeaconsAnnouncement) {
   REQUIRE_ELF("beacon");
-  DeviceConfig config = DemoBeacon();
   // Two beacons: id 5 in slot 0, this one (id 1) in slot 1.
-  config.slot_count = 2;
-  config.slot_index = 1;
-  config.slot_beacon_ids = {5, 1};
-  config.frame_us = 2 * config.slot_us;
+  const DeviceConfig config = TwoSlotBeacon(1, 2);
   ASSERT_TRUE(config.IsValid(nullptr));
   AvrDevice d;
   Boot(&d, "beacon", radio::EncodeDeviceConfig(config));
@@ -287,12 +297,8 @@ TEST(BeaconFirmware, TakesItsSlotFromAnotherBeaconsAnnouncement) {
 // holds only for a frame of exactly n slots).
 TEST(BeaconFirmware, AJoiningBeaconInAnEarlierSlotFiresAFrameLessTheSlotsBetweenLater) {
   REQUIRE_ELF("beacon");
-  DeviceConfig config = DemoBeacon();
   // This one (id 1) in slot 0 of 2, beacon 5 in slot 1; a frame of 3 slots.
-  config.slot_count = 2;
-  config.slot_index = 0;
-  config.slot_beacon_ids = {1, 5};
-  config.frame_us = 3 * config.slot_us;
+  const DeviceConfig config = TwoSlotBeacon(0, 3);
   ASSERT_TRUE(config.IsValid(nullptr));
   AvrDevice d;
   Boot(&d, "beacon", radio::EncodeDeviceConfig(config));
@@ -326,11 +332,7 @@ TEST(BeaconFirmware, AJoiningBeaconInAnEarlierSlotFiresAFrameLessTheSlotsBetween
 // plus one slot and, with two slots in the frame, stay together for ever.
 TEST(BeaconFirmware, AFiringBeaconIgnoresALaterSlotsAnnouncement) {
   REQUIRE_ELF("beacon");
-  DeviceConfig config = DemoBeacon();
-  config.slot_count = 2;
-  config.slot_index = 0;
-  config.slot_beacon_ids = {1, 5};
-  config.frame_us = 2 * config.slot_us;
+  const DeviceConfig config = TwoSlotBeacon(0, 2);
   ASSERT_TRUE(config.IsValid(nullptr));
   AvrDevice d;
   Boot(&d, "beacon", radio::EncodeDeviceConfig(config));

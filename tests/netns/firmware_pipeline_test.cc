@@ -9,7 +9,6 @@
 #include <gtest/gtest.h>
 #include <signal.h>
 
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 
@@ -68,9 +67,11 @@ class FirmwarePipeline : public ::testing::Test {
     });
   }
 
+  // Dispatches the bus for `seconds` (msgio's HandleUntil with a
+  // condition that never holds).
   void Listen(double seconds) {
-    const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
-    while (std::chrono::steady_clock::now() < until) bus_->Handle(50);
+    HandleUntil(
+        bus_.get(), [] { return false; }, seconds);
   }
 
   analysis::FixQuality Assess(const std::vector<pose2d_t>& track, int64_t from_utime) const {
