@@ -286,8 +286,10 @@ TEST(BeaconFirmware, TakesItsSlotFromAnotherBeaconsAnnouncement) {
   EXPECT_GE(after_last_byte, 640);
   EXPECT_LE(after_last_byte, 640 + 128);
   // Its announcement numbers its own firings from 0.
-  EXPECT_EQ(frames[0].payload()[2], 1);
-  EXPECT_EQ(frames[0].payload()[4], 0);
+  const std::vector<uint8_t> payload = frames[0].payload();
+  ASSERT_EQ(payload.size(), radio::kFiringPayloadBytes);
+  EXPECT_EQ(payload[2], 1);  // beacon id
+  EXPECT_EQ(payload[4], 0);  // firing number, low byte
 }
 
 // The first burst of a beacon that hears nobody, with a frame longer than
