@@ -13,6 +13,7 @@
 
 #include "core/analysis/track_error.h"
 #include "core/trilat/beacon_prior.h"
+#include "core/trilat/nlos_belief.h"
 #include "core/trilat/trilateration.h"
 #include "core/world/site.h"
 #include "core/world/ultrasound_model.h"
@@ -145,10 +146,11 @@ std::vector<Trial> MakeTrials(const Scenario& s, int n, std::mt19937_64* rng) {
   return trials;
 }
 
-// With use_prior the trials are fed in order through a BeaconPrior, as
-// trilat_proc does per beacon; its cost is inside the timed region.
+// With use_prior the trials are fed in order through a BeaconPrior, and
+// with use_belief through an NlosBelief, as trilat_proc does per beacon;
+// their cost is inside the timed region.
 MethodResult RunMethod(const Scenario& s, const std::vector<Trial>& trials, Method method,
-                       bool use_prior = false) {
+                       bool use_prior = false, bool use_belief = false) {
   trilat::SolverOptions options;
   options.method = method;
   options.dimension = trilat::Dimension::kFixedHeight2D;
@@ -165,16 +167,17 @@ MethodResult RunMethod(const Scenario& s, const std::vector<Trial>& trials, Meth
     trilat::Solve(trials[k].ranges, options, nullptr, &fix);
   }
   trilat::BeaconPrior prior;
+  trilat::NlosBeliefOptions belief_options;
+  belief_options.range_sigma_m = Sigma(s);
+  trilat::NlosBelief belief(belief_options);
   for (size_t k = 0; k < trials.size(); ++k) {
     const Trial& t = trials[k];
     const int64_t utime = static_cast<int64_t>(k) * kFiringPeriod_us;
     const auto start = std::chrono::steady_clock::now();
-    if (use_prior) {
-      trilat::Solve(t.ranges, options, nullptr, prior.At(utime), &fix);
-      prior.Observe(utime, fix);
-    } else {
-      trilat::Solve(t.ranges, options, nullptr, &fix);
-    }
+    trilat::Solve(t.ranges, options, nullptr, use_prior ? prior.At(utime) : nullptr,
+                  use_belief ? &belief.Suspected(utime) : nullptr, &fix);
+    if (use_prior) prior.Observe(utime, fix);
+    if (use_belief) belief.Observe(utime, t.ranges, fix);
     const auto stop = std::chrono::steady_clock::now();
     times_ns.push_back(std::chrono::duration<double, std::nano>(stop - start).count());
     if (!fix.has_position()) {
@@ -309,15 +312,19 @@ int RunTrilatBench(const BenchTrilatOptions& options) {
     Method method;
     const char* key;
     bool prior;
+    bool belief;
   };
-  // robust_prior: the robust solver with the temporal prior, trilat_proc's
-  // default; it runs the same trials in order, so only where they are a
-  // track (the moving scenario: elsewhere each trial is anywhere).
-  const std::vector<MethodRow> all_methods = {{Method::kNelderMead, "nelder_mead", false},
-                                              {Method::kDefault, "default", false},
-                                              {Method::kRobust, "robust", false},
-                                              {Method::kCauchy, "cauchy", false},
-                                              {Method::kRobust, "robust_prior", true}};
+  // robust_prior: the robust solver with the temporal prior (trilat_proc
+  // --no-nlos-belief, its previous default); robust_prior_belief: with the
+  // NLOS belief too, trilat_proc's default. They run the same trials in
+  // order, so only where they are a track (the moving scenarios: elsewhere
+  // each trial is anywhere).
+  const std::vector<MethodRow> all_methods = {{Method::kNelderMead, "nelder_mead", false, false},
+                                              {Method::kDefault, "default", false, false},
+                                              {Method::kRobust, "robust", false, false},
+                                              {Method::kCauchy, "cauchy", false, false},
+                                              {Method::kRobust, "robust_prior", true, false},
+                                              {Method::kRobust, "robust_prior_belief", true, true}};
 
   json out;
   std::mt19937_64 rng(options.seed);
@@ -330,7 +337,7 @@ int RunTrilatBench(const BenchTrilatOptions& options) {
     json methods_json;
     std::vector<MethodResult> results;
     for (const MethodRow& row : methods) {
-      results.push_back(RunMethod(s, trials, row.method, row.prior));
+      results.push_back(RunMethod(s, trials, row.method, row.prior, row.belief));
     }
     for (size_t m = 0; m < methods.size(); ++m) {
       MethodResult& r = results[m];
@@ -351,13 +358,13 @@ int RunTrilatBench(const BenchTrilatOptions& options) {
         {"description", s.description}, {"trials", options.trials}, {"methods", methods_json}};
     if (!options.json) {
       std::printf("\n%s (%d trials)\n", s.description.c_str(), options.trials);
-      std::printf("  %-13s %10s %10s %9s %9s %9s %9s %9s %8s %11s %9s %6s\n", "method", "median_ns",
+      std::printf("  %-19s %10s %10s %9s %9s %9s %9s %9s %8s %11s %9s %6s\n", "method", "median_ns",
                   "p99_ns", "p99/med", "rmse_m", "p95_m", "p99_m", "worst_ok", "in95", "rmse/crlb",
                   "speedup", "lost");
       for (size_t m = 0; m < methods.size(); ++m) {
         const MethodResult& r = results[m];
         std::printf(
-            "  %-13s %10.0f %10.0f %9.2f %9.4f %9.4f %9.4f %9.4f %7.1f%% %11.3f %8.1fx %6d\n",
+            "  %-19s %10.0f %10.0f %9.2f %9.4f %9.4f %9.4f %9.4f %7.1f%% %11.3f %8.1fx %6d\n",
             methods[m].key, r.median_ns, r.p99_ns, r.p99_ns / r.median_ns, r.rmse_m, r.p95_m,
             r.p99_m, r.worst_ok_m, 100.0 * r.inside_95, r.rmse_over_crlb, r.speedup, r.failures);
       }

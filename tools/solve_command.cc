@@ -95,6 +95,7 @@ json SolveOne(const json& in) {
   out["position"] = position;
   out["covariance"] = covariance;
   out["residual_rms"] = Number(fix.residual_rms_m);
+  out["shared_level"] = Number(fix.shared_level_m);
   out["used"] = fix.used;
   json rejected = json::array();
   for (const auto& r : fix.rejected) {

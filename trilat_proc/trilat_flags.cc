@@ -31,6 +31,12 @@ void AddTrilatFlags(CLI::App* app, const std::string& prefix, TrilatNodeOptions*
   app->add_flag(name("no-prior"), flags->no_prior,
                 "Solve each range set alone, without the beacon's temporal prior "
                 "(docs/trilateration.md, \"Temporal prior\")");
+  app->add_flag(name("no-nlos-belief"), flags->no_nlos_belief,
+                "Solve without the per-receiver NLOS belief (docs/trilateration.md, "
+                "\"NLOS belief\")");
+  app->add_option(name("nlos-persistence"), options->nlos_belief.persistence_s,
+                  "How long a hidden receiver stays suspected: the belief's time constant, s")
+      ->capture_default_str();
   app->add_option(name("merge-deadline"), options->merge_deadline_s,
                   "Solve a firing's parts from several radios' bridges with what came this "
                   "long after the first part, s")
@@ -56,6 +62,7 @@ bool ApplyTrilatFlags(const TrilatFlags& flags, TrilatNodeOptions* options, std:
     return false;
   }
   options->use_prior = !flags.no_prior;
+  options->use_nlos_belief = !flags.no_nlos_belief;
   return true;
 }
 

@@ -17,6 +17,7 @@ struct TrilatFlags {
   std::string method = "default";
   std::string dimension = "fixed-height";
   bool no_prior = false;
+  bool no_nlos_belief = false;
 };
 
 // Adds --method, --dimension, --range-sigma, --outlier-threshold,

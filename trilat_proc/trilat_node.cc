@@ -38,6 +38,7 @@ bool TrilatNodeOptions::IsValid(std::string* error) const {
     return false;
   }
   if (use_prior && !prior.IsValid(error)) return false;
+  if (use_nlos_belief && !nlos_belief.IsValid(error)) return false;
   if (!(merge_deadline_s > 0.0 && merge_deadline_s <= 10.0)) {
     *error = "merge_deadline_s must be in (0, 10]";
     return false;
@@ -59,6 +60,8 @@ TrilatNode::TrilatNode(const Site& site, Bus* bus, const TrilatNodeOptions& opti
                            room.height_m * room.height_m) +
                  kRangeMargin_m;
   options_.solver.max_range_m = std::min(options_.solver.max_range_m, max_range_m_);
+  options_.nlos_belief.max_excess_m = max_range_m_;
+  options_.nlos_belief.range_sigma_m = options_.solver.range_sigma_m;
   // A set never holds more ranges than the site has receivers (refused
   // before the solver), so the solver's own cap must not be lower.
   options_.solver.max_ranges =
@@ -205,6 +208,7 @@ void TrilatNode::Solve(const range_set_t& set, const MessageInfo& info) {
   if (found == tracks_.end() && tracks_.size() < kMaxBeaconTracks) {
     found = tracks_.emplace(set.beacon_id, BeaconTrack()).first;
     found->second.prior = trilat::BeaconPrior(prior_options);
+    found->second.belief = trilat::NlosBelief(options_.nlos_belief);
   }
   BeaconTrack* track = found == tracks_.end() ? nullptr : &found->second;
   const bool warm = track != nullptr && track->has_fix && set.utime >= track->last_fix_utime &&
@@ -214,7 +218,14 @@ void TrilatNode::Solve(const range_set_t& set, const MessageInfo& info) {
   if (track != nullptr && options_.use_prior) {
     prior = track->prior.At(set.utime);
   }
-  trilat::Solve(ranges_, solver, warm ? &track->last_position_m : nullptr, prior, &fix_);
+  const std::vector<trilat::NlosSuspicion>* suspected = nullptr;
+  if (track != nullptr && options_.use_nlos_belief) {
+    suspected = &track->belief.Suspected(set.utime);
+    for (const auto& s : *suspected) {
+      status_.Count("suspected_receiver_" + std::to_string(s.receiver_id));
+    }
+  }
+  trilat::Solve(ranges_, solver, warm ? &track->last_position_m : nullptr, prior, suspected, &fix_);
   if (warm) status_.Count("warm_starts");
   if (track != nullptr) track->last_recv_utime = info.recv_utime;
   if (dropped_range && fix_.status == trilat::FixStatus::kOk) {
@@ -257,6 +268,7 @@ void TrilatNode::Solve(const range_set_t& set, const MessageInfo& info) {
       fix_.used.clear();
     }
   }
+  if (track != nullptr && options_.use_nlos_belief) track->belief.Observe(set.utime, ranges_, fix_);
   if (track != nullptr && options_.use_prior) {
     const trilat::BeaconPrior::Outcome outcome = track->prior.Observe(set.utime, fix_);
     if (outcome == trilat::BeaconPrior::Outcome::kReset) {

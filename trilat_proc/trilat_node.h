@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/trilat/beacon_prior.h"
+#include "core/trilat/nlos_belief.h"
 #include "core/trilat/trilateration.h"
 #include "core/world/site.h"
 #include "msgio/bus.h"
@@ -39,6 +40,11 @@ struct TrilatNodeOptions {
   // robot carrying the beacon. use_prior false solves each set alone.
   trilat::BeaconPriorOptions prior;
   bool use_prior = true;
+  // The NLOS belief per beacon and receiver (core/trilat/nlos_belief.h);
+  // max_excess_m is replaced by the room's diagonal and range_sigma_m by
+  // the solver's. use_nlos_belief false solves without it.
+  trilat::NlosBeliefOptions nlos_belief;
+  bool use_nlos_belief = true;
   // A firing's parts from several coordinators' bridges (zigbee_bridge
   // --radio) are joined before solving; a part whose siblings have not all
   // come this long after it is solved with what came.
@@ -76,7 +82,10 @@ struct TrilatNodeOptions {
 // Each beacon has a temporal prior (core/trilat/beacon_prior.h) that the
 // robust solver uses to identify long ranges; which ranges were excluded is
 // counted per receiver (outlier_receiver_<id>), and the prior's resets are
-// counted (prior_resets).
+// counted (prior_resets). Each beacon also has an NLOS belief per receiver
+// (core/trilat/nlos_belief.h): the receivers it suspects are handed to the
+// solver, and each set a receiver was suspected in is counted
+// (suspected_receiver_<id>).
 //
 // Range sets from bridges that each read one of several coordinators
 // (num_expected below the site's receiver count) are parts: RangeSetMerger
@@ -102,6 +111,7 @@ class TrilatNode {
     Eigen::Vector3d last_position_m = Eigen::Vector3d::Zero();
     bool has_fix = false;
     trilat::BeaconPrior prior;
+    trilat::NlosBelief belief;
   };
 
   void OnRangeSet(const range_set_t& set, const MessageInfo& info);

@@ -6,14 +6,6 @@
 namespace roomfix::trilat {
 namespace {
 
-// A fix is checked when its ranges over-determine it and agree: only such a
-// fix may start or reset the prior (it stands on its own).
-bool Checked(const Fix& fix) {
-  constexpr uint32_t kUntrusted =
-      kInconsistentRanges | kPoorGeometry | kNotConverged | kConsensusBudgetExhausted | kUnchecked;
-  return fix.has_position() && fix.redundant_ranges >= 1 && (fix.flags & kUntrusted) == 0;
-}
-
 double SecondsBetween(int64_t a_utime, int64_t b_utime) {
   // Saturation is not needed: callers keep times within an hour of the
   // receive clock (msgio/time_limits.h), so the difference fits.
@@ -53,7 +45,7 @@ const PositionPrior* BeaconPrior::At(int64_t utime) {
 
 BeaconPrior::Outcome BeaconPrior::Observe(int64_t utime, const Fix& fix) {
   if (!fix.has_position() || !fix.position_m.allFinite()) return Outcome::kNone;
-  const bool checked = Checked(fix);
+  const bool checked = IsCheckedFix(fix);
   auto adopt = [&] {
     has_prior_ = true;
     utime_ = utime;

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <random>
 
+#include "core/trilat/nlos_belief.h"
 #include "core/trilat/trilateration.h"
 #include "core/world/site.h"
 #include "core/world/ultrasound_model.h"
@@ -168,8 +169,8 @@ TEST(BeaconPrior, UncheckedFixesNeitherStartNorResetIt) {
 // The demo's ultrasound path, deterministic: the demo site and trajectory,
 // roomfix_sim's range faults (2 cm noise, 5% non-line-of-sight ranges long by
 // 0.3-1 m, 2% dropouts) at 10 Hz, the radio's reordering (1%) and
-// duplicates (5%), through the prior and the robust solver as trilat_proc
-// runs them. The targets for the raw fixes: RMSE at most 4 cm, the
+// duplicates (5%), through the prior, the NLOS belief and the robust solver
+// as trilat_proc runs them. The targets for the raw fixes: RMSE at most 4 cm, the
 // worst ok fix at most 10 cm, 90-98% of errors inside the fix's own 95%
 // ellipse.
 // What one method makes of a stream of firings: its fixes judged against the
@@ -187,17 +188,22 @@ struct StreamFiring {
 };
 
 StreamQuality Judge(const std::vector<StreamFiring>& stream, const SolverOptions& o, bool use_prior,
-                    double max_speed_mps) {
+                    double max_speed_mps, bool use_belief = false) {
   BeaconPriorOptions po;
   po.max_speed_mps = max_speed_mps;
   BeaconPrior prior(po);
+  NlosBeliefOptions bo;
+  bo.range_sigma_m = o.range_sigma_m;
+  NlosBelief belief(bo);
   StreamQuality q;
   std::vector<double> errors;
   double sum2 = 0.0;
   Fix fix;
   for (const StreamFiring& f : stream) {
-    Solve(f.ranges, o, nullptr, use_prior ? prior.At(f.utime) : nullptr, &fix);
+    Solve(f.ranges, o, nullptr, use_prior ? prior.At(f.utime) : nullptr,
+          use_belief ? &belief.Suspected(f.utime) : nullptr, &fix);
     if (use_prior) prior.Observe(f.utime, fix);
+    if (use_belief) belief.Observe(f.utime, f.ranges, fix);
     if (!fix.has_position()) {
       ++q.lost;
       continue;
@@ -255,15 +261,21 @@ TEST(PillarStream, RawUltrasoundFixesMeetTheTargets) {
   SolverOptions o = Robust();
   o.fixed_height_m = height_m;
   o.range_sigma_m = 0.02;
-  const StreamQuality robust = Judge(stream, o, true, site.robots[0].max_speed_mps);
+  const double speed = site.robots[0].max_speed_mps;
+  const StreamQuality robust = Judge(stream, o, true, speed, true);
+  const StreamQuality prior_only = Judge(stream, o, true, speed);
+  const StreamQuality belief_only = Judge(stream, o, false, speed, true);
   SolverOptions ls = o;
   ls.method = Method::kDefault;
-  const StreamQuality plain = Judge(stream, ls, false, site.robots[0].max_speed_mps);
-  const StreamQuality alone = Judge(stream, o, false, site.robots[0].max_speed_mps);
-  for (const auto& [name, q] :
-       {std::pair{"robust+prior", robust}, {"robust alone", alone}, {"least squares", plain}}) {
+  const StreamQuality plain = Judge(stream, ls, false, speed);
+  const StreamQuality alone = Judge(stream, o, false, speed);
+  for (const auto& [name, q] : {std::pair{"robust+prior+belief", robust},
+                                {"robust+prior", prior_only},
+                                {"robust+belief", belief_only},
+                                {"robust alone", alone},
+                                {"least squares", plain}}) {
     std::printf(
-        "[ RESULT   ] %-13s %d sets: ok %d, lost %d; RMSE %.2f cm, p99 %.1f cm, worst ok %.1f "
+        "[ RESULT   ] %-19s %d sets: ok %d, lost %d; RMSE %.2f cm, p99 %.1f cm, worst ok %.1f "
         "cm, inside own 95%% ellipse %.1f%%\n",
         name, kFirings, q.ok, q.lost, 100 * q.rmse_m, 100 * q.p99_m, 100 * q.worst_ok_m,
         100 * q.coverage());
@@ -298,6 +310,9 @@ TEST(DemoStream, RawUltrasoundFixesMeetTheTargets) {
   BeaconPriorOptions po;
   po.max_speed_mps = site.robots[0].max_speed_mps;
   BeaconPrior prior(po);
+  NlosBeliefOptions bo;
+  bo.range_sigma_m = o.range_sigma_m;
+  NlosBelief belief(bo);
   std::mt19937_64 rng(16);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   // 20 minutes of firings: enough that the coverage is known to about 0.3%.
@@ -328,8 +343,9 @@ TEST(DemoStream, RawUltrasoundFixesMeetTheTargets) {
   double sum2 = 0.0, worst_ok_m = 0.0, worst_m = 0.0;
   Fix fix;
   for (const Firing& f : stream) {
-    Solve(f.ranges, o, nullptr, prior.At(f.utime), &fix);
+    Solve(f.ranges, o, nullptr, prior.At(f.utime), &belief.Suspected(f.utime), &fix);
     prior.Observe(f.utime, fix);
+    belief.Observe(f.utime, f.ranges, fix);
     if (!fix.has_position()) {
       ++lost;
       continue;

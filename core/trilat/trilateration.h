@@ -152,9 +152,17 @@ enum FixFlag : uint32_t {
   // degraded: the fix is further from the temporal prior than the robot can
   // have moved; the covariance is grown to cover the prior's position.
   kPriorDisagrees = 1u << 13,
+  // note (kRobust): the kept ranges share a positive offset (uncalibrated
+  // receivers all reading long), estimated with the position and removed;
+  // Fix::shared_level_m holds it.
+  kSharedLevel = 1u << 14,
+  // degraded (kRobust with an NLOS belief): a range from a receiver the
+  // belief suspects was long and is in the fix with a one-sided (reduced)
+  // weight, so the fix is not from all its ranges in full.
+  kNlosSuspected = 1u << 15,
 };
 // The highest bit in use, for loops over the flags.
-inline constexpr uint32_t kLastFixFlag = kPriorDisagrees;
+inline constexpr uint32_t kLastFixFlag = kNlosSuspected;
 const char* FixFlagName(FixFlag flag);
 // "too_few_ranges,collinear_receivers" for the flags set.
 std::string DescribeFlags(uint32_t flags);
@@ -175,6 +183,9 @@ struct Fix {
   //  - prior disagrees: plus d^2 / 5.99 on the diagonal, d the distance to
   //    the prior, so that the prior's position is inside the 95% ellipse.
   Eigen::Matrix3d covariance_m2 = Eigen::Matrix3d::Zero();
+  // The offset the kept ranges shared (kSharedLevel), m; 0 when none was
+  // adopted. The ranges used were shortened by it.
+  double shared_level_m = 0.0;
   // Ranges used minus unknowns: 0 is exactly determined (unchecked).
   int redundant_ranges = 0;
   // sqrt(F(p) / n) over the ranges used.
@@ -190,6 +201,11 @@ struct Fix {
 
   bool has_position() const { return status != FixStatus::kFailed; }
 };
+
+// A fix is checked when its ranges over-determine it and agree, so that it
+// can judge each of them: only such a fix may start or reset a beacon's
+// prior or teach its NLOS belief.
+bool IsCheckedFix(const Fix& fix);
 
 // Where the beacon can be, from its own recent fixes (BeaconPrior): within
 // radius_m of position_m.
@@ -210,6 +226,22 @@ struct PositionPrior {
 // itself always comes from ranges alone.
 void Solve(const std::vector<RangeMeasurement>& ranges, const SolverOptions& options,
            const Eigen::Vector3d* initial_guess, const PositionPrior* prior, Fix* fix);
+// A receiver whose range the beacon's NlosBelief suspects to be an echo:
+// the probability that it is, and the span its excess over the direct path
+// is taken uniform on (the room's diagonal).
+struct NlosSuspicion {
+  int receiver_id = 0;
+  double probability = 0.0;
+  double echo_span_m = 5.0;
+};
+
+// `suspected_nlos`, when given (ascending receiver ids, from the beacon's
+// NlosBelief), makes kRobust treat those receivers' ranges as probable
+// echoes: a one-sided loss for them when they read long, and the subset
+// without the long ones tried first (docs/trilateration.md, "NLOS belief").
+void Solve(const std::vector<RangeMeasurement>& ranges, const SolverOptions& options,
+           const Eigen::Vector3d* initial_guess, const PositionPrior* prior,
+           const std::vector<NlosSuspicion>* suspected_nlos, Fix* fix);
 void Solve(const std::vector<RangeMeasurement>& ranges, const SolverOptions& options,
            const Eigen::Vector3d* initial_guess, Fix* fix);
 Fix Solve(const std::vector<RangeMeasurement>& ranges, const SolverOptions& options,

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -361,12 +362,15 @@ TEST(Solve, TheConsensusBudgetLeavesTheExhaustiveSearchOfARoomIntact) {
   EXPECT_EQ(fix.used, (std::vector<int>{2, 3, 4, 5}));
   EXPECT_EQ(fix.flags & kConsensusBudgetExhausted, 0u);
   EXPECT_LE(fix.consensus_solves, 21);
-  // With too small a budget the search stops short and says so.
+  // With too small a budget the search stops short and says so; the
+  // one-sided reweighting it falls back on (linear cost) still finds the
+  // same two echoes, which stand out from four ranges that agree.
   o.max_consensus_solves = 3;
   const Fix short_budget = Solve(ranges, o);
   EXPECT_EQ(short_budget.consensus_solves, 3);
   EXPECT_NE(short_budget.flags & kConsensusBudgetExhausted, 0u);
   EXPECT_EQ(short_budget.status, FixStatus::kDegraded);
+  EXPECT_EQ(short_budget.used, (std::vector<int>{2, 3, 4, 5}));
 }
 
 TEST(Solve, GivesNoPositionWithFewerRangesThanTheModeNeeds) {
@@ -597,21 +601,156 @@ TEST(RealData, LiasPlanarStaticMediansAgreeWithMotionCapture) {
       EXPECT_LT(unbiased.mean, raw.mean);
       EXPECT_LE(unbiased.mean, published_unbiased_mean_m + kPublishedRounding_m)
           << session << " " << MethodName(m);
-      // On raw ranges every anchor is biased differently by 4-27 cm:
-      // consistent biases, not outliers. The robust solver excludes a range
-      // only when it stands out from the kept ranges' common level by the
-      // threshold plus five times their scatter, and that scatter is never
-      // taken below the configured range noise (seven ranges that happen to
-      // fit within 3 cm do not make a 40 cm one an outlier at 5 cm noise).
-      // So it keeps the biased ranges and equals least squares on both
-      // sessions (it was 24.0 then 15.8 against 15.0 cm on 8.14). The
-      // tolerance is the solvers' convergence step: both end on the same
-      // ranges, from different starts.
+      // On raw ranges every anchor reads long, by a different 4-27 cm: a
+      // level they share (about 17 cm on 8.14, 10 cm on 8.20) plus a
+      // scatter. Least squares cannot absorb the level at a fixed height
+      // and is pulled 15.0 / 10.4 cm off on average; the robust solver
+      // estimates the level with the position (kSharedLevel) and is never
+      // worse: 9.33 / 9.10 cm mean, 22.2 / 16.0 cm max (measured). Held to
+      // least squares' own figures so that a regression to them fails, and
+      // to the measured means plus 5 mm so that a slide back shows.
       const ErrorStats plain = SolveAll(cases, session, site, none, Method::kDefault);
-      constexpr double kConvergence_m = 1e-6;
-      EXPECT_LE(raw.mean, plain.mean + kConvergence_m) << session << " " << MethodName(m);
+      if (m == Method::kRobust) {
+        constexpr double kMeasuredMargin_m = 0.005;
+        const double measured_mean_m = session == "8.14" ? 0.0933 : 0.0910;
+        EXPECT_LE(raw.mean, measured_mean_m + kMeasuredMargin_m) << session;
+        EXPECT_LT(raw.mean, plain.mean) << session;
+        EXPECT_LT(raw.max, plain.max) << session;
+      } else {
+        // The other methods are least squares, from different starts: the
+        // same fix to the convergence step.
+        constexpr double kConvergence_m = 1e-6;
+        EXPECT_LE(raw.mean, plain.mean + kConvergence_m) << session << " " << MethodName(m);
+      }
       EXPECT_LT(raw.max, kRawMax_m) << session << " " << MethodName(m);
     }
+  }
+}
+
+// Single epochs of the same data (no medians: each epoch's raw ranges, with
+// their dropouts and outliers), static and moving, per set: the robust
+// solver against least squares.
+struct EpochCase {
+  Eigen::Vector2d truth;
+  double height_m = 0.0;
+  std::vector<double> ranges;  // per anchor, NaN when missing
+};
+
+std::vector<EpochCase> ReadEpochs(const std::string& path, const std::string& session,
+                                  const std::string& height_column) {
+  std::ifstream in(path);
+  std::string line;
+  std::getline(in, line);
+  if (!line.empty() && line.back() == '\r') line.pop_back();
+  std::vector<std::string> header;
+  {
+    std::stringstream s(line);
+    std::string cell;
+    while (std::getline(s, cell, ',')) header.push_back(cell);
+  }
+  auto column = [&](const std::string& name) {
+    return static_cast<size_t>(std::find(header.begin(), header.end(), name) - header.begin());
+  };
+  const size_t session_col = column("session"), x_col = column("gt_x_m"), y_col = column("gt_y_m"),
+               z_col = column(height_column), r0_col = column("r_a0_m");
+  std::vector<EpochCase> out;
+  while (std::getline(in, line)) {
+    // The moving file has CRLF line ends: an empty last field is then "\r".
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    std::vector<std::string> f;
+    std::stringstream s(line);
+    std::string cell;
+    while (std::getline(s, cell, ',')) f.push_back(cell);
+    f.resize(header.size());
+    if (session_col < header.size() && f[session_col] != session) continue;
+    EpochCase c;
+    c.truth = {std::stod(f[x_col]), std::stod(f[y_col])};
+    c.height_m = std::stod(f[z_col]);
+    for (size_t a = 0; a < 8; ++a) {
+      c.ranges.push_back(f[r0_col + a].empty() ? NAN : std::stod(f[r0_col + a]));
+    }
+    out.push_back(c);
+  }
+  return out;
+}
+
+struct EpochStats {
+  double mean = 0, median = 0, p95 = 0, max = 0;
+};
+
+EpochStats SolveEpochs(const std::vector<EpochCase>& cases, const Site& site, Method method) {
+  std::vector<double> errors;
+  std::vector<RangeMeasurement> ranges;
+  Fix fix;
+  for (const auto& c : cases) {
+    ranges.clear();
+    for (int a = 0; a < 8; ++a) {
+      if (!(c.ranges[a] > 0.0)) continue;  // a dropout
+      ranges.push_back({a,
+                        Eigen::Map<const Eigen::Vector3d>(site.FindReceiver(a)->position_m.data()),
+                        c.ranges[a]});
+    }
+    SolverOptions o = FixedHeight(method, c.height_m);
+    o.range_sigma_m = 0.05;
+    Solve(ranges, o, nullptr, &fix);
+    if (!fix.has_position()) continue;
+    errors.push_back((fix.position_m.head<2>() - c.truth).norm());
+  }
+  EpochStats s;
+  if (errors.empty()) return s;
+  std::sort(errors.begin(), errors.end());
+  for (double e : errors) s.mean += e;
+  s.mean /= errors.size();
+  s.median = errors[errors.size() / 2];
+  s.p95 = errors[errors.size() * 95 / 100];
+  s.max = errors.back();
+  return s;
+}
+
+TEST(RealData, LiasPlanarSingleEpochsRobustBeatsLeastSquaresWhereRangesReadLong) {
+  const std::string data = testing::SharedDataDir();
+  if (data.empty()) GTEST_SKIP() << "../shared/data is absent: real-data check skipped";
+  const std::string dir = data + "/uwb_lias_planar/";
+  struct Set {
+    const char* name;
+    std::string file, session, height_column, site;
+    // The robust maximum's known excess over least squares (0: none).
+    double known_max_excess_m;
+  };
+  // 8.14 static: five epochs of one pose where four anchors read 33-38 cm
+  // long and four 0-19 cm: the consensus takes the short group's longest
+  // range for an echo and the fix moves 40 cm off where least squares is 36
+  // (measured). Held to that by name, not hidden.
+  const std::vector<Set> sets = {
+      {"static 8.14", dir + "static_ranges_sample.csv", "8.14", "gt_z_nominal_m", "lias_planar_814",
+       0.045},
+      {"static 8.20", dir + "static_ranges_sample.csv", "8.20", "gt_z_nominal_m", "lias_planar_820",
+       0.0},
+      {"moving 8.15", dir + "dynamic_mid_sample.csv", "", "centroid_z_m", "lias_planar_814", 0.0},
+  };
+  for (const Set& set : sets) {
+    Site site;
+    std::string error;
+    ASSERT_TRUE(
+        LoadSite(testing::SourceDir() + "/config/sites/" + set.site + ".yaml", &site, &error))
+        << error;
+    const auto cases = ReadEpochs(set.file, set.session, set.height_column);
+    ASSERT_GT(cases.size(), 1000u) << set.name;
+    const EpochStats plain = SolveEpochs(cases, site, Method::kDefault);
+    const EpochStats robust = SolveEpochs(cases, site, Method::kRobust);
+    std::printf(
+        "[ RESULT   ] %s, %zu epochs: least squares mean %.3f median %.3f p95 %.3f max %.3f m; "
+        "robust mean %.3f median %.3f p95 %.3f max %.3f m\n",
+        set.name, cases.size(), plain.mean, plain.median, plain.p95, plain.max, robust.mean,
+        robust.median, robust.p95, robust.max);
+    // Every anchor reads long here, so robust must be clearly better in the
+    // bulk: at most 90 % of least squares' mean, median and p95 (measured
+    // 64 / 87 / 63 % of the mean on the three sets).
+    constexpr double kClearlyBetter = 0.9;
+    EXPECT_LT(robust.mean, kClearlyBetter * plain.mean) << set.name;
+    EXPECT_LT(robust.median, kClearlyBetter * plain.median) << set.name;
+    EXPECT_LT(robust.p95, plain.p95) << set.name;
+    EXPECT_LE(robust.max, plain.max + set.known_max_excess_m) << set.name;
   }
 }
 
