@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <deque>
+#include <limits>
 
 #include "core/world/trajectory.h"
 #include "core/world/ultrasound_model.h"
@@ -46,6 +47,23 @@ class CollectingSink : public radio::FrameSink {
   std::vector<std::vector<uint8_t>> frames;
   int64_t errors = 0;
 };
+
+double Distance(const std::array<double, 3>& a, const std::array<double, 3>& b) {
+  return std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+                   (a[2] - b[2]) * (a[2] - b[2]));
+}
+
+// The angle between a receiver's axis (towards the floor's middle, where it
+// is aimed) and the direction a pulse arrives from, rad.
+double OffAxisRad(const std::array<double, 3>& receiver_m, const std::array<double, 3>& source_m,
+                  const std::array<double, 3>& aim_m) {
+  const double leg = Distance(source_m, receiver_m);
+  const double axis = Distance(aim_m, receiver_m);
+  if (!(leg > 0 && axis > 0)) return 0.0;
+  double dot = 0.0;
+  for (int k = 0; k < 3; ++k) dot += (source_m[k] - receiver_m[k]) * (aim_m[k] - receiver_m[k]);
+  return std::acos(std::clamp(dot / (leg * axis), -1.0, 1.0));
+}
 
 }  // namespace
 
@@ -117,7 +135,9 @@ FirmwareWorld::FirmwareWorld(const Site& site, const FirmwareWorldOptions& optio
     : site_(site),
       options_(options),
       decay_(ComputeRoomDecay(site, site.simulation.temperature_c)),
-      rng_(options.seed) {}
+      rng_(options.seed) {
+  if (!site.obstacles.empty()) scene_.emplace(site, site.simulation.temperature_c);
+}
 
 FirmwareWorld::~FirmwareWorld() = default;
 
@@ -477,34 +497,39 @@ void FirmwareWorld::Pulse(size_t beacon, uint64_t fire_cycle) {
   for (size_t i = 0; i < devices_.size(); ++i) {
     const Device& r = devices_[i];
     if (r.role != Device::Role::kReceiver) continue;
-    std::array<double, 3> to_beacon{}, axis{};
-    double path = 0, axis_norm = 0;
-    for (int k = 0; k < 3; ++k) {
-      to_beacon[k] = b[k] - r.position_m[k];
-      axis[k] = floor_middle[k] - r.position_m[k];
-      path += to_beacon[k] * to_beacon[k];
-      axis_norm += axis[k] * axis[k];
+    // The path heard: with obstacles the pulse may arrive round one
+    // (AcousticScene), or not at all; without, the direct path with its
+    // spreading and the air's absorption.
+    AudiblePath heard;
+    if (scene_) {
+      heard = scene_->ShortestAudiblePath(Seconds(fire_cycle), b, r.position_m);
+    } else {
+      heard.kind = AudiblePath::Kind::kDirect;
+      heard.direct_m = heard.length_m = Distance(b, r.position_m);
+      heard.loss_db = 20.0 * std::log10(std::max(heard.length_m, 0.05)) +
+                      decay_.air_absorption_db_per_m * heard.length_m;
     }
-    path = std::sqrt(path);
-    axis_norm = std::sqrt(axis_norm);
-    double cos_off = 1.0;
-    if (path > 0 && axis_norm > 0) {
-      cos_off = (to_beacon[0] * axis[0] + to_beacon[1] * axis[1] + to_beacon[2] * axis[2]) /
-                (path * axis_norm);
-    }
-    const double off_rad = std::acos(std::clamp(cos_off, -1.0, 1.0));
+    // An echo arrives from its reflection point: the receiver's off-axis
+    // loss is taken in that direction.
+    const std::array<double, 3>& source =
+        heard.kind == AudiblePath::Kind::kReflected ? heard.reflection_point_m : b;
+    const double off_rad = OffAxisRad(r.position_m, source, floor_middle);
     PulseTruth truth;
     truth.beacon_id = devices_[beacon].id;
     truth.receiver_id = r.id;
     truth.fire_cycle = fire_cycle;
-    truth.path_m = path;
-    truth.time_of_flight_s = path / c;
-    // Level over the threshold: the room's level at 1 m less spreading,
-    // the air's absorption and the receiver's off-axis loss (the beacon's
-    // emitter is omnidirectional in azimuth, a cone over the transducer).
-    truth.level_db = decay_.level_at_1m_db - 20.0 * std::log10(std::max(path, 0.05)) -
-                     decay_.air_absorption_db_per_m * path -
-                     options_.detector.off_axis_db_per_rad2 * off_rad * off_rad;
+    truth.kind = heard.kind;
+    truth.direct_m = heard.direct_m;
+    truth.path_m = heard.kind == AudiblePath::Kind::kNone ? heard.direct_m : heard.length_m;
+    truth.time_of_flight_s = truth.path_m / c;
+    // Level over the threshold: the room's level at 1 m less the path's
+    // loss and the receiver's off-axis loss (the beacon's emitter is
+    // omnidirectional in azimuth, a cone over the transducer). Unheard: no
+    // level at all.
+    truth.level_db = heard.kind == AudiblePath::Kind::kNone
+                         ? -std::numeric_limits<double>::infinity()
+                         : decay_.level_at_1m_db - heard.loss_db -
+                               options_.detector.off_axis_db_per_rad2 * off_rad * off_rad;
     if (truth.level_db > 0.0) {
       // Envelope 1 - exp(-t / tau) reaches the threshold 10^(-L/20) of its
       // amplitude; the comparator fires at the next carrier peak (the

@@ -45,12 +45,14 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <queue>
 #include <random>
 #include <string>
 #include <vector>
 
 #include "core/radio/xbee_frame.h"
+#include "core/world/acoustic_paths.h"
 #include "core/world/air_model.h"
 #include "core/world/site.h"
 #include "sim/firmware/avr_core.h"
@@ -150,6 +152,11 @@ struct PulseTruth {
   double level_db = 0.0;
   int64_t detector_rise_cycle = -1;
   bool strong = false;
+  // The path heard (core/world/acoustic_paths.h): direct, a first-order
+  // echo round an obstacle (path_m is then the echo's, longer than
+  // direct_m), or none (blocked with no echo above threshold: unheard).
+  AudiblePath::Kind kind = AudiblePath::Kind::kDirect;
+  double direct_m = 0.0;
 };
 
 struct WorldCounters {
@@ -247,6 +254,9 @@ class FirmwareWorld {
   const Site& site_;
   FirmwareWorldOptions options_;
   RoomDecay decay_;
+  // The site's obstacles, for non-line-of-sight from geometry; absent when
+  // the site has none (the direct path is then all there is).
+  std::optional<AcousticScene> scene_;
   std::mt19937_64 rng_;
   std::vector<Device> devices_;
   // One module per device, then the coordinator's (the last).
