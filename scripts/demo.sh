@@ -117,9 +117,12 @@ if [[ "${3:-}" == "--inner" ]]; then
   # 1920 x 1080 and 30 fps through its own lens, whose calibration
   # demo_room_webcam.yaml is (the site's names the nominal lens).
   # The demo room's webcam renders through its own lens, whose fit is
-  # demo_room_webcam.yaml; other sites' cameras use their own calibration.
+  # demo_room_webcam.yaml: every site with the demo room's camera (the demo
+  # room, its pillar variant) takes it, or its camera poses sit 2 cm off
+  # (camera_proc warns: "is not the lens sim:webcam renders through"); other
+  # sites' cameras use their own calibration.
   camera_args=()
-  if [[ "$site" == "$here/config/sites/demo_room.yaml" ]]; then
+  if grep -q '^ *calibration: \.\./calibration/demo_room_camera\.yaml' "$site"; then
     camera_args+=(--calibration "$here/config/calibration/demo_room_webcam.yaml")
   fi
   [[ -z "$camera_fps" ]] || camera_args+=(--fps "$camera_fps")
