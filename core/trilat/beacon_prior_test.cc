@@ -13,6 +13,7 @@
 #include "core/world/site.h"
 #include "core/world/ultrasound_model.h"
 #include "tests/testing/demo_site.h"
+#include "tests/testing/exact_ranges.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix::trilat {
@@ -28,14 +29,7 @@ std::vector<Eigen::Vector3d> Corners() {
   return {{0, 0, 2.5}, {4, 0, 2.5}, {4, 3, 2.5}, {0, 3, 2.5}};
 }
 
-std::vector<RangeMeasurement> ExactRanges(const std::vector<Eigen::Vector3d>& receivers,
-                                          const Eigen::Vector3d& beacon) {
-  std::vector<RangeMeasurement> out;
-  for (size_t i = 0; i < receivers.size(); ++i) {
-    out.push_back({static_cast<int>(i) + 1, receivers[i], (receivers[i] - beacon).norm()});
-  }
-  return out;
-}
+using testing::ExactRanges;
 
 SolverOptions Robust() {
   SolverOptions o;

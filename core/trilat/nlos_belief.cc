@@ -86,8 +86,20 @@ bool NlosBelief::Observe(int64_t utime, const std::vector<RangeMeasurement>& ran
                     fix.covariance_m2(1, 1);
   const double s = std::sqrt(s2);
   const double span = options_.max_excess_m;
+  // Only ranges the fix judged: used, or excluded as an echo (a duplicate
+  // receiver or an invalid range says nothing about the path).
+  auto judged = [&fix](int id) {
+    if (std::find(fix.used.begin(), fix.used.end(), id) != fix.used.end()) return true;
+    for (const RejectedRange& r : fix.rejected) {
+      if (r.receiver_id == id && r.reason == RangeRejection::kOutlier) return true;
+    }
+    return false;
+  };
   for (const RangeMeasurement& range : ranges) {
-    if (!std::isfinite(range.range_m) || !range.receiver_m.allFinite()) continue;
+    if (!std::isfinite(range.range_m) || !range.receiver_m.allFinite() ||
+        !judged(range.receiver_id)) {
+      continue;
+    }
     const double e =
         range.range_m - (fix.position_m - range.receiver_m).norm() - fix.shared_level_m;
     const double los = LineOfSightLikelihood(e, s);
@@ -98,10 +110,15 @@ bool NlosBelief::Observe(int64_t utime, const std::vector<RangeMeasurement>& ran
       state = &states_.back();
     }
     const double prior = Predict(*state, utime);
-    const double posterior = prior * echo / (prior * echo + (1.0 - prior) * los);
-    state->probability =
-        std::isfinite(posterior) ? std::clamp(posterior, kMinProbability, kMaxProbability) : prior;
-    state->utime = utime;
+    double posterior = prior * echo / (prior * echo + (1.0 - prior) * los);
+    // Both likelihoods underflow only far out: an echo longer than the span
+    // (certainly not the direct path) or a range far too short (certainly
+    // not an echo).
+    if (!std::isfinite(posterior)) posterior = e > 0.0 ? kMaxProbability : kMinProbability;
+    state->probability = std::clamp(posterior, kMinProbability, kMaxProbability);
+    // A set the radio delivered late updates the belief but never moves its
+    // clock back: the next firing's relaxation runs from the newest time.
+    state->utime = std::max(state->utime, utime);
   }
   return true;
 }

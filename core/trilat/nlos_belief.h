@@ -53,7 +53,9 @@ struct NlosBeliefOptions {
 // while a range long by more than a few sigma makes it near certain.
 //
 // Observe only learns from a fix that can judge its ranges: positioned,
-// converged, consistent, over-determined and of good geometry. A receiver
+// converged, consistent, over-determined and of good geometry, and only
+// from the ranges it used or excluded as echoes. A set delivered late
+// updates a receiver's probability but never moves its time back. A receiver
 // missing from a set (it heard nothing, which a blocked receiver often
 // does) is left to the prediction. Memory: one entry per receiver id seen,
 // bounded by the caller (trilat_proc passes only the site's receivers).

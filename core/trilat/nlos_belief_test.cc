@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "core/trilat/trilateration.h"
+#include "tests/testing/exact_ranges.h"
 
 namespace roomfix::trilat {
 namespace {
@@ -17,12 +18,7 @@ std::vector<Eigen::Vector3d> Five() {
 }
 
 std::vector<RangeMeasurement> ExactRanges(const Eigen::Vector3d& beacon) {
-  std::vector<RangeMeasurement> out;
-  const auto receivers = Five();
-  for (size_t i = 0; i < receivers.size(); ++i) {
-    out.push_back({static_cast<int>(i) + 1, receivers[i], (receivers[i] - beacon).norm()});
-  }
-  return out;
+  return testing::ExactRanges(Five(), beacon);
 }
 
 SolverOptions Robust() {
@@ -73,6 +69,34 @@ TEST(NlosBelief, OneRangeOnItsPathClearsTheSuspicion) {
   // falls to about 0.1 in one firing, far below the suspicion's 0.5.
   EXPECT_LT(belief.Probability(3, kFiring_us), 0.15);
   EXPECT_TRUE(belief.Suspected(kFiring_us).empty());
+}
+
+// The radio may deliver a set late (trilat_proc admits sets up to an hour
+// old): it updates the belief, but the next firing's relaxation still runs
+// from the newest time, so one stale set does not wipe every suspicion.
+TEST(NlosBelief, ASetDeliveredLateNeverMovesItsClockBack) {
+  NlosBelief belief = BeliefAfterOneEcho();  // at t = 0
+  auto ranges = ExactRanges(kBeacon);
+  ranges[2].range_m += 1.5;
+  const Fix fix = Solve(ranges, Robust());
+  ASSERT_TRUE(belief.Observe(kFiring_us, ranges, fix));
+  // A set from an hour ago arrives now.
+  constexpr int64_t kHourAgo_us = -3'600'000'000;
+  ASSERT_TRUE(belief.Observe(kHourAgo_us, ranges, fix));
+  EXPECT_GT(belief.Probability(3, 2 * kFiring_us), 0.9);
+}
+
+// Only the ranges the fix judged teach it: a receiver heard twice (the
+// solver drops every copy) is left alone.
+TEST(NlosBelief, LearnsOnlyFromTheRangesTheFixUsedOrExcluded) {
+  NlosBelief belief;
+  auto ranges = ExactRanges(kBeacon);
+  ranges.push_back(ranges[1]);
+  ranges.back().range_m += 1.0;  // receiver 2 twice, one of them long
+  const Fix fix = Solve(ranges, Robust());
+  ASSERT_TRUE(belief.Observe(0, ranges, fix));
+  EXPECT_NEAR(belief.Probability(2, 0), NlosBeliefOptions().base_probability, 1e-12);
+  EXPECT_LT(belief.Probability(1, 0), NlosBeliefOptions().base_probability);
 }
 
 TEST(NlosBelief, AFixThatCannotJudgeItsRangesTeachesNothing) {

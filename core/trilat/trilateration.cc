@@ -966,13 +966,22 @@ void DownweightSuspected(const SolveContext<D>& ctx, Eigen::Matrix<double, D, 1>
       unsuspected < SolveContext<D>::kOverDetermined) {
     return;
   }
+  const Eigen::Matrix<double, D, 1> saved_p = *p;
+  const bool saved_converged = *converged;
   for (int i : r->active) r->w[i] = SuspicionOf(ctx, i) == nullptr ? 1.0 : 0.0;
   ctx.fix->iterations += Refine(*r, r->active, ctx.options.max_iterations, p, converged);
   Eigen::Matrix<double, D, D> jtj;
   Eigen::Matrix<double, D, 1> jte;
   NormalEquations(*r, r->active, *p, &jtj, &jte);
   const Eigen::Matrix<double, D, D> jtj_inverse = jtj.inverse();
-  if (!jtj_inverse.allFinite()) return;
+  if (!jtj_inverse.allFinite()) {
+    // The others alone do not fix the point (on the line of collinear
+    // receivers): nothing to judge the suspects by; everything as it was.
+    for (int i : r->active) r->w[i] = 1.0;
+    *p = saved_p;
+    *converged = saved_converged;
+    return;
+  }
   const double sigma = ctx.options.range_sigma_m;
   bool weighted = false;
   for (int i : r->active) {
@@ -1072,14 +1081,15 @@ void RejectOutliers(const SolveContext<D>& ctx, Eigen::Matrix<double, D, 1>* p, 
   const bool far = prior != nullptr && DistanceToPrior(*p, *prior) > prior->radius_m;
   const bool search = worst > ctx.threshold || (far && n <= over_determined);
   if (!search || max_out <= 0) return;
+  // The search (and the reweighting of large sets) judges ranges with unit
+  // weights: a suspected range's down-weighting (DownweightSuspected) has
+  // done its part in p.
+  for (int i : ctx.ranges->active) ctx.ranges->w[i] = 1.0;
+  ctx.fix->flags &= ~static_cast<uint32_t>(kNlosSuspected);
   if (n > ctx.options.max_consensus_ranges) {
     ReweightOneSided(ctx, p, converged);
     return;
   }
-  // The search judges subsets with unit weights: a suspected range's
-  // down-weighting (DownweightSuspected) has done its part in p.
-  for (int i : ctx.ranges->active) ctx.ranges->w[i] = 1.0;
-  ctx.fix->flags &= ~static_cast<uint32_t>(kNlosSuspected);
   Consensus<D> cs;
   cs.best_p = *p;
   cs.best_size = n;
@@ -1092,6 +1102,16 @@ void RejectOutliers(const SolveContext<D>& ctx, Eigen::Matrix<double, D, 1>* p, 
     if (cs.exhausted) ctx.fix->flags |= kConsensusBudgetExhausted;
     if (!FallBackOneSided(ctx, p, converged)) ctx.fix->flags |= kInconsistentRanges;
   }
+}
+
+// The active ranges that count as degrees of freedom: a range the NLOS
+// belief left with less than half its weight (DownweightSuspected) informs
+// the fix too little to check the others.
+template <int D>
+int CountedRanges(const Ranges<D>& r) {
+  int n = 0;
+  for (int i : r.active) n += r.w[i] >= 0.5 ? 1 : 0;
+  return n;
 }
 
 // A shared level is adopted only when it lowers the cost by more than the
@@ -1123,17 +1143,26 @@ constexpr double kSharedLevelChiSquare = 10.83;
 template <int D>
 bool FitSharedLevel(const SolveContext<D>& ctx, Eigen::Matrix<double, D, 1>* p, bool* converged) {
   Ranges<D>* r = ctx.ranges;
-  const int m = static_cast<int>(r->active.size());
+  const int m = CountedRanges(*r);
   if (m < D + 2 || r->level_free) return false;
-  const double plain_cost = Cost(*r, r->active, *p);
+  // The plain cost at the plain fit's minimum (p may be a reweighted point
+  // whose weights were since reset, which would overstate it).
+  Eigen::Matrix<double, D, 1> plain_p = *p;
+  bool plain_converged = false;
+  Refine(*r, r->active, ctx.options.max_iterations, &plain_p, &plain_converged);
+  const double plain_cost = Cost(*r, r->active, plain_p);
   Eigen::Matrix<double, D, 1> q = *p;
   bool level_converged = false;
   r->level_free = true;
   const int iterations = Refine(*r, r->active, ctx.options.max_iterations, &q, &level_converged);
   const double level_cost = Cost(*r, r->active, q);
-  double level = 0.0;
-  for (int i : r->active) level += Excess(*r, i, q);
-  level /= m;
+  // The weighted mean excess: the level the centred fit removed.
+  double level = 0.0, weight = 0.0;
+  for (int i : r->active) {
+    level += r->w[i] * Excess(*r, i, q);
+    weight += r->w[i];
+  }
+  level /= weight;
   const double variance = std::max(ctx.sigma2, level_cost / static_cast<double>(m - D - 1));
   if (!level_converged || !(level > 0.0) ||
       !((plain_cost - level_cost) / variance > kSharedLevelChiSquare)) {
@@ -1170,7 +1199,7 @@ template <int D>
 bool LevelBeforeExclusion(const SolveContext<D>& ctx, Eigen::Matrix<double, D, 1>* p,
                           bool* converged) {
   Ranges<D>* r = ctx.ranges;
-  if (static_cast<int>(r->active.size()) < D + 1 + kLevelFirstRedundancy) return false;
+  if (CountedRanges(*r) < D + 1 + kLevelFirstRedundancy) return false;
   double worst = 0.0;
   Residuals(*r, r->active, *p, &worst);
   if (worst <= ctx.threshold) return false;
@@ -1315,7 +1344,9 @@ void Finish(const SolveContext<D>& ctx, const Eigen::Matrix<double, D, 1>& p, bo
   double worst_residual = 0.0;
   Residuals(r, r.active, p, &worst_residual);
   if (worst_residual > ctx.threshold) fix->flags |= kInconsistentRanges;
-  fix->redundant_ranges = static_cast<int>(r.active.size()) - D;
+  // Ranges that count (CountedRanges) less the unknowns, the shared level
+  // being one when it was fitted.
+  fix->redundant_ranges = CountedRanges(r) - D - ((fix->flags & kSharedLevel) != 0 ? 1 : 0);
   if (fix->redundant_ranges <= 0) fix->flags |= kUnchecked;
   // Poor geometry is judged on the range noise alone, before any growth.
   Eigen::Matrix<double, D, D> cov = NoiseCovariance(ctx, p);

@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "core/world/site.h"
+#include "tests/testing/exact_ranges.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix::trilat {
@@ -34,14 +35,7 @@ std::vector<Eigen::Vector3d> Corners(double z = 2.5) {
   return {{0, 0, z}, {4, 0, z}, {4, 3, z}, {0, 3, z}};
 }
 
-std::vector<RangeMeasurement> ExactRanges(const std::vector<Eigen::Vector3d>& receivers,
-                                          const Eigen::Vector3d& beacon) {
-  std::vector<RangeMeasurement> out;
-  for (size_t i = 0; i < receivers.size(); ++i) {
-    out.push_back({static_cast<int>(i) + 1, receivers[i], (receivers[i] - beacon).norm()});
-  }
-  return out;
-}
+using testing::ExactRanges;
 
 SolverOptions FixedHeight(Method method, double height_m = 1.3) {
   SolverOptions o;
