@@ -74,7 +74,10 @@ struct SolverOptions {
   // subsets (the exhaustive search over 2 outliers among 19 ranges is 190);
   // when it runs out it keeps the best consistent subset found so far, or
   // flags kConsensusBudgetExhausted. So a solve evaluates at most about
-  // (max_consensus_solves + 3) * n * (max_iterations + 6) range residuals.
+  // (max_consensus_solves + 9) * n * (max_iterations + 6) range residuals
+  // plus the one-sided fallback's 20 rounds of 20 iterations (20 * 22 n):
+  // the shared level and the NLOS belief add a few refits each, all linear
+  // in n.
   //
   // Above max_consensus_ranges ranges kRobust does not search subsets at
   // all but reweights with a one-sided loss (ReweightOneSided in
