@@ -507,6 +507,20 @@ bool Measure(const cv::Mat& bgr, const cv::Mat1b& comp, const cv::Rect& roi, int
 
 }  // namespace
 
+double HueDifference(double a, double b) { return HueDiff(a, b); }
+
+cv::Mat NormaliseIllumination(const cv::Mat& bgr, LightingMode lighting, double background_v_ref) {
+  if (bgr.empty() || bgr.type() != CV_8UC3 || lighting == LightingMode::kFixed) {
+    return bgr.clone();
+  }
+  const cv::Mat1w gain = EstimateGain(bgr, 1, background_v_ref);
+  cv::Mat out(bgr.size(), CV_8UC3);
+  for (int y = 0; y < bgr.rows; ++y) {
+    ScaleRow(bgr.ptr<uchar>(y), gain.ptr<uint16_t>(y), bgr.cols, out.ptr<uchar>(y));
+  }
+  return out;
+}
+
 bool DetectorOptions::IsValid(std::string* error) const {
   if (!(blur_sigma_px >= 0.0) || !std::isfinite(blur_sigma_px)) {
     *error = "detector blur_sigma_px must be >= 0 and finite";

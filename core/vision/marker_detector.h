@@ -114,6 +114,15 @@ class MarkerDetector {
   bool AcceptsHsv(int class_index, int h, int s, int v) const;
 };
 
+// Hue difference a - b on OpenCV's 180-step hue circle, in [-90, 90).
+double HueDifference(double a, double b);
+
+// The image as kNormalised and kAdaptive classify it: each pixel scaled by
+// background_v_ref / (its neighbourhood's floor V), the gain Detect applies
+// (a copy of `bgr` for kFixed). Tools that learn or show classes use it so
+// that they see the colours the detector looks up.
+cv::Mat NormaliseIllumination(const cv::Mat& bgr, LightingMode lighting, double background_v_ref);
+
 // The reference pipeline, for the benchmark: full-frame HSV conversion,
 // inRange per class, 5x5 Gaussian blur, cv::SimpleBlobDetector on the mask.
 std::vector<Blob> DetectReference(const cv::Mat& bgr, const std::vector<ColourClass>& classes);
