@@ -29,6 +29,8 @@ void AddExportCommand(CLI::App* app, int* exit_code);
 // roomfix devices: the beacons' and receivers' EEPROM images from the site
 // (tools/devices_command.cc, docs/devices.md).
 void AddDevicesCommand(CLI::App* app, int* exit_code);
+// roomfix colours: colour classes learned from frames (colours_command.cc).
+void AddColoursCommand(CLI::App* app, int* exit_code);
 // Adds `logger` under the `bench` subcommand.
 void AddBenchLoggerCommand(CLI::App* bench, int* exit_code);
 // Adds `radio` under the `bench` subcommand.

@@ -207,6 +207,7 @@ double EdgeChordPx(const cv::Mat1b& region, const cv::Rect& box, const cv::Size&
 
 struct FrameDiscs {
   std::vector<DiscSamples> discs;
+  cv::Mat3b norm;        // the normalised frame
   cv::Mat3b hsv;         // the normalised frame in HSV
   cv::Mat1b background;  // 255 where no disc is near
 };
@@ -275,7 +276,8 @@ Verdict MeasureDisc(const cv::Mat3b& norm, const cv::Mat3b& hsv, double s_thresh
 // The discs of one frame (frame index `index`) and its background mask.
 FrameDiscs DiscsOfFrame(const cv::Mat& frame, int index, const ColourLearningOptions& o) {
   FrameDiscs out;
-  const cv::Mat3b norm = NormaliseIllumination(frame, o.lighting, o.background_v_ref);
+  out.norm = NormaliseIllumination(frame, o.lighting, o.background_v_ref);
+  const cv::Mat3b& norm = out.norm;
   cv::Mat3b& hsv = out.hsv;
   cv::cvtColor(norm, hsv, cv::COLOR_BGR2HSV);
   cv::Mat1b channels[3];
@@ -415,7 +417,13 @@ struct Extent {
   std::array<double, 3> median{};
   std::array<double, 3> lo{};  // hue as an offset from the median
   std::array<double, 3> hi{};
+  // S and V at the 5 % quantile: how far a box's floor may rise to keep
+  // the background out (a twentieth of the class's pixels then lost: the
+  // chroma-blurred rims JPEG's 4:2:0 leaves on small markers).
+  std::array<double, 3> floor_limit{};
 };
+
+constexpr double kMaxFloorLoss = 0.05;
 
 Extent MeasureExtent(const std::vector<Hsv>& px, double q) {
   std::vector<double> h, s, v;
@@ -429,6 +437,7 @@ Extent MeasureExtent(const std::vector<Hsv>& px, double q) {
   for (double& x : h) x = HueDifference(x, e.median[0]);
   e.lo = {Quantile(h, q), Quantile(s, q), Quantile(v, q)};
   e.hi = {Quantile(h, 1.0 - q), Quantile(s, 1.0 - q), Quantile(v, 1.0 - q)};
+  e.floor_limit = {0.0, Quantile(s, kMaxFloorLoss), Quantile(v, kMaxFloorLoss)};
   return e;
 }
 
@@ -617,12 +626,12 @@ void MeasureBackground(const BackgroundHistogram& bg, LearnedClass* c) {
 }
 
 // Raises a box's S (then V) floor until the background stays out, never
-// above the class's own raw minimum. False when it cannot.
+// above the class's own 5 % quantile. False when it cannot.
 bool KeepBackgroundOut(const BackgroundHistogram& bg, const Extent& e, double max_share,
                        LearnedClass* c) {
   MeasureBackground(bg, c);
   for (int k = 1; k < 3 && c->background_share > max_share; ++k) {
-    const int limit = static_cast<int>(std::floor(e.lo[k]));
+    const int limit = static_cast<int>(std::floor(e.floor_limit[k]));
     while (c->background_share > max_share && c->hsv_min[k] + kSvStep <= limit) {
       c->hsv_min[k] += kSvStep;
       MeasureBackground(bg, c);
@@ -642,17 +651,34 @@ struct Learned {
   BackgroundHistogram background;
 };
 
+void AddBackground(const cv::Mat3b& hsv, const cv::Mat1b& background, int step,
+                   BackgroundHistogram* out) {
+  for (int y = 0; y < hsv.rows; y += step) {
+    const uchar* b = background.ptr<uchar>(y);
+    const cv::Vec3b* p = hsv.ptr<cv::Vec3b>(y);
+    for (int x = 0; x < hsv.cols; x += step) {
+      if (b[x]) out->Add(p[x]);
+    }
+  }
+}
+
 Learned Collect(const std::vector<cv::Mat>& frames, const ColourLearningOptions& o) {
   Learned l;
   for (size_t f = 0; f < frames.size(); ++f) {
     if (frames[f].empty() || frames[f].type() != CV_8UC3) continue;
     FrameDiscs fd = DiscsOfFrame(frames[f], static_cast<int>(f), o);
-    for (int y = 0; y < fd.hsv.rows; ++y) {
-      const uchar* b = fd.background.ptr<uchar>(y);
-      const cv::Vec3b* p = fd.hsv.ptr<cv::Vec3b>(y);
-      for (int x = 0; x < fd.hsv.cols; ++x) {
-        if (b[x]) l.background.Add(p[x]);
-      }
+    AddBackground(fd.hsv, fd.background, 1, &l.background);
+    // The background under the white-balance budget too: a grey floor
+    // turns reddish or bluish with it (S 23 becomes S 60 at 12 %), and a
+    // box must keep it out then as well. On every second pixel each way.
+    for (int sign : {+1, -1}) {
+      cv::Mat3b moved, hsv;
+      cv::multiply(
+          fd.norm,
+          cv::Scalar(1.0 - sign * o.white_balance_drift, 1.0, 1.0 + sign * o.white_balance_drift),
+          moved);
+      cv::cvtColor(moved, hsv, cv::COLOR_BGR2HSV);
+      AddBackground(hsv, fd.background, 2, &l.background);
     }
     for (DiscSamples& d : fd.discs) l.discs.push_back(std::move(d));
   }
@@ -667,7 +693,7 @@ void Label(const std::vector<KnownMarker>& known, std::vector<DiscSamples>* disc
     for (DiscSamples& d : *discs) {
       if (d.disc.frame != k.frame) continue;
       const double dist = std::hypot(d.disc.u_px - k.u_px, d.disc.v_px - k.v_px);
-      if (dist <= best_d) {
+      if (dist <= best_d && dist >= k.min_distance_px) {
         best_d = dist;
         best = &d;
       }
@@ -871,10 +897,11 @@ ColourLearning LearnColours(const std::vector<cv::Mat>& frames,
   int unnamed = 0;
   for (size_t k = 0; k < clusters.size(); ++k) {
     std::vector<cv::Vec3b> bgr;
-    double radius = 0.0;
+    double r_min = 1e9, r_max = 0.0;
     for (int i : clusters[k]) {
       l.discs[i].disc.cluster = static_cast<int>(k);
-      radius += l.discs[i].disc.radius_px;
+      r_min = std::min(r_min, l.discs[i].disc.radius_px);
+      r_max = std::max(r_max, l.discs[i].disc.radius_px);
       for (const cv::Vec3b& p : l.discs[i].bgr) {
         bgr.push_back(p);
         pixels[k].push_back(ToHsv(p));
@@ -893,7 +920,8 @@ ColourLearning LearnColours(const std::vector<cv::Mat>& frames,
     LearnedClass c = BoxFromExtent(extents.back(), median_bgr, o);
     c.discs = static_cast<int>(clusters[k].size());
     c.core_pixels = static_cast<int>(pixels[k].size());
-    c.mean_radius_px = radius / c.discs;
+    c.min_radius_px = r_min;
+    c.max_radius_px = r_max;
     for (int i : clusters[k]) {
       if (!l.discs[i].disc.label.empty()) c.name = l.discs[i].disc.label;
     }
@@ -952,20 +980,75 @@ ColourLearning LearnColoursForAll(const std::vector<std::vector<cv::Mat>>& sets,
   return LearnColours(frames, all_known, site_classes, options, min_classes);
 }
 
-std::vector<ColourClass> ToColourClasses(const std::vector<LearnedClass>& classes,
-                                         double min_radius_px, double max_radius_px) {
+std::vector<ColourClass> ToColourClasses(const std::vector<LearnedClass>& classes) {
   std::vector<ColourClass> out;
   for (const LearnedClass& c : classes) {
     ColourClass k;
     k.name = c.name;
     k.hsv_min = c.hsv_min;
     k.hsv_max = c.hsv_max;
-    k.min_area_px = M_PI * std::pow(0.5 * min_radius_px, 2);
-    k.max_area_px = M_PI * std::pow(1.8 * max_radius_px, 2);
+    k.min_area_px = M_PI * std::pow(0.5 * c.min_radius_px, 2);
+    k.max_area_px = M_PI * std::pow(1.8 * c.max_radius_px, 2);
     out.push_back(k);
   }
   return out;
 }
+
+namespace {
+
+// A marker the check looks for: where, how near a blob must be, its class.
+struct Target {
+  int frame;
+  double u_px, v_px, reach_px;
+  int class_index;
+};
+
+int ClassIndex(const std::vector<LearnedClass>& classes, const std::string& name) {
+  for (size_t c = 0; c < classes.size(); ++c) {
+    if (classes[c].name == name) return static_cast<int>(c);
+  }
+  return -1;
+}
+
+// The markers to look for: every known marker at a known place (found as
+// a disc or not: a marker the light has washed out is a failure too), the
+// discs known markers named by distance (heading markers), and without
+// known markers every disc of a colour near a learned class's.
+std::vector<Target> Targets(const Learned& l, const std::vector<KnownMarker>& known,
+                            const std::vector<LearnedClass>& classes,
+                            const ColourLearningOptions& o) {
+  std::vector<Target> targets;
+  for (const KnownMarker& k : known) {
+    const int c = ClassIndex(classes, k.class_name);
+    if (c >= 0 && k.min_distance_px <= 0.0) {
+      targets.push_back({k.frame, k.u_px, k.v_px, std::max(3.0, k.reach_px), c});
+    }
+  }
+  for (const DiscSamples& s : l.discs) {
+    if (s.disc.clipped) continue;
+    int c = -1;
+    if (!known.empty()) {
+      const bool by_place = std::any_of(known.begin(), known.end(), [&](const KnownMarker& k) {
+        return k.min_distance_px > 0.0 && k.class_name == s.disc.label && k.frame == s.disc.frame;
+      });
+      if (by_place) c = ClassIndex(classes, s.disc.label);
+    } else {
+      double best = 1.5;
+      for (size_t k = 0; k < classes.size(); ++k) {
+        const double dist = ClusterDistance(s.disc.core_hsv, classes[k].median_hsv, o);
+        if (dist < best) {
+          best = dist;
+          c = static_cast<int>(k);
+        }
+      }
+    }
+    if (c >= 0)
+      targets.push_back({s.disc.frame, s.disc.u_px, s.disc.v_px, 0.5 * s.disc.radius_px, c});
+  }
+  return targets;
+}
+
+}  // namespace
 
 std::vector<ClassCheck> CheckColours(const std::vector<cv::Mat>& frames,
                                      const std::vector<KnownMarker>& known,
@@ -975,43 +1058,22 @@ std::vector<ClassCheck> CheckColours(const std::vector<cv::Mat>& frames,
   for (size_t k = 0; k < classes.size(); ++k) checks[k].name = classes[k].name;
   Learned l = Collect(frames, o);
   Label(known, &l.discs);
-  double r_min = 1e9, r_max = 0.0;
-  for (const LearnedClass& c : classes) {
-    r_min = std::min(r_min, c.mean_radius_px);
-    r_max = std::max(r_max, c.mean_radius_px);
-  }
   DetectorOptions d;
   d.lighting = o.lighting == LightingMode::kAdaptive ? LightingMode::kNormalised : o.lighting;
   d.background_v_ref = o.background_v_ref;
-  const MarkerDetector detector(ToColourClasses(classes, r_min, r_max), d);
+  const MarkerDetector detector(ToColourClasses(classes), d);
   std::vector<std::vector<Blob>> blobs(frames.size());
   for (size_t f = 0; f < frames.size(); ++f) blobs[f] = detector.Detect(frames[f], ImageWindow{});
-  for (const DiscSamples& s : l.discs) {
-    if (s.disc.clipped) continue;
-    int k = -1;
-    if (!s.disc.label.empty()) {
-      for (size_t c = 0; c < classes.size(); ++c) {
-        if (classes[c].name == s.disc.label) k = static_cast<int>(c);
-      }
-    } else {
-      double best = 1.5;
-      for (size_t c = 0; c < classes.size(); ++c) {
-        const double dist = ClusterDistance(s.disc.core_hsv, classes[c].median_hsv, o);
-        if (dist < best) {
-          best = dist;
-          k = static_cast<int>(c);
-        }
-      }
-    }
-    if (k < 0) continue;
-    ++checks[k].discs;
+  for (const Target& t : Targets(l, known, classes, o)) {
+    if (t.frame < 0 || t.frame >= static_cast<int>(frames.size())) continue;
+    ++checks[t.class_index].discs;
     bool found = false, other = false;
-    for (const Blob& b : blobs[s.disc.frame]) {
-      if (std::hypot(b.u_px - s.disc.u_px, b.v_px - s.disc.v_px) > 0.5 * s.disc.radius_px) continue;
-      (b.class_index == k ? found : other) = true;
+    for (const Blob& b : blobs[t.frame]) {
+      if (std::hypot(b.u_px - t.u_px, b.v_px - t.v_px) > t.reach_px) continue;
+      (b.class_index == t.class_index ? found : other) = true;
     }
-    if (found) ++checks[k].found;
-    if (other) ++checks[k].found_as_other;
+    if (found) ++checks[t.class_index].found;
+    if (other) ++checks[t.class_index].found_as_other;
   }
   return checks;
 }

@@ -80,8 +80,11 @@ struct KnownMarker {
   int frame = 0;
   double u_px = 0.0;
   double v_px = 0.0;
-  // The nearest disc within this distance takes the name.
+  // The nearest disc within this distance, and at least min_distance_px
+  // away, takes the name (a heading marker is the disc near a robot's
+  // position marker that is not the position marker itself).
   double reach_px = 10.0;
+  double min_distance_px = 0.0;
   std::string class_name;
 };
 
@@ -93,7 +96,9 @@ struct LearnedClass {
   std::array<double, 3> median_hsv{};
   int discs = 0;
   int core_pixels = 0;
-  double mean_radius_px = 0.0;
+  // The radii of its discs: the detector's area limits (ToColourClasses).
+  double min_radius_px = 0.0;
+  double max_radius_px = 0.0;
   // Share of this class's own core pixels outside its box (they would be
   // lost) and inside another class's box (they would be confused).
   double own_outside_share = 0.0;
@@ -168,9 +173,10 @@ std::vector<ClassCheck> CheckColours(const std::vector<cv::Mat>& frames,
                                      const std::vector<LearnedClass>& classes,
                                      const ColourLearningOptions& options);
 
-// The learned classes as the detector's (areas from the discs' radii).
-std::vector<ColourClass> ToColourClasses(const std::vector<LearnedClass>& classes,
-                                         double min_radius_px, double max_radius_px);
+// The learned classes as the detector's: areas from half the smallest
+// disc's radius to 1.8 times the largest's (the bounds camera_proc derives
+// from the lens, docs/camera.md), the default circularity.
+std::vector<ColourClass> ToColourClasses(const std::vector<LearnedClass>& classes);
 
 }  // namespace roomfix::vision
 

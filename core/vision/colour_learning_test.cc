@@ -62,9 +62,9 @@ PhotoScore ScorePhoto(const cv::Mat& img, const std::vector<Label>& labels,
                       const std::vector<LearnedClass>& classes, const ColourLearningOptions& o) {
   DetectorOptions d;
   d.lighting = o.lighting;
-  // The candies' radii (26 to 28 px) and the detector's own circularity
-  // floor (0.6), as a site's classes get them.
-  const MarkerDetector detector(ToColourClasses(classes, 20.0, 30.0), d);
+  // Areas from the learned discs and the detector's own circularity floor
+  // (0.6), as a site's classes get them.
+  const MarkerDetector detector(ToColourClasses(classes), d);
   const std::vector<Blob> blobs = detector.Detect(img, ImageWindow{});
   PhotoScore score;
   for (const Label& l : labels) {
@@ -104,7 +104,7 @@ class SmartiesPhoto : public ::testing::Test {
 
 TEST_F(SmartiesPhoto, LabelledCandiesTeachFiveClassesThatFindTenOfTwelveCandies) {
   std::vector<KnownMarker> known;
-  for (const Label& l : labels_) known.push_back({0, l.u, l.v, 0.5 * l.r, l.colour});
+  for (const Label& l : labels_) known.push_back({0, l.u, l.v, 0.5 * l.r, 0.0, l.colour});
   const ColourLearning learned = LearnColours({img_}, known, {}, PhotoOptions());
   ASSERT_EQ(learned.refusal, "");
   ASSERT_EQ(learned.classes.size(), 5u);  // blue, orange, green, red, brown
@@ -178,7 +178,7 @@ TEST(ColourLearning, RefusesTwoMarkersOfIndistinguishableColour) {
   Disc(&img, 80, 80, 12, cv::Scalar(30, 40, 210));
   Disc(&img, 200, 150, 12, cv::Scalar(32, 42, 212));
   const ColourLearning learned =
-      LearnColours({img}, {{0, 80, 80, 5, "red"}, {0, 200, 150, 5, "orange"}}, {}, {});
+      LearnColours({img}, {{0, 80, 80, 5, 0.0, "red"}, {0, 200, 150, 5, 0.0, "orange"}}, {}, {});
   EXPECT_NE(learned.refusal.find("cannot be told apart"), std::string::npos) << learned.refusal;
   EXPECT_NE(learned.refusal.find("'red'"), std::string::npos) << learned.refusal;
   EXPECT_NE(learned.refusal.find("'orange'"), std::string::npos) << learned.refusal;
