@@ -247,6 +247,11 @@ bool ApplyNames(const std::vector<std::string>& names, const Camera& camera,
         found = true;
       }
     }
+    // "-": a colour in view that is no marker of this site (its box was cut
+    // apart from the others all the same, so they keep clear of it).
+    classes->erase(std::remove_if(classes->begin(), classes->end(),
+                                  [](const vision::LearnedClass& c) { return c.name == "-"; }),
+                   classes->end());
     if (!found) {
       *error = "--name " + n + ": no cluster is called '" + n.substr(0, eq) + "'";
       return false;
@@ -271,7 +276,7 @@ bool ApplyNames(const std::vector<std::string>& names, const Camera& camera,
   if (!unknown.empty()) {
     *error = "which of the site's classes (" + site_names + ") is each of " + unknown +
              "? Say it with --name, e.g. --name " + unknown.substr(0, unknown.find(',')) + "=" +
-             camera.marker_classes.front().name;
+             camera.marker_classes.front().name + " (or =- for a colour that is no marker)";
     return false;
   }
   return true;
@@ -445,7 +450,9 @@ void AddColoursCommand(CLI::App* app, int* exit_code) {
                   "there and proposes boxes that hold under every light (repeatable)");
   cmd->add_option("--known-pixels", f->known_pixels,
                   "CSV image,u_px,v_px,class[,radius_px]: markers at known pixels of the frames");
-  cmd->add_option("--name", f->names, "Name a cluster: CLUSTER=CLASS, e.g. colour_1=red");
+  cmd->add_option("--name", f->names,
+                  "Name a cluster: CLUSTER=CLASS, e.g. colour_1=red; CLUSTER=- for a colour "
+                  "that is no marker of the site");
   cmd->add_option("--out", f->out,
                   "Write a copy of the site file with the learned boxes (default: print them)");
   cmd->add_option("--heading-reach", f->heading_reach_m,
