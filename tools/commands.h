@@ -29,6 +29,9 @@ void AddExportCommand(CLI::App* app, int* exit_code);
 // roomfix devices: the beacons' and receivers' EEPROM images from the site
 // (tools/devices_command.cc, docs/devices.md).
 void AddDevicesCommand(CLI::App* app, int* exit_code);
+// roomfix grab: frames from a site camera's device, opened as camera_proc
+// opens it (tools/grab_command.cc, docs/camera.md "Grabbing frames").
+void AddGrabCommand(CLI::App* app, int* exit_code);
 // Adds `logger` under the `bench` subcommand.
 void AddBenchLoggerCommand(CLI::App* bench, int* exit_code);
 // Adds `radio` under the `bench` subcommand.
