@@ -24,6 +24,7 @@
 #include "camera_proc/image_file.h"
 #include "core/world/file_io.h"
 #include "core/world/site.h"
+#include "msgio/process.h"
 #include "tools/commands.h"
 #include "tools/flag_checks.h"
 
@@ -222,6 +223,13 @@ GrabLoopResult GrabLoop(const GrabFlags& f, int skip, camera::FrameSource* sourc
   int64_t next_due_utime = 0;
   auto last_good = SteadyClock::now();
   while (static_cast<int>(result.rows.size()) < f.count) {
+    // Ctrl-C in a long `--every` session keeps what was written, with its
+    // frames.csv.
+    if (ShutdownRequested()) {
+      result.failure = "interrupted: " + std::to_string(result.rows.size()) + " of " +
+                       std::to_string(f.count) + " frames written";
+      return result;
+    }
     camera::Frame frame;
     std::string error;
     watchdog.Arm(last_good + timeout, static_cast<int>(result.rows.size()));
@@ -272,6 +280,11 @@ int RunGrab(const GrabFlags& f) {
     std::cerr << kName << "--skip must be 0 or more, not " << *f.skip << "\n";
     return 1;
   }
+  if (f.camera_id && *f.camera_id < 0) {
+    std::cerr << kName << "--camera must be a site camera's id (0 or more), not " << *f.camera_id
+              << "\n";
+    return 1;
+  }
   Site site;
   std::string error;
   if (!LoadSite(f.site, &site, &error)) {
@@ -310,6 +323,7 @@ int RunGrab(const GrabFlags& f) {
              : (source->live() ? std::max(1, static_cast<int>(std::lround(choice.camera.fps * 1.0)))
                                : 0);
   PrintSource(choice, *source, skip);
+  InstallShutdownHandlers();
   const GrabLoopResult result = GrabLoop(f, skip, source.get(), choice.device);
   source->Close();
   if (!result.rows.empty() &&

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <csignal>
 #include <filesystem>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -249,6 +250,29 @@ TEST(RoomfixGrab, RefusesAnUnknownCameraBeforeMakingTheFolder) {
             std::string::npos)
       << r.out;
   EXPECT_FALSE(std::filesystem::exists(dir.File("frames")));
+  const RunResult negative =
+      Roomfix({"grab", "--site", DemoSitePath(), "--camera", "-1", "--out", dir.File("frames")});
+  EXPECT_EQ(negative.exit_code, 1);
+  EXPECT_NE(negative.out.find("roomfix grab: --camera must be a site camera's id (0 or more), "
+                              "not -1"),
+            std::string::npos)
+      << negative.out;
+}
+
+TEST(RoomfixGrab, KeepsWhatItWroteWhenInterrupted) {
+  TempDir dir;
+  const std::string out = dir.File("frames");
+  // One frame every 30 s: the first is written at once, then SIGINT.
+  testing::ChildProcess p({BinDir() + "/roomfix", "grab", "--site", DemoSitePath(), "--out", out,
+                           "--count", "3", "--every", "30"},
+                          dir.File("out.txt"));
+  ASSERT_TRUE(testing::WaitForPath(out + "/frame_0000.jpg", 60));
+  p.Signal(SIGINT);
+  EXPECT_EQ(p.Wait(30), 1);
+  const std::vector<CsvRow> rows = ReadFramesCsv(out + "/frames.csv");
+  ASSERT_EQ(rows.size(), 1u);
+  EXPECT_EQ(rows[0].file, "frame_0000.jpg");
+  ExpectRowsDecode(out, rows, kWidthPx, kHeightPx);
 }
 
 TEST(RoomfixGrab, RefusesADeviceThatCannotBeOpened) {
