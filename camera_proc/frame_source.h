@@ -26,6 +26,10 @@ class FrameImage {
   int height_px() const { return height_px_; }
   // Whether the pixels are still compressed (JPEG).
   virtual bool encoded() const = 0;
+  // The JPEG data as the source delivered it (a webcam's MJPEG buffer, a
+  // .jpg file, a video's MJPEG packet), for a tool that saves frames
+  // without re-encoding them (`roomfix grab`); nullptr when not encoded.
+  virtual const std::vector<uint8_t>* jpeg_bytes() const { return nullptr; }
   // BGR (CV_8UC3) of the full-resolution rectangle `rect`, clipped to the
   // image; *out is exactly the clipped rectangle. False with a reason
   // (corrupt or truncated data) when the pixels cannot be had.

@@ -103,11 +103,15 @@ std::unique_ptr<FrameImage> MustMake(std::vector<uint8_t> bytes,
 
 TEST(JpegImage, ReadsOnlyTheHeader) {
   REQUIRE_SAMPLES();
-  auto image = MustMake(ReadBytes(SamplesDir() + "/left01.jpg"));
+  const std::vector<uint8_t> bytes = ReadBytes(SamplesDir() + "/left01.jpg");
+  auto image = MustMake(bytes);
   ASSERT_NE(image, nullptr);
   EXPECT_TRUE(image->encoded());
   EXPECT_EQ(image->width_px(), 640);
   EXPECT_EQ(image->height_px(), 480);
+  // The bytes as given, for roomfix grab to save unchanged.
+  ASSERT_NE(image->jpeg_bytes(), nullptr);
+  EXPECT_EQ(*image->jpeg_bytes(), bytes);
 }
 
 TEST(JpegImage, DecodeReducedOneMatchesImdecode) {
@@ -285,6 +289,7 @@ TEST(DecodedImage, ViewsAndAreaReduction) {
   cv::Mat bgr(101, 203, CV_8UC3, cv::Scalar(10, 20, 30));
   auto image = MakeDecodedImage(bgr);
   EXPECT_FALSE(image->encoded());
+  EXPECT_EQ(image->jpeg_bytes(), nullptr);
   EXPECT_EQ(image->width_px(), 203);
   cv::Mat out;
   std::string error;

@@ -238,6 +238,7 @@ class JpegImage : public FrameImage {
   }
 
   bool encoded() const override { return true; }
+  const std::vector<uint8_t>* jpeg_bytes() const override { return &bytes_; }
 
   bool DecodeRegion(const cv::Rect& rect, cv::Mat* out, std::string* error) override {
     const cv::Rect clipped = rect & cv::Rect(0, 0, width_px_, height_px_);

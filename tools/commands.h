@@ -31,6 +31,9 @@ void AddExportCommand(CLI::App* app, int* exit_code);
 void AddDevicesCommand(CLI::App* app, int* exit_code);
 // roomfix colours: colour classes learned from frames (colours_command.cc).
 void AddColoursCommand(CLI::App* app, int* exit_code);
+// roomfix grab: frames from a site camera's device, opened as camera_proc
+// opens it (tools/grab_command.cc, docs/camera.md "Grabbing frames").
+void AddGrabCommand(CLI::App* app, int* exit_code);
 // Adds `logger` under the `bench` subcommand.
 void AddBenchLoggerCommand(CLI::App* bench, int* exit_code);
 // Adds `radio` under the `bench` subcommand.

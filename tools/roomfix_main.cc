@@ -33,6 +33,7 @@ int main(int argc, char** argv) {
   roomfix::AddReplayCommand(&app, &exit_code);
   roomfix::AddExportCommand(&app, &exit_code);
   roomfix::AddDevicesCommand(&app, &exit_code);
+  roomfix::AddGrabCommand(&app, &exit_code);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ValidationError& e) {

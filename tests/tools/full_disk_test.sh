@@ -100,6 +100,12 @@ mkdir "$tmp/frames" && ln -s /dev/full "$tmp/frames/truth.csv"
 expect "render-camera --out (truth.csv)" \
   "roomfix render-camera: $tmp/frames: cannot write $tmp/frames/truth.csv: $full" \
   "$bin/roomfix" render-camera --site "$site" --out "$tmp/frames" --duration 0.1
+mkdir "$tmp/grab" && ln -s /dev/full "$tmp/grab/frame_0000.jpg"
+expect "grab (a frame)" "roomfix grab: $tmp/grab/frame_0000.jpg: cannot write: $full" \
+  "$bin/roomfix" grab --site "$site" --out "$tmp/grab"
+mkdir "$tmp/grab_csv" && ln -s /dev/full "$tmp/grab_csv/frames.csv"
+expect "grab (frames.csv)" "roomfix grab: $tmp/grab_csv/frames.csv: cannot write: $full" \
+  "$bin/roomfix" grab --site "$site" --out "$tmp/grab_csv"
 mkdir "$tmp/analysis" && ln -s /dev/full "$tmp/analysis/report.md"
 expect "analyze report.md" "roomfix analyze: $tmp/analysis/report.md: cannot write: $full" \
   "$bin/roomfix" analyze "$gt_log" --out "$tmp/analysis" --no-figures
