@@ -28,6 +28,7 @@ int main(int argc, char** argv) {
   roomfix::AddCalibrateCommand(&app, &exit_code);
   roomfix::AddMapCommand(&app, &exit_code);
   roomfix::AddRenderCameraCommand(&app, &exit_code);
+  roomfix::AddDetectCommand(&app, &exit_code);
   roomfix::AddSurveyCommand(&app, &exit_code);
   roomfix::AddReplayCommand(&app, &exit_code);
   roomfix::AddExportCommand(&app, &exit_code);

@@ -256,8 +256,10 @@ DetectorView RenderDetectorView(const MarkerDetector& detector, const DetectorVi
     view.robots.push_back(Diagnose(detector, in, view, in.robots[i], obs[i]));
     if (!obs[i].found) continue;
     const cv::Point2d c = ToView(in, obs[i].position.u_px, obs[i].position.v_px);
+    // Left of the position marker: its blob's label is on the right.
+    const int r = static_cast<int>(std::lround(1.3 * obs[i].position.radius_px / in.scale + 2.0));
     Label(&view.bgr, "R" + std::to_string(in.robots[i].robot_id),
-          cv::Point(static_cast<int>(c.x) - 6, static_cast<int>(c.y) - 8), kFoundBgr);
+          cv::Point(static_cast<int>(c.x) - r - 18, static_cast<int>(c.y) + 3), kFoundBgr);
   }
   if (in.list_reasons && !view.robots.empty()) {
     int y = view.bgr.rows - 6 - 12 * static_cast<int>(view.robots.size() - 1);
