@@ -162,6 +162,9 @@ RobotDiagnosis Diagnose(const MarkerDetector& detector, const DetectorViewInput&
                     expected->y);
   } else {
     for (const int k : {spec.position_class, spec.heading_class}) {
+      // A spec naming no class of the detector (never from MakeCameraSetup)
+      // has nothing to diagnose by colour.
+      if (k < 0 || k >= static_cast<int>(detector.classes().size())) continue;
       const bool has_blob = std::any_of(view.blobs.begin(), view.blobs.end(),
                                         [k](const Blob& b) { return b.class_index == k; });
       if (!has_blob) {

@@ -209,6 +209,20 @@ TEST_F(DetectorViewTest, ARegionViewPlacesBlobsInFullFrameCoordinates) {
   EXPECT_EQ(view.bgr.size(), region.size());
 }
 
+TEST(DetectorView, ARobotNamingNoClassOfTheDetectorIsNotPairedNotACrash) {
+  const MarkerDetector detector({ColourClass{}}, DetectorOptions{});
+  DetectorViewInput in;
+  in.bgr = cv::Mat(64, 64, CV_8UC3, cv::Scalar(90, 90, 90));
+  TrackedRobotSpec spec;
+  spec.position_class = 7;
+  spec.heading_class = -1;
+  in.robots = {spec};
+  const DetectorView view = RenderDetectorView(detector, in);
+  ASSERT_EQ(view.robots.size(), 1u);
+  EXPECT_EQ(view.robots[0].reason, RobotViewReason::kNotPaired);
+  EXPECT_EQ(view.bgr.size(), in.bgr.size());
+}
+
 TEST(DetectorView, AnEmptyImageGivesAnEmptyViewAndNoDiagnosis) {
   const MarkerDetector detector({ColourClass{}}, DetectorOptions{});
   DetectorViewInput in;
