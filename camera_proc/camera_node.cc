@@ -7,14 +7,18 @@
 #include <cmath>
 #include <limits>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <unordered_map>
 #include <utility>
 
 #include "core/calib/marker_projection.h"
 #include "core/calib/pose_covariance.h"
+#include "core/vision/detector_view.h"
 #include "msgio/message_conversions.h"
 #include "msgio/time_limits.h"
 #include "msgio/wire_check.h"
+#include "roomfix/detector_view_request_t.hpp"
+#include "roomfix/detector_view_t.hpp"
 
 namespace roomfix {
 namespace {
@@ -129,6 +133,20 @@ bool CameraNodeOptions::IsValid(std::string* error) const {
   }
   if (absent_search_period_frames < 1 || absent_search_period_frames > 300) {
     *error = "absent search period must lie in [1, 300] frames";
+    return false;
+  }
+  if (!(detector_view_hz >= 0.0) || !std::isfinite(detector_view_hz) ||
+      detector_view_hz > detector_view_max_hz) {
+    *error = "detector view rate must lie in [0, detector_view_max_hz] Hz";
+    return false;
+  }
+  if (!(detector_view_max_hz > 0.0) || !std::isfinite(detector_view_max_hz) ||
+      !(detector_view_max_duration_s > 0.0) || !std::isfinite(detector_view_max_duration_s)) {
+    *error = "detector view maximum rate and duration must be positive";
+    return false;
+  }
+  if (detector_view_max_width_px < 64) {
+    *error = "detector view maximum width must be at least 64 px";
     return false;
   }
   if (device_timing && !device_timing->IsValid(error)) {
@@ -284,6 +302,11 @@ CameraNode::CameraNode(const Site& site, const Camera& camera,
   detector_ = std::make_unique<vision::MarkerDetector>(setup_.classes, detector_options);
   tracker_ = std::make_unique<vision::RobotTracker>(setup_.robots, setup_.tracker, camera.width_px,
                                                     camera.height_px);
+  subscriptions_.Add(bus_->Subscribe<detector_view_request_t>(
+      kDetectorViewRequestChannel,
+      [this](const detector_view_request_t& m, const MessageInfo& info) {
+        OnDetectorViewRequest(m, info);
+      }));
   // Hints need the floor-to-pixel direction, so a calibration.
   if (calibration_) {
     for (const std::string& channel : options_.hint_channels) {
@@ -328,6 +351,7 @@ void CameraNode::OnHint(const pose2d_t& pose, const MessageInfo& info) {
     }
     const double px_per_m = std::hypot(u1 - u, v1 - v) / 0.1;
     tracker_->SetHint(pose.robot_id, u, v, radius_m * px_per_m, pose.utime);
+    hint_px_[pose.robot_id] = {u, v, pose.utime};
     status_.Count("hints");
   }
 }
@@ -511,7 +535,7 @@ void CameraNode::OnFrame(camera::Frame* frame, int64_t now_utime) {
   // MARKER_PIXELS (OnMarkerPixels) gives the same number.
   if (calibration_) PublishPoses(msg.utime, msg.frame_seq, msg.processing_time_us);
   last_pixels_ = std::move(msg);
-  MaybePublishPreview(*frame);
+  PublishLowRateViews(*frame, now_utime);
 }
 
 void CameraNode::OnMarkerPixels(const marker_pixels_t& msg, int64_t now_utime) {
@@ -652,6 +676,155 @@ void CameraNode::MaybePublishPreview(const camera::Frame& frame) {
   if (!cv::imencode(".jpg", small, bytes, {cv::IMWRITE_JPEG_QUALITY, 70})) return;
   preview.data.assign(bytes.begin(), bytes.end());
   bus_->Publish(kCameraPreviewChannel, ToMessage(preview));
+}
+
+// The reasons cross the wire by their numbers.
+static_assert(static_cast<int8_t>(vision::RobotViewReason::kFound) ==
+              detector_view_robot_t::REASON_FOUND);
+static_assert(static_cast<int8_t>(vision::RobotViewReason::kOutOfView) ==
+              detector_view_robot_t::REASON_OUT_OF_VIEW);
+static_assert(vision::kMaxRobotViewReason == detector_view_robot_t::REASON_NO_BLOB);
+
+void CameraNode::PublishLowRateViews(const camera::Frame& frame, int64_t now_utime) {
+  MaybePublishPreview(frame);
+  MaybePublishDetectorView(frame, now_utime);
+}
+
+bool CameraNode::CheckDetectorViewRequest(const DetectorViewRequest& r, std::string* reason,
+                                          std::string* error) const {
+  if (r.camera_id < -1) {
+    *reason = "detector_view_bad_camera";
+    *error = "camera id " + std::to_string(r.camera_id) + " (-1 is every camera)";
+    return false;
+  }
+  if (!std::isfinite(r.duration_s) || r.duration_s < 0.0 ||
+      r.duration_s > options_.detector_view_max_duration_s) {
+    *reason = "detector_view_bad_duration";
+    *error = "duration " + std::to_string(r.duration_s) + " s outside [0, " +
+             std::to_string(options_.detector_view_max_duration_s) + "]";
+    return false;
+  }
+  // A stop (duration 0) needs no rate.
+  if (r.duration_s > 0.0 && (!std::isfinite(r.rate_hz) || !(r.rate_hz > 0.0))) {
+    *reason = "detector_view_bad_rate";
+    *error = "rate " + std::to_string(r.rate_hz) + " Hz is not positive";
+    return false;
+  }
+  // No region (0 x 0) is the whole frame; anything else lies inside it and
+  // is big enough to show a marker.
+  constexpr int kMinRegionPx = 16;
+  const bool whole = r.region_width_px == 0 && r.region_height_px == 0;
+  if (!whole &&
+      (r.region_u_px < 0 || r.region_v_px < 0 || r.region_width_px < kMinRegionPx ||
+       r.region_height_px < kMinRegionPx || r.region_width_px > camera_.width_px - r.region_u_px ||
+       r.region_height_px > camera_.height_px - r.region_v_px)) {
+    *reason = "detector_view_bad_region";
+    *error = "region " + std::to_string(r.region_width_px) + "x" +
+             std::to_string(r.region_height_px) + " at (" + std::to_string(r.region_u_px) + ", " +
+             std::to_string(r.region_v_px) + ") does not lie within the " +
+             std::to_string(camera_.width_px) + "x" + std::to_string(camera_.height_px) +
+             " frame (or is under " + std::to_string(kMinRegionPx) + " px)";
+    return false;
+  }
+  return true;
+}
+
+void CameraNode::OnDetectorViewRequest(const detector_view_request_t& msg,
+                                       const MessageInfo& info) {
+  const DetectorViewRequest r = FromMessage(msg);
+  // Another camera's request is ordinary traffic on a shared channel.
+  if (r.camera_id >= 0 && r.camera_id != camera_.id) {
+    status_.Count("detector_view_other_camera");
+    return;
+  }
+  std::string reason, error;
+  if (!UtimeNear(r.utime, info.recv_utime)) {
+    reason = "utime_out_of_range";
+    error = "its utime is far from the clock";
+  } else if (CheckDetectorViewRequest(r, &reason, &error)) {
+    status_.Count("detector_view_requests");
+    detector_view_until_utime_ = info.recv_utime + static_cast<int64_t>(r.duration_s * 1e6);
+    detector_view_request_hz_ = std::min(r.rate_hz, options_.detector_view_max_hz);
+    detector_view_region_ =
+        cv::Rect(r.region_u_px, r.region_v_px, r.region_width_px, r.region_height_px);
+    last_detector_view_utime_ = 0;  // the first view with the next frame
+    return;
+  }
+  status_.Reject(reason);
+  status_.SetError("detector view request refused: " + error, info.recv_utime);
+}
+
+void CameraNode::MaybePublishDetectorView(const camera::Frame& frame, int64_t now_utime) {
+  const bool asked = now_utime < detector_view_until_utime_;
+  const double hz = std::max(options_.detector_view_hz, asked ? detector_view_request_hz_ : 0.0);
+  if (!(hz > 0.0)) return;
+  const int64_t period_us = static_cast<int64_t>(1e6 / hz);
+  if (last_detector_view_utime_ != 0 &&
+      frame.capture_utime - last_detector_view_utime_ < period_us) {
+    return;
+  }
+  last_detector_view_utime_ = frame.capture_utime;
+  camera::FrameImage* image = frame.image.get();
+  vision::DetectorViewInput in;
+  in.source_size = cv::Size(image->width_px(), image->height_px());
+  in.region_px = asked && !detector_view_region_.empty()
+                     ? detector_view_region_
+                     : cv::Rect(cv::Point(0, 0), in.source_size);
+  in.scale = 1;
+  while (in.scale < 8 && in.region_px.width > options_.detector_view_max_width_px * in.scale) {
+    in.scale *= 2;
+  }
+  std::string error;
+  const bool whole = in.region_px.size() == in.source_size;
+  cv::Mat pixels;
+  if (whole ? !image->DecodeReduced(in.scale, &in.bgr, &error)
+            : !image->DecodeRegion(in.region_px, &pixels, &error)) {
+    status_.Count("detector_view_undecodable");
+    return;
+  }
+  if (!whole) {
+    cv::resize(pixels, in.bgr, cv::Size(), 1.0 / in.scale, 1.0 / in.scale, cv::INTER_AREA);
+  }
+  in.robots = setup_.robots;
+  in.tracker = setup_.tracker;
+  // A hint another sensor gave within the tracker's own hint age says where
+  // a robot should be: beyond the view, it is out of view, not discoloured.
+  for (const auto& [id, hint] : hint_px_) {
+    if (std::abs(frame.capture_utime - hint.utime) <= setup_.tracker.hint_max_age_s * 1e6) {
+      in.expected_px[id] = cv::Point2d(hint.u_px, hint.v_px);
+    }
+  }
+  const vision::DetectorView view = vision::RenderDetectorView(*detector_, in);
+  DetectorViewImage msg;
+  msg.utime = frame.capture_utime;
+  msg.camera_id = camera_.id;
+  msg.frame_seq = frame.seq;
+  msg.width_px = view.bgr.cols;
+  msg.height_px = view.bgr.rows;
+  msg.source_width_px = in.source_size.width;
+  msg.source_height_px = in.source_size.height;
+  msg.region_u_px = in.region_px.x;
+  msg.region_v_px = in.region_px.y;
+  msg.region_width_px = in.region_px.width;
+  msg.region_height_px = in.region_px.height;
+  msg.scale = in.scale;
+  msg.format = "png";
+  if (!cv::imencode(".png", view.bgr, msg.data) ||
+      msg.data.size() > static_cast<size_t>(wire_cap::kDetectorViewBytes)) {
+    status_.Count("detector_view_not_encoded");
+    return;
+  }
+  for (const vision::RobotDiagnosis& d : view.robots) {
+    DetectorViewRobot r;
+    r.robot_id = d.robot_id;
+    r.reason = static_cast<int8_t>(d.reason);
+    if (d.class_index >= 0) r.colour_class = setup_.classes[d.class_index].name;
+    r.value = d.value;
+    r.limit = d.limit;
+    r.text = d.text.substr(0, wire_cap::kDetectorViewTextBytes - 1);
+    msg.robots.push_back(r);
+  }
+  if (bus_->Publish(kDetectorViewChannel, ToMessage(msg))) status_.Count("detector_views");
 }
 
 bool CameraNode::MapMarker(const vision::Blob& blob, double radius_m, double height_m, double* x_m,

@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <deque>
 #include <functional>
+#include <map>
 #include <memory>
 #include <optional>
 #include <set>
@@ -27,6 +28,8 @@ namespace roomfix {
 inline constexpr char kMarkerPixelsChannel[] = "MARKER_PIXELS";
 inline constexpr char kCameraPoseChannel[] = "POSE_CAMERA";
 inline constexpr char kCameraPreviewChannel[] = "CAMERA_PREVIEW";
+inline constexpr char kDetectorViewChannel[] = "CAMERA_DETECTOR_VIEW";
+inline constexpr char kDetectorViewRequestChannel[] = "CAMERA_DETECTOR_VIEW_REQUEST";
 
 struct CameraNodeOptions {
   vision::LightingMode lighting = vision::LightingMode::kAdaptive;
@@ -80,6 +83,17 @@ struct CameraNodeOptions {
   // A reduced JPEG of a frame on CAMERA_PREVIEW this often, for the viewer
   // (0: never). Costs one 1/8-size decode and a small encode.
   double preview_hz = 1.0;
+  // What the detector sees (CAMERA_DETECTOR_VIEW, core/vision/detector_view.h)
+  // of the whole frame this often without being asked (0: only on request,
+  // CAMERA_DETECTOR_VIEW_REQUEST). Costs a reduced decode, a detection with
+  // its masks and a PNG encode per view; nothing per frame while off.
+  double detector_view_hz = 0.0;
+  // The most views per second a request may ask for (a faster one is slowed
+  // to this), and the longest it may last.
+  double detector_view_max_hz = 2.0;
+  double detector_view_max_duration_s = 600.0;
+  // A view is reduced (by 1, 2, 4 or 8) until it is at most this wide.
+  int detector_view_max_width_px = 960;
   // The frame source's own exposure and timestamp timing when the device
   // defines it (FrameSource::device_timing: a synthetic scenario renders its
   // own physics, so its figures are the truth whatever the site says); empty:
@@ -172,7 +186,15 @@ class CameraNode {
              const std::vector<vision::Blob>& blobs, int64_t now_utime);
   void PublishPoses(int64_t capture_utime, int64_t frame_seq, int64_t latency_us);
   void OnHint(const pose2d_t& pose, const MessageInfo& info);
+  // The low-rate images after a frame's work: the preview and the detector
+  // view, each when due.
+  void PublishLowRateViews(const camera::Frame& frame, int64_t now_utime);
   void MaybePublishPreview(const camera::Frame& frame);
+  void MaybePublishDetectorView(const camera::Frame& frame, int64_t now_utime);
+  // A CAMERA_DETECTOR_VIEW_REQUEST: checked, then turns the view on (or off).
+  void OnDetectorViewRequest(const detector_view_request_t& msg, const MessageInfo& info);
+  bool CheckDetectorViewRequest(const DetectorViewRequest& request, std::string* reason,
+                                std::string* error) const;
   bool MapMarker(const vision::Blob& blob, double radius_m, double height_m, double* x_m,
                  double* y_m) const;
   // Frame timestamps: the spread of the intervals between consecutive
@@ -199,6 +221,18 @@ class CameraNode {
   int64_t last_seq_ = -1;
   int64_t bad_since_last_ = 0;
   int64_t last_preview_utime_ = 0;
+  // The detector view: asked until this time (now_utime's clock), at this
+  // rate, of this full-resolution region (empty: the whole frame).
+  int64_t detector_view_until_utime_ = 0;
+  double detector_view_request_hz_ = 0.0;
+  cv::Rect detector_view_region_;
+  int64_t last_detector_view_utime_ = 0;
+  // The last hint per robot, as a pixel (the view's "expected here").
+  struct HintPixel {
+    double u_px, v_px;
+    int64_t utime;
+  };
+  std::map<int, HintPixel> hint_px_;
   int64_t frames_processed_ = 0;
   calib::CameraTiming timing_;
   // Running mean and variance of the interval between consecutive frames, us.

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <map>
 #include <memory>
@@ -13,6 +14,8 @@
 
 #include "camera_proc/sim_frame_source.h"
 #include "core/calib/camera_timing.h"
+#include "roomfix/detector_view_request_t.hpp"
+#include "roomfix/detector_view_t.hpp"
 #include "roomfix/image_t.hpp"
 #include "roomfix/marker_pixels_t.hpp"
 #include "roomfix/pose2d_t.hpp"
@@ -39,6 +42,7 @@ struct PipelineRun {
   std::vector<pose2d_t> poses;
   std::vector<marker_pixels_t> pixels;
   std::vector<image_t> previews;
+  std::vector<detector_view_t> views;
   // The ultrasound hints published, with the index of the frame they
   // preceded.
   std::vector<std::pair<size_t, pose2d_t>> hints;
@@ -107,6 +111,9 @@ class CameraNodeTest : public ::testing::Test {
     bus_->Subscribe<image_t>(kCameraPreviewChannel, [&run](const image_t& m, const MessageInfo&) {
       run.previews.push_back(m);
     });
+    bus_->Subscribe<detector_view_t>(
+        kDetectorViewChannel,
+        [&run](const detector_view_t& m, const MessageInfo&) { run.views.push_back(m); });
     run.node =
         std::make_unique<CameraNode>(site_, camera_, calibration, bus_.get(), options, kStartUtime);
     EXPECT_TRUE(run.node->ok(&error)) << error;
@@ -129,6 +136,10 @@ class CameraNodeTest : public ::testing::Test {
         bus_->set_now_utime(frame.capture_utime + 5'000);  // The radio's delay.
         bus_->Publish("POSE_ULTRASOUND", hint);
         run.hints.emplace_back(static_cast<size_t>(i), hint);
+      }
+      if (before_frame_) {
+        bus_->set_now_utime(frame.capture_utime);
+        before_frame_(i, run.node.get());
       }
       run.node->OnFrame(&frame, frame.capture_utime + 1000);
     }
@@ -171,6 +182,8 @@ class CameraNodeTest : public ::testing::Test {
   std::unique_ptr<LoopbackBus> bus_;
   // > 0: ultrasonic fixes with this noise are published as hints.
   double hint_sigma_m_ = 0.0;
+  // Called before frame i, with the bus's clock at its capture time.
+  std::function<void(int, CameraNode*)> before_frame_;
 };
 
 TEST_F(CameraNodeTest, StaticRobotIsLocatedToThreeMillimetres) {
@@ -374,6 +387,113 @@ TEST_F(CameraNodeTest, RefusesHintsForUnknownRobotsFarOffTimesAndInfinities) {
   EXPECT_EQ(node.status().counter("hints"), 0);
   bus_->Publish("POSE_ULTRASOUND", hint);
   EXPECT_EQ(node.status().counter("hints"), 1);
+}
+
+// The detector view (docs/camera.md, "What the detector sees").
+detector_view_request_t WholeFrameViewRequest(int64_t utime, double rate_hz, double duration_s) {
+  detector_view_request_t r{};
+  r.utime = utime;
+  r.camera_id = -1;
+  r.rate_hz = rate_hz;
+  r.duration_s = duration_s;
+  return r;
+}
+
+TEST_F(CameraNodeTest, ARequestTurnsTheDetectorViewOnAtTheCappedRateWithAPngAndTheRobotsReason) {
+  MakeStatic(1.9, 1.5, 0.3);
+  constexpr int kRequestFrame = 5;
+  constexpr int kFrames = kRequestFrame + 30;  // one second at 30 fps after it
+  CameraNodeOptions options;
+  options.detector_view_max_hz = 2.0;
+  before_frame_ = [&](int i, CameraNode*) {
+    if (i != kRequestFrame) return;
+    // Ten per second asked; the node's cap is two.
+    bus_->Publish(kDetectorViewRequestChannel,
+                  WholeFrameViewRequest(bus_->now_utime(), 10.0, 60.0));
+  };
+  const PipelineRun run = RunFrames("clean", kFrames, true, options);
+  EXPECT_EQ(run.node->status().counter("detector_view_requests"), 1);
+  // Frames kRequestFrame (t = 0) and kRequestFrame + 15 (t = 0.5 s): 2 Hz.
+  ASSERT_EQ(run.views.size(), 2u);
+  EXPECT_EQ(run.views[0].frame_seq, run.pixels[kRequestFrame].frame_seq);
+  EXPECT_EQ(run.views[1].frame_seq, run.pixels[kRequestFrame + 15].frame_seq);
+  for (const detector_view_t& v : run.views) {
+    EXPECT_EQ(v.format, "png");
+    EXPECT_EQ(v.scale, 2);  // 1920 px wide over the default 960 px
+    EXPECT_EQ(v.region_width_px, camera_.width_px);
+    const cv::Mat png = cv::imdecode(v.data, cv::IMREAD_COLOR);
+    ASSERT_FALSE(png.empty());
+    EXPECT_EQ(png.cols, v.width_px);
+    EXPECT_EQ(png.rows, v.height_px);
+    EXPECT_EQ(v.width_px, camera_.width_px / 2);
+    ASSERT_EQ(v.robots.size(), 1u);
+    EXPECT_EQ(v.robots[0].robot_id, camera_.robots.front().robot_id);
+    EXPECT_EQ(v.robots[0].reason, detector_view_robot_t::REASON_FOUND) << v.robots[0].text;
+  }
+}
+
+TEST_F(CameraNodeTest, TheDetectorViewIsOffUnlessAskedOrFlagged) {
+  MakeStatic(1.9, 1.5, 0.3);
+  EXPECT_TRUE(RunFrames("clean", 10).views.empty());
+  CameraNodeOptions options;
+  options.detector_view_hz = 1.0;
+  // 45 frames at 30 fps: views at t = 0 and 1 s.
+  EXPECT_EQ(RunFrames("clean", 45, true, options).views.size(), 2u);
+}
+
+TEST_F(CameraNodeTest, BadDetectorViewRequestsAreRefusedCountedAndNeverTurnTheViewOn) {
+  MakeStatic(1.9, 1.5, 0.3);
+  before_frame_ = [&](int i, CameraNode*) {
+    if (i != 0) return;
+    const int64_t now = bus_->now_utime();
+    detector_view_request_t r = WholeFrameViewRequest(now, -1.0, 10.0);
+    bus_->Publish(kDetectorViewRequestChannel, r);  // a negative rate
+    r = WholeFrameViewRequest(now, 1.0, std::numeric_limits<double>::quiet_NaN());
+    bus_->Publish(kDetectorViewRequestChannel, r);
+    r = WholeFrameViewRequest(now, 1.0, 10.0);
+    r.region_u_px = camera_.width_px - 10;  // runs off the frame
+    r.region_width_px = 200;
+    r.region_height_px = 200;
+    bus_->Publish(kDetectorViewRequestChannel, r);
+    r = WholeFrameViewRequest(now, 1.0, 10.0);
+    r.camera_id = -7;
+    bus_->Publish(kDetectorViewRequestChannel, r);
+    r = WholeFrameViewRequest(now, 1.0, 10.0);
+    r.camera_id = camera_.id + 1;  // another camera's: not ours, not an error
+    bus_->Publish(kDetectorViewRequestChannel, r);
+  };
+  const PipelineRun run = RunFrames("clean", 10);
+  const StatusReporter& status = run.node->status();
+  EXPECT_EQ(status.rejected("detector_view_bad_rate"), 1);
+  EXPECT_EQ(status.rejected("detector_view_bad_duration"), 1);
+  EXPECT_EQ(status.rejected("detector_view_bad_region"), 1);
+  EXPECT_EQ(status.rejected("detector_view_bad_camera"), 1);
+  EXPECT_EQ(status.counter("detector_view_other_camera"), 1);
+  EXPECT_EQ(status.counter("detector_view_requests"), 0);
+  EXPECT_TRUE(run.views.empty());
+  // The frames themselves went on as ever.
+  EXPECT_EQ(run.pixels.size(), 10u);
+}
+
+TEST_F(CameraNodeTest, ARegionRequestShowsThatRegionAtFullResolution) {
+  MakeStatic(1.9, 1.5, 0.3);
+  before_frame_ = [&](int i, CameraNode*) {
+    if (i != 0) return;
+    detector_view_request_t r = WholeFrameViewRequest(bus_->now_utime(), 1.0, 10.0);
+    r.region_u_px = 800;
+    r.region_v_px = 400;
+    r.region_width_px = 320;
+    r.region_height_px = 240;
+    bus_->Publish(kDetectorViewRequestChannel, r);
+  };
+  const PipelineRun run = RunFrames("clean", 3);
+  ASSERT_EQ(run.views.size(), 1u);
+  const detector_view_t& v = run.views[0];
+  EXPECT_EQ(v.scale, 1);
+  EXPECT_EQ(v.region_u_px, 800);
+  EXPECT_EQ(v.width_px, 320);
+  EXPECT_EQ(v.height_px, 240);
+  EXPECT_FALSE(cv::imdecode(v.data, cv::IMREAD_COLOR).empty());
 }
 
 TEST_F(CameraNodeTest, WithoutCalibrationPublishesPixelsOnly) {

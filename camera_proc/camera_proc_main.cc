@@ -35,6 +35,12 @@ void AddFlags(CLI::App* app, roomfix::CameraProcOptions* run, roomfix::CameraNod
       ->check(CLI::Range(1, 300));
   app->add_option("--max-speed", node->max_speed_mps, "Robots' top speed, m/s (sizes windows)")
       ->capture_default_str();
+  app->add_option("--detector-view-hz", node->detector_view_hz,
+                  "What the detector sees (class masks, blobs, why each robot is not found) on "
+                  "CAMERA_DETECTOR_VIEW this often, whole frame (0: only when a viewer asks on "
+                  "CAMERA_DETECTOR_VIEW_REQUEST)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 5.0));
   app->add_option("--start-utime", run->start_utime,
                   "Simulation and file clock: t = 0 of the simulated robots (give roomfix_sim "
                   "the same), or the first file frame's time; default now");

@@ -11,6 +11,9 @@
 namespace roomfix {
 
 class counter_t;
+class detector_view_request_t;
+class detector_view_robot_t;
+class detector_view_t;
 class image_t;
 class marker_pixels_t;
 class marker_t;

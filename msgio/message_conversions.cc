@@ -103,6 +103,47 @@ void CopyImage(const From& from, To* to) {
   to->data = from.data;
 }
 
+template <typename From, typename To>
+void CopyDetectorView(const From& from, To* to) {
+  Assign(&to->utime, from.utime);
+  Assign(&to->camera_id, from.camera_id);
+  Assign(&to->frame_seq, from.frame_seq);
+  Assign(&to->width_px, from.width_px);
+  Assign(&to->height_px, from.height_px);
+  Assign(&to->source_width_px, from.source_width_px);
+  Assign(&to->source_height_px, from.source_height_px);
+  Assign(&to->region_u_px, from.region_u_px);
+  Assign(&to->region_v_px, from.region_v_px);
+  Assign(&to->region_width_px, from.region_width_px);
+  Assign(&to->region_height_px, from.region_height_px);
+  Assign(&to->scale, from.scale);
+  to->format = from.format;
+  to->data = from.data;
+  to->robots.resize(from.robots.size());
+  for (size_t i = 0; i < from.robots.size(); ++i) {
+    const auto& r = from.robots[i];
+    auto& out = to->robots[i];
+    Assign(&out.robot_id, r.robot_id);
+    Assign(&out.reason, r.reason);
+    out.colour_class = r.colour_class;
+    Assign(&out.value, r.value);
+    Assign(&out.limit, r.limit);
+    out.text = r.text;
+  }
+}
+
+template <typename From, typename To>
+void CopyDetectorViewRequest(const From& from, To* to) {
+  Assign(&to->utime, from.utime);
+  Assign(&to->camera_id, from.camera_id);
+  Assign(&to->region_u_px, from.region_u_px);
+  Assign(&to->region_v_px, from.region_v_px);
+  Assign(&to->region_width_px, from.region_width_px);
+  Assign(&to->region_height_px, from.region_height_px);
+  Assign(&to->rate_hz, from.rate_hz);
+  Assign(&to->duration_s, from.duration_s);
+}
+
 }  // namespace
 
 pose2d_t ToMessage(const Pose2d& pose) {
@@ -141,6 +182,32 @@ PreviewImage FromMessage(const image_t& msg) {
   PreviewImage image;
   CopyImage(msg, &image);
   return image;
+}
+
+detector_view_t ToMessage(const DetectorViewImage& view) {
+  detector_view_t msg{};
+  CopyDetectorView(view, &msg);
+  msg.num_bytes = static_cast<int32_t>(msg.data.size());
+  msg.num_robots = static_cast<int32_t>(msg.robots.size());
+  return msg;
+}
+
+DetectorViewImage FromMessage(const detector_view_t& msg) {
+  DetectorViewImage view;
+  CopyDetectorView(msg, &view);
+  return view;
+}
+
+detector_view_request_t ToMessage(const DetectorViewRequest& request) {
+  detector_view_request_t msg{};
+  CopyDetectorViewRequest(request, &msg);
+  return msg;
+}
+
+DetectorViewRequest FromMessage(const detector_view_request_t& msg) {
+  DetectorViewRequest request;
+  CopyDetectorViewRequest(msg, &request);
+  return request;
 }
 
 }  // namespace roomfix

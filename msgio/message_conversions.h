@@ -10,6 +10,8 @@
 // measured, a consumer refuses what it cannot use.
 
 #include "msgio/messages.h"
+#include "roomfix/detector_view_request_t.hpp"
+#include "roomfix/detector_view_t.hpp"
 #include "roomfix/image_t.hpp"
 #include "roomfix/marker_pixels_t.hpp"
 #include "roomfix/pose2d_t.hpp"
@@ -24,6 +26,12 @@ MarkerPixels FromMessage(const marker_pixels_t& msg);
 
 image_t ToMessage(const PreviewImage& image);
 PreviewImage FromMessage(const image_t& msg);
+
+detector_view_t ToMessage(const DetectorViewImage& view);
+DetectorViewImage FromMessage(const detector_view_t& msg);
+
+detector_view_request_t ToMessage(const DetectorViewRequest& request);
+DetectorViewRequest FromMessage(const detector_view_request_t& msg);
 
 }  // namespace roomfix
 

@@ -53,6 +53,19 @@ TEST(MessageConversions, MarkerPixelsAndPreviewSurviveTheRoundTripByteForByte) {
   EXPECT_EQ(Encode(ToMessage(FromMessage(image))), Encode(image));
 }
 
+TEST(MessageConversions, DetectorViewAndItsRequestSurviveTheRoundTripByteForByte) {
+  const detector_view_t view = testing::MakeTestDetectorView();
+  EXPECT_EQ(Encode(ToMessage(FromMessage(view))), Encode(view));
+  const detector_view_request_t request = testing::MakeTestDetectorViewRequest();
+  EXPECT_EQ(Encode(ToMessage(FromMessage(request))), Encode(request));
+  DetectorViewImage counted;
+  counted.data = {1, 2, 3};
+  counted.robots.resize(2);
+  const detector_view_t msg = ToMessage(counted);
+  EXPECT_EQ(msg.num_bytes, 3);
+  EXPECT_EQ(msg.num_robots, 2);
+}
+
 TEST(MessageConversions, APoseNobodyFilledInIsALostPoseWithNothingKnown) {
   const pose2d_t msg = ToMessage(Pose2d{});
   EXPECT_EQ(msg.status, pose2d_t::STATUS_LOST);

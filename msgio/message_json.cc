@@ -5,6 +5,8 @@
 #include <nlohmann/json.hpp>
 
 #include "msgio/wire_check.h"
+#include "roomfix/detector_view_request_t.hpp"
+#include "roomfix/detector_view_t.hpp"
 #include "roomfix/image_t.hpp"
 #include "roomfix/marker_pixels_t.hpp"
 #include "roomfix/pose2d_t.hpp"
@@ -129,6 +131,47 @@ ordered_json ToJson(const image_t& m) {
           {"num_bytes", m.num_bytes}};
 }
 
+// The image is summarised like a preview's; the robots' lines are whole.
+ordered_json ToJson(const detector_view_t& m) {
+  ordered_json robots = ordered_json::array();
+  for (const detector_view_robot_t& r : m.robots) {
+    robots.push_back({{"robot_id", r.robot_id},
+                      {"reason", r.reason},
+                      {"colour_class", r.colour_class},
+                      {"value", r.value},
+                      {"limit", r.limit},
+                      {"text", r.text}});
+  }
+  return {{"type", "roomfix.detector_view_t"},
+          {"utime", m.utime},
+          {"camera_id", m.camera_id},
+          {"frame_seq", m.frame_seq},
+          {"width_px", m.width_px},
+          {"height_px", m.height_px},
+          {"source_width_px", m.source_width_px},
+          {"source_height_px", m.source_height_px},
+          {"region_u_px", m.region_u_px},
+          {"region_v_px", m.region_v_px},
+          {"region_width_px", m.region_width_px},
+          {"region_height_px", m.region_height_px},
+          {"scale", m.scale},
+          {"format", m.format},
+          {"num_bytes", m.num_bytes},
+          {"robots", robots}};
+}
+
+ordered_json ToJson(const detector_view_request_t& m) {
+  return {{"type", "roomfix.detector_view_request_t"},
+          {"utime", m.utime},
+          {"camera_id", m.camera_id},
+          {"region_u_px", m.region_u_px},
+          {"region_v_px", m.region_v_px},
+          {"region_width_px", m.region_width_px},
+          {"region_height_px", m.region_height_px},
+          {"rate_hz", m.rate_hz},
+          {"duration_s", m.duration_s}};
+}
+
 // The texts are summarised by size: the site and its files are kilobytes,
 // and `content_hash` names them exactly.
 ordered_json ToJson(const site_t& m) {
@@ -224,6 +267,8 @@ const char* RoomfixTypeName(const void* data, int size) {
   if (fp == process_status_t::getHash()) return "roomfix.process_status_t";
   if (fp == image_t::getHash()) return "roomfix.image_t";
   if (fp == site_t::getHash()) return "roomfix.site_t";
+  if (fp == detector_view_t::getHash()) return "roomfix.detector_view_t";
+  if (fp == detector_view_request_t::getHash()) return "roomfix.detector_view_request_t";
   return nullptr;
 }
 
@@ -234,6 +279,8 @@ int64_t RoomfixTypeFingerprint(const std::string& type_name) {
   if (type_name == "roomfix.process_status_t") return process_status_t::getHash();
   if (type_name == "roomfix.image_t") return image_t::getHash();
   if (type_name == "roomfix.site_t") return site_t::getHash();
+  if (type_name == "roomfix.detector_view_t") return detector_view_t::getHash();
+  if (type_name == "roomfix.detector_view_request_t") return detector_view_request_t::getHash();
   return 0;
 }
 
@@ -264,6 +311,12 @@ bool MessageToJsonValue(const void* data, int size, nlohmann::ordered_json* json
   }
   if (fp == image_t::getHash()) return Decode<image_t>(data, size, json, error, reason);
   if (fp == site_t::getHash()) return Decode<site_t>(data, size, json, error, reason);
+  if (fp == detector_view_t::getHash()) {
+    return Decode<detector_view_t>(data, size, json, error, reason);
+  }
+  if (fp == detector_view_request_t::getHash()) {
+    return Decode<detector_view_request_t>(data, size, json, error, reason);
+  }
   if (error != nullptr) *error = "not a roomfix message (unknown fingerprint)";
   if (reason != nullptr) *reason = kUnknownTypeReason;
   return false;

@@ -117,6 +117,51 @@ struct PreviewImage {
   std::vector<uint8_t> data;
 };
 
+// A detector_view_robot_t: why the detector finds a robot or not. `reason`
+// is one of detector_view_robot_t's REASON_ constants (the numbers of
+// vision::RobotViewReason).
+struct DetectorViewRobot {
+  int32_t robot_id = 0;
+  int8_t reason = 0;
+  std::string colour_class;
+  double value = 0.0;
+  double limit = 0.0;
+  std::string text;
+};
+
+// A detector_view_t: what a camera's detector sees, as a small image (PNG),
+// with a line per robot (num_bytes and num_robots are the vectors' sizes).
+struct DetectorViewImage {
+  int64_t utime = 0;
+  int32_t camera_id = 0;
+  int64_t frame_seq = 0;
+  int32_t width_px = 0;
+  int32_t height_px = 0;
+  int32_t source_width_px = 0;
+  int32_t source_height_px = 0;
+  int32_t region_u_px = 0;
+  int32_t region_v_px = 0;
+  int32_t region_width_px = 0;
+  int32_t region_height_px = 0;
+  int32_t scale = 1;
+  std::string format;
+  std::vector<uint8_t> data;
+  std::vector<DetectorViewRobot> robots;
+};
+
+// A detector_view_request_t: camera_id -1 is every camera; a region of zero
+// width or height is the whole frame; duration 0 stops.
+struct DetectorViewRequest {
+  int64_t utime = 0;
+  int32_t camera_id = -1;
+  int32_t region_u_px = 0;
+  int32_t region_v_px = 0;
+  int32_t region_width_px = 0;
+  int32_t region_height_px = 0;
+  double rate_hz = 1.0;
+  double duration_s = 10.0;
+};
+
 }  // namespace roomfix
 
 #endif  // ROOMFIX_MSGIO_MESSAGES_H_

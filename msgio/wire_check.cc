@@ -4,6 +4,7 @@
 #include <string>
 
 #include "core/world/site.h"
+#include "roomfix/detector_view_robot_t.hpp"
 #include "roomfix/marker_pixels_t.hpp"
 #include "roomfix/marker_t.hpp"
 #include "roomfix/pose2d_t.hpp"
@@ -93,6 +94,34 @@ constexpr Field kImageFields[] = {
     {"data", kByteArray, 0, nullptr},
 };
 constexpr Layout kImage{"image_t", kImageFields, 4};
+
+constexpr Field kDetectorViewRobotFields[] = {
+    {"robot_id", kFixed, 4, nullptr},
+    {"reason", kEnum, detector_view_robot_t::REASON_NO_BLOB, nullptr},
+    {"colour_class", kString, wire_cap::kColourClassBytes, nullptr},
+    {"value..limit", kFixed, 2 * 8, nullptr},
+    {"text", kString, wire_cap::kDetectorViewTextBytes, nullptr},
+};
+constexpr Layout kDetectorViewRobot{"detector_view_robot_t", kDetectorViewRobotFields, 5};
+
+constexpr Field kDetectorViewFields[] = {
+    // utime 8, camera_id 4, frame_seq 8, then 9 int32: width_px,
+    // height_px, source_width_px, source_height_px, the region's four and
+    // scale
+    {"utime..scale", kFixed, 8 + 4 + 8 + 9 * 4, nullptr},
+    {"format", kString, wire_cap::kImageFormatBytes, nullptr},
+    {"num_bytes", kCount, wire_cap::kDetectorViewBytes, nullptr},
+    {"data", kByteArray, 0, nullptr},
+    {"num_robots", kCount, wire_cap::kDetectorViewRobots, nullptr},
+    {"robots", kStructArray, 0, &kDetectorViewRobot},
+};
+constexpr Layout kDetectorView{"detector_view_t", kDetectorViewFields, 6};
+
+constexpr Field kDetectorViewRequestFields[] = {
+    // utime 8, camera_id 4, the region's four int32, rate_hz 8, duration_s 8
+    {"utime..duration_s", kFixed, 8 + 4 + 4 * 4 + 8 + 8, nullptr},
+};
+constexpr Layout kDetectorViewRequest{"detector_view_request_t", kDetectorViewRequestFields, 1};
 
 constexpr Field kProcessStatusFields[] = {
     {"utime", kFixed, 8, nullptr},
@@ -266,6 +295,9 @@ class Walker {
 
 const Layout& LayoutOf(const counter_t*) { return kCounter; }
 const Layout& LayoutOf(const image_t*) { return kImage; }
+const Layout& LayoutOf(const detector_view_t*) { return kDetectorView; }
+const Layout& LayoutOf(const detector_view_robot_t*) { return kDetectorViewRobot; }
+const Layout& LayoutOf(const detector_view_request_t*) { return kDetectorViewRequest; }
 const Layout& LayoutOf(const marker_pixels_t*) { return kMarkerPixels; }
 const Layout& LayoutOf(const marker_t*) { return kMarker; }
 const Layout& LayoutOf(const pose2d_t*) { return kPose; }

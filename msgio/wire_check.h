@@ -68,6 +68,9 @@ inline constexpr int32_t kSiteFileBytes = 256 << 10;  // site_file_t.text
 inline constexpr int32_t kPathBytes = 4096;           // site_t.site_path, missing; site_file_t.name
 inline constexpr int32_t kHashBytes = 65;             // site_t.content_hash: 64 hex digits
 inline constexpr int32_t kVersionBytes = 64;          // site_t.roomfix_version
+inline constexpr int32_t kDetectorViewBytes = 4 << 20;  // detector_view_t.num_bytes
+inline constexpr int32_t kDetectorViewRobots = 256;     // detector_view_t.num_robots
+inline constexpr int32_t kDetectorViewTextBytes = 512;  // detector_view_robot_t.text
 }  // namespace wire_cap
 
 namespace wire {
@@ -99,6 +102,9 @@ struct Layout {
 
 // The layout of each roomfix type (lcmtypes/*.lcm).
 const Layout& LayoutOf(const counter_t*);
+const Layout& LayoutOf(const detector_view_request_t*);
+const Layout& LayoutOf(const detector_view_robot_t*);
+const Layout& LayoutOf(const detector_view_t*);
 const Layout& LayoutOf(const image_t*);
 const Layout& LayoutOf(const marker_pixels_t*);
 const Layout& LayoutOf(const marker_t*);

@@ -58,6 +58,10 @@ void ExpectTableMatchesEncoder(const Msg& msg) {
 TEST(WireCheck, AcceptsARealMessageOfEveryTypeAndNoPrefixOfIt) {
   ExpectTableMatchesEncoder(testing::MakeTestCounter("RANGES.count_over_cap", 3));
   ExpectTableMatchesEncoder(testing::MakeTestImage());
+  ExpectTableMatchesEncoder(testing::MakeTestDetectorView());
+  ExpectTableMatchesEncoder(
+      testing::MakeTestDetectorViewRobot(3, detector_view_robot_t::REASON_NO_BLOB));
+  ExpectTableMatchesEncoder(testing::MakeTestDetectorViewRequest());
   ExpectTableMatchesEncoder(testing::MakeTestMarkerPixels());
   ExpectTableMatchesEncoder(testing::MakeTestMarker("orange", 2));
   ExpectTableMatchesEncoder(testing::MakeTestPose(1700000000000000, 3, 1.25, 2.5));
@@ -351,6 +355,11 @@ TEST(WireCheck, EveryEnumOfTheLcmFilesIsCheckedWithItsLargestConstant) {
       {"process_status_t", &wire::LayoutOf(static_cast<const process_status_t*>(nullptr))},
       {"counter_t", &wire::LayoutOf(static_cast<const counter_t*>(nullptr))},
       {"image_t", &wire::LayoutOf(static_cast<const image_t*>(nullptr))},
+      {"detector_view_t", &wire::LayoutOf(static_cast<const detector_view_t*>(nullptr))},
+      {"detector_view_robot_t",
+       &wire::LayoutOf(static_cast<const detector_view_robot_t*>(nullptr))},
+      {"detector_view_request_t",
+       &wire::LayoutOf(static_cast<const detector_view_request_t*>(nullptr))},
       {"range_set_t", &wire::LayoutOf(static_cast<const range_set_t*>(nullptr))},
       {"range_t", &wire::LayoutOf(static_cast<const range_t*>(nullptr))},
       {"site_file_t", &wire::LayoutOf(static_cast<const site_file_t*>(nullptr))},
@@ -391,8 +400,9 @@ TEST(WireCheck, EveryEnumOfTheLcmFilesIsCheckedWithItsLargestConstant) {
     }
   }
   // pose2d_t source and status, marker_t role, marker_pixels_t search_mode,
-  // process_status_t state: a parser that found none would pass vacuously.
-  EXPECT_EQ(enums_found, 5);
+  // process_status_t state, detector_view_robot_t reason: a parser that
+  // found none would pass vacuously.
+  EXPECT_EQ(enums_found, 6);
 }
 
 }  // namespace

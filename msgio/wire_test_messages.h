@@ -11,6 +11,9 @@
 
 #include "msgio/test_messages.h"
 #include "roomfix/counter_t.hpp"
+#include "roomfix/detector_view_request_t.hpp"
+#include "roomfix/detector_view_robot_t.hpp"
+#include "roomfix/detector_view_t.hpp"
 #include "roomfix/image_t.hpp"
 #include "roomfix/marker_pixels_t.hpp"
 #include "roomfix/marker_t.hpp"
@@ -111,6 +114,53 @@ inline image_t MakeTestImage() {
   m.format = "jpeg";
   m.data = {0xFF, 0xD8, 0xFF, 0xE0, 0x00, 0x10, 'J', 'F', 'I', 'F', 0x00, 0xFF, 0xD9};
   m.num_bytes = static_cast<int32_t>(m.data.size());
+  return m;
+}
+
+inline detector_view_robot_t MakeTestDetectorViewRobot(int32_t robot_id, int8_t reason) {
+  detector_view_robot_t m{};
+  m.robot_id = robot_id;
+  m.reason = reason;
+  m.colour_class = "green";
+  m.value = 40.0;
+  m.limit = 120.0;
+  m.text = "robot " + std::to_string(robot_id) + ": blob of class green too small";
+  return m;
+}
+
+inline detector_view_t MakeTestDetectorView() {
+  detector_view_t m{};
+  m.utime = 1700000000000000;
+  m.camera_id = 1;
+  m.frame_seq = 99;
+  m.width_px = 480;
+  m.height_px = 270;
+  m.source_width_px = 1920;
+  m.source_height_px = 1080;
+  m.region_u_px = 0;
+  m.region_v_px = 0;
+  m.region_width_px = 1920;
+  m.region_height_px = 1080;
+  m.scale = 4;
+  m.format = "png";
+  m.data = {0x89, 'P', 'N', 'G', 0x0D, 0x0A, 0x1A, 0x0A};
+  m.num_bytes = static_cast<int32_t>(m.data.size());
+  m.robots = {MakeTestDetectorViewRobot(1, detector_view_robot_t::REASON_FOUND),
+              MakeTestDetectorViewRobot(2, detector_view_robot_t::REASON_TOO_SMALL)};
+  m.num_robots = static_cast<int32_t>(m.robots.size());
+  return m;
+}
+
+inline detector_view_request_t MakeTestDetectorViewRequest() {
+  detector_view_request_t m{};
+  m.utime = 1700000000000000;
+  m.camera_id = -1;
+  m.region_u_px = 100;
+  m.region_v_px = 50;
+  m.region_width_px = 640;
+  m.region_height_px = 480;
+  m.rate_hz = 1.0;
+  m.duration_s = 10.0;
   return m;
 }
 

@@ -22,6 +22,9 @@ void AddAnalyzeCommand(CLI::App* app, int* exit_code);
 void AddCalibrateCommand(CLI::App* app, int* exit_code);
 void AddMapCommand(CLI::App* app, int* exit_code);
 void AddRenderCameraCommand(CLI::App* app, int* exit_code);
+// roomfix detect IMAGE --site SITE --out OVERLAY.png: the detector view of a
+// saved frame (tools/detect_command.cc, docs/camera.md).
+void AddDetectCommand(CLI::App* app, int* exit_code);
 void AddSurveyCommand(CLI::App* app, int* exit_code);
 void AddReplayCommand(CLI::App* app, int* exit_code);
 // roomfix export LOG --csv DIR (export_command.cc, csv_export.h).

@@ -14,6 +14,8 @@
 
 #include "msgio/message_json.h"
 #include "msgio/wire_check.h"
+#include "roomfix/detector_view_request_t.hpp"
+#include "roomfix/detector_view_t.hpp"
 #include "roomfix/image_t.hpp"
 #include "roomfix/marker_pixels_t.hpp"
 #include "roomfix/pose2d_t.hpp"
@@ -116,7 +118,17 @@ void PutTimes(CsvLine* line, int64_t recv_utime, int64_t utime, int64_t start_ut
 }
 
 // The message types with a CSV, by LCM type name.
-enum class Kind { kPose, kRanges, kMarkers, kStatus, kImage, kSite, kNone };
+enum class Kind {
+  kPose,
+  kRanges,
+  kMarkers,
+  kStatus,
+  kImage,
+  kSite,
+  kDetectorView,
+  kDetectorViewRequest,
+  kNone
+};
 
 Kind KindOf(const std::string& type_name) {
   if (type_name == "roomfix.pose2d_t") return Kind::kPose;
@@ -125,6 +137,8 @@ Kind KindOf(const std::string& type_name) {
   if (type_name == "roomfix.process_status_t") return Kind::kStatus;
   if (type_name == "roomfix.image_t") return Kind::kImage;
   if (type_name == "roomfix.site_t") return Kind::kSite;
+  if (type_name == "roomfix.detector_view_t") return Kind::kDetectorView;
+  if (type_name == "roomfix.detector_view_request_t") return Kind::kDetectorViewRequest;
   return Kind::kNone;
 }
 
@@ -281,6 +295,44 @@ std::string ImageRow(const image_t& m, int64_t recv_utime, int64_t start) {
   line.Int(m.source_height_px);
   line.Text(m.format);
   line.Int(m.num_bytes);
+  return line.Take();
+}
+
+// One row per view: the image summarised, the robots as "id:reason" pairs
+// (the reason's wire code, docs/messages.md) joined by ";".
+std::string DetectorViewRow(const detector_view_t& m, int64_t recv_utime, int64_t start) {
+  CsvLine line;
+  PutTimes(&line, recv_utime, m.utime, start);
+  for (const int64_t v :
+       {int64_t{m.camera_id}, m.frame_seq, int64_t{m.width_px}, int64_t{m.height_px},
+        int64_t{m.source_width_px}, int64_t{m.source_height_px}, int64_t{m.region_u_px},
+        int64_t{m.region_v_px}, int64_t{m.region_width_px}, int64_t{m.region_height_px},
+        int64_t{m.scale}}) {
+    line.Int(v);
+  }
+  line.Text(m.format);
+  line.Int(m.num_bytes);
+  line.Int(m.num_robots);
+  std::string reasons;
+  for (const detector_view_robot_t& r : m.robots) {
+    reasons += (reasons.empty() ? "" : ";") + std::to_string(r.robot_id) + ":" +
+               std::to_string(static_cast<int>(r.reason));
+  }
+  line.Text(reasons);
+  return line.Take();
+}
+
+std::string DetectorViewRequestRow(const detector_view_request_t& m, int64_t recv_utime,
+                                   int64_t start) {
+  CsvLine line;
+  PutTimes(&line, recv_utime, m.utime, start);
+  line.Int(m.camera_id);
+  line.Int(m.region_u_px);
+  line.Int(m.region_v_px);
+  line.Int(m.region_width_px);
+  line.Int(m.region_height_px);
+  line.Real(m.rate_hz);
+  line.Real(m.duration_s);
   return line.Take();
 }
 
@@ -532,6 +584,20 @@ class Exporter {
         ++out->report.rows;
         return true;
       }
+      case Kind::kDetectorView: {
+        detector_view_t m;
+        if (!DecodeChecked(data, size, &m, reason)) return false;
+        *rows = DetectorViewRow(m, event.utime, start);
+        ++out->report.rows;
+        return true;
+      }
+      case Kind::kDetectorViewRequest: {
+        detector_view_request_t m;
+        if (!DecodeChecked(data, size, &m, reason)) return false;
+        *rows = DetectorViewRequestRow(m, event.utime, start);
+        ++out->report.rows;
+        return true;
+      }
       case Kind::kNone:
         break;
     }
@@ -748,6 +814,14 @@ std::vector<std::string> CsvColumns(const std::string& type_name) {
     case Kind::kSite:
       return WithTimes({"site_name", "site_path", "site_text_bytes", "num_files", "file_names",
                         "missing", "content_hash", "roomfix_version", "process", "host", "pid"});
+    case Kind::kDetectorView:
+      return WithTimes({"camera_id", "frame_seq", "width_px", "height_px", "source_width_px",
+                        "source_height_px", "region_u_px", "region_v_px", "region_width_px",
+                        "region_height_px", "scale", "format", "num_bytes", "num_robots",
+                        "robot_reasons"});
+    case Kind::kDetectorViewRequest:
+      return WithTimes({"camera_id", "region_u_px", "region_v_px", "region_width_px",
+                        "region_height_px", "rate_hz", "duration_s"});
     case Kind::kNone:
       break;
   }

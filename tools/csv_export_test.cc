@@ -133,7 +133,8 @@ TEST_F(CsvExportTest, EveryColumnOfEveryTypeIsDocumented) {
   }
   ASSERT_FALSE(documented.empty());
   for (const char* type : {"roomfix.pose2d_t", "roomfix.range_set_t", "roomfix.marker_pixels_t",
-                           "roomfix.process_status_t", "roomfix.image_t", "roomfix.site_t"}) {
+                           "roomfix.process_status_t", "roomfix.image_t", "roomfix.site_t",
+                           "roomfix.detector_view_t", "roomfix.detector_view_request_t"}) {
     const std::vector<std::string> columns = CsvColumns(type);
     ASSERT_FALSE(columns.empty()) << type;
     for (const std::string& c : columns) {

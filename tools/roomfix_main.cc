@@ -29,6 +29,7 @@ int main(int argc, char** argv) {
   roomfix::AddMapCommand(&app, &exit_code);
   roomfix::AddRenderCameraCommand(&app, &exit_code);
   roomfix::AddColoursCommand(&app, &exit_code);
+  roomfix::AddDetectCommand(&app, &exit_code);
   roomfix::AddSurveyCommand(&app, &exit_code);
   roomfix::AddReplayCommand(&app, &exit_code);
   roomfix::AddExportCommand(&app, &exit_code);

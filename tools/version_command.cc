@@ -19,7 +19,8 @@ void AddVersionCommand(CLI::App* app, int* exit_code) {
     std::cout << "roomfix " << ROOMFIX_VERSION << " (LCM " << LCM_MAJOR_VERSION << "."
               << LCM_MINOR_VERSION << "." << LCM_MICRO_VERSION << ")\n";
     for (const char* type : {"roomfix.marker_pixels_t", "roomfix.range_set_t", "roomfix.pose2d_t",
-                             "roomfix.process_status_t", "roomfix.image_t", "roomfix.site_t"}) {
+                             "roomfix.process_status_t", "roomfix.image_t", "roomfix.site_t",
+                             "roomfix.detector_view_t", "roomfix.detector_view_request_t"}) {
       char fingerprint[32];
       std::snprintf(fingerprint, sizeof(fingerprint), "0x%016llx",
                     static_cast<unsigned long long>(RoomfixTypeFingerprint(type)));

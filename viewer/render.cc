@@ -1037,7 +1037,65 @@ struct PreviewCache {
   cv::Mat decoded;  // empty when undecodable
   cv::Size box;
   cv::Mat scaled;
+  // The detector view, decoded (checked) only when its bytes change.
+  std::vector<uint8_t> view_encoded;
+  cv::Mat view_decoded;
 };
+
+// How much of the detector view shows through the preview: enough to read
+// its painted masks and labels, little enough to recognise the scene.
+constexpr double kDetectorViewOpacity = 0.7;
+
+const cv::Mat& DecodedDetectorView(const DetectorViewView& view, PreviewCache* cache) {
+  if (view.encoded != cache->view_encoded) {
+    cache->view_encoded = view.encoded;
+    std::string error;
+    if (view.encoded.size() > kMaxPreviewBytes ||
+        !camera::DecodeImageChecked(view.encoded, kMaxPreviewSidePx, kMaxPreviewSidePx,
+                                    cv::IMREAD_COLOR, &cache->view_decoded, &error)) {
+      cache->view_decoded.release();
+    }
+  }
+  return cache->view_decoded;
+}
+
+// The detector view of the preview's camera blended over the preview
+// (`target`, which shows the whole frame at `px_per_source_px`).
+void OverlayDetectorView(const DetectorViewView& view, double px_per_source_px, cv::Mat target,
+                         PreviewCache* cache) {
+  const cv::Mat& decoded = DecodedDetectorView(view, cache);
+  if (decoded.empty() || !(px_per_source_px > 0.0)) return;
+  const cv::Rect where = cv::Rect(cvRound(view.region_u_px * px_per_source_px),
+                                  cvRound(view.region_v_px * px_per_source_px),
+                                  std::max(1, cvRound(view.region_width_px * px_per_source_px)),
+                                  std::max(1, cvRound(view.region_height_px * px_per_source_px))) &
+                         cv::Rect(0, 0, target.cols, target.rows);
+  if (where.empty()) return;
+  cv::Mat resized;
+  cv::resize(decoded, resized, where.size(), 0, 0, cv::INTER_AREA);
+  cv::Mat roi = target(where);
+  cv::addWeighted(resized, kDetectorViewOpacity, roi, 1.0 - kDetectorViewOpacity, 0.0, roi);
+  cv::rectangle(target, where, kWhite, 1);
+}
+
+// Each robot's line of the detector view above `bottom` (the preview's
+// label), the ones not found in the warning colour; the new bottom.
+int DrawDetectorViewLines(cv::Mat& panel, const ViewState& state, int bottom) {
+  if (!state.has_detector_view) return bottom;
+  const DetectorViewView& v = state.detector_view;
+  int y = bottom - kLinePx * static_cast<int>(v.robots.size());
+  if (y - kLinePx < kPanelBodyTopPx) return bottom;
+  Text(panel,
+       Format("camera %d detector view, %s s old", v.camera_id,
+              Number(AgeS(state.now_utime, v.utime), 1).c_str()),
+       {kPanelPadPx, y - kLinePx + 4}, kSmallFontScale, kTextColour);
+  for (const DetectorViewView::Robot& r : v.robots) {
+    Text(panel, Fit(r.text, kSmallFontScale, panel.cols - 2 * kPanelPadPx), {kPanelPadPx, y + 4},
+         kSmallFontScale, r.found ? kTextColour : WarningColour());
+    y += kLinePx;
+  }
+  return bottom - kLinePx * (static_cast<int>(v.robots.size()) + 1);
+}
 
 // Decodes (only when the bytes changed) and scales (only when the box did)
 // the preview; an empty result when it cannot be decoded.
@@ -1103,6 +1161,12 @@ int DrawPreview(cv::Mat& panel, const ViewState& state, PreviewCache* cache) {
                        scaled.rows);
   cv::Mat target = panel(where);
   scaled.copyTo(target);
+  if (state.has_detector_view && state.detector_view.camera_id == state.preview.camera_id &&
+      state.detector_view.source_width_px > 0) {
+    OverlayDetectorView(state.detector_view,
+                        scale * cache->decoded.cols / state.detector_view.source_width_px, target,
+                        cache);
+  }
   for (const PreviewView::Marker& m : state.preview.markers) {
     const cv::Point2d c(m.u_px * scale, m.v_px * scale);
     const double r = m.radius_px * scale;
@@ -1123,7 +1187,7 @@ void DrawPanel(cv::Mat panel, const ViewState& state, PreviewCache* cache) {
   Text(panel, Fit("roomfix  " + state.site.name, 0.6, panel.cols - 2 * kPanelPadPx),
        {kPanelPadPx, 24}, 0.6, kTextColour, 2);
   Text(panel, TimeText(state.now_utime), {kPanelPadPx, 44}, kFontScale, kTextColour);
-  const int bottom = DrawPreview(panel, state, cache);
+  const int bottom = DrawDetectorViewLines(panel, state, DrawPreview(panel, state, cache));
   PanelWriter w(panel, kPanelBodyTopPx, bottom);
   DrawSourceTable(&w, state);
   w.Next(6);

@@ -738,5 +738,44 @@ TEST(Render, ShowsTheCameraPreviewAndItsMarkersAtTheBottomOfThePanel) {
   EXPECT_GE(LineNear(image, reference, marker, cv::Scalar(40, 220, 40)), kMinLineCoverage);
 }
 
+// The detector view (CAMERA_DETECTOR_VIEW) of the preview's camera is
+// blended over the part of the preview it shows, and each robot's line is
+// listed above the preview.
+TEST(Render, BlendsTheDetectorViewOverItsRegionOfThePreviewAndListsTheRobots) {
+  ViewState state = DemoState();
+  state.has_preview = true;
+  std::vector<uint8_t> png;
+  ASSERT_TRUE(cv::imencode(".png", cv::Mat(120, 160, CV_8UC3, cv::Scalar(0, 0, 200)), png));
+  state.preview.encoded = png;
+  state.preview.utime = kNowUtime - 300'000;
+  const RenderOptions o;
+  cv::Mat without;
+  Render(state, o, &without);
+  // The left half of a 640 x 480 frame, shown as a green image.
+  state.has_detector_view = true;
+  DetectorViewView& v = state.detector_view;
+  v.camera_id = state.preview.camera_id;
+  v.utime = kNowUtime - 200'000;
+  ASSERT_TRUE(cv::imencode(".png", cv::Mat(240, 160, CV_8UC3, cv::Scalar(0, 200, 0)), v.encoded));
+  v.region_width_px = 320;
+  v.region_height_px = 480;
+  v.source_width_px = 640;
+  v.source_height_px = 480;
+  v.robots = {{1, false, "robot 1: no pixels of class green"}};
+  cv::Mat image;
+  Render(state, o, &image);
+  // The preview box (ShowsTheCameraPreview...): 267 x 200 px, the view's
+  // half 133 px wide; 0.7 of the view over 0.3 of the preview.
+  const int left = o.width_px - o.panel_px + 10;
+  const int bottom = o.height_px - 10;
+  const cv::Scalar blended(0, 0.7 * 200, 0.3 * 200);
+  constexpr double kRoundingDn = 2.0;
+  EXPECT_LE(Distance(image.at<cv::Vec3b>(bottom - 100, left + 60), blended), kRoundingDn);
+  EXPECT_LE(Distance(image.at<cv::Vec3b>(bottom - 100, left + 200), cv::Scalar(0, 0, 200)), kExact);
+  // The robot's line (and the view's title) sit above the preview's label.
+  const cv::Rect lines(o.width_px - o.panel_px, bottom - 200 - 3 * 17 - 10, o.panel_px, 2 * 17);
+  EXPECT_GT(cv::norm(image(lines), without(lines), cv::NORM_L1), 0.0);
+}
+
 }  // namespace
 }  // namespace roomfix::viewer

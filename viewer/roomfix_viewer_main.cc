@@ -113,6 +113,9 @@ void AddFlags(CLI::App* app, viewer::ViewerAppOptions* flags, roomfix::ViewerNod
   app->add_option("--stale-after", options->stale_after_s,
                   "Mark a source or process stale after this long without a message, s")
       ->capture_default_str();
+  app->add_flag("--detector-view", options->detector_view_at_start,
+                "Ask every camera for what its detector sees (CAMERA_DETECTOR_VIEW, over the "
+                "preview, with why each robot is not found) at start; the 'd' key asks again");
   app->add_option("--screenshot-dir", flags->screenshot_dir, "Where the 's' key saves pictures")
       ->capture_default_str();
 }

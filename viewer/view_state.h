@@ -127,6 +127,28 @@ struct PreviewView {
   std::vector<Marker> markers;
 };
 
+// The latest detector view of a camera (CAMERA_DETECTOR_VIEW: its class
+// masks and blobs over the dimmed frame), drawn over the preview of the
+// same camera, with each robot's line.
+struct DetectorViewView {
+  int camera_id = 0;
+  int64_t utime = 0;
+  std::vector<uint8_t> encoded;  // PNG
+  // The full-resolution rectangle it shows, and the full frame's size.
+  int region_u_px = 0;
+  int region_v_px = 0;
+  int region_width_px = 0;
+  int region_height_px = 0;
+  int source_width_px = 0;
+  int source_height_px = 0;
+  struct Robot {
+    int robot_id = 0;
+    bool found = false;
+    std::string text;  // "robot 1: no pixels of class green"
+  };
+  std::vector<Robot> robots;
+};
+
 struct ViewState {
   // Room outline, grid, receivers and camera footprints come from here.
   Site site;
@@ -143,6 +165,11 @@ struct ViewState {
   std::string site_warning;
   bool has_preview = false;
   PreviewView preview;
+  bool has_detector_view = false;
+  DetectorViewView detector_view;
+  // Set (by the 'd' key) to ask the cameras for their detector view; the
+  // viewer node sends the request and clears it.
+  bool detector_view_wanted = false;
   // Sources shown (index: Source); hidden ones are still listed in the
   // panel, marked hidden.
   std::array<bool, kNumSources> visible{true, true, true, true};

@@ -133,6 +133,10 @@ KeyAction ApplyKey(int key, RenderOptions* render, ViewState* view) {
       return KeyAction::kQuit;
     case 's':
       return KeyAction::kScreenshot;
+    case 'd':
+      // The node sends the request at its next tick (it has the bus).
+      view->detector_view_wanted = true;
+      break;
     case '+':
     case '=':
       render->zoom = std::min(render->zoom * 1.25, 50.0);

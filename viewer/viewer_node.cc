@@ -6,7 +6,10 @@
 #include <cmath>
 
 #include "core/analysis/track_error.h"
+#include "msgio/message_conversions.h"
 #include "msgio/time_limits.h"
+#include "roomfix/detector_view_request_t.hpp"
+#include "roomfix/detector_view_t.hpp"
 #include "roomfix/image_t.hpp"
 #include "roomfix/marker_pixels_t.hpp"
 #include "roomfix/pose2d_t.hpp"
@@ -58,6 +61,11 @@ bool ViewerNodeOptions::IsValid(std::string* error) const {
     *error = "stale time must be in (0, 3600] s";
     return false;
   }
+  if (!(detector_view_rate_hz > 0.0 && detector_view_rate_hz <= 5.0) ||
+      !(detector_view_duration_s > 0.0 && detector_view_duration_s <= 600.0)) {
+    *error = "detector view rate must be in (0, 5] Hz and its duration in (0, 600] s";
+    return false;
+  }
   if (!(rejected_range_tolerance_m > 0.0)) {
     *error = "rejected-range tolerance must be positive";
     return false;
@@ -95,6 +103,7 @@ ViewerNode::ViewerNode(const Site& site, Bus* bus, const ViewerNodeOptions& opti
   state_.trail_s = options.trail_s;
   state_.stale_after_s = options.stale_after_s;
   state_.now_utime = start_utime;
+  state_.detector_view_wanted = options.detector_view_at_start;  // sent by the first Tick
   status_.SetState(process_status_t::STATE_RUNNING);
 
   subscriptions_.Add(bus_->Subscribe<pose2d_t>("POSE_.*", [this](const pose2d_t& p,
@@ -269,6 +278,7 @@ ViewerNode::ViewerNode(const Site& site, Bus* bus, const ViewerNodeOptions& opti
         preview_scale_ =
             m.source_width_px > 0 ? static_cast<double>(m.width_px) / m.source_width_px : 1.0;
       }));
+  SubscribeDetectorView();
   subscriptions_.Add(bus_->Subscribe<marker_pixels_t>(
       "MARKER_PIXELS", [this](const marker_pixels_t& m, const MessageInfo&) {
         ++messages_;
@@ -280,6 +290,49 @@ ViewerNode::ViewerNode(const Site& site, Bus* bus, const ViewerNodeOptions& opti
                                             k.radius_px * preview_scale_, k.colour_class});
         }
       }));
+}
+
+void ViewerNode::SubscribeDetectorView() {
+  subscriptions_.Add(bus_->Subscribe<detector_view_t>(
+      kDetectorViewChannel, [this](const detector_view_t& m, const MessageInfo&) {
+        ++messages_;
+        // Only an image the renderer can place: a PNG of a region inside its
+        // frame (the decoder checks the PNG itself).
+        if (m.format != "png" || m.source_width_px <= 0 || m.source_height_px <= 0 ||
+            m.region_u_px < 0 || m.region_v_px < 0 || m.region_width_px <= 0 ||
+            m.region_height_px <= 0 || m.region_width_px > m.source_width_px - m.region_u_px ||
+            m.region_height_px > m.source_height_px - m.region_v_px) {
+          status_.Reject("bad_detector_view");
+          return;
+        }
+        const DetectorViewImage in = FromMessage(m);
+        viewer::DetectorViewView& v = state_.detector_view;
+        state_.has_detector_view = true;
+        v.camera_id = in.camera_id;
+        v.utime = in.utime;
+        v.encoded = in.data;
+        v.region_u_px = in.region_u_px;
+        v.region_v_px = in.region_v_px;
+        v.region_width_px = in.region_width_px;
+        v.region_height_px = in.region_height_px;
+        v.source_width_px = in.source_width_px;
+        v.source_height_px = in.source_height_px;
+        v.robots.clear();
+        for (const DetectorViewRobot& r : in.robots) {
+          v.robots.push_back({r.robot_id, r.reason == detector_view_robot_t::REASON_FOUND, r.text});
+        }
+      }));
+}
+
+void ViewerNode::RequestDetectorView(int64_t now_utime) {
+  DetectorViewRequest r;
+  r.utime = now_utime;
+  r.camera_id = -1;
+  r.rate_hz = options_.detector_view_rate_hz;
+  r.duration_s = options_.detector_view_duration_s;
+  if (bus_->Publish(kDetectorViewRequestChannel, ToMessage(r))) {
+    status_.Count("detector_view_requests");
+  }
 }
 
 viewer::TrackView* ViewerNode::FindTrack(viewer::Source source, int robot_id) {
@@ -403,6 +456,10 @@ void ViewerNode::NoteSites(int64_t utime, const std::function<void()>& observe) 
 }
 
 void ViewerNode::Tick(int64_t now_utime) {
+  if (state_.detector_view_wanted) {
+    state_.detector_view_wanted = false;
+    RequestDetectorView(now_utime);
+  }
   Expire(now_utime);
   status_.SetCounter("tracks", static_cast<int64_t>(state_.tracks.size()));
   status_.SetCounter("processes", static_cast<int64_t>(state_.processes.size()));

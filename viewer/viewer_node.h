@@ -18,6 +18,8 @@
 namespace roomfix {
 
 inline constexpr char kCameraPreviewChannel[] = "CAMERA_PREVIEW";
+inline constexpr char kDetectorViewChannel[] = "CAMERA_DETECTOR_VIEW";
+inline constexpr char kDetectorViewRequestChannel[] = "CAMERA_DETECTOR_VIEW_REQUEST";
 
 struct ViewerNodeOptions {
   // Seconds of trail behind each pose.
@@ -39,6 +41,12 @@ struct ViewerNodeOptions {
   // Each camera's calibration text by camera id, for its footprint: the
   // texts the site carries (CalibrationTextsById), never files it names.
   std::map<int, std::string> calibration_texts;
+  // What the 'd' key (and --detector-view) asks every camera for: its
+  // detector view of the whole frame at this rate, for this long.
+  double detector_view_rate_hz = 1.0;
+  double detector_view_duration_s = 30.0;
+  // Ask for it once at start (--detector-view), as the 'd' key does.
+  bool detector_view_at_start = false;
 
   bool IsValid(std::string* error) const;
 };
@@ -72,7 +80,11 @@ class ViewerNode {
   const viewer::ViewState& StateAt(int64_t now_utime);
   // Visibility toggles and other view settings the window changes.
   viewer::ViewState* mutable_state() { return &state_; }
+  // Also sends the detector view request the state asks for
+  // (ViewState::detector_view_wanted).
   void Tick(int64_t now_utime);
+  // Asks every camera for its detector view now.
+  void RequestDetectorView(int64_t now_utime);
   void Stop(int64_t now_utime);
   const StatusReporter& status() const { return status_; }
   int64_t messages() const { return messages_; }
@@ -92,6 +104,7 @@ class ViewerNode {
   // Runs `observe` on the site tracker and, when it saw a new hash, updates
   // the warning (logged, counted as site_disagreements, and in STATUS).
   void NoteSites(int64_t utime, const std::function<void()>& observe);
+  void SubscribeDetectorView();
   // Drops rows not heard from for their forget time as of now_utime.
   void Expire(int64_t now_utime);
 

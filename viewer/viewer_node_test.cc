@@ -13,12 +13,14 @@
 #include "msgio/log.h"
 #include "msgio/site_message.h"
 #include "msgio/test_messages.h"
+#include "msgio/wire_test_messages.h"
 #include "roomfix/pose2d_t.hpp"
 #include "roomfix/process_status_t.hpp"
 #include "roomfix/range_set_t.hpp"
 #include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 #include "viewer/render.h"
+#include "viewer/viewer_app.h"
 
 namespace roomfix {
 namespace {
@@ -509,6 +511,55 @@ TEST(ViewerNode, ADestroyedNodeReceivesNothingMore) {
   }
   for (const std::string& c : channels) bus.Inject(c, junk, sizeof(junk), kT0 + 1);
   EXPECT_EQ(bus.stats().received, 6) << "delivered to a destroyed node";
+}
+
+TEST(ViewerNode, KeepsTheLatestDetectorViewWithEachRobotsLineAndRefusesOneItCannotPlace) {
+  const Site site = DemoSite();
+  LoopbackBus bus;
+  ViewerNode node(site, &bus, ViewerNodeOptions{}, kT0);
+  bus.set_now_utime(kT0);
+  bus.Publish(kDetectorViewChannel, testing::MakeTestDetectorView());
+  const viewer::ViewState& s = node.StateAt(kT0);
+  ASSERT_TRUE(s.has_detector_view);
+  EXPECT_EQ(s.detector_view.camera_id, 1);
+  EXPECT_EQ(s.detector_view.region_width_px, 1920);
+  ASSERT_EQ(s.detector_view.robots.size(), 2u);
+  EXPECT_TRUE(s.detector_view.robots[0].found);
+  EXPECT_FALSE(s.detector_view.robots[1].found);
+  EXPECT_EQ(s.detector_view.robots[1].text, "robot 2: blob of class green too small");
+  // A region running off its frame cannot be drawn over the preview.
+  detector_view_t off = testing::MakeTestDetectorView();
+  off.region_u_px = 1800;
+  off.camera_id = 2;
+  bus.Publish(kDetectorViewChannel, off);
+  EXPECT_EQ(node.status().rejected("bad_detector_view"), 1);
+  EXPECT_EQ(node.StateAt(kT0).detector_view.camera_id, 1);
+}
+
+TEST(ViewerNode, TheDKeyAsksEveryCameraForItsDetectorViewAtTheNextTick) {
+  const Site site = DemoSite();
+  LoopbackBus bus;
+  std::vector<detector_view_request_t> requests;
+  bus.Subscribe<detector_view_request_t>(
+      kDetectorViewRequestChannel,
+      [&](const detector_view_request_t& r, const MessageInfo&) { requests.push_back(r); });
+  ViewerNodeOptions options;
+  options.detector_view_rate_hz = 2.0;
+  options.detector_view_duration_s = 20.0;
+  ViewerNode node(site, &bus, options, kT0);
+  node.Tick(kT0);
+  EXPECT_TRUE(requests.empty());
+  viewer::RenderOptions render;
+  EXPECT_EQ(viewer::ApplyKey('d', &render, node.mutable_state()), viewer::KeyAction::kNone);
+  node.Tick(kT0 + 1'000'000);
+  ASSERT_EQ(requests.size(), 1u);
+  EXPECT_EQ(requests[0].camera_id, -1);
+  EXPECT_EQ(requests[0].region_width_px, 0);  // the whole frame
+  EXPECT_DOUBLE_EQ(requests[0].rate_hz, 2.0);
+  EXPECT_DOUBLE_EQ(requests[0].duration_s, 20.0);
+  EXPECT_EQ(requests[0].utime, kT0 + 1'000'000);
+  node.Tick(kT0 + 2'000'000);
+  EXPECT_EQ(requests.size(), 1u) << "one request per key press";
 }
 
 }  // namespace

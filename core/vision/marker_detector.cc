@@ -521,6 +521,20 @@ cv::Mat NormaliseIllumination(const cv::Mat& bgr, LightingMode lighting, double 
   return out;
 }
 
+const char* BlobRejectName(BlobReject reason) {
+  switch (reason) {
+    case BlobReject::kTooSmall:
+      return "too_small";
+    case BlobReject::kTooLarge:
+      return "too_large";
+    case BlobReject::kNotRound:
+      return "not_round";
+    case BlobReject::kUnmeasurable:
+      return "unmeasurable";
+  }
+  return "unknown";
+}
+
 bool DetectorOptions::IsValid(std::string* error) const {
   if (!(blur_sigma_px >= 0.0) || !std::isfinite(blur_sigma_px)) {
     *error = "detector blur_sigma_px must be >= 0 and finite";
@@ -600,7 +614,18 @@ void MarkerDetector::BuildLutBank(int bank) {
 
 std::vector<Blob> MarkerDetector::Detect(const cv::Mat& bgr, const ImageWindow& window,
                                          const std::vector<int>& class_indices) const {
+  return Detect(bgr, window, class_indices, nullptr);
+}
+
+std::vector<Blob> MarkerDetector::Detect(const cv::Mat& bgr, const ImageWindow& window,
+                                         const std::vector<int>& class_indices,
+                                         DetectorDiagnostics* diagnostics) const {
   std::vector<Blob> blobs;
+  if (diagnostics != nullptr) {
+    *diagnostics = DetectorDiagnostics{};
+    diagnostics->class_masks.resize(classes_.size());
+    diagnostics->class_area_px.assign(classes_.size(), 0.0);
+  }
   if (bgr.empty() || bgr.type() != CV_8UC3 || classes_.empty()) return blobs;
   std::vector<int> wanted;
   if (class_indices.empty()) {
@@ -613,15 +638,13 @@ std::vector<Blob> MarkerDetector::Detect(const cv::Mat& bgr, const ImageWindow& 
     wanted.erase(std::unique(wanted.begin(), wanted.end()), wanted.end());
   }
   const int scale = std::max(1, window.scale);
-  const double s2 = static_cast<double>(scale) * scale;
 
   cv::Mat1w gain;
   if (options_.lighting != LightingMode::kFixed) {
     gain = EstimateGain(bgr, scale, options_.background_v_ref);
   }
 
-  const double sigma = options_.blur_sigma_px / scale;
-  cv::Mat1b bits(bgr.size()), mask;
+  cv::Mat1b bits(bgr.size());
   std::vector<uchar> row(3 * static_cast<size_t>(bgr.cols));
   for (size_t wi = 0; wi < wanted.size();) {
     const int bank = wanted[wi] / kClassesPerBank;
@@ -640,55 +663,7 @@ std::vector<Blob> MarkerDetector::Detect(const cv::Mat& bgr, const ImageWindow& 
       }
     }
     for (; wi < wanted.size() && wanted[wi] / kClassesPerBank == bank; ++wi) {
-      const int k = wanted[wi];
-      const ColourClass& cls = classes_[k];
-      const uchar bit = static_cast<uchar>(1u << (k - bank * kClassesPerBank));
-      cv::bitwise_and(bits, cv::Scalar(bit), mask);
-      cv::compare(mask, 0, mask, cv::CMP_NE);
-      if (sigma >= 0.3) {
-        // Smoothing then a majority threshold: removes speckle, fills pinholes.
-        cv::GaussianBlur(mask, mask, cv::Size(0, 0), sigma, sigma, cv::BORDER_REPLICATE);
-        cv::threshold(mask, mask, 127, 255, cv::THRESH_BINARY);
-      }
-      for (const Component& c : SparseComponents(mask)) {
-        const double pixels = c.pixels * s2;
-        // Loose pre-filter on the binary area; the exact test is on the
-        // measured area below.
-        if (pixels < 0.5 * cls.min_area_px || pixels > 2.0 * cls.max_area_px) continue;
-        // The component, and the pixels of other classes and of other blobs
-        // of this class (which never count for it), in the window Measure
-        // works in.
-        const cv::Rect pad_rect = MeasureWindow(c.bbox, bgr.size());
-        cv::Mat1b comp(pad_rect.size()), other_local(pad_rect.size());
-        const uchar other_bits = static_cast<uchar>(~bit);
-        for (int y = 0; y < pad_rect.height; ++y) {
-          const uchar* in = bits.ptr<uchar>(pad_rect.y + y) + pad_rect.x;
-          const uchar* m = mask.ptr<uchar>(pad_rect.y + y) + pad_rect.x;
-          uchar* cp = comp.ptr<uchar>(y);
-          uchar* o = other_local.ptr<uchar>(y);
-          for (int x = 0; x < pad_rect.width; ++x) {
-            const bool mine = m[x] && c.Contains(pad_rect.x + x, pad_rect.y + y);
-            cp[x] = mine ? 255 : 0;
-            o[x] = ((in[x] & other_bits) || (m[x] && !mine)) ? 255 : 0;
-          }
-        }
-        Measurement meas;
-        if (!Measure(bgr, comp, pad_rect, GrowReachPx(c.bbox), other_local, gain, &meas)) {
-          continue;
-        }
-        const double area = meas.area * s2;
-        if (area < cls.min_area_px || area > cls.max_area_px) continue;
-        if (meas.circularity < cls.min_circularity) continue;
-        Blob blob;
-        blob.class_index = k;
-        blob.u_px = window.offset_u_px + (meas.x + 0.5) * scale - 0.5;
-        blob.v_px = window.offset_v_px + (meas.y + 0.5) * scale - 0.5;
-        blob.area_px = area;
-        blob.radius_px = std::sqrt(area / M_PI);
-        blob.circularity = meas.circularity;
-        blob.mean_hsv = BgrToHsv(meas.core_bgr[0], meas.core_bgr[1], meas.core_bgr[2]);
-        blobs.push_back(blob);
-      }
+      DetectClass(bgr, window, gain, bits, wanted[wi], &blobs, diagnostics);
     }
   }
   std::sort(blobs.begin(), blobs.end(), [](const Blob& a, const Blob& b) {
@@ -696,6 +671,96 @@ std::vector<Blob> MarkerDetector::Detect(const cv::Mat& bgr, const ImageWindow& 
     return a.area_px > b.area_px;
   });
   return blobs;
+}
+
+namespace {
+void AddReject(DetectorDiagnostics* diagnostics, const RejectedBlob& r) {
+  if (diagnostics == nullptr) return;
+  if (diagnostics->rejected.size() >= DetectorDiagnostics::kMaxRejected) {
+    ++diagnostics->rejected_not_listed;
+    return;
+  }
+  diagnostics->rejected.push_back(r);
+}
+}  // namespace
+
+void MarkerDetector::DetectClass(const cv::Mat& bgr, const ImageWindow& window,
+                                 const cv::Mat1w& gain, const cv::Mat1b& bits, int k,
+                                 std::vector<Blob>* blobs, DetectorDiagnostics* diagnostics) const {
+  const int scale = std::max(1, window.scale);
+  const double s2 = static_cast<double>(scale) * scale;
+  const double sigma = options_.blur_sigma_px / scale;
+  const ColourClass& cls = classes_[k];
+  const uchar bit = static_cast<uchar>(1u << (k % kClassesPerBank));
+  cv::Mat1b mask;
+  cv::bitwise_and(bits, cv::Scalar(bit), mask);
+  cv::compare(mask, 0, mask, cv::CMP_NE);
+  if (sigma >= 0.3) {
+    // Smoothing then a majority threshold: removes speckle, fills pinholes.
+    cv::GaussianBlur(mask, mask, cv::Size(0, 0), sigma, sigma, cv::BORDER_REPLICATE);
+    cv::threshold(mask, mask, 127, 255, cv::THRESH_BINARY);
+  }
+  if (diagnostics != nullptr) {
+    diagnostics->class_masks[k] = mask.clone();
+    diagnostics->class_area_px[k] = cv::countNonZero(mask) * s2;
+  }
+  // Image pixel to full-resolution pixel (centres).
+  auto full_u = [&](double x) { return window.offset_u_px + (x + 0.5) * scale - 0.5; };
+  auto full_v = [&](double y) { return window.offset_v_px + (y + 0.5) * scale - 0.5; };
+  for (const Component& c : SparseComponents(mask)) {
+    const double pixels = c.pixels * s2;
+    // Loose pre-filter on the binary area; the exact test is on the
+    // measured area below.
+    if (pixels < 0.5 * cls.min_area_px || pixels > 2.0 * cls.max_area_px) {
+      AddReject(diagnostics,
+                {k, full_u(c.bbox.x + 0.5 * (c.bbox.width - 1)),
+                 full_v(c.bbox.y + 0.5 * (c.bbox.height - 1)), pixels, 0.0,
+                 pixels < 0.5 * cls.min_area_px ? BlobReject::kTooSmall : BlobReject::kTooLarge});
+      continue;
+    }
+    // The component, and the pixels of other classes and of other blobs
+    // of this class (which never count for it), in the window Measure
+    // works in.
+    const cv::Rect pad_rect = MeasureWindow(c.bbox, bgr.size());
+    cv::Mat1b comp(pad_rect.size()), other_local(pad_rect.size());
+    const uchar other_bits = static_cast<uchar>(~bit);
+    for (int y = 0; y < pad_rect.height; ++y) {
+      const uchar* in = bits.ptr<uchar>(pad_rect.y + y) + pad_rect.x;
+      const uchar* m = mask.ptr<uchar>(pad_rect.y + y) + pad_rect.x;
+      uchar* cp = comp.ptr<uchar>(y);
+      uchar* o = other_local.ptr<uchar>(y);
+      for (int x = 0; x < pad_rect.width; ++x) {
+        const bool mine = m[x] && c.Contains(pad_rect.x + x, pad_rect.y + y);
+        cp[x] = mine ? 255 : 0;
+        o[x] = ((in[x] & other_bits) || (m[x] && !mine)) ? 255 : 0;
+      }
+    }
+    Measurement meas;
+    if (!Measure(bgr, comp, pad_rect, GrowReachPx(c.bbox), other_local, gain, &meas)) {
+      AddReject(diagnostics, {k, full_u(c.bbox.x + 0.5 * (c.bbox.width - 1)),
+                              full_v(c.bbox.y + 0.5 * (c.bbox.height - 1)), pixels, 0.0,
+                              BlobReject::kUnmeasurable});
+      continue;
+    }
+    const double area = meas.area * s2;
+    const bool small = area<cls.min_area_px, large = area> cls.max_area_px;
+    if (small || large || meas.circularity < cls.min_circularity) {
+      AddReject(diagnostics, {k, full_u(meas.x), full_v(meas.y), area, meas.circularity,
+                              small   ? BlobReject::kTooSmall
+                              : large ? BlobReject::kTooLarge
+                                      : BlobReject::kNotRound});
+      continue;
+    }
+    Blob blob;
+    blob.class_index = k;
+    blob.u_px = full_u(meas.x);
+    blob.v_px = full_v(meas.y);
+    blob.area_px = area;
+    blob.radius_px = std::sqrt(area / M_PI);
+    blob.circularity = meas.circularity;
+    blob.mean_hsv = BgrToHsv(meas.core_bgr[0], meas.core_bgr[1], meas.core_bgr[2]);
+    blobs->push_back(blob);
+  }
 }
 
 bool MarkerDetector::Refine(const cv::Mat& bgr, const ImageWindow& window, int class_index,

@@ -2,6 +2,7 @@
 #define ROOMFIX_CORE_VISION_MARKER_DETECTOR_H_
 
 #include <array>
+#include <cstdint>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
@@ -44,6 +45,44 @@ struct Blob {
   std::array<double, 3> mean_hsv{};
 };
 
+// Why a connected component of a class's mask is not a blob.
+enum class BlobReject {
+  kTooSmall,      // measured area under the class's min_area_px
+  kTooLarge,      // over its max_area_px
+  kNotRound,      // circularity under its min_circularity
+  kUnmeasurable,  // no core pixel survived to take its colour from
+};
+// "too_small", "too_large", "not_round", "unmeasurable".
+const char* BlobRejectName(BlobReject reason);
+
+// A component Detect dropped, in full-resolution coordinates. Components
+// dropped by the loose pre-filter (under half the minimum or over twice the
+// maximum area) are never measured: their area is the pixel count, their
+// centre the bounding box's and their circularity 0.
+struct RejectedBlob {
+  int class_index = -1;
+  double u_px = 0.0;
+  double v_px = 0.0;
+  double area_px = 0.0;
+  double circularity = 0.0;
+  BlobReject reason = BlobReject::kTooSmall;
+};
+
+// What one Detect call saw besides its blobs.
+struct DetectorDiagnostics {
+  // Per class of the detector: its mask (255 = the class, after the blur and
+  // majority threshold), the size of the image searched; empty for a class
+  // not searched.
+  std::vector<cv::Mat> class_masks;
+  // Per class: pixels of its mask, in full-resolution pixels (times scale^2).
+  std::vector<double> class_area_px;
+  // Dropped components, at most kMaxRejected (a frame of coloured specks
+  // would otherwise list thousands); `rejected_not_listed` counts the rest.
+  static constexpr size_t kMaxRejected = 256;
+  std::vector<RejectedBlob> rejected;
+  int64_t rejected_not_listed = 0;
+};
+
 // How classification copes with lighting (see docs/camera.md for which works).
 enum class LightingMode {
   kFixed,       // the site file's HSV ranges as they are (the reference)
@@ -78,6 +117,13 @@ class MarkerDetector {
   // colour they hold). Returns an empty list for an empty image.
   std::vector<Blob> Detect(const cv::Mat& bgr, const ImageWindow& window,
                            const std::vector<int>& class_indices = {}) const;
+  // The same search (one code path: Detect is this with no diagnostics),
+  // also saying what it saw on the way: each searched class's mask and
+  // every component it dropped, with why (the "what the detector sees"
+  // view, core/vision/detector_view.h). Costs a mask copy per class.
+  std::vector<Blob> Detect(const cv::Mat& bgr, const ImageWindow& window,
+                           const std::vector<int>& class_indices,
+                           DetectorDiagnostics* diagnostics) const;
 
   // Re-measures one blob found at a reduced scale on a full-resolution
   // window around it (the node decodes that window).
@@ -106,6 +152,10 @@ class MarkerDetector {
     std::array<double, 3> built_sigma{};
   };
   std::vector<ColourStats> stats_;
+  // Detect's work for class k on the frame's classified `bits` (its bank).
+  void DetectClass(const cv::Mat& bgr, const ImageWindow& window, const cv::Mat1w& gain,
+                   const cv::Mat1b& bits, int k, std::vector<Blob>* blobs,
+                   DetectorDiagnostics* diagnostics) const;
   // Class membership by colour: 64^3 cells of the BGR cube (6 bits per
   // channel), one bit per class; classes 8k..8k+7 are in bank k.
   std::vector<std::vector<unsigned char>> lut_banks_;

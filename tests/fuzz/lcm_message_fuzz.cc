@@ -24,6 +24,9 @@
 
 #include "msgio/wire_check.h"
 #include "roomfix/counter_t.hpp"
+#include "roomfix/detector_view_request_t.hpp"
+#include "roomfix/detector_view_robot_t.hpp"
+#include "roomfix/detector_view_t.hpp"
 #include "roomfix/image_t.hpp"
 #include "roomfix/marker_pixels_t.hpp"
 #include "roomfix/marker_t.hpp"
@@ -80,6 +83,9 @@ void AsIsAndWithFingerprint(const uint8_t* data, size_t size, std::vector<uint8_
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   std::vector<uint8_t> scratch;
   AsIsAndWithFingerprint<roomfix::counter_t>(data, size, &scratch);
+  AsIsAndWithFingerprint<roomfix::detector_view_request_t>(data, size, &scratch);
+  AsIsAndWithFingerprint<roomfix::detector_view_robot_t>(data, size, &scratch);
+  AsIsAndWithFingerprint<roomfix::detector_view_t>(data, size, &scratch);
   AsIsAndWithFingerprint<roomfix::image_t>(data, size, &scratch);
   AsIsAndWithFingerprint<roomfix::marker_pixels_t>(data, size, &scratch);
   AsIsAndWithFingerprint<roomfix::marker_t>(data, size, &scratch);

@@ -49,6 +49,11 @@ ordered_json Fields(const marker_t& m) {
           {"area_px", m.area_px}};
 }
 
+ordered_json Fields(const detector_view_robot_t& m) {
+  return {{"robot_id", m.robot_id}, {"reason", m.reason}, {"colour_class", m.colour_class},
+          {"value", m.value},       {"limit", m.limit},   {"text", m.text}};
+}
+
 ordered_json Fields(const site_file_t& m) { return {{"name", m.name}, {"text", m.text}}; }
 
 template <class T>
@@ -131,6 +136,37 @@ ordered_json Fields(const image_t& m) {
           {"data", m.data}};
 }
 
+ordered_json Fields(const detector_view_t& m) {
+  return {{"utime", m.utime},
+          {"camera_id", m.camera_id},
+          {"frame_seq", m.frame_seq},
+          {"width_px", m.width_px},
+          {"height_px", m.height_px},
+          {"source_width_px", m.source_width_px},
+          {"source_height_px", m.source_height_px},
+          {"region_u_px", m.region_u_px},
+          {"region_v_px", m.region_v_px},
+          {"region_width_px", m.region_width_px},
+          {"region_height_px", m.region_height_px},
+          {"scale", m.scale},
+          {"format", m.format},
+          {"num_bytes", m.num_bytes},
+          {"data", m.data},
+          {"num_robots", m.num_robots},
+          {"robots", List(m.robots)}};
+}
+
+ordered_json Fields(const detector_view_request_t& m) {
+  return {{"utime", m.utime},
+          {"camera_id", m.camera_id},
+          {"region_u_px", m.region_u_px},
+          {"region_v_px", m.region_v_px},
+          {"region_width_px", m.region_width_px},
+          {"region_height_px", m.region_height_px},
+          {"rate_hz", m.rate_hz},
+          {"duration_s", m.duration_s}};
+}
+
 ordered_json Fields(const site_t& m) {
   return {{"utime", m.utime},
           {"site_name", m.site_name},
@@ -202,6 +238,10 @@ void PrintSamples() {
   PrintSample("marker_pixels_t", pixels);
   PrintSample("marker_t", pixels.markers[1]);
   PrintSample("image_t", testing::MakeTestImage());
+  const detector_view_t view = testing::MakeTestDetectorView();
+  PrintSample("detector_view_t", view);
+  PrintSample("detector_view_robot_t", view.robots[1]);
+  PrintSample("detector_view_request_t", testing::MakeTestDetectorViewRequest());
   const site_t site = testing::MakeTestSite();
   PrintSample("site_t", site);
   PrintSample("site_file_t", site.files[0]);
@@ -243,6 +283,8 @@ bool PrintLog(const std::string& path) {
     if (fp == process_status_t::getHash()) print(process_status_t{});
     if (fp == image_t::getHash()) print(image_t{});
     if (fp == site_t::getHash()) print(site_t{});
+    if (fp == detector_view_t::getHash()) print(detector_view_t{});
+    if (fp == detector_view_request_t::getHash()) print(detector_view_request_t{});
   }
   return true;
 }

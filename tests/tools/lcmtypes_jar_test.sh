@@ -9,7 +9,7 @@ jar=$build/share/java/roomfix-lcmtypes.jar
 [[ -f "$jar" ]] || { echo "FAIL: $jar missing"; exit 1; }
 
 listing=$(jar tf "$jar")
-for t in counter_t image_t marker_t marker_pixels_t pose2d_t process_status_t range_t range_set_t \
+for t in counter_t detector_view_request_t detector_view_robot_t detector_view_t image_t marker_t marker_pixels_t pose2d_t process_status_t range_t range_set_t \
     site_file_t site_t; do
   grep -qx "roomfix/$t.class" <<<"$listing" || { echo "FAIL: roomfix/$t.class not in the jar"; exit 1; }
 done
@@ -17,7 +17,7 @@ echo "ok: the jar holds a class per type"
 
 # "  roomfix.pose2d_t fingerprint 0x..." -> "roomfix.pose2d_t=0x..."
 mapfile -t pairs < <("$build/bin/roomfix" version | awk '/fingerprint/ {print $1 "=" $3}')
-((${#pairs[@]} == 6)) || { echo "FAIL: roomfix version listed ${#pairs[@]} types, not 6"; exit 1; }
+((${#pairs[@]} == 8)) || { echo "FAIL: roomfix version listed ${#pairs[@]} types, not 8"; exit 1; }
 
 cp=$(ROOMFIX_BUILD_DIR=$build "$source/scripts/spy" --print-classpath)
 java -Djava.awt.headless=true -cp "$cp:$checker" LcmTypeCheck "${pairs[@]}" \

@@ -49,6 +49,54 @@ std::vector<json> RunJsonLines(const std::vector<std::string>& args, int* exit_c
   return out;
 }
 
+// roomfix detect (docs/camera.md, "What the detector sees") on a frame
+// render-camera draws of the demo site: the robot of the reference circle
+// is in view at t = 0.
+TEST(RoomfixDetect, WritesTheOverlayAndSaysEachRobotIsFound) {
+  TempDir dir;
+  int rc = 0;
+  RunRoomfix({"render-camera", "--site", testing::DemoSitePath(), "--png", dir.File("frame.png"),
+              "--time", "0"},
+             &rc);
+  ASSERT_EQ(rc, 0);
+  const std::string out =
+      RunRoomfix({"detect", dir.File("frame.png"), "--site", testing::DemoSitePath(), "--out",
+                  dir.File("view.png"), "--scale", "2", "--json"},
+                 &rc);
+  ASSERT_EQ(rc, 0) << out;
+  const json j = json::parse(out, nullptr, false);
+  ASSERT_FALSE(j.is_discarded()) << out;
+  ASSERT_EQ(j["robots"].size(), 1u) << out;
+  EXPECT_EQ(j["robots"][0]["reason"], "found") << out;
+  EXPECT_EQ(j["blobs"].size(), 2u) << out;
+  const std::string png = ReadFile(dir.File("view.png"));
+  ASSERT_GT(png.size(), 8u);
+  EXPECT_EQ(png.substr(1, 3), "PNG");
+}
+
+TEST(RoomfixDetect, RefusesAMissingCorruptOrWrongSizedFrameAndAnUnknownCamera) {
+  TempDir dir;
+  ASSERT_TRUE(WriteFile(dir.File("corrupt.png"), "\x89PNG not really"));
+  int rc = 0;
+  // A frame of the hall's 1280 x 960 camera for the demo's 1920 x 1080 one.
+  std::string hall = testing::SourceDir() + "/config/sites/hall.yaml";
+  RunRoomfix({"render-camera", "--site", hall, "--png", dir.File("hall.png"), "--time", "0"}, &rc);
+  ASSERT_EQ(rc, 0);
+  const std::string site = testing::DemoSitePath();
+  for (const std::vector<std::string>& args :
+       {std::vector<std::string>{"detect", dir.File("missing.png"), "--site", site, "--out",
+                                 dir.File("a.png")},
+        std::vector<std::string>{"detect", dir.File("corrupt.png"), "--site", site, "--out",
+                                 dir.File("b.png")},
+        std::vector<std::string>{"detect", dir.File("hall.png"), "--site", site, "--out",
+                                 dir.File("c.png")},
+        std::vector<std::string>{"detect", dir.File("hall.png"), "--site", site, "--camera", "99",
+                                 "--out", dir.File("d.png")}}) {
+    RunRoomfix(args, &rc);
+    EXPECT_EQ(rc, 1) << args[1] << " " << args.back();
+  }
+}
+
 TEST(RoomfixSolve, AnswersEachLineAndReportsMalformedOnesWithoutStopping) {
   TempDir dir;
   // Beacon at (1.2, 0.9, 1.3) under four corner receivers at 2.5 m.
