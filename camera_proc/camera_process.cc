@@ -198,6 +198,9 @@ bool MakeCameraSource(const Site& site, const CameraChoice& choice,
     sim_options.start_utime = start_utime;
     sim_options.realtime = true;
     sim_options.jpeg_quality = options.sim_jpeg_quality;
+    for (const CameraProcOptions::ParkedRobot& p : options.sim_parked_robots) {
+      sim_options.parked_robots.push_back(sim::RobotState{p.robot_id, p.x_m, p.y_m, p.heading_rad});
+    }
     *source = std::make_unique<camera::SimFrameSource>(
         std::make_shared<sim::SyntheticCamera>(site, camera, lens, scenario), sim_options);
     return true;

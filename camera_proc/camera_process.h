@@ -40,6 +40,16 @@ struct CameraProcOptions {
   bool loop_files = false;
   // sim: JPEG quality of the handed-over frames, 0..100 (0: raw pixels).
   int sim_jpeg_quality = 90;
+  // sim: robots standing still at these floor positions instead of the
+  // simulated ones (`roomfix grab --tripod` on the synthetic camera: the
+  // simulator stands the tripod where the command says it stands).
+  struct ParkedRobot {
+    int robot_id = 0;
+    double x_m = 0.0;
+    double y_m = 0.0;
+    double heading_rad = 0.0;
+  };
+  std::vector<ParkedRobot> sim_parked_robots;
   // Stop after this long (0: until a signal or the end of a file source).
   double duration_s = 0.0;
   // Longest wait between attempts to reopen a lost live camera, s.

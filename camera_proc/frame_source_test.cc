@@ -540,10 +540,14 @@ TEST(V4l2Source, MissingDeviceFailsToOpen) {
 }
 
 TEST(CaptureProperties, ReportsRefusedChangedAndUnknown) {
-  // A fake camera: no gamma control, exposure clamped to 250, auto exposure
-  // must be manual (1) before exposure takes.
-  std::map<int, double> controls = {
-      {cv::CAP_PROP_BRIGHTNESS, 0}, {cv::CAP_PROP_EXPOSURE, 100}, {cv::CAP_PROP_AUTO_EXPOSURE, 3}};
+  // A fake camera: no gamma or focus control, exposure clamped to 250, auto
+  // exposure must be manual (1) before exposure takes, and automatic white
+  // balance off (0) before a temperature does.
+  std::map<int, double> controls = {{cv::CAP_PROP_BRIGHTNESS, 0},
+                                    {cv::CAP_PROP_EXPOSURE, 100},
+                                    {cv::CAP_PROP_AUTO_EXPOSURE, 3},
+                                    {cv::CAP_PROP_AUTO_WB, 1},
+                                    {cv::CAP_PROP_WB_TEMPERATURE, 6500}};
   std::vector<std::pair<int, double>> calls;
   auto set = [&](int id, double value) {
     calls.emplace_back(id, value);
@@ -552,15 +556,24 @@ TEST(CaptureProperties, ReportsRefusedChangedAndUnknown) {
       if (controls[cv::CAP_PROP_AUTO_EXPOSURE] != 1) return true;  // ignored in auto mode
       value = std::max(value, 250.0);
     }
+    if (id == cv::CAP_PROP_WB_TEMPERATURE && controls[cv::CAP_PROP_AUTO_WB] != 0) return true;
     controls[id] = value;
     return true;
   };
   auto get = [&](int id) { return controls.count(id) != 0 ? controls[id] : -1.0; };
-  const auto refused = ApplyCaptureProperties(
-      {{"brightness", 40}, {"exposure", 156}, {"gamma", 100}, {"focus", 3}}, set, get);
+  const auto refused = ApplyCaptureProperties({{"brightness", 40},
+                                               {"exposure", 156},
+                                               {"gamma", 100},
+                                               {"focus", 3},
+                                               {"white_balance", 4000},
+                                               {"zoom", 2}},
+                                              set, get);
   const std::vector<std::string> expected = {"exposure: asked 156, got 250",
-                                             "focus: unknown property", "gamma: not supported"};
+                                             "focus: cannot turn autofocus off",
+                                             "gamma: not supported", "zoom: unknown property"};
   EXPECT_EQ(refused, expected);
+  EXPECT_EQ(controls[cv::CAP_PROP_AUTO_WB], 0);
+  EXPECT_EQ(controls[cv::CAP_PROP_WB_TEMPERATURE], 4000);
   EXPECT_EQ(controls[cv::CAP_PROP_AUTO_EXPOSURE], 1);
   EXPECT_EQ(controls[cv::CAP_PROP_BRIGHTNESS], 40);
   // Auto exposure went to manual before the exposure was set.

@@ -95,7 +95,10 @@ void SimFrameSource::RenderPixels(int64_t seq, Rendered* out) const {
     out->status = ReadStatus::kEndOfStream;
     return;
   }
-  camera_->Render(t_s, seq, camera_->SimulatedRobots(t_s), &out->bgr, &out->truth);
+  camera_->Render(
+      t_s, seq,
+      options_.parked_robots.empty() ? camera_->SimulatedRobots(t_s) : options_.parked_robots,
+      &out->bgr, &out->truth);
   out->frame.capture_utime = capture + std::llround(camera_->TimestampDelayS(seq) * 1e6);
   out->frame.seq = seq;
   out->status = ReadStatus::kFrame;

@@ -39,6 +39,11 @@ struct SimSourceOptions {
   int jpeg_quality = 90;
   // Stop after this many seconds of simulated time (<= 0: never).
   double duration_s = 0.0;
+  // Robots standing still where a person put them (a tripod with a robot's
+  // markers at a surveyed point, `roomfix grab --tripod`): every frame
+  // shows these instead of the site's simulated robots. Empty: the
+  // simulation's robots.
+  std::vector<sim::RobotState> parked_robots;
   // Called from the producer thread when realtime: must be thread-safe.
   Clock clock;
 };

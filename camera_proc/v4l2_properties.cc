@@ -24,10 +24,16 @@ std::string Number(double value) {
 
 int CapturePropertyId(const std::string& name) {
   static const std::map<std::string, int> kIds = {
-      {"brightness", cv::CAP_PROP_BRIGHTNESS}, {"contrast", cv::CAP_PROP_CONTRAST},
-      {"saturation", cv::CAP_PROP_SATURATION}, {"hue", cv::CAP_PROP_HUE},
-      {"gamma", cv::CAP_PROP_GAMMA},           {"sharpness", cv::CAP_PROP_SHARPNESS},
+      {"brightness", cv::CAP_PROP_BRIGHTNESS},
+      {"contrast", cv::CAP_PROP_CONTRAST},
+      {"saturation", cv::CAP_PROP_SATURATION},
+      {"hue", cv::CAP_PROP_HUE},
+      {"gamma", cv::CAP_PROP_GAMMA},
+      {"sharpness", cv::CAP_PROP_SHARPNESS},
       {"exposure", cv::CAP_PROP_EXPOSURE},
+      {"gain", cv::CAP_PROP_GAIN},
+      {"white_balance", cv::CAP_PROP_WB_TEMPERATURE},
+      {"focus", cv::CAP_PROP_FOCUS},
   };
   const auto it = kIds.find(name);
   return it == kIds.end() ? -1 : it->second;
@@ -45,6 +51,16 @@ std::vector<std::string> ApplyCaptureProperties(const std::map<std::string, doub
     }
     if (id == cv::CAP_PROP_EXPOSURE && !set(cv::CAP_PROP_AUTO_EXPOSURE, kV4l2ExposureManual)) {
       refused.push_back(name + ": cannot turn auto-exposure off");
+      continue;
+    }
+    // A camera ignores a manual white balance or focus while its automatic
+    // one runs (V4L2_CID_AUTO_WHITE_BALANCE, V4L2_CID_FOCUS_AUTO): off first.
+    if (id == cv::CAP_PROP_WB_TEMPERATURE && !set(cv::CAP_PROP_AUTO_WB, 0.0)) {
+      refused.push_back(name + ": cannot turn automatic white balance off");
+      continue;
+    }
+    if (id == cv::CAP_PROP_FOCUS && !set(cv::CAP_PROP_AUTOFOCUS, 0.0)) {
+      refused.push_back(name + ": cannot turn autofocus off");
       continue;
     }
     if (!set(id, value)) {

@@ -41,7 +41,93 @@ struct GrabFlags {
   double every_s = 0.0;
   std::optional<int> skip;
   double timeout_s = 10.0;
+  // --tripod X,Y: the robot's markers stand at this surveyed floor point
+  // (as typed, for the file name) and --tripod-robot names the robot.
+  std::string tripod;
+  std::optional<int> tripod_robot;
 };
+
+// --tripod's point, parsed; the robot whose markers stand there.
+struct TripodPoint {
+  double x_m = 0.0;
+  double y_m = 0.0;
+  const CameraRobot* robot = nullptr;
+};
+
+bool ParseTripod(const GrabFlags& f, const Site& site, const Camera& camera, TripodPoint* p,
+                 std::string* error) {
+  const size_t comma = f.tripod.find(',');
+  try {
+    size_t used_x = 0, used_y = 0;
+    if (comma == std::string::npos) throw std::invalid_argument("no comma");
+    p->x_m = std::stod(f.tripod.substr(0, comma), &used_x);
+    p->y_m = std::stod(f.tripod.substr(comma + 1), &used_y);
+    if (used_x != comma || used_y != f.tripod.size() - comma - 1 || !std::isfinite(p->x_m) ||
+        !std::isfinite(p->y_m)) {
+      throw std::invalid_argument("trailing text");
+    }
+  } catch (const std::exception&) {
+    *error = "--tripod " + f.tripod + ": expected X,Y in metres, e.g. 1.5,0.5";
+    return false;
+  }
+  const Room& room = site.room;
+  if (p->x_m < room.min_x_m || p->x_m > room.min_x_m + room.size_x_m || p->y_m < room.min_y_m ||
+      p->y_m > room.min_y_m + room.size_y_m) {
+    *error = "--tripod " + f.tripod + " is outside the room";
+    return false;
+  }
+  for (const CameraRobot& r : camera.robots) {
+    if (!f.tripod_robot || r.robot_id == *f.tripod_robot) {
+      p->robot = &r;
+      break;
+    }
+  }
+  if (p->robot == nullptr) {
+    *error = "camera " + std::to_string(camera.id) + " has no robot" +
+             (f.tripod_robot ? " " + std::to_string(*f.tripod_robot) : std::string()) +
+             " whose markers the tripod could carry";
+    return false;
+  }
+  return true;
+}
+
+// The frame's file name without its extension: frame_NNNN, or with
+// --tripod tripod_X_Y (the point as typed; _N after it when several).
+std::string FrameStem(const GrabFlags& f, int index) {
+  if (f.tripod.empty()) {
+    char stem[32];
+    std::snprintf(stem, sizeof(stem), "frame_%04d", index);
+    return stem;
+  }
+  std::string point = f.tripod;
+  std::replace(point.begin(), point.end(), ',', '_');
+  return "tripod_" + point + (f.count > 1 ? "_" + std::to_string(index) : std::string());
+}
+
+// Appends the frames to DIR/points.csv (image,x_m,y_m,height_m: the
+// tripod's marker at its height, as `roomfix calibrate --marker-images` and
+// `roomfix colours` read it), with the header when the file is new; a row
+// for a file already listed is replaced (the point grabbed again).
+bool RecordTripod(const GrabFlags& f, const TripodPoint& p, const std::vector<std::string>& files,
+                  std::string* error) {
+  const std::string path = f.out + "/points.csv";
+  std::vector<std::string> lines;
+  {
+    std::ifstream in(path);
+    for (std::string line; std::getline(in, line);) {
+      if (line.empty() || line.rfind("image,", 0) == 0) continue;
+      const std::string file = line.substr(0, line.find(','));
+      if (std::find(files.begin(), files.end(), file) == files.end()) lines.push_back(line);
+    }
+  }
+  std::ostringstream csv;
+  csv << "image,x_m,y_m,height_m\n";
+  for (const std::string& line : lines) csv << line << "\n";
+  for (const std::string& file : files) {
+    csv << file << "," << p.x_m << "," << p.y_m << "," << p.robot->marker_height_m << "\n";
+  }
+  return WriteOutputFile(path, csv.str(), error);
+}
 
 // One written frame: a row of frames.csv.
 struct GrabRow {
@@ -137,10 +223,8 @@ bool PrepareOutDir(const std::string& dir, std::string* error) {
 // Writes the frame as DIR/frame_NNNN.jpg (a JPEG source's own bytes, not
 // re-encoded: the compression camera_proc sees stays in the file) or .png
 // (decoded pixels, lossless).
-bool WriteFrame(const camera::Frame& frame, const std::string& dir, int index, GrabRow* row,
-                std::string* error) {
-  char stem[32];
-  std::snprintf(stem, sizeof(stem), "frame_%04d", index);
+bool WriteFrame(const camera::Frame& frame, const std::string& dir, const std::string& stem,
+                GrabRow* row, std::string* error) {
   camera::FrameImage& image = *frame.image;
   row->seq = frame.seq;
   row->capture_utime = frame.capture_utime;
@@ -257,7 +341,8 @@ GrabLoopResult GrabLoop(const GrabFlags& f, int skip, camera::FrameSource* sourc
     }
     if (!result.rows.empty() && frame.capture_utime < next_due_utime) continue;
     GrabRow row;
-    if (!WriteFrame(frame, f.out, static_cast<int>(result.rows.size()), &row, &error)) {
+    if (!WriteFrame(frame, f.out, FrameStem(f, static_cast<int>(result.rows.size())), &row,
+                    &error)) {
       result.failure = error;
       return result;
     }
@@ -297,9 +382,15 @@ int RunGrab(const GrabFlags& f) {
   // not exist yet, and grab does not use it.
   options.calibration_path = "none";
   CameraChoice choice;
-  if (!ChooseCamera(site, options, &choice, &error)) {
+  TripodPoint tripod;
+  if (!ChooseCamera(site, options, &choice, &error) ||
+      (!f.tripod.empty() && !ParseTripod(f, site, choice.camera, &tripod, &error))) {
     std::cerr << kName << f.site << ": " << error << "\n";
     return 1;
+  }
+  if (!f.tripod.empty()) {
+    // On the synthetic camera the simulator stands the tripod there.
+    options.sim_parked_robots.push_back({tripod.robot->robot_id, tripod.x_m, tripod.y_m, 0.0});
   }
   if (!PrepareOutDir(f.out, &error)) {
     std::cerr << kName << error << "\n";
@@ -326,8 +417,11 @@ int RunGrab(const GrabFlags& f) {
   InstallShutdownHandlers();
   const GrabLoopResult result = GrabLoop(f, skip, source.get(), choice.device);
   source->Close();
+  std::vector<std::string> files;
+  for (const GrabRow& r : result.rows) files.push_back(r.file);
   if (!result.rows.empty() &&
-      !WriteOutputFile(f.out + "/frames.csv", FramesCsv(result.rows), &error)) {
+      (!WriteOutputFile(f.out + "/frames.csv", FramesCsv(result.rows), &error) ||
+       (!f.tripod.empty() && !RecordTripod(f, tripod, files, &error)))) {
     std::cerr << kName << error << "\n";
     return 1;
   }
@@ -382,6 +476,14 @@ void AddGrabCommand(CLI::App* app, int* exit_code) {
                   "Give up when the device delivers no frame for this many seconds")
       ->capture_default_str()
       ->check(FiniteAbove(0.0, "a number of seconds > 0"));
+  cmd->add_option("--tripod", f->tripod,
+                  "X,Y: a robot's markers stand on a tripod at this surveyed floor point (m): the "
+                  "frames are named tripod_X_Y and added to DIR/points.csv for roomfix calibrate "
+                  "--marker-images and roomfix colours (on a sim: camera the simulator stands "
+                  "them there)");
+  cmd->add_option("--tripod-robot", f->tripod_robot,
+                  "The robot whose markers the tripod carries (default: the camera's first); "
+                  "its marker height goes into points.csv");
   cmd->callback([f, exit_code] { *exit_code = RunGrab(*f); });
 }
 

@@ -3,7 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <csignal>
+#include <cstdio>
 #include <filesystem>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -11,6 +13,7 @@
 #include <opencv2/videoio.hpp>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "tests/testing/demo_site.h"
@@ -127,6 +130,56 @@ TEST(RoomfixGrab, WritesTheSyntheticWebcamsJpegFramesEverySoManySeconds) {
     }
   }
   ExpectRowsDecode(out, rows, kWidthPx, kHeightPx);
+}
+
+// The tripod walk of docs/bringup.md: each grab names its frame after the
+// surveyed point and lists it in points.csv at the robot's marker height
+// (0.20 m on the demo site); a point grabbed again replaces its row. On the
+// synthetic camera the simulator stands the markers there: calibrate finds
+// exactly one marker in each frame (the moving robot would be elsewhere).
+TEST(RoomfixGrab, TripodFramesAreNamedAfterTheirPointAndListedInPointsCsv) {
+  TempDir dir;
+  const std::string out = dir.File("tripod");
+  for (const char* point : {"1.0,1.0", "3.0,2.0", "1.0,1.0"}) {
+    const RunResult r =
+        Roomfix({"grab", "--site", DemoSitePath(), "--out", out, "--tripod", point});
+    ASSERT_EQ(r.exit_code, 0) << r.out;
+  }
+  EXPECT_EQ(FilesIn(out, ".jpg"),
+            (std::vector<std::string>{"tripod_1.0_1.0.jpg", "tripod_3.0_2.0.jpg"}));
+  EXPECT_EQ(ReadFile(out + "/points.csv"),
+            "image,x_m,y_m,height_m\ntripod_3.0_2.0.jpg,3,2,0.2\ntripod_1.0_1.0.jpg,1,1,0.2\n");
+  // The synthetic robot stands where it was put: found in both frames, and
+  // its markers 2 m and 1 m apart on the floor are hundreds of pixels apart
+  // in the image (about 330 px per metre below a 120-degree 1080p lens).
+  auto found_at = [&](const std::string& image) {
+    const RunResult r = Roomfix(
+        {"detect", out + "/" + image, "--site", DemoSitePath(), "--out", dir.File("view.png")});
+    EXPECT_EQ(r.exit_code, 0) << r.out;
+    double u = -1, v = -1;
+    const size_t at = r.out.find("robot 1: found at (");
+    EXPECT_NE(at, std::string::npos) << r.out;
+    if (at != std::string::npos)
+      std::sscanf(r.out.c_str() + at, "robot 1: found at (%lf, %lf)", &u, &v);
+    return std::make_pair(u, v);
+  };
+  const auto a = found_at("tripod_1.0_1.0.jpg");
+  const auto b = found_at("tripod_3.0_2.0.jpg");
+  EXPECT_GT(std::hypot(a.first - b.first, a.second - b.second), 400.0);
+}
+
+TEST(RoomfixGrab, RefusesATripodPointThatIsNotAPointOfTheRoom) {
+  TempDir dir;
+  for (const char* point : {"1.0", "1.0,", "a,b", "1.0,2.0,3.0", "9.0,1.0", "nan,1"}) {
+    const RunResult r =
+        Roomfix({"grab", "--site", DemoSitePath(), "--out", dir.File("t"), "--tripod", point});
+    EXPECT_EQ(r.exit_code, 1) << point << ": " << r.out;
+    EXPECT_NE(r.out.find("--tripod " + std::string(point)), std::string::npos) << r.out;
+  }
+  const RunResult r = Roomfix({"grab", "--site", DemoSitePath(), "--out", dir.File("t"), "--tripod",
+                               "1,1", "--tripod-robot", "7"});
+  EXPECT_EQ(r.exit_code, 1) << r.out;
+  EXPECT_NE(r.out.find("has no robot 7"), std::string::npos) << r.out;
 }
 
 TEST(RoomfixGrab, CopiesJpegFilesByteForByteAfterTheSkippedOnes) {
