@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "tests/testing/labelled_circles.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix::vision {
@@ -21,26 +22,7 @@ namespace {
 // detected centre within this of a label is that candy.
 constexpr double kPhotoTolerancePx = 3.0;
 
-struct Label {
-  double u, v, r;
-  std::string colour;
-};
-
-std::vector<Label> ReadLabels(const std::string& path) {
-  std::vector<Label> labels;
-  std::ifstream in(path);
-  std::string line;
-  std::getline(in, line);  // header: id,center_x_px,center_y_px,radius_px,colour_label
-  while (std::getline(in, line)) {
-    std::stringstream ss(line);
-    std::string id, u, v, r, colour;
-    if (std::getline(ss, id, ',') && std::getline(ss, u, ',') && std::getline(ss, v, ',') &&
-        std::getline(ss, r, ',') && std::getline(ss, colour)) {
-      labels.push_back({std::stod(u), std::stod(v), std::stod(r), colour});
-    }
-  }
-  return labels;
-}
+using Label = roomfix::testing::LabelledCircle;
 
 // The photo is candies on white paper: the floor is clipped at V 255, so
 // the photo is judged as it is (kFixed), like the detector's own photo test.
@@ -95,7 +77,8 @@ class SmartiesPhoto : public ::testing::Test {
     if (data.empty()) GTEST_SKIP() << "../shared/data is absent: real-photo test not run";
     img_ = cv::imread(data + "/opencv_samples/smarties.png", cv::IMREAD_COLOR);
     ASSERT_FALSE(img_.empty());
-    labels_ = ReadLabels(data + "/opencv_samples/derived_smarties_circles.csv");
+    labels_ = roomfix::testing::ReadLabelledCircles(data +
+                                                    "/opencv_samples/derived_smarties_circles.csv");
     ASSERT_EQ(labels_.size(), 12u);
   }
   cv::Mat img_;

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "tests/testing/labelled_circles.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix::vision {
@@ -477,27 +478,7 @@ std::vector<ColourClass> SmartiesClasses() {
   return {orange, green};
 }
 
-struct Label {
-  double u, v, r;
-  std::string colour;
-};
-
-std::vector<Label> ReadLabels(const std::string& path) {
-  std::vector<Label> labels;
-  std::ifstream in(path);
-  std::string line;
-  std::getline(in, line);  // header
-  while (std::getline(in, line)) {
-    std::stringstream ss(line);
-    std::string id, u, v, r, colour;
-    if (!std::getline(ss, id, ',') || !std::getline(ss, u, ',') || !std::getline(ss, v, ',') ||
-        !std::getline(ss, r, ',') || !std::getline(ss, colour)) {
-      continue;
-    }
-    labels.push_back({std::stod(u), std::stod(v), std::stod(r), colour});
-  }
-  return labels;
-}
+using Label = roomfix::testing::LabelledCircle;
 
 TEST(MarkerDetector, FindsOrangeAndGreenCandiesInSmartiesPhoto) {
   const std::string data = roomfix::testing::SharedDataDir();
@@ -505,7 +486,7 @@ TEST(MarkerDetector, FindsOrangeAndGreenCandiesInSmartiesPhoto) {
   const cv::Mat img = cv::imread(data + "/opencv_samples/smarties.png", cv::IMREAD_COLOR);
   ASSERT_FALSE(img.empty());
   const std::vector<Label> labels =
-      ReadLabels(data + "/opencv_samples/derived_smarties_circles.csv");
+      roomfix::testing::ReadLabelledCircles(data + "/opencv_samples/derived_smarties_circles.csv");
   ASSERT_FALSE(labels.empty());
   DetectorOptions options;
   options.lighting = LightingMode::kFixed;

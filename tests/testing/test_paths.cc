@@ -110,4 +110,22 @@ bool WriteFile(const std::string& path, const std::string& text) {
   return static_cast<bool>(out);
 }
 
+ToolRun RunTool(const std::string& program, const std::vector<std::string>& args,
+                double timeout_s) {
+  // Through sh for the 2>&1; each argument single-quoted ('\'' for a quote).
+  auto quote = [](const std::string& a) {
+    std::string q = "'";
+    for (char c : a) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    return q + "'";
+  };
+  std::string command = quote(BinDir() + "/" + program);
+  for (const std::string& a : args) command += " " + quote(a);
+  TempDir dir;
+  ChildProcess p({"/bin/sh", "-c", command + " 2>&1"}, dir.File("out.txt"));
+  ToolRun r;
+  r.exit_code = p.Wait(timeout_s);
+  r.out = ReadFile(dir.File("out.txt"));
+  return r;
+}
+
 }  // namespace roomfix::testing

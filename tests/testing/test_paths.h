@@ -45,6 +45,15 @@ class ChildProcess {
   int status_ = -1;
 };
 
+// A built program (BinDir()/`program`) run with `args`, its standard output
+// and standard error together, as a person sees them at a terminal.
+struct ToolRun {
+  int exit_code = 0;
+  std::string out;
+};
+ToolRun RunTool(const std::string& program, const std::vector<std::string>& args,
+                double timeout_s = 300.0);
+
 std::string ReadFile(const std::string& path);
 // Waits up to timeout_s for a path to exist (a pseudo-terminal's link, a log
 // file); false on time-out.

@@ -23,20 +23,10 @@ using testing::SourceDir;
 using testing::TempDir;
 using testing::WriteFile;
 
-struct RunResult {
-  int exit_code = 0;
-  std::string out;  // stdout and stderr together
-};
+using RunResult = testing::ToolRun;
 
 RunResult Roomfix(const std::vector<std::string>& args) {
-  TempDir dir;
-  std::string command = "'" + BinDir() + "/roomfix'";
-  for (const auto& a : args) command += " '" + a + "'";
-  ChildProcess p({"/bin/sh", "-c", command + " 2>&1"}, dir.File("out.txt"));
-  RunResult r;
-  r.exit_code = p.Wait(300);
-  r.out = ReadFile(dir.File("out.txt"));
-  return r;
+  return testing::RunTool("roomfix", args, 300.0);
 }
 
 // The eight-robot site's tripod and parked robots through the webcam.

@@ -33,20 +33,10 @@ constexpr int kWidthPx = 1920;
 constexpr int kHeightPx = 1080;
 constexpr char kSimDevice[] = "device: \"sim:webcam\"";
 
-struct RunResult {
-  int exit_code = 0;
-  std::string out;  // standard output and standard error
-};
+using RunResult = testing::ToolRun;
 
 RunResult Roomfix(const std::vector<std::string>& args) {
-  TempDir dir;
-  std::string command = "'" + BinDir() + "/roomfix'";
-  for (const auto& a : args) command += " '" + a + "'";
-  ChildProcess p({"/bin/sh", "-c", command + " 2>&1"}, dir.File("out.txt"));
-  RunResult r;
-  r.exit_code = p.Wait(120);
-  r.out = ReadFile(dir.File("out.txt"));
-  return r;
+  return testing::RunTool("roomfix", args, 120.0);
 }
 
 // The demo site with its camera's device replaced.
