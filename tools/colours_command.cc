@@ -46,9 +46,27 @@ struct ColoursFlags {
 // The frames of one set: image files, or every image of a folder (sorted).
 struct FrameSet {
   std::vector<cv::Mat> frames;
-  std::vector<std::string> names;  // file names, for labels by image
+  std::vector<std::string> paths;  // each frame's file, as found
   std::vector<std::string> folders;
 };
+
+// The frame a CSV row names: `image` relative to the CSV's folder (a
+// tripod folder's points.csv), or for --known-pixels also a path as given
+// or a file name that only one frame has. -1 when none; -2 when ambiguous.
+int FrameIndex(const FrameSet& set, const std::string& folder, const std::string& image) {
+  const fs::path wanted = fs::path(folder) / image;
+  int by_name = -1, names = 0;
+  for (size_t i = 0; i < set.paths.size(); ++i) {
+    const fs::path have(set.paths[i]);
+    if (have.lexically_normal() == wanted.lexically_normal()) return static_cast<int>(i);
+    if (folder.empty() && have == fs::path(image)) return static_cast<int>(i);
+    if (folder.empty() && have.filename() == fs::path(image).filename()) {
+      by_name = static_cast<int>(i);
+      ++names;
+    }
+  }
+  return names > 1 ? -2 : by_name;
+}
 
 bool IsImageName(const fs::path& p) {
   std::string ext = p.extension().string();
@@ -84,14 +102,22 @@ bool ReadFrameSet(const std::vector<std::string>& paths, const Camera& camera, F
   }
   for (const std::string& file : files) {
     cv::Mat image;
-    // Frames of the camera, at most its size (a larger file is another
-    // camera's, or hostile).
+    // Frames of the camera: at most its size (a larger file is another
+    // camera's, or hostile), and exactly it (another size is another mode
+    // or camera, whose colours and places are not this camera's).
     if (!camera::ReadImageChecked(file, std::max(camera.width_px, 1), std::max(camera.height_px, 1),
                                   cv::IMREAD_COLOR, &image, error)) {
       return false;
     }
+    if (image.cols != camera.width_px || image.rows != camera.height_px) {
+      *error = file + ": " + std::to_string(image.cols) + "x" + std::to_string(image.rows) +
+               ", not camera " + std::to_string(camera.id) + "'s " +
+               std::to_string(camera.width_px) + "x" + std::to_string(camera.height_px) +
+               ": grab the frames from the camera itself (roomfix grab)";
+      return false;
+    }
     set->frames.push_back(image);
-    set->names.push_back(fs::path(file).filename());
+    set->paths.push_back(file);
   }
   return true;
 }
@@ -107,11 +133,19 @@ struct Projector {
   }
 };
 
-std::vector<std::vector<std::string>> ReadCsv(const std::string& path, std::string* header) {
-  std::vector<std::vector<std::string>> rows;
-  std::ifstream in(path);
+// The rows of a small CSV, read by the checked reader (a regular file of
+// at most 4 MiB: a FIFO or /dev/zero is refused, not read forever).
+bool ReadCsv(const std::string& path, std::string* header,
+             std::vector<std::vector<std::string>>* out, std::string* error) {
+  std::string text;
+  if (!ReadConfigFile(path, &text, error)) return false;
+  std::vector<std::vector<std::string>>& rows = *out;
+  std::istringstream in(text);
   std::string line;
-  if (!std::getline(in, *header)) return rows;
+  if (!std::getline(in, *header)) {
+    *error = path + ": empty";
+    return false;
+  }
   while (std::getline(in, line)) {
     if (line.empty()) continue;
     std::vector<std::string> cells;
@@ -120,7 +154,7 @@ std::vector<std::vector<std::string>> ReadCsv(const std::string& path, std::stri
     while (std::getline(ss, cell, ',')) cells.push_back(cell);
     rows.push_back(cells);
   }
-  return rows;
+  return true;
 }
 
 bool ParseNumber(const std::string& text, double* value) {
@@ -137,11 +171,10 @@ bool ParseNumber(const std::string& text, double* value) {
 // the position marker where it stands, the heading marker the nearest
 // other disc within heading_reach_m of it.
 void AddRobotMarkers(const Camera& camera, const CameraRobot& robot, const Projector& p, int frame,
-                     double x, double y, double heading_reach_m,
+                     double x, double y, double height_m, double heading_reach_m,
                      std::vector<vision::KnownMarker>* known) {
   double u = 0, v = 0, u1 = 0, v1 = 0;
-  if (!p.Pixel(x, y, robot.marker_height_m, &u, &v) ||
-      !p.Pixel(x + heading_reach_m, y, robot.marker_height_m, &u1, &v1)) {
+  if (!p.Pixel(x, y, height_m, &u, &v) || !p.Pixel(x + heading_reach_m, y, height_m, &u1, &v1)) {
     return;
   }
   const double reach_px = std::hypot(u1 - u, v1 - v);
@@ -151,37 +184,58 @@ void AddRobotMarkers(const Camera& camera, const CameraRobot& robot, const Proje
   known->push_back({frame, u, v, reach_px, 1.5 * radius_px, robot.heading_marker});
 }
 
+// A robot id: an integer the camera has.
+const CameraRobot* RobotOf(const Camera& camera, const std::string& text) {
+  try {
+    size_t used = 0;
+    const long id = std::stol(text, &used);
+    if (used != text.size()) return nullptr;
+    for (const CameraRobot& r : camera.robots) {
+      if (r.robot_id == id) return &r;
+    }
+  } catch (const std::exception&) {
+  }
+  return nullptr;
+}
+
+// robots.csv (image,x_m,y_m,height_m,robot_id) and points.csv
+// (image,x_m,y_m,height_m: the camera's first robot's markers, as `roomfix
+// grab --tripod` and `render-camera --tripod-grid` write it) in a frame
+// folder; image names are relative to the folder.
 bool ReadKnownFromFolder(const std::string& folder, const FrameSet& set, const Camera& camera,
                          const Projector& p, double heading_reach_m,
                          std::vector<vision::KnownMarker>* known, std::string* error) {
-  for (const char* file : {"robots.csv", "points.csv"}) {
+  for (const std::string file : {"robots.csv", "points.csv"}) {
     const std::string path = folder + "/" + file;
     if (!fs::exists(path)) continue;
+    if (camera.robots.empty()) {
+      *error = path + ": camera " + std::to_string(camera.id) +
+               " has no robot whose markers it could place";
+      return false;
+    }
     std::string header;
-    const auto rows = ReadCsv(path, &header);
-    const bool with_robot = std::string(file) == "robots.csv";
+    std::vector<std::vector<std::string>> rows;
+    if (!ReadCsv(path, &header, &rows, error)) return false;
+    const bool with_robot = file == "robots.csv";
     for (size_t i = 0; i < rows.size(); ++i) {
       const auto& r = rows[i];
-      double x = 0, y = 0, h = 0, id = camera.robots.front().robot_id;
-      if (r.size() < (with_robot ? 5u : 4u) || !ParseNumber(r[1], &x) || !ParseNumber(r[2], &y) ||
-          !ParseNumber(r[3], &h) || (with_robot && !ParseNumber(r[4], &id))) {
-        *error = path + ":" + std::to_string(i + 2) + ": expected " +
+      const std::string where = path + ":" + std::to_string(i + 2) + ": ";
+      double x = 0, y = 0, h = 0;
+      if (r.size() != (with_robot ? 5u : 4u) || !ParseNumber(r[1], &x) || !ParseNumber(r[2], &y) ||
+          !ParseNumber(r[3], &h)) {
+        *error = where + "expected " +
                  (with_robot ? "image,x_m,y_m,height_m,robot_id" : "image,x_m,y_m,height_m");
         return false;
       }
-      const auto frame = std::find(set.names.begin(), set.names.end(), r[0]);
-      if (frame == set.names.end()) continue;  // an image not among the frames
-      const CameraRobot* robot = nullptr;
-      for (const CameraRobot& cr : camera.robots) {
-        if (cr.robot_id == static_cast<int>(id)) robot = &cr;
-      }
+      const CameraRobot* robot = with_robot ? RobotOf(camera, r[4]) : &camera.robots.front();
       if (robot == nullptr) {
-        *error = path + ":" + std::to_string(i + 2) + ": robot " + r[4] + " is not on camera " +
-                 std::to_string(camera.id);
+        *error =
+            where + "robot '" + r[4] + "' is not a robot of camera " + std::to_string(camera.id);
         return false;
       }
-      AddRobotMarkers(camera, *robot, p, static_cast<int>(frame - set.names.begin()), x, y,
-                      heading_reach_m, known);
+      const int frame = FrameIndex(set, folder, r[0]);
+      if (frame < 0) continue;  // an image not among the frames
+      AddRobotMarkers(camera, *robot, p, frame, x, y, h, heading_reach_m, known);
     }
   }
   return true;
@@ -190,26 +244,24 @@ bool ReadKnownFromFolder(const std::string& folder, const FrameSet& set, const C
 bool ReadKnownPixels(const std::string& path, const FrameSet& set,
                      std::vector<vision::KnownMarker>* known, std::string* error) {
   std::string header;
-  const auto rows = ReadCsv(path, &header);
-  if (header.empty()) {
-    *error = path + ": empty or unreadable (expected image,u_px,v_px,class[,radius_px])";
-    return false;
-  }
+  std::vector<std::vector<std::string>> rows;
+  if (!ReadCsv(path, &header, &rows, error)) return false;
   for (size_t i = 0; i < rows.size(); ++i) {
     const auto& r = rows[i];
+    const std::string where = path + ":" + std::to_string(i + 2) + ": ";
     double u = 0, v = 0, radius = 10.0;
-    if (r.size() < 4 || !ParseNumber(r[1], &u) || !ParseNumber(r[2], &v) ||
-        (r.size() > 4 && !ParseNumber(r[4], &radius))) {
-      *error = path + ":" + std::to_string(i + 2) + ": expected image,u_px,v_px,class[,radius_px]";
+    if (r.size() < 4 || r.size() > 5 || !ParseNumber(r[1], &u) || !ParseNumber(r[2], &v) ||
+        (r.size() == 5 && (!ParseNumber(r[4], &radius) || radius <= 0.0)) || r[3].empty()) {
+      *error = where + "expected image,u_px,v_px,class[,radius_px]";
       return false;
     }
-    const auto frame = std::find(set.names.begin(), set.names.end(), r[0]);
-    if (frame == set.names.end()) {
-      *error =
-          path + ":" + std::to_string(i + 2) + ": image '" + r[0] + "' is not among the frames";
+    const int frame = FrameIndex(set, "", r[0]);
+    if (frame < 0) {
+      *error = where + "image '" + r[0] + "' is " +
+               (frame == -2 ? "the name of several frames: give its path" : "not among the frames");
       return false;
     }
-    known->push_back({static_cast<int>(frame - set.names.begin()), u, v, 0.5 * radius, 0.0, r[3]});
+    known->push_back({frame, u, v, 0.5 * radius, 0.0, r[3]});
   }
   return true;
 }
@@ -231,40 +283,36 @@ bool LoadLens(const Camera& camera, Projector* p, std::string* error) {
   return true;
 }
 
-// --name colour_1=red: renames; every class must end as one of the site's.
+// --name colour_1=red ...: applied all at once (so red=green with
+// green=red swaps them); "-" drops a colour that is no marker of the site
+// (its box was cut apart from the others all the same, so they keep clear
+// of it). Every class left must be one of the site camera's.
 bool ApplyNames(const std::vector<std::string>& names, const Camera& camera,
                 std::vector<vision::LearnedClass>* classes, std::string* error) {
+  std::map<std::string, std::string> rename;
   for (const std::string& n : names) {
     const size_t eq = n.find('=');
     if (eq == std::string::npos || eq == 0 || eq + 1 == n.size()) {
       *error = "--name " + n + ": expected CLUSTER=CLASS, e.g. colour_1=red";
       return false;
     }
-    bool found = false;
-    for (vision::LearnedClass& c : *classes) {
-      if (c.name == n.substr(0, eq)) {
-        c.name = n.substr(eq + 1);
-        found = true;
-      }
+    const std::string from = n.substr(0, eq);
+    if (std::none_of(classes->begin(), classes->end(),
+                     [&](const vision::LearnedClass& c) { return c.name == from; })) {
+      *error = "--name " + n + ": no cluster is called '" + from + "'";
+      return false;
     }
-    // "-": a colour in view that is no marker of this site (its box was cut
-    // apart from the others all the same, so they keep clear of it).
-    classes->erase(std::remove_if(classes->begin(), classes->end(),
-                                  [](const vision::LearnedClass& c) { return c.name == "-"; }),
-                   classes->end());
-    if (!found) {
-      *error = "--name " + n + ": no cluster is called '" + n.substr(0, eq) + "'";
+    if (!rename.emplace(from, n.substr(eq + 1)).second) {
+      *error = "--name " + n + ": '" + from + "' is named twice";
       return false;
     }
   }
-  std::string site_names, unknown;
-  for (const MarkerClass& m : camera.marker_classes)
-    site_names += (site_names.empty() ? "" : ", ") + m.name;
-  for (const vision::LearnedClass& c : *classes) {
-    const bool known = std::any_of(camera.marker_classes.begin(), camera.marker_classes.end(),
-                                   [&](const MarkerClass& m) { return m.name == c.name; });
-    if (!known) unknown += (unknown.empty() ? "" : ", ") + c.name;
+  for (vision::LearnedClass& c : *classes) {
+    if (rename.count(c.name) > 0) c.name = rename[c.name];
   }
+  classes->erase(std::remove_if(classes->begin(), classes->end(),
+                                [](const vision::LearnedClass& c) { return c.name == "-"; }),
+                 classes->end());
   for (size_t a = 0; a < classes->size(); ++a) {
     for (size_t b = a + 1; b < classes->size(); ++b) {
       if ((*classes)[a].name == (*classes)[b].name) {
@@ -272,6 +320,15 @@ bool ApplyNames(const std::vector<std::string>& names, const Camera& camera,
         return false;
       }
     }
+  }
+  std::string site_names, unknown;
+  for (const MarkerClass& m : camera.marker_classes) {
+    site_names += (site_names.empty() ? "" : ", ") + m.name;
+  }
+  for (const vision::LearnedClass& c : *classes) {
+    const bool known = std::any_of(camera.marker_classes.begin(), camera.marker_classes.end(),
+                                   [&](const MarkerClass& m) { return m.name == c.name; });
+    if (!known) unknown += (unknown.empty() ? "" : ", ") + c.name;
   }
   if (!unknown.empty()) {
     *error = "which of the site's classes (" + site_names + ") is each of " + unknown +
@@ -328,7 +385,20 @@ bool ReadSet(const ColoursFlags& f, const std::vector<std::string>& paths, const
          ReadKnownPixels(f.known_pixels, *set, known, error);
 }
 
-// Each --check set (other light) with the learned classes: which hold.
+std::string CheckLine(const vision::ClassCheck& c) {
+  const std::string counts = std::to_string(c.found) + " of " + std::to_string(c.discs) + " found";
+  if (c.discs == 0) return "NOT SEEN: no marker of this colour found, so not checked";
+  if (c.holds()) return "holds (" + counts + ")";
+  return "FAILS: " + counts +
+         (c.found_as_other > 0
+              ? ", " + std::to_string(c.found_as_other) + " taken for another class"
+              : std::string());
+}
+
+// Each --check set (other light) with the learned classes: which hold, and
+// which were not seen there (so not checked). A set's markers at no known
+// place are named by the nearest learned colour, for the boxes of every
+// light. False only on unreadable input.
 bool CheckSets(const ColoursFlags& f, const Camera& camera, const Projector& p,
                const std::vector<vision::LearnedClass>& classes, std::vector<FrameSet>* sets,
                std::vector<std::vector<vision::KnownMarker>>* known, std::string* error) {
@@ -338,24 +408,70 @@ bool CheckSets(const ColoursFlags& f, const Camera& camera, const Projector& p,
     std::vector<vision::KnownMarker> k;
     if (!ReadSet(f, {path}, camera, p, false, &set, &k, error)) return false;
     std::cout << "under " << path << " (" << set.frames.size() << " frame(s)):\n";
-    for (const vision::ClassCheck& c : vision::CheckColours(set.frames, k, classes, f.learning)) {
-      std::cout << "  " << c.name << ": "
-                << (c.discs == 0 ? "no marker of this colour seen"
-                    : c.holds()
-                        ? "holds (" + std::to_string(c.found) + " of " + std::to_string(c.discs) +
-                              " found)"
-                        : "FAILS: " + std::to_string(c.found) + " of " + std::to_string(c.discs) +
-                              " found" +
-                              (c.found_as_other > 0 ? ", " + std::to_string(c.found_as_other) +
-                                                          " taken for another class"
-                                                    : ""))
-                << "\n";
-      all_hold = all_hold && (c.discs == 0 || c.holds());
+    int unmatched = 0;
+    for (const vision::ClassCheck& c :
+         vision::CheckColours(set.frames, k, classes, f.learning, &unmatched)) {
+      std::cout << "  " << c.name << ": " << CheckLine(c) << "\n";
+      all_hold = all_hold && c.holds();
     }
+    if (unmatched > 0) {
+      std::cout << "  " << unmatched
+                << " disc(s) of a colour near no learned class: a marker this light moved out "
+                   "of reach, or something else in view\n";
+      all_hold = false;
+    }
+    if (k.empty()) k = vision::LabelByNearestClass(set.frames, classes, f.learning);
     sets->push_back(std::move(set));
     known->push_back(std::move(k));
   }
-  if (!f.check.empty() && all_hold) std::cout << "every class holds under every light given\n";
+  if (!f.check.empty()) {
+    std::cout << (all_hold ? "every class holds under every light given\n"
+                           : "not every class holds, or was seen, under every light given\n");
+  }
+  return true;
+}
+
+// --check: boxes learned from the frames of every light together, each
+// cluster named as in the first set (the sets' markers are labelled); a
+// colour that is none of the learned classes is left out, said.
+bool LearnForEveryLight(const ColoursFlags& f, const FrameSet& base,
+                        const std::vector<vision::KnownMarker>& known,
+                        const std::vector<FrameSet>& sets,
+                        const std::vector<std::vector<vision::KnownMarker>>& set_known,
+                        vision::ColourLearning* learned, std::string* error) {
+  std::vector<std::vector<cv::Mat>> all = {base.frames};
+  std::vector<std::vector<vision::KnownMarker>> all_known = {known};
+  if (known.empty()) {
+    all_known.front() = vision::LabelByNearestClass(base.frames, learned->classes, f.learning);
+  }
+  for (size_t i = 0; i < sets.size(); ++i) {
+    all.push_back(sets[i].frames);
+    all_known.push_back(set_known[i]);
+  }
+  std::vector<MarkerClass> named;
+  for (const vision::LearnedClass& c : learned->classes) {
+    named.push_back({c.name, c.hsv_min, c.hsv_max, 0.0});
+  }
+  vision::ColourLearning every = vision::LearnColoursForAll(all, all_known, named, f.learning, 1);
+  if (!every.refusal.empty()) {
+    *error = "no boxes hold under every light: " + every.refusal;
+    return false;
+  }
+  std::vector<vision::LearnedClass> kept;
+  for (const vision::LearnedClass& c : every.classes) {
+    const bool ours = std::any_of(named.begin(), named.end(),
+                                  [&](const MarkerClass& m) { return m.name == c.name; });
+    if (ours) {
+      kept.push_back(c);
+    } else {
+      std::cout << "note: a colour seen (median H " << std::lround(c.median_hsv[0]) << " S "
+                << std::lround(c.median_hsv[1]) << " V " << std::lround(c.median_hsv[2])
+                << ") is none of the learned classes: left out\n";
+    }
+  }
+  every.classes = kept;
+  PrintClasses(every, "boxes for every light");
+  *learned = every;
   return true;
 }
 
@@ -371,9 +487,13 @@ int RunColours(const ColoursFlags& f) {
     return 1;
   }
   const Camera* camera = site.FindCameraOrFirst(f.camera_id.value_or(-1));
-  if (camera == nullptr) {
-    std::cerr << kName << f.site << " has no camera"
-              << (f.camera_id ? " " + std::to_string(*f.camera_id) : std::string()) << "\n";
+  if (camera == nullptr || camera->marker_classes.empty()) {
+    std::cerr << kName << f.site << ": "
+              << (camera == nullptr
+                      ? "no camera" +
+                            (f.camera_id ? " " + std::to_string(*f.camera_id) : std::string())
+                      : "camera " + std::to_string(camera->id) + " has no marker_classes to learn")
+              << "\n";
     return 1;
   }
   Projector p;
@@ -401,30 +521,11 @@ int RunColours(const ColoursFlags& f) {
   PrintClasses(learned, "learned from " + std::to_string(base.frames.size()) + " frame(s)");
   std::vector<FrameSet> sets;
   std::vector<std::vector<vision::KnownMarker>> set_known;
-  if (!CheckSets(f, *camera, p, learned.classes, &sets, &set_known, &error)) {
+  if (!CheckSets(f, *camera, p, learned.classes, &sets, &set_known, &error) ||
+      (!f.check.empty() &&
+       !LearnForEveryLight(f, base, known, sets, set_known, &learned, &error))) {
     std::cerr << kName << error << "\n";
     return 1;
-  }
-  if (!f.check.empty()) {
-    // Boxes that hold under every light: learned from all the frames with
-    // each cluster named as in the first set.
-    std::vector<std::vector<cv::Mat>> all = {base.frames};
-    std::vector<std::vector<vision::KnownMarker>> all_known = {known};
-    for (size_t i = 0; i < sets.size(); ++i) {
-      all.push_back(sets[i].frames);
-      all_known.push_back(set_known[i]);
-    }
-    std::vector<MarkerClass> named;
-    for (const vision::LearnedClass& c : learned.classes) {
-      named.push_back({c.name, c.hsv_min, c.hsv_max, 0.0});
-    }
-    vision::ColourLearning every = vision::LearnColoursForAll(all, all_known, named, f.learning, 1);
-    if (!every.refusal.empty()) {
-      std::cerr << kName << "no boxes hold under every light: " << every.refusal << "\n";
-      return 1;
-    }
-    PrintClasses(every, "boxes for every light");
-    learned = every;
   }
   return WriteClasses(f.site, f.out, *camera, learned.classes);
 }

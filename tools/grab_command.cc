@@ -41,10 +41,11 @@ struct GrabFlags {
   double every_s = 0.0;
   std::optional<int> skip;
   double timeout_s = 10.0;
-  // --tripod X,Y: the robot's markers stand at this surveyed floor point
-  // (as typed, for the file name) and --tripod-robot names the robot.
+  // --tripod X,Y: the camera's first robot's markers stand at this surveyed
+  // floor point (as typed, for the file name). The first robot's, as in
+  // `render-camera --tripod-grid`: points.csv has no robot column, and
+  // calibrate and colours read it as the first robot's markers.
   std::string tripod;
-  std::optional<int> tripod_robot;
 };
 
 // --tripod's point, parsed; the robot whose markers stand there.
@@ -76,18 +77,12 @@ bool ParseTripod(const GrabFlags& f, const Site& site, const Camera& camera, Tri
     *error = "--tripod " + f.tripod + " is outside the room";
     return false;
   }
-  for (const CameraRobot& r : camera.robots) {
-    if (!f.tripod_robot || r.robot_id == *f.tripod_robot) {
-      p->robot = &r;
-      break;
-    }
-  }
-  if (p->robot == nullptr) {
-    *error = "camera " + std::to_string(camera.id) + " has no robot" +
-             (f.tripod_robot ? " " + std::to_string(*f.tripod_robot) : std::string()) +
-             " whose markers the tripod could carry";
+  if (camera.robots.empty()) {
+    *error = "camera " + std::to_string(camera.id) +
+             " has no robot whose markers the tripod could carry";
     return false;
   }
+  p->robot = &camera.robots.front();
   return true;
 }
 
@@ -476,14 +471,13 @@ void AddGrabCommand(CLI::App* app, int* exit_code) {
                   "Give up when the device delivers no frame for this many seconds")
       ->capture_default_str()
       ->check(FiniteAbove(0.0, "a number of seconds > 0"));
-  cmd->add_option("--tripod", f->tripod,
-                  "X,Y: a robot's markers stand on a tripod at this surveyed floor point (m): the "
-                  "frames are named tripod_X_Y and added to DIR/points.csv for roomfix calibrate "
-                  "--marker-images and roomfix colours (on a sim: camera the simulator stands "
-                  "them there)");
-  cmd->add_option("--tripod-robot", f->tripod_robot,
-                  "The robot whose markers the tripod carries (default: the camera's first); "
-                  "its marker height goes into points.csv");
+  cmd->add_option(
+      "--tripod", f->tripod,
+      "X,Y: the camera's first robot's markers stand on a tripod at this surveyed floor "
+      "point (m): the "
+      "frames are named tripod_X_Y and added to DIR/points.csv for roomfix calibrate "
+      "--marker-images and roomfix colours (on a sim: camera the simulator stands "
+      "them there)");
   cmd->callback([f, exit_code] { *exit_code = RunGrab(*f); });
 }
 

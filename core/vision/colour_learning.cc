@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <numeric>
 #include <opencv2/imgproc.hpp>
@@ -14,6 +15,10 @@ namespace {
 // Core pixels kept per disc for the boxes: enough for a 0.5 % quantile of a
 // class seen in a few discs, bounded so a frame of large discs stays cheap.
 constexpr int kMaxSamplesPerDisc = 600;
+// Discs learning takes at most: the clustering's distance matrix is n^2
+// floats (16 MB here) and its merges O(n^3) comparisons (seconds). A lab's
+// frames hold tens to hundreds (the eight-robot tripod walk: 158).
+constexpr size_t kMaxDiscs = 2000;
 // The core, the inner 60 % of the radius, gives a disc's colour and
 // coherence; the boxes learn from the inner 85 %, which holds the
 // marker's shaded side (on a candy or a domed marker its hue and value
@@ -356,10 +361,15 @@ double ClusterDistance(const std::array<double, 3>& a, const std::array<double, 
 
 // Average-linkage agglomeration of the discs' core colours until the
 // nearest two clusters are a unit apart. Labelled discs seed one cluster
-// per label and never merge with another label's.
+// per label and never merge with another label's. The distances between
+// clusters are kept in a matrix and updated by Lance and Williams' rule
+// for average linkage, d(a + b, c) = (|a| d(a, c) + |b| d(b, c)) / (|a| +
+// |b|), so each disc pair's distance is computed once: O(n^2) memory and
+// distances, O(n^3) cheap comparisons (1000 discs: well under a second).
 std::vector<std::vector<int>> Cluster(const std::vector<DiscSamples>& discs,
                                       const ColourLearningOptions& o) {
   std::vector<std::vector<int>> clusters;
+  std::vector<std::string> labels;
   std::map<std::string, size_t> by_label;
   for (int i = 0; i < static_cast<int>(discs.size()); ++i) {
     if (discs[i].disc.clipped) continue;
@@ -370,38 +380,60 @@ std::vector<std::vector<int>> Cluster(const std::vector<DiscSamples>& discs,
     }
     if (!label.empty()) by_label[label] = clusters.size();
     clusters.push_back({i});
+    labels.push_back(label);
   }
-  auto label_of = [&](const std::vector<int>& c) {
-    for (int i : c) {
-      if (!discs[i].disc.label.empty()) return discs[i].disc.label;
-    }
-    return std::string();
-  };
-  for (;;) {
-    double best = 1.0;
-    size_t ba = 0, bb = 0;
-    for (size_t a = 0; a < clusters.size(); ++a) {
-      for (size_t b = a + 1; b < clusters.size(); ++b) {
-        const std::string la = label_of(clusters[a]), lb = label_of(clusters[b]);
-        if (!la.empty() && !lb.empty()) continue;  // labels are the truth
+  const size_t n = clusters.size();
+  constexpr float kApart = std::numeric_limits<float>::infinity();  // two labels
+  std::vector<float> d(n * n, 0.0f);
+  for (size_t a = 0; a < n; ++a) {
+    for (size_t b = a + 1; b < n; ++b) {
+      float v = kApart;
+      if (labels[a].empty() || labels[b].empty()) {
         double sum = 0.0;
         for (int i : clusters[a]) {
-          for (int j : clusters[b])
+          for (int j : clusters[b]) {
             sum += ClusterDistance(discs[i].disc.core_hsv, discs[j].disc.core_hsv, o);
+          }
         }
-        const double d = sum / (clusters[a].size() * clusters[b].size());
-        if (d < best) {
-          best = d;
+        v = static_cast<float>(sum / (clusters[a].size() * clusters[b].size()));
+      }
+      d[a * n + b] = d[b * n + a] = v;
+    }
+  }
+  std::vector<bool> alive(n, true);
+  for (;;) {
+    float best = 1.0f;
+    size_t ba = 0, bb = 0;
+    for (size_t a = 0; a < n; ++a) {
+      if (!alive[a]) continue;
+      for (size_t b = a + 1; b < n; ++b) {
+        if (alive[b] && d[a * n + b] < best) {
+          best = d[a * n + b];
           ba = a;
           bb = b;
         }
       }
     }
-    if (best >= 1.0) break;
+    if (best >= 1.0f) break;
+    const double na = static_cast<double>(clusters[ba].size());
+    const double nb = static_cast<double>(clusters[bb].size());
+    for (size_t c = 0; c < n; ++c) {
+      if (!alive[c] || c == ba || c == bb) continue;
+      const float dac = d[ba * n + c], dbc = d[bb * n + c];
+      const float v = (dac == kApart || dbc == kApart)
+                          ? kApart
+                          : static_cast<float>((na * dac + nb * dbc) / (na + nb));
+      d[ba * n + c] = d[c * n + ba] = v;
+    }
     clusters[ba].insert(clusters[ba].end(), clusters[bb].begin(), clusters[bb].end());
-    clusters.erase(clusters.begin() + static_cast<std::ptrdiff_t>(bb));
+    if (labels[ba].empty()) labels[ba] = labels[bb];
+    alive[bb] = false;
   }
-  return clusters;
+  std::vector<std::vector<int>> out;
+  for (size_t a = 0; a < n; ++a) {
+    if (alive[a]) out.push_back(std::move(clusters[a]));
+  }
+  return out;
 }
 
 // A colour's hue, saturation and value after the white-balance budget
@@ -874,12 +906,17 @@ ColourLearning LearnColours(const std::vector<cv::Mat>& frames,
   Learned l = Collect(frames, o);
   result.background_pixels = l.background.total;
   Label(known, &l.discs);
-  const std::vector<std::vector<int>> clusters = Cluster(l.discs, o);
   auto finish = [&](const std::string& refusal) {
     for (const DiscSamples& d : l.discs) result.discs.push_back(d.disc);
     result.refusal = refusal;
     return result;
   };
+  if (l.discs.size() > kMaxDiscs) {
+    return finish(std::to_string(l.discs.size()) + " discs found, over the " +
+                  std::to_string(kMaxDiscs) +
+                  " learning takes: fewer frames, or a floor without coloured dots");
+  }
+  const std::vector<std::vector<int>> clusters = Cluster(l.discs, o);
   if (clusters.empty()) {
     return finish(l.discs.empty() ? "no marker disc found: no saturated round region of " +
                                         std::to_string(static_cast<int>(o.min_radius_px)) + " to " +
@@ -925,9 +962,20 @@ ColourLearning LearnColours(const std::vector<cv::Mat>& frames,
     for (int i : clusters[k]) {
       if (!l.discs[i].disc.label.empty()) c.name = l.discs[i].disc.label;
     }
-    if (c.name.empty()) c.name = SiteName(c.median_hsv, site_classes);
-    if (c.name.empty()) c.name = "colour_" + std::to_string(++unnamed);
     result.classes.push_back(c);
+  }
+  // Unlabelled clusters take a site class's name when theirs is the only
+  // median in that class's box; two in one box (two reds) are both
+  // colour_N, for the person to name.
+  std::map<std::string, int> site_matches;
+  for (const LearnedClass& c : result.classes) {
+    if (c.name.empty()) ++site_matches[SiteName(c.median_hsv, site_classes)];
+  }
+  for (LearnedClass& c : result.classes) {
+    if (!c.name.empty()) continue;
+    const std::string site = SiteName(c.median_hsv, site_classes);
+    c.name =
+        !site.empty() && site_matches[site] == 1 ? site : "colour_" + std::to_string(++unnamed);
   }
   for (size_t a = 0; a < result.classes.size(); ++a) {
     for (size_t b = a + 1; b < result.classes.size(); ++b) {
@@ -980,6 +1028,36 @@ ColourLearning LearnColoursForAll(const std::vector<std::vector<cv::Mat>>& sets,
   return LearnColours(frames, all_known, site_classes, options, min_classes);
 }
 
+namespace {
+
+// The learned class nearest a colour within 1.5 clustering units, or -1.
+int NearestClass(const std::array<double, 3>& hsv, const std::vector<LearnedClass>& classes,
+                 const ColourLearningOptions& o) {
+  int nearest = -1;
+  double best = 1.5;
+  for (size_t k = 0; k < classes.size(); ++k) {
+    const double dist = ClusterDistance(hsv, classes[k].median_hsv, o);
+    if (dist < best) {
+      best = dist;
+      nearest = static_cast<int>(k);
+    }
+  }
+  return nearest;
+}
+
+}  // namespace
+
+std::vector<KnownMarker> LabelByNearestClass(const std::vector<cv::Mat>& frames,
+                                             const std::vector<LearnedClass>& classes,
+                                             const ColourLearningOptions& options) {
+  std::vector<KnownMarker> known;
+  for (const FoundDisc& d : FindDiscs(frames, options)) {
+    const int k = d.clipped ? -1 : NearestClass(d.core_hsv, classes, options);
+    if (k >= 0) known.push_back({d.frame, d.u_px, d.v_px, 0.5 * d.radius_px, 0.0, classes[k].name});
+  }
+  return known;
+}
+
 std::vector<ColourClass> ToColourClasses(const std::vector<LearnedClass>& classes) {
   std::vector<ColourClass> out;
   for (const LearnedClass& c : classes) {
@@ -1016,7 +1094,7 @@ int ClassIndex(const std::vector<LearnedClass>& classes, const std::string& name
 // known markers every disc of a colour near a learned class's.
 std::vector<Target> Targets(const Learned& l, const std::vector<KnownMarker>& known,
                             const std::vector<LearnedClass>& classes,
-                            const ColourLearningOptions& o) {
+                            const ColourLearningOptions& o, int* unmatched) {
   std::vector<Target> targets;
   for (const KnownMarker& k : known) {
     const int c = ClassIndex(classes, k.class_name);
@@ -1033,17 +1111,13 @@ std::vector<Target> Targets(const Learned& l, const std::vector<KnownMarker>& kn
       });
       if (by_place) c = ClassIndex(classes, s.disc.label);
     } else {
-      double best = 1.5;
-      for (size_t k = 0; k < classes.size(); ++k) {
-        const double dist = ClusterDistance(s.disc.core_hsv, classes[k].median_hsv, o);
-        if (dist < best) {
-          best = dist;
-          c = static_cast<int>(k);
-        }
-      }
+      c = NearestClass(s.disc.core_hsv, classes, o);
     }
-    if (c >= 0)
+    if (c >= 0) {
       targets.push_back({s.disc.frame, s.disc.u_px, s.disc.v_px, 0.5 * s.disc.radius_px, c});
+    } else if (known.empty()) {
+      ++*unmatched;
+    }
   }
   return targets;
 }
@@ -1053,7 +1127,8 @@ std::vector<Target> Targets(const Learned& l, const std::vector<KnownMarker>& kn
 std::vector<ClassCheck> CheckColours(const std::vector<cv::Mat>& frames,
                                      const std::vector<KnownMarker>& known,
                                      const std::vector<LearnedClass>& classes,
-                                     const ColourLearningOptions& o) {
+                                     const ColourLearningOptions& o, int* unmatched_discs) {
+  int unmatched = 0;
   std::vector<ClassCheck> checks(classes.size());
   for (size_t k = 0; k < classes.size(); ++k) checks[k].name = classes[k].name;
   Learned l = Collect(frames, o);
@@ -1064,7 +1139,7 @@ std::vector<ClassCheck> CheckColours(const std::vector<cv::Mat>& frames,
   const MarkerDetector detector(ToColourClasses(classes), d);
   std::vector<std::vector<Blob>> blobs(frames.size());
   for (size_t f = 0; f < frames.size(); ++f) blobs[f] = detector.Detect(frames[f], ImageWindow{});
-  for (const Target& t : Targets(l, known, classes, o)) {
+  for (const Target& t : Targets(l, known, classes, o, &unmatched)) {
     if (t.frame < 0 || t.frame >= static_cast<int>(frames.size())) continue;
     ++checks[t.class_index].discs;
     bool found = false, other = false;
@@ -1075,6 +1150,7 @@ std::vector<ClassCheck> CheckColours(const std::vector<cv::Mat>& frames,
     if (found) ++checks[t.class_index].found;
     if (other) ++checks[t.class_index].found_as_other;
   }
+  if (unmatched_discs != nullptr) *unmatched_discs = unmatched;
   return checks;
 }
 

@@ -168,10 +168,22 @@ struct ClassCheck {
   int found_as_other = 0;
   bool holds() const { return discs > 0 && found == discs && found_as_other == 0; }
 };
+// `unmatched_discs` (when given) counts the discs of a colour near no
+// learned class's (without known places): a marker the other light has
+// moved out of reach of its class, or something new in view.
 std::vector<ClassCheck> CheckColours(const std::vector<cv::Mat>& frames,
                                      const std::vector<KnownMarker>& known,
                                      const std::vector<LearnedClass>& classes,
-                                     const ColourLearningOptions& options);
+                                     const ColourLearningOptions& options,
+                                     int* unmatched_discs = nullptr);
+
+// Markers for frames with no known places (other light): every whole disc
+// whose core colour is within 1.5 clustering units of a learned class's
+// median, named after that class, so LearnColoursForAll learns each
+// class from its own discs under every light.
+std::vector<KnownMarker> LabelByNearestClass(const std::vector<cv::Mat>& frames,
+                                             const std::vector<LearnedClass>& classes,
+                                             const ColourLearningOptions& options);
 
 // The learned classes as the detector's: areas from half the smallest
 // disc's radius to 1.8 times the largest's (the bounds camera_proc derives

@@ -194,6 +194,98 @@ TEST(ColourLearning, UnlabelledClustersTakeTheSiteClassTheirColourLiesIn) {
   EXPECT_EQ(names, (std::vector<std::string>{"blue", "yellow"}));
 }
 
+TEST(ColourLearning, ARedThatWrapsThroughHueZeroIsCutFromAnOrangeBesideIt) {
+  // Red markers at H 177 and H 2 (354 and 4 degrees: one class across
+  // 0/179) and orange ones at H 12 (24 degrees), 10 units from the nearer
+  // red: more than the white-balance shift of either (under 4).
+  cv::Mat img = Floor(480, 320);
+  std::vector<KnownMarker> known;
+  for (int i = 0; i < 3; ++i) {
+    Disc(&img, 60 + 80 * i, 60, 14, cv::Scalar(22, 0, 220));   // red, H 177
+    Disc(&img, 60 + 80 * i, 150, 14, cv::Scalar(0, 15, 220));  // red, H 2
+    Disc(&img, 60 + 80 * i, 240, 14, cv::Scalar(0, 88, 220));  // orange, H 12
+    known.push_back({0, 60.0 + 80 * i, 60, 5, 0.0, "red"});
+    known.push_back({0, 60.0 + 80 * i, 150, 5, 0.0, "red"});
+    known.push_back({0, 60.0 + 80 * i, 240, 5, 0.0, "orange"});
+  }
+  const ColourLearning learned = LearnColours({img}, known, {}, {});
+  ASSERT_EQ(learned.refusal, "");
+  ASSERT_EQ(learned.classes.size(), 2u);
+  const bool red_first = learned.classes[0].name == "red";
+  const LearnedClass& red = learned.classes[red_first ? 0 : 1];
+  const LearnedClass& orange = learned.classes[red_first ? 1 : 0];
+  std::printf("red H %d..%d, orange H %d..%d\n", red.hsv_min[0], red.hsv_max[0], orange.hsv_min[0],
+              orange.hsv_max[0]);
+  // Red's range wraps through 0 (min above max) and holds 177 and 2;
+  // orange's holds 12; the two boxes share no colour.
+  EXPECT_GT(red.hsv_min[0], red.hsv_max[0]);
+  EXPECT_LE(red.hsv_min[0], 177);
+  EXPECT_GE(red.hsv_max[0], 2);
+  EXPECT_LE(orange.hsv_min[0], 12);
+  EXPECT_GE(orange.hsv_max[0], 12);
+  MarkerClass r{"red", red.hsv_min, red.hsv_max, 0.0};
+  MarkerClass o{"orange", orange.hsv_min, orange.hsv_max, 0.0};
+  EXPECT_FALSE(HsvRangesOverlap(r, o));
+  // The detector with them finds every marker as its class.
+  for (const ClassCheck& c : CheckColours({img}, known, learned.classes, {})) {
+    EXPECT_EQ(c.discs, c.name == "red" ? 6 : 3) << c.name;
+    EXPECT_TRUE(c.holds()) << c.name;
+  }
+}
+
+TEST(ColourLearning, TwoColoursInOneSiteBoxAreLeftForThePersonToName) {
+  cv::Mat img = Floor(320, 240);
+  Disc(&img, 80, 80, 12, cv::Scalar(29, 0, 220));               // H 176
+  Disc(&img, 220, 160, 12, cv::Scalar(0, 59, 220));             // H 8
+  MarkerClass red{"red", {170, 100, 60}, {12, 255, 255}, 0.1};  // both inside
+  const ColourLearning learned = LearnColours({img}, {}, {red}, {});
+  ASSERT_EQ(learned.refusal, "");
+  ASSERT_EQ(learned.classes.size(), 2u);
+  EXPECT_EQ(learned.classes[0].name.rfind("colour_", 0), 0u);
+  EXPECT_EQ(learned.classes[1].name.rfind("colour_", 0), 0u);
+}
+
+TEST(ColourLearning, ACheckCountsAKnownMarkerTheLightHasWashedOut) {
+  cv::Mat img = Floor(320, 240);
+  Disc(&img, 80, 80, 12, cv::Scalar(200, 80, 30));     // blue
+  Disc(&img, 220, 160, 12, cv::Scalar(30, 200, 220));  // yellow
+  const std::vector<KnownMarker> known = {{0, 80, 80, 5, 0.0, "blue"},
+                                          {0, 220, 160, 5, 0.0, "yellow"}};
+  const ColourLearning learned = LearnColours({img}, known, {}, {});
+  ASSERT_EQ(learned.refusal, "");
+  // The same place with the yellow marker gone grey: not found, and said.
+  cv::Mat washed = Floor(320, 240);
+  Disc(&washed, 80, 80, 12, cv::Scalar(200, 80, 30));
+  Disc(&washed, 220, 160, 12, cv::Scalar(150, 150, 150));
+  int unmatched = -1;
+  for (const ClassCheck& c : CheckColours({washed}, known, learned.classes, {}, &unmatched)) {
+    EXPECT_EQ(c.discs, 1) << c.name;
+    EXPECT_EQ(c.holds(), c.name == "blue") << c.name;
+  }
+  EXPECT_EQ(unmatched, 0);
+  // Without known places a frame with no marker checks nothing: no class
+  // holds there.
+  for (const ClassCheck& c : CheckColours({Floor(320, 240)}, {}, learned.classes, {})) {
+    EXPECT_EQ(c.discs, 0);
+    EXPECT_FALSE(c.holds());
+  }
+}
+
+TEST(ColourLearning, ManyDiscsClusterInLittleTime) {
+  // 600 discs of three colours (a lab's worth of frames at once): three
+  // clusters; the average linkage keeps one distance matrix.
+  cv::Mat img = Floor(1200, 1000);
+  const cv::Scalar colours[] = {cv::Scalar(200, 80, 30), cv::Scalar(30, 200, 220),
+                                cv::Scalar(40, 180, 40)};
+  for (int i = 0; i < 600; ++i) {
+    Disc(&img, 20 + 40 * (i % 30), 20 + 50 * (i / 30), 8, colours[i % 3]);
+  }
+  const ColourLearning learned = LearnColours({img}, {}, {}, {});
+  ASSERT_EQ(learned.refusal, "");
+  EXPECT_EQ(learned.classes.size(), 3u);
+  for (const LearnedClass& c : learned.classes) EXPECT_EQ(c.discs, 200) << c.name;
+}
+
 TEST(ColourLearningOptions, RefusesRadiiOutOfOrderAndDriftsOfOneOrMore) {
   std::string error;
   ColourLearningOptions o;

@@ -91,12 +91,50 @@ TEST_F(EightRobotFrames, WithoutPlacesTheClustersTakeTheSiteNamesTheirColoursFal
   EXPECT_NE(r.out.find("- {name: yellow, hsv_min: ["), std::string::npos) << r.out;
 }
 
-TEST_F(EightRobotFrames, SaysWhichClassesHoldUnderOtherFramesAndProposesBoxesForBoth) {
-  const RunResult r = Roomfix({"colours", "--site", site_, "--frames", dir_.File("frames"),
-                               "--check", dir_.File("frames")});
+TEST_F(EightRobotFrames, SaysWhichClassesHoldUnderOtherLightAndProposesBoxesForEvery) {
+  // The lighting scenario's frames at gains 1.4 (t = 4 s) and 0.6 (t = 7 s),
+  // with a 30 % gradient, flicker and noise: the robots where they drive,
+  // no known places, so each disc is judged by the nearest learned colour.
+  std::filesystem::create_directories(dir_.File("other"));
+  for (const char* t : {"4", "7"}) {
+    const RunResult r =
+        Roomfix({"render-camera", "--site", site_, "--scenario", "lighting", "--png",
+                 dir_.File(std::string("other/at_") + t + ".png"), "--time", t});
+    ASSERT_EQ(r.exit_code, 0) << r.out;
+  }
+  const RunResult r = Roomfix(
+      {"colours", "--site", site_, "--frames", dir_.File("frames"), "--check", dir_.File("other")});
   ASSERT_EQ(r.exit_code, 0) << r.out;
+  for (const char* name : {"red", "yellow", "green", "blue"}) {
+    EXPECT_NE(r.out.find(std::string("  ") + name + ": holds ("), std::string::npos) << name << "\n"
+                                                                                     << r.out;
+  }
   EXPECT_NE(r.out.find("every class holds under every light given"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("boxes for every light"), std::string::npos) << r.out;
+}
+
+TEST_F(EightRobotFrames, AnotherLightWithNoMarkerInViewChecksNothingAndSaysSo) {
+  std::filesystem::create_directories(dir_.File("dark"));
+  std::string ppm = "P6\n1920 1080\n255\n";
+  ppm.append(1920 * 1080 * 3, static_cast<char>(60));
+  WriteFile(dir_.File("dark/grey.ppm"), ppm);
+  const RunResult r = Roomfix(
+      {"colours", "--site", site_, "--frames", dir_.File("frames"), "--check", dir_.File("dark")});
+  EXPECT_NE(r.out.find("red: NOT SEEN"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("not every class holds, or was seen, under every light given"),
+            std::string::npos)
+      << r.out;
+  EXPECT_EQ(r.out.find("every class holds under every light given"), std::string::npos) << r.out;
+}
+
+TEST_F(EightRobotFrames, RefusesFramesOfAnotherSizeThanTheCamera) {
+  std::filesystem::create_directories(dir_.File("small"));
+  std::string ppm = "P6\n960 540\n255\n";
+  ppm.append(960 * 540 * 3, static_cast<char>(60));
+  WriteFile(dir_.File("small/half.ppm"), ppm);
+  const RunResult r = Roomfix({"colours", "--site", site_, "--frames", dir_.File("small")});
+  EXPECT_EQ(r.exit_code, 1) << r.out;
+  EXPECT_NE(r.out.find("960x540, not camera 0's 1920x1080"), std::string::npos) << r.out;
 }
 
 TEST(ColoursCommand, AsksWhichSiteClassEachUnknownColourIsAndTakesTheAnswer) {
