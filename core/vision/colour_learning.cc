@@ -758,7 +758,8 @@ double ExtentToBoxGap(const Extent& ea, const LearnedClass& b, int k) {
   const double lo = ea.median[0] + ea.lo[0], hi = ea.median[0] + ea.hi[0];
   if (InHue(b.hsv_min[0], b.hsv_max[0], WrapHue(lo)) ||
       InHue(b.hsv_min[0], b.hsv_max[0], WrapHue(hi)) ||
-      std::abs(HueDifference(b.hsv_min[0], ea.median[0])) <= std::max(-ea.lo[0], ea.hi[0])) {
+      (HueDifference(b.hsv_min[0], ea.median[0]) >= ea.lo[0] &&
+       HueDifference(b.hsv_min[0], ea.median[0]) <= ea.hi[0])) {
     return 0.0;
   }
   return std::min(std::abs(HueDifference(b.hsv_min[0], hi)),
