@@ -109,9 +109,12 @@ TEST(JpegImage, ReadsOnlyTheHeader) {
   EXPECT_TRUE(image->encoded());
   EXPECT_EQ(image->width_px(), 640);
   EXPECT_EQ(image->height_px(), 480);
-  // The bytes as given, for roomfix grab to save unchanged.
-  ASSERT_NE(image->jpeg_bytes(), nullptr);
-  EXPECT_EQ(*image->jpeg_bytes(), bytes);
+  // The bytes as given, for roomfix grab to save unchanged. (Read once:
+  // a second virtual call is one GCC 12 at -O3 cannot prove non-null,
+  // -Wnull-dereference.)
+  const std::vector<uint8_t>* kept = image->jpeg_bytes();
+  ASSERT_NE(kept, nullptr);
+  EXPECT_TRUE(std::equal(kept->begin(), kept->end(), bytes.begin(), bytes.end()));
 }
 
 TEST(JpegImage, DecodeReducedOneMatchesImdecode) {
