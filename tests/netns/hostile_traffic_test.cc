@@ -422,6 +422,7 @@ class HostileTraffic : public ::testing::Test {
     sender_.Publish("STATUS", hostile::StatusWithNegativeStringLength());
     sender_.Publish("MARKER_PIXELS", hostile::MarkerPixelsWithNegativeStringLength());
     sender_.Publish("CAMERA_PREVIEW", hostile::CameraPreviewWithNegativeStringLength());
+    sender_.Publish("CAMERA_DETECTOR_VIEW", hostile::DetectorViewWithNegativeStringLength());
     check("string lengths of INT32_MIN");
 
     sender_.Publish("RANGES", hostile::RangesClaimingCount(hostile::kHugeRangeCount));
@@ -810,7 +811,8 @@ TEST_F(HostileTraffic, HeadlessViewerSurvivesEveryClassAndForgetsUnknownRobots) 
   process_status_t s;
   ASSERT_TRUE(listener.StatusAfter("roomfix_viewer", last, 3.0, &s));
   ExpectTransportRefusalsCounted(s);
-  for (const char* channel : {"STATUS.", "MARKER_PIXELS.", "CAMERA_PREVIEW.", "RANGES."}) {
+  for (const char* channel :
+       {"STATUS.", "MARKER_PIXELS.", "CAMERA_PREVIEW.", "CAMERA_DETECTOR_VIEW.", "RANGES."}) {
     EXPECT_GE(RejectedWithPrefix(s, channel), 1) << channel << "\n" << Describe(s);
   }
   EXPECT_GE(Rejected(s, "unknown_robot") + s.dropped, kNewRobots) << Describe(s);
@@ -851,6 +853,28 @@ TEST_F(HostileTraffic, CameraProcsHintSubscriptionSurvivesEveryClass) {
   process_status_t s;
   ASSERT_TRUE(listener.StatusAfter("camera_proc", last, 3.0, &s));
   ExpectTransportRefusalsCounted(s);
+
+  // Requests for the detector's view (issue #31) that must be refused, a
+  // thousand times each: every one refused and counted, none turns the view
+  // on, the heartbeat keeps its period.
+  const std::vector<hostile::Bytes> requests = hostile::HostileDetectorViewRequests(NowUtime());
+  constexpr int kRounds = 1000;
+  for (int k = 0; k < kRounds; ++k) {
+    for (const hostile::Bytes& r : requests) sender_.Publish("CAMERA_DETECTOR_VIEW_REQUEST", r);
+    if (k % 50 == 49) SleepS(0.01);
+  }
+  process_status_t refused;
+  ASSERT_TRUE(listener.StatusAfter("camera_proc", Clock::now(), 3.0, &refused));
+  const int64_t refusals = RejectedWithPrefix(refused, "detector_view_bad_") +
+                           RejectedWithPrefix(refused, "CAMERA_DETECTOR_VIEW_REQUEST.");
+  std::printf("camera_proc refused %lld of %zu hostile detector-view requests (dropped %lld)\n",
+              static_cast<long long>(refusals), requests.size() * kRounds,
+              static_cast<long long>(refused.dropped));
+  EXPECT_GE(refusals + refused.dropped, static_cast<int64_t>(requests.size()) * kRounds)
+      << Describe(refused);
+  EXPECT_GE(refusals, static_cast<int64_t>(requests.size())) << Describe(refused);
+  EXPECT_EQ(Counter(refused, "detector_view_requests"), 0) << Describe(refused);
+  EXPECT_TRUE(Alive(&camera));
 
   // Good hints after the attack are taken.
   process_status_t before;

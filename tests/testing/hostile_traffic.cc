@@ -12,6 +12,8 @@
 #include <random>
 #include <stdexcept>
 
+#include "roomfix/detector_view_request_t.hpp"
+#include "roomfix/detector_view_t.hpp"
 #include "roomfix/image_t.hpp"
 #include "roomfix/marker_pixels_t.hpp"
 #include "roomfix/process_status_t.hpp"
@@ -279,6 +281,51 @@ Bytes CameraPreviewWithNegativeStringLength() {
   // fingerprint 8, utime 8, camera_id 4, frame_seq 8, four int32 sizes: format.
   return PatchInt32(Encode(m), 44, static_cast<int32_t>(m.format.size() + 1),
                     std::numeric_limits<int32_t>::min());
+}
+
+Bytes DetectorViewWithNegativeStringLength() {
+  detector_view_t m{};
+  m.utime = 1;
+  m.width_px = m.height_px = m.source_width_px = m.source_height_px = 2;
+  m.scale = 1;
+  m.format = "png";
+  m.num_bytes = 4;
+  m.data.assign(4, 0);
+  // fingerprint 8, utime 8, camera_id 4, frame_seq 8, nine int32 (sizes,
+  // region, scale) 36: format.
+  return PatchInt32(Encode(m), 64, static_cast<int32_t>(m.format.size() + 1),
+                    std::numeric_limits<int32_t>::min());
+}
+
+std::vector<Bytes> HostileDetectorViewRequests(int64_t utime) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double inf = std::numeric_limits<double>::infinity();
+  constexpr int32_t kMin = std::numeric_limits<int32_t>::min();
+  constexpr int32_t kMax = std::numeric_limits<int32_t>::max();
+  auto request = [&](double rate_hz, double duration_s, int32_t u, int32_t v, int32_t w, int32_t h,
+                     int32_t camera_id) {
+    detector_view_request_t r{};
+    r.utime = utime;
+    r.camera_id = camera_id;
+    r.region_u_px = u;
+    r.region_v_px = v;
+    r.region_width_px = w;
+    r.region_height_px = h;
+    r.rate_hz = rate_hz;
+    r.duration_s = duration_s;
+    return Encode(r);
+  };
+  return {request(nan, 10, 0, 0, 0, 0, -1),
+          request(inf, 10, 0, 0, 0, 0, -1),
+          request(1, nan, 0, 0, 0, 0, -1),
+          request(1, inf, 0, 0, 0, 0, -1),
+          request(1, 3.2e7, 0, 0, 0, 0, -1),
+          request(-1, 10, 0, 0, 0, 0, -1),
+          request(0, 10, 0, 0, 0, 0, -1),
+          request(1, 10, 5000, 5000, 64, 64, -1),
+          request(1, 10, kMin, kMin, kMax, kMax, -1),
+          request(1, 10, 0, 0, kMax, 64, -1),
+          request(1, 10, 0, 0, 0, 0, kMin)};
 }
 
 Bytes RangesClaimingCount(int32_t count) {

@@ -86,10 +86,18 @@ inline constexpr uint32_t kHugeMessageBytes = 64u << 20;
 
 // A string length of INT32_MIN in the first string of a STATUS
 // (process_status_t.process), MARKER_PIXELS (markers[0].colour_class) or
-// CAMERA_PREVIEW (image_t.format) payload; otherwise a valid encoding.
+// CAMERA_PREVIEW (image_t.format) or CAMERA_DETECTOR_VIEW
+// (detector_view_t.format) payload; otherwise a valid encoding.
 Bytes StatusWithNegativeStringLength();
 Bytes MarkerPixelsWithNegativeStringLength();
 Bytes CameraPreviewWithNegativeStringLength();
+Bytes DetectorViewWithNegativeStringLength();
+
+// CAMERA_DETECTOR_VIEW_REQUEST payloads camera_proc must refuse, each for
+// its own reason: NaN and infinite rates and durations, a duration of a
+// year, a negative or zero rate, a region outside any frame, one of
+// INT32_MIN/INT32_MAX sizes, a camera id below -1. `utime` is now.
+std::vector<Bytes> HostileDetectorViewRequests(int64_t utime);
 
 // A 52-byte range_set_t (no ranges) whose num_ranges says `count`.
 Bytes RangesClaimingCount(int32_t count);
