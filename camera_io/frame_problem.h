@@ -1,5 +1,5 @@
-#ifndef ROOMFIX_CAMERA_PROC_FRAME_PROBLEM_H_
-#define ROOMFIX_CAMERA_PROC_FRAME_PROBLEM_H_
+#ifndef ROOMFIX_CAMERA_IO_FRAME_PROBLEM_H_
+#define ROOMFIX_CAMERA_IO_FRAME_PROBLEM_H_
 
 namespace roomfix::camera {
 
@@ -37,4 +37,4 @@ inline const char* FrameProblemCounter(FrameProblem problem) {
 
 }  // namespace roomfix::camera
 
-#endif  // ROOMFIX_CAMERA_PROC_FRAME_PROBLEM_H_
+#endif  // ROOMFIX_CAMERA_IO_FRAME_PROBLEM_H_

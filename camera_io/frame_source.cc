@@ -3,7 +3,7 @@
 // buffers, MJPEG video packets, .jpg files) stays compressed in a FrameImage
 // until the detector decodes the part it needs.
 
-#include "camera_proc/frame_source.h"
+#include "camera_io/frame_source.h"
 
 #include <dirent.h>
 #include <glob.h>
@@ -20,9 +20,9 @@
 #include <thread>
 #include <utility>
 
-#include "camera_proc/image_file.h"
-#include "camera_proc/jpeg_image.h"
-#include "camera_proc/v4l2_properties.h"
+#include "camera_io/image_file.h"
+#include "camera_io/jpeg_image.h"
+#include "camera_io/v4l2_properties.h"
 
 namespace roomfix::camera {
 namespace {

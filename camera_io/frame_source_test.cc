@@ -1,4 +1,4 @@
-#include "camera_proc/frame_source.h"
+#include "camera_io/frame_source.h"
 
 #include <gtest/gtest.h>
 
@@ -12,8 +12,8 @@
 #include <string>
 #include <vector>
 
-#include "camera_proc/jpeg_image.h"
-#include "camera_proc/v4l2_properties.h"
+#include "camera_io/jpeg_image.h"
+#include "camera_io/v4l2_properties.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix::camera {

@@ -1,4 +1,4 @@
-#include "camera_proc/image_file.h"
+#include "camera_io/image_file.h"
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -8,7 +8,7 @@
 #include <cstring>
 #include <opencv2/imgcodecs.hpp>
 
-#include "camera_proc/jpeg_image.h"
+#include "camera_io/jpeg_image.h"
 #include "core/world/file_io.h"
 
 namespace roomfix::camera {

@@ -1,5 +1,5 @@
-#ifndef ROOMFIX_CAMERA_PROC_IMAGE_FILE_H_
-#define ROOMFIX_CAMERA_PROC_IMAGE_FILE_H_
+#ifndef ROOMFIX_CAMERA_IO_IMAGE_FILE_H_
+#define ROOMFIX_CAMERA_IO_IMAGE_FILE_H_
 
 #include <cstddef>
 #include <cstdint>
@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "camera_proc/frame_problem.h"
+#include "camera_io/frame_problem.h"
 
 namespace roomfix::camera {
 
@@ -69,4 +69,4 @@ bool WriteImageChecked(const std::string& path, const cv::Mat& image, std::strin
 
 }  // namespace roomfix::camera
 
-#endif  // ROOMFIX_CAMERA_PROC_IMAGE_FILE_H_
+#endif  // ROOMFIX_CAMERA_IO_IMAGE_FILE_H_

@@ -1,6 +1,6 @@
 // Image files from outside are size-checked from their header before any
 // decoding, and image outputs report a failed write.
-#include "camera_proc/image_file.h"
+#include "camera_io/image_file.h"
 
 #include <gtest/gtest.h>
 #include <sys/resource.h>
@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "camera_proc/frame_source.h"
+#include "camera_io/frame_source.h"
 #include "tests/testing/test_images.h"
 #include "tests/testing/test_paths.h"
 

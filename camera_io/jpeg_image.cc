@@ -9,7 +9,7 @@
 // corrupt entropy data, ...) are errors too: libjpeg-turbo would otherwise pad
 // the missing part with grey, and a grey half-frame must not be searched.
 
-#include "camera_proc/jpeg_image.h"
+#include "camera_io/jpeg_image.h"
 
 #include <jpeglib.h>
 // After jpeglib.h: the message codes (JERR_*, JWRN_*).
@@ -22,7 +22,7 @@
 #include <opencv2/imgproc.hpp>
 #include <utility>
 
-#include "camera_proc/frame_source.h"
+#include "camera_io/frame_image.h"
 
 namespace roomfix::camera {
 namespace {

@@ -1,15 +1,15 @@
-#ifndef ROOMFIX_CAMERA_PROC_JPEG_IMAGE_H_
-#define ROOMFIX_CAMERA_PROC_JPEG_IMAGE_H_
+#ifndef ROOMFIX_CAMERA_IO_JPEG_IMAGE_H_
+#define ROOMFIX_CAMERA_IO_JPEG_IMAGE_H_
 
-// Internal to camera_proc: the libjpeg-turbo decode options behind
-// MakeJpegImage (frame_source.h), exposed so a test can measure them.
+// Internal to camera_io: the libjpeg-turbo decode options behind
+// MakeJpegImage (frame_image.h), exposed so a test can measure them.
 
 #include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
 
-#include "camera_proc/frame_source.h"
+#include "camera_io/frame_image.h"
 
 namespace roomfix::camera {
 
@@ -50,4 +50,4 @@ bool JpegHasEndMarker(const std::vector<uint8_t>& bytes);
 
 }  // namespace roomfix::camera
 
-#endif  // ROOMFIX_CAMERA_PROC_JPEG_IMAGE_H_
+#endif  // ROOMFIX_CAMERA_IO_JPEG_IMAGE_H_

@@ -1,4 +1,4 @@
-#include "camera_proc/v4l2_properties.h"
+#include "camera_io/v4l2_properties.h"
 
 #include <cmath>
 #include <cstdio>

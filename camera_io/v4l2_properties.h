@@ -1,7 +1,7 @@
-#ifndef ROOMFIX_CAMERA_PROC_V4L2_PROPERTIES_H_
-#define ROOMFIX_CAMERA_PROC_V4L2_PROPERTIES_H_
+#ifndef ROOMFIX_CAMERA_IO_V4L2_PROPERTIES_H_
+#define ROOMFIX_CAMERA_IO_V4L2_PROPERTIES_H_
 
-// Internal to camera_proc: applying the site file's camera properties to a
+// Internal to camera_io: applying the site file's camera properties to a
 // capture device and reporting what the device refused or changed. Separated
 // from cv::VideoCapture by a setter/getter pair so it is tested without a
 // camera.
@@ -35,4 +35,4 @@ std::vector<std::string> ApplyCaptureProperties(const std::map<std::string, doub
 
 }  // namespace roomfix::camera
 
-#endif  // ROOMFIX_CAMERA_PROC_V4L2_PROPERTIES_H_
+#endif  // ROOMFIX_CAMERA_IO_V4L2_PROPERTIES_H_

@@ -1,4 +1,4 @@
-#include "camera_proc/video_file.h"
+#include "camera_io/video_file.h"
 
 #include <fcntl.h>
 #include <sys/stat.h>

@@ -1,5 +1,5 @@
-#ifndef ROOMFIX_CAMERA_PROC_VIDEO_FILE_H_
-#define ROOMFIX_CAMERA_PROC_VIDEO_FILE_H_
+#ifndef ROOMFIX_CAMERA_IO_VIDEO_FILE_H_
+#define ROOMFIX_CAMERA_IO_VIDEO_FILE_H_
 
 #include <cstdint>
 #include <memory>
@@ -46,4 +46,4 @@ class CheckedVideoWriter {
 
 }  // namespace roomfix::camera
 
-#endif  // ROOMFIX_CAMERA_PROC_VIDEO_FILE_H_
+#endif  // ROOMFIX_CAMERA_IO_VIDEO_FILE_H_

@@ -14,13 +14,13 @@
 #include <vector>
 
 #include "camera_proc/camera_node.h"
-#include "camera_proc/sim_frame_source.h"
 #include "core/analysis/fix_quality.h"
 #include "core/calib/calibration_file.h"
 #include "core/calib/camera_fit.h"
 #include "core/calib/marker_projection.h"
 #include "core/vision/marker_detector.h"
 #include "roomfix/pose2d_t.hpp"
+#include "sim/sim_frame_source.h"
 #include "sim/synthetic_camera.h"
 #include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"

@@ -1,16 +1,14 @@
-#include "camera_proc/camera_process.h"
+#include "camera_proc/camera_app.h"
 
 #include <gtest/gtest.h>
 
-#include <chrono>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
-#include <thread>
 #include <vector>
 
+#include "camera_io/camera_source.h"
 #include "msgio/process.h"
 #include "roomfix/process_status_t.hpp"
-#include "sim/synthetic_camera.h"
 #include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
@@ -23,7 +21,7 @@ void WriteBytes(const std::string& path, const std::vector<uint8_t>& bytes) {
             static_cast<std::streamsize>(bytes.size()));
 }
 
-class CameraProcessTest : public ::testing::Test {
+class CameraAppTest : public ::testing::Test {
  protected:
   void SetUp() override {
     std::string error;
@@ -33,64 +31,10 @@ class CameraProcessTest : public ::testing::Test {
   Site site_;
 };
 
-TEST_F(CameraProcessTest, ChoosesTheSiteCameraAndItsCalibration) {
-  CameraProcOptions options;
-  CameraChoice choice;
-  std::string error;
-  ASSERT_TRUE(ChooseCamera(site_, options, &choice, &error)) << error;
-  EXPECT_EQ(choice.camera.id, site_.cameras.front().id);
-  EXPECT_EQ(choice.device, "sim:webcam");
-  // The demo site names a calibration file, which is loaded and checked.
-  ASSERT_TRUE(choice.calibration.has_value());
-  EXPECT_EQ(choice.calibration->width_px(), choice.camera.width_px);
-
-  options.calibration_path = "none";
-  options.device = "/dev/video7";
-  ASSERT_TRUE(ChooseCamera(site_, options, &choice, &error)) << error;
-  EXPECT_FALSE(choice.calibration.has_value());
-  EXPECT_EQ(choice.device, "/dev/video7");
-}
-
-TEST_F(CameraProcessTest, RefusesAnUnknownCameraOrAMissingCalibration) {
-  CameraProcOptions options;
-  options.camera_id = 99;
-  CameraChoice choice;
-  std::string error;
-  EXPECT_FALSE(ChooseCamera(site_, options, &choice, &error));
-  EXPECT_EQ(error, "the site has no camera with id 99");
-
-  options.camera_id = site_.cameras.front().id;
-  options.calibration_path = "/nonexistent/calibration.yaml";
-  error.clear();
-  EXPECT_FALSE(ChooseCamera(site_, options, &choice, &error));
-  EXPECT_NE(error.find("/nonexistent/calibration.yaml"), std::string::npos) << error;
-}
-
-TEST_F(CameraProcessTest, ChecksASyntheticSourceWithoutBuildingIt) {
-  CameraProcOptions options;
-  options.calibration_path = "none";
-  CameraChoice choice;
-  std::string error;
-  ASSERT_TRUE(ChooseCamera(site_, options, &choice, &error)) << error;
-  std::unique_ptr<camera::FrameSource> source;
-  std::string summary;
-  ASSERT_TRUE(MakeCameraSource(site_, choice, options, /*start_utime=*/1, /*check_only=*/true,
-                               &source, &summary, &error))
-      << error;
-  EXPECT_EQ(source, nullptr);
-  EXPECT_EQ(summary, "camera " + std::to_string(choice.camera.id) + ", synthetic webcam, " +
-                         std::to_string(choice.camera.robots.size()) + " robots, pixels only");
-
-  choice.device = "sim:no_such_scenario";
-  EXPECT_FALSE(
-      MakeCameraSource(site_, choice, options, 1, /*check_only=*/true, &source, &summary, &error));
-  EXPECT_NE(error.find("no_such_scenario"), std::string::npos) << error;
-}
-
 // A folder of frames, some bad: each good one is processed, each bad one is
 // counted under the kind its source reported (not guessed from its text),
 // and the loop ends at the end of the folder with 0.
-TEST_F(CameraProcessTest, RunsAFolderCountingBadFramesByKind) {
+TEST_F(CameraAppTest, RunsAFolderCountingBadFramesByKind) {
   testing::TempDir dir;
   const Camera& camera = site_.cameras.front();
   std::vector<uint8_t> jpeg;
@@ -106,7 +50,7 @@ TEST_F(CameraProcessTest, RunsAFolderCountingBadFramesByKind) {
   WriteBytes(dir.File("e.png"), {'n', 'o', 't', ' ', 'a', 'n', ' ', 'i', 'm', 'a', 'g', 'e'});
   WriteBytes(dir.File("f.jpg"), jpeg);
 
-  CameraProcOptions options;
+  CameraSourceOptions options;
   options.device = dir.path();
   options.calibration_path = "none";
   CameraChoice choice;
@@ -114,8 +58,7 @@ TEST_F(CameraProcessTest, RunsAFolderCountingBadFramesByKind) {
   ASSERT_TRUE(ChooseCamera(site_, options, &choice, &error)) << error;
   std::unique_ptr<camera::FrameSource> source;
   std::string summary;
-  ASSERT_TRUE(MakeCameraSource(site_, choice, options, 1'700'000'000'000'000, false, &source,
-                               &summary, &error))
+  ASSERT_TRUE(MakeDeviceSource(choice, options, 1'700'000'000'000'000, &source, &summary, &error))
       << error;
   LoopbackBus bus;
   std::vector<process_status_t> statuses;
@@ -136,9 +79,9 @@ TEST_F(CameraProcessTest, RunsAFolderCountingBadFramesByKind) {
   EXPECT_EQ(statuses.back().state, process_status_t::STATE_STOPPING);
 }
 
-TEST_F(CameraProcessTest, AFileSourceThatCannotOpenEndsWithItsReason) {
+TEST_F(CameraAppTest, AFileSourceThatCannotOpenEndsWithItsReason) {
   testing::TempDir dir;
-  CameraProcOptions options;
+  CameraSourceOptions options;
   options.device = dir.path() + "/*.jpg";  // matches nothing
   options.calibration_path = "none";
   CameraChoice choice;
@@ -146,8 +89,7 @@ TEST_F(CameraProcessTest, AFileSourceThatCannotOpenEndsWithItsReason) {
   ASSERT_TRUE(ChooseCamera(site_, options, &choice, &error)) << error;
   std::unique_ptr<camera::FrameSource> source;
   std::string summary;
-  ASSERT_TRUE(MakeCameraSource(site_, choice, options, 1, false, &source, &summary, &error))
-      << error;
+  ASSERT_TRUE(MakeDeviceSource(choice, options, 1, &source, &summary, &error)) << error;
   LoopbackBus bus;
   CameraNode node(site_, site_.cameras.front(), std::nullopt, &bus, CameraNodeOptions{},
                   NowUtime());
@@ -155,105 +97,13 @@ TEST_F(CameraProcessTest, AFileSourceThatCannotOpenEndsWithItsReason) {
   EXPECT_NE(error.find("no image files match"), std::string::npos) << error;
 }
 
-// roomfix_sim's t = 0 is its STATUS time minus its uptime; other processes'
-// heartbeats are not its clock.
-// Issue #32: sim_demo.pmd ran the site's sim:webcam with the site's
-// calibration, which was fitted to the nominal lens; the webcam renders
-// through its own (principal point 6, -4 px off, k1 + 0.03), so every pose
-// on the reference circle was 2.3 cm off. camera_proc now says so before
-// the first frame.
-TEST_F(CameraProcessTest, FindsASyntheticCamerasCalibrationOfAnotherLens) {
-  // The nominal lens's calibration against the webcam's lens over the
-  // floor: 7.2 px of principal point at 3.2 mm/px in the middle, growing
-  // towards the walls where k1 adds: 29.8 mm RMS, 82.6 mm at most (camera_proc --check).
-  constexpr double kNominalRmsAtLeastM = 0.020;
-  // demo_room_webcam.yaml is a fit to the webcam's own images (0.07 mm RMS
-  // over its 35 points) that also absorbs the disc centroid's perspective
-  // bias; over the whole floor, corners it had no points in included,
-  // measured 1.81 mm RMS (2.56 mm at most).
-  constexpr double kWebcamFitRmsWithinM = 0.0025;
-  CameraProcOptions options;
-  CameraChoice choice;
-  std::string error;
-  ASSERT_TRUE(ChooseCamera(site_, options, &choice, &error)) << error;
-  ASSERT_EQ(choice.device, "sim:webcam");
-  const std::string mismatch = SimCalibrationMismatch(site_, choice, options);
-  EXPECT_NE(mismatch.find("demo_room_camera.yaml is not the lens sim:webcam renders through"),
-            std::string::npos)
-      << mismatch;
-
-  sim::SimScenario webcam;
-  ASSERT_TRUE(sim::ParseSimScenario("sim:webcam", site_, &webcam, &error)) << error;
-  const calib::CameraModel truth = sim::TruthLens(
-      calib::NominalCamera(choice.camera.mount_position_m, choice.camera.field_of_view_deg,
-                           choice.camera.width_px, choice.camera.height_px),
-      webcam);
-  const double height_m = choice.camera.robots.front().marker_height_m;
-  const CalibrationError nominal =
-      CalibrationErrorOverRoom(truth, *choice.calibration, site_.room, height_m);
-  std::printf("the site's calibration against the webcam's lens: %.1f mm RMS, %.1f mm max\n",
-              nominal.rms_m * 1e3, nominal.max_m * 1e3);
-  EXPECT_GT(nominal.points, 1000);
-  EXPECT_GT(nominal.rms_m, kNominalRmsAtLeastM);
-
-  options.calibration_path = testing::SourceDir() + "/config/calibration/demo_room_webcam.yaml";
-  ASSERT_TRUE(ChooseCamera(site_, options, &choice, &error)) << error;
-  EXPECT_EQ(SimCalibrationMismatch(site_, choice, options), "");
-  const CalibrationError fitted =
-      CalibrationErrorOverRoom(truth, *choice.calibration, site_.room, height_m);
-  std::printf("demo_room_webcam.yaml against the webcam's lens: %.2f mm RMS, %.2f mm max\n",
-              fitted.rms_m * 1e3, fitted.max_m * 1e3);
-  EXPECT_EQ(fitted.points, nominal.points);
-  EXPECT_LT(fitted.rms_m, kWebcamFitRmsWithinM);
-
-  // The clean scenarios render through the nominal lens, which the site's
-  // calibration was fitted to; a real device is never checked.
-  options.calibration_path.clear();
-  options.device = "sim:reference_circle";
-  ASSERT_TRUE(ChooseCamera(site_, options, &choice, &error)) << error;
-  EXPECT_EQ(SimCalibrationMismatch(site_, choice, options), "");
-  options.device = "/dev/video7";
-  ASSERT_TRUE(ChooseCamera(site_, options, &choice, &error)) << error;
-  EXPECT_EQ(SimCalibrationMismatch(site_, choice, options), "");
-}
-
-TEST(WaitForSimClock, TakesRoomfixSimsStartFromItsHeartbeat) {
-  std::string error;
-  auto bus = OpenBus("memq://", &error);
-  ASSERT_NE(bus, nullptr) << error;
-  process_status_t other{};
-  other.process = "trilat_proc";
-  other.utime = 5'000'000;
-  other.uptime_us = 1'000'000;
-  process_status_t sim{};
-  sim.process = "roomfix_sim";
-  sim.utime = 1'700'000'010'000'000;
-  sim.uptime_us = 10'000'000;
-  // Published once the wait has subscribed, as a heartbeat comes.
-  std::thread heartbeats([&] {
-    std::this_thread::sleep_for(std::chrono::milliseconds(300));
-    bus->Publish(kStatusChannel, other);
-    bus->Publish(kStatusChannel, sim);
-  });
-  const int64_t start_utime = WaitForSimClock(bus.get(), 5.0);
-  heartbeats.join();
-  EXPECT_EQ(start_utime, 1'700'000'000'000'000);
-}
-
-TEST(WaitForSimClock, GivesZeroWhenNoSimulatorIsHeard) {
-  std::string error;
-  auto bus = OpenBus("memq://", &error);
-  ASSERT_NE(bus, nullptr) << error;
-  EXPECT_EQ(WaitForSimClock(bus.get(), 0.2), 0);
-}
-
-TEST(CameraProcOptions, RefusesAQualityOrWaitOutOfRange) {
-  CameraProcOptions options;
+TEST(CameraLoopOptions, RefusesANegativeDurationOrNoReopenWait) {
+  CameraLoopOptions options;
   std::string error;
   EXPECT_TRUE(options.IsValid(&error)) << error;
-  options.sim_jpeg_quality = 101;
+  options.duration_s = -1.0;
   EXPECT_FALSE(options.IsValid(&error));
-  options = CameraProcOptions{};
+  options = CameraLoopOptions{};
   options.reopen_max_s = 0.0;
   EXPECT_FALSE(options.IsValid(&error));
   EXPECT_NE(error.find("reopen"), std::string::npos) << error;

@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "camera_proc/frame_source.h"
+#include "camera_io/frame_source.h"
 #include "core/calib/calibration_file.h"
 #include "core/calib/camera_timing.h"
 #include "core/vision/marker_detector.h"

@@ -12,13 +12,13 @@
 #include <utility>
 #include <vector>
 
-#include "camera_proc/sim_frame_source.h"
 #include "core/calib/camera_timing.h"
 #include "roomfix/detector_view_request_t.hpp"
 #include "roomfix/detector_view_t.hpp"
 #include "roomfix/image_t.hpp"
 #include "roomfix/marker_pixels_t.hpp"
 #include "roomfix/pose2d_t.hpp"
+#include "sim/sim_frame_source.h"
 #include "sim/synthetic_camera.h"
 #include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"

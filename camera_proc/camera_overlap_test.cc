@@ -14,11 +14,11 @@
 #include <vector>
 
 #include "camera_proc/camera_node.h"
-#include "camera_proc/sim_frame_source.h"
 #include "core/calib/calibration_file.h"
 #include "core/world/site.h"
 #include "core/world/trajectory.h"
 #include "roomfix/pose2d_t.hpp"
+#include "sim/sim_frame_source.h"
 #include "sim/synthetic_camera.h"
 #include "tests/testing/test_paths.h"
 

@@ -1,24 +1,39 @@
 // camera_proc: ceiling camera frames to marker pixels (MARKER_PIXELS) and,
-// with a calibration, camera poses (POSE_CAMERA). Flags here; the process's
-// logic is in camera_process.h and the node in camera_node.h.
+// with a calibration, camera poses (POSE_CAMERA). Flags here; the camera and
+// its source in camera_io/camera_source.h (the synthetic camera's in
+// sim/sim_camera_source.h, linked here only), the read loop in camera_app.h
+// and the node in camera_node.h.
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
 #include <iostream>
 
+#include "camera_io/camera_source.h"
+#include "camera_proc/camera_app.h"
 #include "camera_proc/camera_node.h"
-#include "camera_proc/camera_process.h"
 #include "msgio/process.h"
+#include "sim/sim_camera_source.h"
 
 namespace {
 
-void AddFlags(CLI::App* app, roomfix::CameraProcOptions* run, roomfix::CameraNodeOptions* node,
+// What camera_proc's flags choose besides CameraNodeOptions.
+struct RunOptions {
+  roomfix::CameraSourceOptions source;
+  roomfix::SimCameraOptions sim;
+  roomfix::CameraLoopOptions loop;
+  // t = 0 of the simulation, or the first file frame's time; 0: roomfix_sim's
+  // clock (sim, see WaitForSimClock) or now.
+  int64_t start_utime = 0;
+};
+
+void AddFlags(CLI::App* app, RunOptions* run, roomfix::CameraNodeOptions* node,
               std::string* lighting) {
-  app->add_option("--camera", run->camera_id, "Camera id in the site file (default: the first)");
-  app->add_option("--device", run->device,
+  app->add_option("--camera", run->source.camera_id,
+                  "Camera id in the site file (default: the first)");
+  app->add_option("--device", run->source.device,
                   "Override the site's device: /dev/videoN, a video file, an image folder or "
                   "glob, or sim:SCENARIO (clean, lighting, distractors, harsh, webcam)");
-  app->add_option("--calibration", run->calibration_path,
+  app->add_option("--calibration", run->source.calibration_path,
                   "Calibration YAML (default: the site camera's calibration; none: pixels only)");
   app->add_option("--lighting", *lighting,
                   "Colour classification: fixed (the site's ranges, as the reference), normalised "
@@ -44,41 +59,39 @@ void AddFlags(CLI::App* app, roomfix::CameraProcOptions* run, roomfix::CameraNod
   app->add_option("--start-utime", run->start_utime,
                   "Simulation and file clock: t = 0 of the simulated robots (give roomfix_sim "
                   "the same), or the first file frame's time; default now");
-  app->add_option("--sim-wait", run->sim_wait_s,
+  app->add_option("--sim-wait", run->sim.wait_s,
                   "sim: without --start-utime, wait this long for roomfix_sim's heartbeat to "
                   "share its clock")
       ->capture_default_str();
-  app->add_flag("--realtime", run->realtime,
+  app->add_flag("--realtime", run->source.realtime,
                 "Files: play at the camera's frame rate instead of as fast as they are read");
-  app->add_flag("--loop", run->loop_files, "Files: start again at the end");
-  app->add_option("--sim-jpeg-quality", run->sim_jpeg_quality,
+  app->add_flag("--loop", run->source.loop_files, "Files: start again at the end");
+  app->add_option("--sim-jpeg-quality", run->sim.jpeg_quality,
                   "sim: hand frames over as JPEG of this quality, as a webcam's MJPEG (0: raw)")
       ->capture_default_str()
       ->check(CLI::Range(0, 100));
-  app->add_option("--sim-lens", run->sim_lens_path,
+  app->add_option("--sim-lens", run->sim.lens_path,
                   "sim: render through this calibration file's full model (default: the "
                   "nominal lens of the site's mount position and field of view)");
-  app->add_option("--reopen-max", run->reopen_max_s,
+  app->add_option("--reopen-max", run->loop.reopen_max_s,
                   "Longest wait between attempts to reopen a lost camera, s")
       ->capture_default_str();
-  app->add_option("--fps", run->fps,
+  app->add_option("--fps", run->source.fps,
                   "Frame rate to request (a device) or render (sim:), at most the site camera's "
                   "(default: the site's)")
       ->check(CLI::PositiveNumber);
-  app->add_option("--duration", run->duration_s, "Stop after this many seconds (0: until a signal)")
+  app->add_option("--duration", run->loop.duration_s,
+                  "Stop after this many seconds (0: until a signal)")
       ->capture_default_str();
 }
 
-int Fail(const std::string& error) {
-  std::cerr << "camera_proc: " << error << "\n";
-  return 1;
-}
+constexpr char kProcessName[] = "camera_proc";
 
 }  // namespace
 
 int main(int argc, char** argv) {
   roomfix::ProcessOptions process;
-  roomfix::CameraProcOptions run;
+  RunOptions run;
   roomfix::CameraNodeOptions options;
   std::string lighting = "adaptive";
   CLI::App app{
@@ -91,23 +104,27 @@ int main(int argc, char** argv) {
                      : lighting == "normalised" ? roomfix::vision::LightingMode::kNormalised
                                                 : roomfix::vision::LightingMode::kAdaptive;
   std::string error;
-  if (!options.IsValid(&error) || !run.IsValid(&error)) return Fail(error);
+  if (!options.IsValid(&error) || !run.source.IsValid(&error) || !run.sim.IsValid(&error) ||
+      !run.loop.IsValid(&error)) {
+    return roomfix::PrintFailure(kProcessName, error);
+  }
   auto ctx = roomfix::StartProcess("camera_proc", process, &error);
-  if (ctx == nullptr) return Fail(error);
+  if (ctx == nullptr) return roomfix::PrintFailure(kProcessName, error);
   roomfix::CameraChoice choice;
-  if (!roomfix::ChooseCamera(ctx->site, run, &choice, &error)) return Fail(error);
-  const std::string mismatch = roomfix::SimCalibrationMismatch(ctx->site, choice, run);
+  if (!roomfix::ChooseCamera(ctx->site, run.source, &choice, &error))
+    return roomfix::PrintFailure(kProcessName, error);
+  const std::string mismatch = roomfix::SimCalibrationMismatch(ctx->site, choice, run.sim);
   if (!mismatch.empty()) spdlog::warn("{}", mismatch);
   int64_t start_utime = run.start_utime;
   if (start_utime == 0 && roomfix::IsSimDevice(choice.device) && !process.check) {
-    start_utime = roomfix::WaitForSimClock(ctx->bus.get(), run.sim_wait_s);
+    start_utime = roomfix::WaitForSimClock(ctx->bus.get(), run.sim.wait_s);
   }
   if (start_utime == 0) start_utime = roomfix::NowUtime();
   std::unique_ptr<roomfix::camera::FrameSource> source;
   std::string summary;
-  if (!roomfix::MakeCameraSource(ctx->site, choice, run, start_utime, process.check, &source,
-                                 &summary, &error)) {
-    return Fail(error);
+  if (!roomfix::MakeCameraSource(ctx->site, choice, run.source, run.sim, start_utime, process.check,
+                                 &source, &summary, &error)) {
+    return roomfix::PrintFailure(kProcessName, error);
   }
   if (process.check) {
     std::cout << "camera_proc: ok: " << summary << ", on " << process.lcm_url << "\n";
@@ -116,20 +133,17 @@ int main(int argc, char** argv) {
   // A device that defines its own timing (a synthetic scenario) overrides
   // the site camera's readout, exposure and latency (CameraNodeOptions).
   options.device_timing = source->device_timing();
-  if (!options.IsValid(&error)) return Fail(error);
+  if (!options.IsValid(&error)) return roomfix::PrintFailure(kProcessName, error);
   roomfix::CameraNode node(ctx->site, choice.camera, choice.calibration, ctx->bus.get(), options,
                            roomfix::NowUtime());
-  if (!node.ok(&error)) return Fail(error);
+  if (!node.ok(&error)) return roomfix::PrintFailure(kProcessName, error);
   if (!mismatch.empty()) {
     node.OnSetupProblem("calibration_not_of_sim_lens", mismatch, roomfix::NowUtime());
   }
   if (!choice.calibration) {
     spdlog::warn("no calibration for camera {}: publishing MARKER_PIXELS only", choice.camera.id);
   }
-  roomfix::CameraLoopOptions loop;
-  loop.duration_s = run.duration_s;
-  loop.reopen_max_s = run.reopen_max_s;
-  const int rc = roomfix::RunCameraSource(source.get(), &node, ctx->bus.get(), loop, &error);
-  if (rc != 0 && !error.empty()) std::cerr << "camera_proc: " << error << "\n";
+  const int rc = roomfix::RunCameraSource(source.get(), &node, ctx->bus.get(), run.loop, &error);
+  if (rc != 0 && !error.empty()) roomfix::PrintFailure(kProcessName, error);
   return rc;
 }

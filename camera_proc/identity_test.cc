@@ -23,13 +23,13 @@
 #include <string>
 #include <vector>
 
+#include "camera_io/frame_source.h"
 #include "camera_proc/camera_node.h"
-#include "camera_proc/frame_source.h"
-#include "camera_proc/sim_frame_source.h"
 #include "core/vision/colour_learning.h"
 #include "msgio/message_conversions.h"
 #include "roomfix/marker_pixels_t.hpp"
 #include "roomfix/pose2d_t.hpp"
+#include "sim/sim_frame_source.h"
 #include "sim/synthetic_camera.h"
 #include "tests/testing/test_paths.h"
 

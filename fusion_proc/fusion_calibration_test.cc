@@ -11,9 +11,9 @@
 
 #include "core/analysis/fix_quality.h"
 #include "core/fusion/pose_filter.h"
-#include "core/fusion/synthetic_streams.h"
 #include "core/world/trajectory.h"
 #include "msgio/pose_tracks.h"
+#include "tests/testing/synthetic_streams.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {

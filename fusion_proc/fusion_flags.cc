@@ -1,4 +1,4 @@
-#include "fusion/fusion_flags.h"
+#include "fusion_proc/fusion_flags.h"
 
 namespace roomfix {
 

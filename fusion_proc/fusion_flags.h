@@ -1,10 +1,10 @@
-#ifndef ROOMFIX_FUSION_FUSION_FLAGS_H_
-#define ROOMFIX_FUSION_FUSION_FLAGS_H_
+#ifndef ROOMFIX_FUSION_PROC_FUSION_FLAGS_H_
+#define ROOMFIX_FUSION_PROC_FUSION_FLAGS_H_
 
 #include <CLI/CLI.hpp>
 #include <string>
 
-#include "fusion/fusion_node.h"
+#include "fusion_proc/fusion_node.h"
 
 namespace roomfix {
 
@@ -17,4 +17,4 @@ void AddFusionFlags(CLI::App* app, const std::string& prefix, FusionNodeOptions*
 
 }  // namespace roomfix
 
-#endif  // ROOMFIX_FUSION_FUSION_FLAGS_H_
+#endif  // ROOMFIX_FUSION_PROC_FUSION_FLAGS_H_

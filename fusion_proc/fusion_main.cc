@@ -5,8 +5,8 @@
 #include <CLI/CLI.hpp>
 #include <iostream>
 
-#include "fusion/fusion_flags.h"
-#include "fusion/fusion_node.h"
+#include "fusion_proc/fusion_flags.h"
+#include "fusion_proc/fusion_node.h"
 #include "msgio/process.h"
 
 int main(int argc, char** argv) {
@@ -21,15 +21,9 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
 
   std::string error;
-  if (!options.IsValid(&error)) {
-    std::cerr << "fusion_proc: " << error << "\n";
-    return 1;
-  }
+  if (!options.IsValid(&error)) return roomfix::PrintFailure("fusion_proc", error);
   auto ctx = roomfix::StartProcess("fusion_proc", process, &error);
-  if (ctx == nullptr) {
-    std::cerr << "fusion_proc: " << error << "\n";
-    return 1;
-  }
+  if (ctx == nullptr) return roomfix::PrintFailure("fusion_proc", error);
   if (process.check) {
     std::cout << "fusion_proc: ok: " << options.camera_channel << " + "
               << options.ultrasound_channel << " -> " << options.fused_channel << ", q_accel "

@@ -1,4 +1,4 @@
-#include "fusion/fusion_node.h"
+#include "fusion_proc/fusion_node.h"
 
 #include <algorithm>
 #include <cmath>

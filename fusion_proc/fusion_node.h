@@ -1,5 +1,5 @@
-#ifndef ROOMFIX_FUSION_FUSION_NODE_H_
-#define ROOMFIX_FUSION_FUSION_NODE_H_
+#ifndef ROOMFIX_FUSION_PROC_FUSION_NODE_H_
+#define ROOMFIX_FUSION_PROC_FUSION_NODE_H_
 
 #include <array>
 #include <cstdint>
@@ -111,4 +111,4 @@ class FusionNode {
 
 }  // namespace roomfix
 
-#endif  // ROOMFIX_FUSION_FUSION_NODE_H_
+#endif  // ROOMFIX_FUSION_PROC_FUSION_NODE_H_

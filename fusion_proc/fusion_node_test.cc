@@ -1,4 +1,4 @@
-#include "fusion/fusion_node.h"
+#include "fusion_proc/fusion_node.h"
 
 #include <gtest/gtest.h>
 
@@ -12,11 +12,11 @@
 #include <string>
 #include <vector>
 
-#include "core/fusion/synthetic_streams.h"
 #include "core/world/site.h"
 #include "core/world/trajectory.h"
 #include "msgio/time_limits.h"
 #include "roomfix/pose2d_t.hpp"
+#include "tests/testing/synthetic_streams.h"
 
 namespace roomfix {
 namespace {

@@ -42,15 +42,9 @@ int main(int argc, char** argv) {
   options.max_queue_bytes = static_cast<int64_t>(queue_mb * (1 << 20));
 
   std::string error;
-  if (!options.IsValid(&error)) {
-    std::cerr << "roomfix_logger: " << error << "\n";
-    return 1;
-  }
+  if (!options.IsValid(&error)) return roomfix::PrintFailure("roomfix_logger", error);
   auto ctx = roomfix::StartProcess("roomfix_logger", process, &error);
-  if (ctx == nullptr) {
-    std::cerr << "roomfix_logger: " << error << "\n";
-    return 1;
-  }
+  if (ctx == nullptr) return roomfix::PrintFailure("roomfix_logger", error);
   if (process.check) {
     const std::string now_name = roomfix::ExpandLogPath(options.path, roomfix::NowUtime());
     std::cout << "roomfix_logger: ok: channels '" << options.channel_regex << "' into "
@@ -59,10 +53,7 @@ int main(int argc, char** argv) {
     return 0;
   }
   auto node = roomfix::LoggerNode::Create(ctx->bus.get(), options, roomfix::NowUtime(), &error);
-  if (node == nullptr) {
-    std::cerr << "roomfix_logger: " << error << "\n";
-    return 1;
-  }
+  if (node == nullptr) return roomfix::PrintFailure("roomfix_logger", error);
   spdlog::info("recording '{}' into {}", options.channel_regex, node->files().front());
   const int rc = roomfix::RunLoop(ctx->bus.get(), [&](int64_t now) { node->Tick(now); }, {});
   node->Stop(roomfix::NowUtime());

@@ -7,9 +7,9 @@
 #include <stdexcept>
 #include <vector>
 
-#include "msgio/test_messages.h"
-#include "msgio/wire_test_messages.h"
 #include "roomfix/process_status_t.hpp"
+#include "tests/testing/test_messages.h"
+#include "tests/testing/wire_test_messages.h"
 
 namespace roomfix {
 namespace {

@@ -11,8 +11,8 @@
 #include <lcm/lcm-cpp.hpp>
 
 #include "msgio/bus.h"
-#include "msgio/test_messages.h"
 #include "tests/testing/raw_log_event.h"
+#include "tests/testing/test_messages.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {

@@ -6,7 +6,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "msgio/wire_test_messages.h"
+#include "tests/testing/wire_test_messages.h"
 
 namespace roomfix {
 namespace {

@@ -6,14 +6,14 @@
 #include <limits>
 #include <nlohmann/json.hpp>
 
-#include "msgio/test_messages.h"
-#include "msgio/wire_test_messages.h"
 #include "roomfix/image_t.hpp"
 #include "roomfix/marker_pixels_t.hpp"
 #include "roomfix/pose2d_t.hpp"
 #include "roomfix/process_status_t.hpp"
 #include "roomfix/range_set_t.hpp"
 #include "roomfix/site_t.hpp"
+#include "tests/testing/test_messages.h"
+#include "tests/testing/wire_test_messages.h"
 
 namespace roomfix {
 namespace {

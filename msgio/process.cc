@@ -16,6 +16,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <iostream>
 #include <utility>
 
 #include "msgio/log.h"
@@ -385,6 +386,11 @@ std::unique_ptr<ProcessContext> StartProcess(const std::string& name, const Proc
   // of this site and newcomers decide when the site is sent again.
   if (ProcessSite() != nullptr) FollowSitePeers(ctx->bus.get());
   return ctx;
+}
+
+int PrintFailure(const std::string& process_name, const std::string& error) {
+  std::cerr << process_name << ": " << error << "\n";
+  return 1;
 }
 
 }  // namespace roomfix

@@ -187,6 +187,10 @@ bool LogColorWanted(const std::string& mode, bool stderr_is_tty, const char* no_
 bool SetUpLogging(const std::string& process_name, const std::string& level,
                   const std::string& color = "auto");
 
+// The one clear line of a process that cannot start or run on:
+// "PROCESS: ERROR" on stderr. Returns 1, the exit code a main returns then.
+int PrintFailure(const std::string& process_name, const std::string& error);
+
 }  // namespace roomfix
 
 #endif  // ROOMFIX_MSGIO_PROCESS_H_

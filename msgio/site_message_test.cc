@@ -11,10 +11,10 @@
 #include "msgio/log.h"
 #include "msgio/process.h"
 #include "msgio/wire_check.h"
-#include "msgio/wire_test_messages.h"
 #include "tests/testing/demo_site.h"
 #include "tests/testing/forged_site.h"
 #include "tests/testing/test_paths.h"
+#include "tests/testing/wire_test_messages.h"
 
 namespace roomfix {
 namespace {

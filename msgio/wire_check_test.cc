@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "msgio/install_paths.h"
-#include "msgio/wire_test_messages.h"
+#include "tests/testing/wire_test_messages.h"
 
 namespace roomfix {
 namespace {

@@ -41,8 +41,8 @@ constexpr std::array<FaultFlag, 9> kFaultFlags = {{
      "Probability per frame of random bytes before it"},
 }};
 
-// The flags as given, before they are mapped onto SimAppOptions.
-struct SimFlags {
+// The options as the flags give them, before they are mapped onto SimAppOptions.
+struct SimMainOptions {
   roomfix::SimAppOptions sim;
   std::string schedule = "tdma";
   double clock_ppm = 50.0;
@@ -55,7 +55,7 @@ struct SimFlags {
   int bench_seeds = 10;
 };
 
-void AddRangeFlags(CLI::App* app, SimFlags* f) {
+void AddRangeFlags(CLI::App* app, SimMainOptions* f) {
   roomfix::SimAppOptions& s = f->sim;
   app->add_option("--rate-hz", s.ground_truth.rate_hz, "Ground-truth samples per second")
       ->capture_default_str();
@@ -80,7 +80,7 @@ void AddRangeFlags(CLI::App* app, SimFlags* f) {
                   "camera_proc's synthetic camera the same so both see the robot in one place");
 }
 
-void AddRadioFlags(CLI::App* app, SimFlags* f) {
+void AddRadioFlags(CLI::App* app, SimMainOptions* f) {
   roomfix::SimAppOptions& s = f->sim;
   auto* radio = app->add_option_group("Virtual wall devices (--radio-pty)");
   radio->add_flag("--radio-pty", s.radio_pty,
@@ -128,7 +128,7 @@ void AddRadioFlags(CLI::App* app, SimFlags* f) {
       ->capture_default_str();
 }
 
-void AddAirFlags(CLI::App* app, SimFlags* f) {
+void AddAirFlags(CLI::App* app, SimMainOptions* f) {
   auto* air = app->add_option_group("The beacons' shared air (both range paths)");
   air->add_option("--schedule", f->schedule,
                   "tdma (the site's firing table, docs/radio_protocol.md) or free (each beacon "
@@ -149,7 +149,7 @@ void AddAirFlags(CLI::App* app, SimFlags* f) {
 
 // Maps the parsed flags onto both range paths' options: the air flags serve
 // both, the fault preset comes first and the flags given beside it win.
-void ApplyFlags(const CLI::App& app, SimFlags* f) {
+void ApplyFlags(const CLI::App& app, SimMainOptions* f) {
   roomfix::SimRangesNodeOptions& ranges = f->sim.ranges;
   roomfix::WallDevicesOptions& wall = f->sim.wall;
   const auto mode = f->schedule == "tdma" ? roomfix::FiringPlanOptions::Mode::kTdma
@@ -188,16 +188,13 @@ void ApplyFlags(const CLI::App& app, SimFlags* f) {
   wall.seed = ranges.seed;
 }
 
-int Fail(const std::string& error) {
-  std::cerr << "roomfix_sim: " << error << "\n";
-  return 1;
-}
+constexpr char kProcessName[] = "roomfix_sim";
 
 }  // namespace
 
 int main(int argc, char** argv) {
   roomfix::ProcessOptions process;
-  SimFlags flags;
+  SimMainOptions flags;
   CLI::App app{"roomfix_sim: publishes simulated robots' true poses on POSE_GROUND_TRUTH"};
   roomfix::AddProcessFlags(&app, &process, /*config_required=*/true);
   AddRangeFlags(&app, &flags);
@@ -206,7 +203,7 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   ApplyFlags(app, &flags);
   std::string error;
-  if (!flags.sim.IsValid(&error)) return Fail(error);
+  if (!flags.sim.IsValid(&error)) return roomfix::PrintFailure(kProcessName, error);
   if (flags.air_bench) {
     roomfix::SharedAirOptions air;
     air.rate_hz = flags.sim.ranges.rate_hz;
@@ -214,11 +211,11 @@ int main(int argc, char** argv) {
     const double run_s = flags.sim.duration_s > 0.0 ? flags.sim.duration_s : 60.0;
     return roomfix::RunAirBench(process.config_path, air, run_s, flags.bench_seeds, &error) == 0
                ? 0
-               : Fail(error);
+               : roomfix::PrintFailure(kProcessName, error);
   }
   auto ctx = roomfix::StartProcess("roomfix_sim", process, &error);
-  if (ctx == nullptr) return Fail(error);
+  if (ctx == nullptr) return roomfix::PrintFailure(kProcessName, error);
   const int rc = roomfix::RunSimulator(ctx.get(), flags.sim, &error);
-  if (rc != 0 && !error.empty()) Fail(error);
+  if (rc != 0 && !error.empty()) roomfix::PrintFailure(kProcessName, error);
   return rc;
 }

@@ -1,4 +1,4 @@
-#include "camera_proc/sim_frame_source.h"
+#include "sim/sim_frame_source.h"
 
 #include <algorithm>
 #include <chrono>

@@ -1,5 +1,5 @@
-#ifndef ROOMFIX_CAMERA_PROC_SIM_FRAME_SOURCE_H_
-#define ROOMFIX_CAMERA_PROC_SIM_FRAME_SOURCE_H_
+#ifndef ROOMFIX_SIM_SIM_FRAME_SOURCE_H_
+#define ROOMFIX_SIM_SIM_FRAME_SOURCE_H_
 
 #include <condition_variable>
 #include <cstdint>
@@ -11,7 +11,7 @@
 #include <thread>
 #include <vector>
 
-#include "camera_proc/frame_source.h"
+#include "camera_io/frame_source.h"
 #include "core/calib/camera_timing.h"
 #include "sim/synthetic_camera.h"
 
@@ -126,4 +126,4 @@ class SimFrameSource final : public FrameSource {
 
 }  // namespace roomfix::camera
 
-#endif  // ROOMFIX_CAMERA_PROC_SIM_FRAME_SOURCE_H_
+#endif  // ROOMFIX_SIM_SIM_FRAME_SOURCE_H_

@@ -15,7 +15,7 @@
 #include <sstream>
 #include <utility>
 
-#include "camera_proc/video_file.h"
+#include "camera_io/video_file.h"
 #include "core/world/file_io.h"
 
 namespace roomfix::sim {

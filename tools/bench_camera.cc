@@ -16,8 +16,8 @@
 #include <random>
 #include <vector>
 
+#include "camera_io/frame_source.h"
 #include "camera_proc/camera_node.h"
-#include "camera_proc/frame_source.h"
 #include "core/analysis/fix_quality.h"
 #include "core/analysis/track_error.h"
 #include "core/vision/marker_detector.h"

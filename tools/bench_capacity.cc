@@ -37,7 +37,7 @@
 #include "core/analysis/track_error.h"
 #include "core/world/site.h"
 #include "core/world/ultrasound_model.h"
-#include "fusion/fusion_node.h"
+#include "fusion_proc/fusion_node.h"
 #include "msgio/bus.h"
 #include "msgio/install_paths.h"
 #include "msgio/log.h"

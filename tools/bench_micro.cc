@@ -16,8 +16,8 @@
 #include <string>
 #include <vector>
 
-#include "camera_proc/frame_source.h"
-#include "camera_proc/jpeg_image.h"
+#include "camera_io/frame_source.h"
+#include "camera_io/jpeg_image.h"
 #include "core/vision/marker_detector.h"
 #include "msgio/install_paths.h"
 #include "sim/synthetic_camera.h"

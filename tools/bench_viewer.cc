@@ -15,7 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "camera_proc/image_file.h"
+#include "camera_io/image_file.h"
 #include "core/analysis/track_error.h"
 #include "tools/commands.h"
 #include "viewer/render.h"

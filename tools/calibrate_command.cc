@@ -24,7 +24,7 @@
 #include <string>
 #include <vector>
 
-#include "camera_proc/image_file.h"
+#include "camera_io/image_file.h"
 #include "core/calib/calibration_file.h"
 #include "core/calib/camera_fit.h"
 #include "core/calib/camera_start.h"
@@ -253,7 +253,7 @@ bool ParseBoardAxes(const std::string& text, BoardAxes* out) {
 }
 
 // An image from outside: a regular file, its size checked from its header
-// before decoding (camera/image_file.h), OpenCV's exceptions caught.
+// before decoding (camera_io/image_file.h), OpenCV's exceptions caught.
 cv::Mat ReadImage(const std::string& path, int flags) {
   cv::Mat image;
   std::string error;

@@ -9,7 +9,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
-#include "camera_proc/image_file.h"
+#include "camera_io/image_file.h"
 #include "core/calib/marker_projection.h"
 #include "core/vision/marker_detector.h"
 #include "core/world/file_io.h"

@@ -16,7 +16,7 @@
 #include <string>
 #include <vector>
 
-#include "camera_proc/image_file.h"
+#include "camera_io/image_file.h"
 #include "core/calib/calibration_file.h"
 #include "core/calib/fisheye_camera.h"
 #include "core/vision/colour_learning.h"

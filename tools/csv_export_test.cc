@@ -14,10 +14,10 @@
 #include <sstream>
 
 #include "msgio/log.h"
-#include "msgio/test_messages.h"
-#include "msgio/wire_test_messages.h"
 #include "tests/testing/raw_log_event.h"
+#include "tests/testing/test_messages.h"
 #include "tests/testing/test_paths.h"
+#include "tests/testing/wire_test_messages.h"
 
 namespace roomfix {
 namespace {

@@ -11,8 +11,8 @@
 #include <string>
 #include <vector>
 
+#include "camera_io/image_file.h"
 #include "camera_proc/camera_node.h"
-#include "camera_proc/image_file.h"
 #include "core/calib/calibration_file.h"
 #include "core/vision/detector_view.h"
 #include "core/world/site.h"

@@ -1,5 +1,5 @@
 // roomfix grab: test frames from a site camera's own stream, opened as
-// camera_proc opens it (camera_proc/camera_process.h MakeCameraSource: the
+// camera_proc opens it (sim/sim_camera_source.h MakeCameraSource: the
 // device with the site's size, format, rate and properties), so that
 // calibration and colour frames are the pixels camera_proc will see.
 #include <CLI/CLI.hpp>
@@ -19,12 +19,13 @@
 #include <thread>
 #include <vector>
 
-#include "camera_proc/camera_process.h"
-#include "camera_proc/frame_source.h"
-#include "camera_proc/image_file.h"
+#include "camera_io/camera_source.h"
+#include "camera_io/frame_source.h"
+#include "camera_io/image_file.h"
 #include "core/world/file_io.h"
 #include "core/world/site.h"
 #include "msgio/process.h"
+#include "sim/sim_camera_source.h"
 #include "tools/commands.h"
 #include "tools/flag_checks.h"
 
@@ -371,7 +372,8 @@ int RunGrab(const GrabFlags& f) {
     std::cerr << kName << error << "\n";
     return 1;
   }
-  CameraProcOptions options;
+  CameraSourceOptions options;
+  SimCameraOptions sim_options;
   options.camera_id = f.camera_id.value_or(-1);
   // Frames are grabbed to make or check a calibration: the site's file may
   // not exist yet, and grab does not use it.
@@ -385,7 +387,7 @@ int RunGrab(const GrabFlags& f) {
   }
   if (!f.tripod.empty()) {
     // On the synthetic camera the simulator stands the tripod there.
-    options.sim_parked_robots.push_back({tripod.robot->robot_id, tripod.x_m, tripod.y_m, 0.0});
+    sim_options.parked_robots.push_back({tripod.robot->robot_id, tripod.x_m, tripod.y_m, 0.0});
   }
   if (!PrepareOutDir(f.out, &error)) {
     std::cerr << kName << error << "\n";
@@ -396,7 +398,8 @@ int RunGrab(const GrabFlags& f) {
                                 .count();
   std::unique_ptr<camera::FrameSource> source;
   std::string summary;
-  if (!MakeCameraSource(site, choice, options, now_utime, false, &source, &summary, &error) ||
+  if (!MakeCameraSource(site, choice, options, sim_options, now_utime, false, &source, &summary,
+                        &error) ||
       !source->Open(&error)) {
     std::cerr << kName << "camera " << choice.camera.id << ": " << error << "\n";
     return 1;

@@ -15,7 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "camera_proc/image_file.h"
+#include "camera_io/image_file.h"
 #include "core/calib/calibration_file.h"
 #include "core/world/file_io.h"
 #include "core/world/site.h"

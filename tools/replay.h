@@ -11,7 +11,7 @@
 #include "camera_proc/camera_node.h"
 #include "core/calib/calibration_file.h"
 #include "core/world/site.h"
-#include "fusion/fusion_node.h"
+#include "fusion_proc/fusion_node.h"
 #include "msgio/log.h"
 #include "msgio/site_message.h"
 #include "roomfix/process_status_t.hpp"

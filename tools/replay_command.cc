@@ -11,10 +11,10 @@
 #include <string>
 
 #include "core/world/site.h"
-#include "fusion/fusion_flags.h"
+#include "fusion_proc/fusion_flags.h"
 #include "tools/commands.h"
 #include "tools/replay.h"
-#include "trilat_proc/trilat_flags.h"
+#include "trilat_proc/trilat_options.h"
 
 namespace roomfix {
 namespace {
@@ -31,7 +31,7 @@ struct ReplayCommandArgs {
   // fusion_proc's prefixed with "fusion-" (both have --forget-after).
   // --method defaults to robust, which every shipped configuration runs.
   TrilatNodeOptions trilat_options;
-  TrilatFlags trilat_flags{"robust"};
+  TrilatOptions trilat_flags{"robust"};
   FusionNodeOptions fusion_options;
   bool force = false;
   bool json = false;

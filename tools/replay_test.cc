@@ -237,7 +237,7 @@ PipelineReplayOptions CameraOptions() {
   options.camera = true;
   // The log was recorded with camera_proc on the pinned device
   // sim:reference_circle (scripts/record_test_logs.sh), whose own timing (a
-  // global shutter stamped exactly, camera_proc/sim_frame_source.h's
+  // global shutter stamped exactly, sim/sim_frame_source.h's
   // ScenarioTiming) overrode the demo site camera's webcam figures; the
   // replayed node must use the same.
   calib::CameraTiming clean;

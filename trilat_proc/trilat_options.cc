@@ -1,9 +1,9 @@
-#include "trilat_proc/trilat_flags.h"
+#include "trilat_proc/trilat_options.h"
 
 namespace roomfix {
 
 void AddTrilatFlags(CLI::App* app, const std::string& prefix, TrilatNodeOptions* options,
-                    TrilatFlags* flags) {
+                    TrilatOptions* flags) {
   const auto name = [&](const std::string& flag) { return "--" + prefix + flag; };
   app->add_option(name("method"), flags->method,
                   "nelder-mead (the reference), default, robust (consensus), or cauchy "
@@ -46,7 +46,7 @@ void AddTrilatFlags(CLI::App* app, const std::string& prefix, TrilatNodeOptions*
       ->capture_default_str();
 }
 
-bool ApplyTrilatFlags(const TrilatFlags& flags, TrilatNodeOptions* options, std::string* error) {
+bool ApplyTrilatFlags(const TrilatOptions& flags, TrilatNodeOptions* options, std::string* error) {
   if (!trilat::ParseMethod(flags.method, &options->solver.method)) {
     *error = "unknown method '" + flags.method + "'";
     return false;

@@ -1,5 +1,5 @@
-#ifndef ROOMFIX_TRILAT_PROC_TRILAT_FLAGS_H_
-#define ROOMFIX_TRILAT_PROC_TRILAT_FLAGS_H_
+#ifndef ROOMFIX_TRILAT_PROC_TRILAT_OPTIONS_H_
+#define ROOMFIX_TRILAT_PROC_TRILAT_OPTIONS_H_
 
 #include <CLI/CLI.hpp>
 #include <string>
@@ -11,7 +11,7 @@ namespace roomfix {
 // trilat_proc's solver flags, shared with `roomfix replay` so a log recorded
 // with non-default settings is re-run with the same ones. The strings are
 // turned into options by ApplyTrilatFlags after parsing.
-struct TrilatFlags {
+struct TrilatOptions {
   // The --method default shown in the help (trilat_proc: "default"; the
   // replay: "robust", which every shipped configuration runs).
   std::string method = "default";
@@ -25,12 +25,12 @@ struct TrilatFlags {
 // --no-prior and --prior-reset-after, each named `prefix` + the name after
 // "--" (prefix "" for trilat_proc).
 void AddTrilatFlags(CLI::App* app, const std::string& prefix, TrilatNodeOptions* options,
-                    TrilatFlags* flags);
+                    TrilatOptions* flags);
 
 // The parsed strings into *options; false with one line for a name
 // AddTrilatFlags' checks would refuse.
-bool ApplyTrilatFlags(const TrilatFlags& flags, TrilatNodeOptions* options, std::string* error);
+bool ApplyTrilatFlags(const TrilatOptions& flags, TrilatNodeOptions* options, std::string* error);
 
 }  // namespace roomfix
 
-#endif  // ROOMFIX_TRILAT_PROC_TRILAT_FLAGS_H_
+#endif  // ROOMFIX_TRILAT_PROC_TRILAT_OPTIONS_H_

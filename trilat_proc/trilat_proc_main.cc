@@ -5,33 +5,25 @@
 #include <iostream>
 
 #include "msgio/process.h"
-#include "trilat_proc/trilat_flags.h"
 #include "trilat_proc/trilat_node.h"
+#include "trilat_proc/trilat_options.h"
 
 int main(int argc, char** argv) {
   roomfix::ProcessOptions process;
   roomfix::TrilatNodeOptions options;
-  roomfix::TrilatFlags flags;
+  roomfix::TrilatOptions flags;
   CLI::App app{"trilat_proc: trilaterates each range set on RANGES into a pose on POSE_ULTRASOUND"};
   roomfix::AddProcessFlags(&app, &process, /*config_required=*/true);
   roomfix::AddTrilatFlags(&app, "", &options, &flags);
   CLI11_PARSE(app, argc, argv);
   std::string error;
-  if (!roomfix::ApplyTrilatFlags(flags, &options, &error)) {
-    std::cerr << "trilat_proc: " << error << "\n";
-    return 1;
-  }
+  if (!roomfix::ApplyTrilatFlags(flags, &options, &error))
+    return roomfix::PrintFailure("trilat_proc", error);
   const std::string& method = flags.method;
   const std::string& dimension = flags.dimension;
-  if (!options.IsValid(&error)) {
-    std::cerr << "trilat_proc: " << error << "\n";
-    return 1;
-  }
+  if (!options.IsValid(&error)) return roomfix::PrintFailure("trilat_proc", error);
   auto ctx = roomfix::StartProcess("trilat_proc", process, &error);
-  if (ctx == nullptr) {
-    std::cerr << "trilat_proc: " << error << "\n";
-    return 1;
-  }
+  if (ctx == nullptr) return roomfix::PrintFailure("trilat_proc", error);
   if (process.check) {
     std::cout << "trilat_proc: ok: " << method << " solver, " << dimension << ", "
               << ctx->site.receivers.size() << " receivers, " << ctx->site.beacons.size()

@@ -15,7 +15,7 @@
 #include <utility>
 #include <vector>
 
-#include "camera_proc/image_file.h"
+#include "camera_io/image_file.h"
 
 namespace roomfix::viewer {
 namespace {

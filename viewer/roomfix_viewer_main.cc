@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "camera_proc/image_file.h"
+#include "camera_io/image_file.h"
 #include "msgio/process.h"
 #include "msgio/site_message.h"
 #include "viewer/viewer_app.h"
@@ -135,10 +135,7 @@ std::string CannotRun(const viewer::ViewerAppOptions& flags, const std::string& 
   return "";
 }
 
-int Fail(const std::string& error) {
-  std::cerr << "roomfix_viewer: " << error << "\n";
-  return 1;
-}
+constexpr char kProcessName[] = "roomfix_viewer";
 
 }  // namespace
 
@@ -157,9 +154,10 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   std::string error;
   if (!options.IsValid(&error) || !render.IsValid(&error) || !flags.IsValid(&error)) {
-    return Fail(error);
+    return roomfix::PrintFailure(kProcessName, error);
   }
-  if (const std::string why = CannotRun(flags, process.config_path); !why.empty()) return Fail(why);
+  if (const std::string why = CannotRun(flags, process.config_path); !why.empty())
+    return roomfix::PrintFailure(kProcessName, why);
   // A replay takes the log's site unless --config is given, and then warns
   // where the two differ; it says on stderr which one it draws.
   const std::string config_path = process.config_path;
@@ -168,7 +166,7 @@ int main(int argc, char** argv) {
     process.config_path.clear();
   }
   auto ctx = roomfix::StartProcess("roomfix_viewer", process, &error);
-  if (ctx == nullptr) return Fail(error);
+  if (ctx == nullptr) return roomfix::PrintFailure(kProcessName, error);
   // The site with the texts it carries: the footprints use the calibration
   // texts, never a file the site names (a log's names paths of its host).
   roomfix::LoadedSite site;
@@ -176,12 +174,12 @@ int main(int argc, char** argv) {
     std::string used;
     std::vector<std::string> warnings;
     if (!roomfix::ResolveToolSite(config_path, flags.log, &site, &used, &warnings, &error)) {
-      return Fail(error);
+      return roomfix::PrintFailure(kProcessName, error);
     }
     std::cerr << "roomfix_viewer: " << used << "\n";
     for (const auto& w : warnings) std::cerr << "roomfix_viewer: warning: " << w << "\n";
   } else if (!roomfix::LoadSiteWithTexts(config_path, &site, &error)) {
-    return Fail(error);
+    return roomfix::PrintFailure(kProcessName, error);
   }
   ctx->site = site.site;
   options.calibration_texts = roomfix::CalibrationTextsById(site);
@@ -200,6 +198,6 @@ int main(int argc, char** argv) {
                                                          &render, flags, display.get(), &error)
                                    : viewer::ReplayIntoView(ctx->site, options, &render, flags,
                                                             display.get(), &error);
-  if (rc != 0 && !error.empty()) std::cerr << "roomfix_viewer: " << error << "\n";
+  if (rc != 0 && !error.empty()) roomfix::PrintFailure(kProcessName, error);
   return rc;
 }

@@ -8,7 +8,7 @@
 #include <cstdio>
 #include <opencv2/videoio.hpp>
 
-#include "camera_proc/image_file.h"
+#include "camera_io/image_file.h"
 #include "msgio/log.h"
 #include "msgio/process.h"
 

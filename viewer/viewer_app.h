@@ -11,7 +11,7 @@
 #include <opencv2/core.hpp>
 #include <string>
 
-#include "camera_proc/video_file.h"
+#include "camera_io/video_file.h"
 #include "core/world/site.h"
 #include "msgio/bus.h"
 #include "viewer/render.h"

@@ -12,13 +12,13 @@
 
 #include "msgio/log.h"
 #include "msgio/site_message.h"
-#include "msgio/test_messages.h"
-#include "msgio/wire_test_messages.h"
 #include "roomfix/pose2d_t.hpp"
 #include "roomfix/process_status_t.hpp"
 #include "roomfix/range_set_t.hpp"
 #include "tests/testing/demo_site.h"
+#include "tests/testing/test_messages.h"
 #include "tests/testing/test_paths.h"
+#include "tests/testing/wire_test_messages.h"
 #include "viewer/render.h"
 #include "viewer/viewer_app.h"
 

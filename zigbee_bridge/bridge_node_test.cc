@@ -6,8 +6,8 @@
 #include "roomfix/process_status_t.hpp"
 #include "roomfix/range_set_t.hpp"
 #include "sim/wall_devices.h"
+#include "tests/testing/ledger_check.h"
 #include "tests/testing/test_paths.h"
-#include "zigbee_bridge/ledger_check.h"
 
 namespace roomfix {
 namespace {

@@ -15,9 +15,9 @@
 #include "roomfix/range_set_t.hpp"
 #include "sim/pseudo_terminal.h"
 #include "sim/wall_devices.h"
+#include "tests/testing/ledger_check.h"
 #include "tests/testing/test_paths.h"
 #include "zigbee_bridge/bridge_node.h"
-#include "zigbee_bridge/ledger_check.h"
 #include "zigbee_bridge/serial_link.h"
 
 namespace roomfix {

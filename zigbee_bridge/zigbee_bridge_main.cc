@@ -41,10 +41,7 @@ void AddFlags(CLI::App* app, roomfix::BridgeAppOptions* options, int* api_mode,
       ->capture_default_str();
 }
 
-int Fail(const std::string& error) {
-  std::cerr << "zigbee_bridge: " << error << "\n";
-  return 1;
-}
+constexpr char kProcessName[] = "zigbee_bridge";
 
 }  // namespace
 
@@ -63,10 +60,10 @@ int main(int argc, char** argv) {
       api_mode == 1 ? roomfix::radio::ApiMode::kUnescaped : roomfix::radio::ApiMode::kEscaped;
   options.node.assembler.deadline_s = deadline_ms * 1e-3;
   std::string error;
-  if (!options.IsValid(&error)) return Fail(error);
+  if (!options.IsValid(&error)) return roomfix::PrintFailure(kProcessName, error);
   auto ctx = roomfix::StartProcess("zigbee_bridge", process, &error);
-  if (ctx == nullptr) return Fail(error);
+  if (ctx == nullptr) return roomfix::PrintFailure(kProcessName, error);
   const int rc = roomfix::RunBridge(ctx.get(), options, &error);
-  if (rc != 0 && !error.empty()) Fail(error);
+  if (rc != 0 && !error.empty()) roomfix::PrintFailure(kProcessName, error);
   return rc;
 }

@@ -10,8 +10,8 @@
 #include <string>
 #include <vector>
 
-#include "core/fusion/synthetic_streams.h"
 #include "core/world/trajectory.h"
+#include "tests/testing/synthetic_streams.h"
 
 namespace roomfix {
 namespace fusion {

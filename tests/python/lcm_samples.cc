@@ -4,7 +4,7 @@
 //   {"origin": ..., "channel": ..., "type": "roomfix.pose2d_t",
 //    "fingerprint": "<16 hex digits of getHash()>", "hex": "<encoded bytes>",
 //    "fields": {every field of the message by its .lcm name}}
-// First msgio/wire_test_messages.h's sample of each type (every array
+// First tests/testing/wire_test_messages.h's sample of each type (every array
 // non-empty, every string set; the nested types encoded on their own too),
 // then every roomfix event of each LOG, decoded with DecodeChecked.
 //
@@ -21,7 +21,7 @@
 #include "msgio/log.h"
 #include "msgio/message_json.h"
 #include "msgio/wire_check.h"
-#include "msgio/wire_test_messages.h"
+#include "tests/testing/wire_test_messages.h"
 
 namespace roomfix {
 namespace {

@@ -1,4 +1,4 @@
-#include "zigbee_bridge/ledger_check.h"
+#include "tests/testing/ledger_check.h"
 
 #include <gtest/gtest.h>
 

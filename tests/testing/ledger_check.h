@@ -1,5 +1,5 @@
-#ifndef ROOMFIX_ZIGBEE_BRIDGE_LEDGER_CHECK_H_
-#define ROOMFIX_ZIGBEE_BRIDGE_LEDGER_CHECK_H_
+#ifndef ROOMFIX_TESTS_TESTING_LEDGER_CHECK_H_
+#define ROOMFIX_TESTS_TESTING_LEDGER_CHECK_H_
 
 #include <cstdint>
 #include <string>
@@ -64,4 +64,4 @@ LedgerCheck CheckAgainstLedger(const std::vector<range_set_t>& sets,
 
 }  // namespace roomfix
 
-#endif  // ROOMFIX_ZIGBEE_BRIDGE_LEDGER_CHECK_H_
+#endif  // ROOMFIX_TESTS_TESTING_LEDGER_CHECK_H_

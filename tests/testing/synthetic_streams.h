@@ -1,5 +1,5 @@
-#ifndef ROOMFIX_CORE_FUSION_SYNTHETIC_STREAMS_H_
-#define ROOMFIX_CORE_FUSION_SYNTHETIC_STREAMS_H_
+#ifndef ROOMFIX_TESTS_TESTING_SYNTHETIC_STREAMS_H_
+#define ROOMFIX_TESTS_TESTING_SYNTHETIC_STREAMS_H_
 
 // Test support (header only): camera and ultrasound measurement streams of a
 // robot on a trajectory, with noise, latency, outliers and outages, for the
@@ -207,4 +207,4 @@ inline double Rms(const std::vector<double>& errors) {
 }  // namespace fusion
 }  // namespace roomfix
 
-#endif  // ROOMFIX_CORE_FUSION_SYNTHETIC_STREAMS_H_
+#endif  // ROOMFIX_TESTS_TESTING_SYNTHETIC_STREAMS_H_

@@ -1,5 +1,5 @@
-#ifndef ROOMFIX_MSGIO_TEST_MESSAGES_H_
-#define ROOMFIX_MSGIO_TEST_MESSAGES_H_
+#ifndef ROOMFIX_TESTS_TESTING_TEST_MESSAGES_H_
+#define ROOMFIX_TESTS_TESTING_TEST_MESSAGES_H_
 
 #include <cmath>
 
@@ -31,4 +31,4 @@ inline pose2d_t MakeTestPose(int64_t utime, int32_t robot_id, double x_m, double
 
 }  // namespace roomfix::testing
 
-#endif  // ROOMFIX_MSGIO_TEST_MESSAGES_H_
+#endif  // ROOMFIX_TESTS_TESTING_TEST_MESSAGES_H_

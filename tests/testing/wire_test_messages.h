@@ -1,5 +1,5 @@
-#ifndef ROOMFIX_MSGIO_WIRE_TEST_MESSAGES_H_
-#define ROOMFIX_MSGIO_WIRE_TEST_MESSAGES_H_
+#ifndef ROOMFIX_TESTS_TESTING_WIRE_TEST_MESSAGES_H_
+#define ROOMFIX_TESTS_TESTING_WIRE_TEST_MESSAGES_H_
 
 // A realistic message of every roomfix type with every array non-empty and
 // every string set, and their encoded bytes: for the wire check's tests and
@@ -9,7 +9,6 @@
 #include <string>
 #include <vector>
 
-#include "msgio/test_messages.h"
 #include "roomfix/counter_t.hpp"
 #include "roomfix/detector_view_request_t.hpp"
 #include "roomfix/detector_view_robot_t.hpp"
@@ -23,6 +22,7 @@
 #include "roomfix/range_t.hpp"
 #include "roomfix/site_file_t.hpp"
 #include "roomfix/site_t.hpp"
+#include "tests/testing/test_messages.h"
 
 namespace roomfix::testing {
 
@@ -218,4 +218,4 @@ inline constexpr size_t kMarkerPixelsFirstColourLengthOffset = kMarkerPixelsNumM
 
 }  // namespace roomfix::testing
 
-#endif  // ROOMFIX_MSGIO_WIRE_TEST_MESSAGES_H_
+#endif  // ROOMFIX_TESTS_TESTING_WIRE_TEST_MESSAGES_H_

@@ -10,8 +10,8 @@
 
 #include "core/world/trajectory.h"
 #include "msgio/log.h"
-#include "msgio/test_messages.h"
 #include "roomfix/pose2d_t.hpp"
+#include "tests/testing/test_messages.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -236,7 +236,7 @@ TEST(RoomfixAnalyze, FitsTheReferenceCircleAndComparesEachSourceWithTruthAndCame
   constexpr double kExactMs = 1e-9;
   EXPECT_NEAR(out["sources"]["ultrasound"]["latency_ms_median"].get<double>(), 12.0, kExactMs);
   // Whether each source can be trusted. Every pose states a 1 cm sigma per
-  // axis (msgio/test_messages.h): honest for the ultrasound, whose 601
+  // axis (tests/testing/test_messages.h): honest for the ultrasound, whose 601
   // errors must fill the 95 % ellipse as a Gaussian does (binomial standard
   // deviation 0.9 %, three of them allowed) with a median squared distance
   // of 2 ln 2 (its sampling spread about 0.08); the lost fix is a share.

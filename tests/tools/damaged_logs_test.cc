@@ -8,11 +8,11 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "msgio/test_messages.h"
 #include "roomfix/pose2d_t.hpp"
 #include "roomfix/range_set_t.hpp"
 #include "tests/testing/demo_site.h"
 #include "tests/testing/raw_log_event.h"
+#include "tests/testing/test_messages.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {

@@ -11,11 +11,11 @@
 #include <vector>
 
 #include "msgio/log.h"
-#include "msgio/wire_test_messages.h"
 #include "roomfix/marker_pixels_t.hpp"
 #include "roomfix/pose2d_t.hpp"
 #include "roomfix/process_status_t.hpp"
 #include "tests/testing/test_paths.h"
+#include "tests/testing/wire_test_messages.h"
 
 namespace roomfix {
 namespace {

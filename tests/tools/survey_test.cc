@@ -11,10 +11,10 @@
 
 #include "core/world/site.h"
 #include "msgio/log.h"
-#include "msgio/test_messages.h"
 #include "roomfix/pose2d_t.hpp"
 #include "roomfix/range_set_t.hpp"
 #include "tests/testing/demo_site.h"
+#include "tests/testing/test_messages.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
