@@ -4,20 +4,12 @@
 
 #include <string>
 
-#include "tests/testing/demo_site.h"
+#include "tests/testing/demo_site_test_fixture.h"
 
 namespace roomfix {
 namespace {
 
-class CameraSourceTest : public ::testing::Test {
- protected:
-  void SetUp() override {
-    std::string error;
-    ASSERT_TRUE(LoadSite(testing::DemoSitePath(), &site_, &error)) << error;
-    ASSERT_FALSE(site_.cameras.empty());
-  }
-  Site site_;
-};
+using CameraSourceTest = testing::DemoSiteTest;
 
 TEST_F(CameraSourceTest, ChoosesTheSiteCameraAndItsCalibration) {
   CameraSourceOptions options;

@@ -9,7 +9,7 @@
 #include "camera_io/camera_source.h"
 #include "msgio/process.h"
 #include "roomfix/process_status_t.hpp"
-#include "tests/testing/demo_site.h"
+#include "tests/testing/demo_site_test_fixture.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
@@ -21,15 +21,7 @@ void WriteBytes(const std::string& path, const std::vector<uint8_t>& bytes) {
             static_cast<std::streamsize>(bytes.size()));
 }
 
-class CameraAppTest : public ::testing::Test {
- protected:
-  void SetUp() override {
-    std::string error;
-    ASSERT_TRUE(LoadSite(testing::DemoSitePath(), &site_, &error)) << error;
-    ASSERT_FALSE(site_.cameras.empty());
-  }
-  Site site_;
-};
+using CameraAppTest = testing::DemoSiteTest;
 
 // A folder of frames, some bad: each good one is processed, each bad one is
 // counted under the kind its source reported (not guessed from its text),

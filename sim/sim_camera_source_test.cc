@@ -10,21 +10,13 @@
 #include "msgio/process.h"
 #include "roomfix/process_status_t.hpp"
 #include "sim/synthetic_camera.h"
-#include "tests/testing/demo_site.h"
+#include "tests/testing/demo_site_test_fixture.h"
 #include "tests/testing/test_paths.h"
 
 namespace roomfix {
 namespace {
 
-class SimCameraSourceTest : public ::testing::Test {
- protected:
-  void SetUp() override {
-    std::string error;
-    ASSERT_TRUE(LoadSite(testing::DemoSitePath(), &site_, &error)) << error;
-    ASSERT_FALSE(site_.cameras.empty());
-  }
-  Site site_;
-};
+using SimCameraSourceTest = testing::DemoSiteTest;
 
 TEST_F(SimCameraSourceTest, ChecksASyntheticSourceWithoutBuildingIt) {
   CameraSourceOptions options;
