@@ -430,7 +430,7 @@ int RunAnalyze(const AnalyzeOptions& options) {
   // The poses themselves need no site, so a log without SITE is a note.
   std::vector<ToolSite> sites;
   for (const LogReadReport& r : logs.logs) {
-    sites.push_back(r.error.empty() ? ResolveSiteForLog(options.config_path, r.path) : ToolSite{});
+    sites.push_back(r.error.empty() ? ResolveToolSite(options.config_path, r.path) : ToolSite{});
     if (!r.error.empty()) continue;
     if (!ReportToolSite("roomfix analyze", sites.back(), /*required=*/false)) return 1;
   }

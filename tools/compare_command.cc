@@ -116,7 +116,7 @@ void AddCompareCommand(CLI::App* app, int* exit_code) {
     }
     // The errors need no site; which one the log was recorded in is said
     // (stderr and the JSON), a log without one is a note.
-    const ToolSite site = ResolveSiteForLog(*config_path, *log_path);
+    const ToolSite site = ResolveToolSite(*config_path, *log_path);
     if (!ReportToolSite("roomfix compare", site, /*required=*/false)) {
       *exit_code = 1;
       return;

@@ -208,7 +208,7 @@ int ListenToLog(const ListenOptions& o) {
     return 1;
   }
   // Which site the log was recorded in, before its messages.
-  if (!ReportToolSite("roomfix listen", ResolveSiteForLog(o.config_path, path),
+  if (!ReportToolSite("roomfix listen", ResolveToolSite(o.config_path, path),
                       /*required=*/false)) {
     return 1;
   }

@@ -163,11 +163,14 @@ bool ResolveReplaySite(const std::string& log_path, const std::string& config_pa
   out->is_new = !new_site_path.empty();
   out->from_file = !config_path.empty() || out->is_new;
   const std::string& path = out->is_new ? new_site_path : config_path;
-  std::vector<std::string> lines;
-  if (!ResolveToolSite(path, log_path, &out->loaded, &out->used_line, &lines, error)) {
-    if (!out->from_file) *error += " (or --site NEW.yaml)";
+  ToolSite resolved = ResolveToolSite(path, log_path);
+  if (!resolved.known) {
+    *error = resolved.error + (out->from_file ? "" : " (or --site NEW.yaml)");
     return false;
   }
+  out->loaded = std::move(resolved.site);
+  out->used_line = resolved.line;
+  const std::vector<std::string>& lines = resolved.warnings;
   if (out->is_new) {
     out->used_line = "new site from --site " + new_site_path + ": " + DescribeSite(out->loaded);
     out->notes = lines;

@@ -115,7 +115,7 @@ void EmitReceiver(const Receiver& r, const survey::ReceiverEstimate& e, YAML::Em
 int Run(const SurveyArgs& a) {
   // The starting values: --site/--config, or the site the log carries
   // (SITE); needed either way, so a log without one is an error.
-  const ToolSite resolved = ResolveSiteForLog(a.site, a.log);
+  const ToolSite resolved = ResolveToolSite(a.site, a.log);
   if (!ReportToolSite("roomfix survey", resolved, /*required=*/true)) return 1;
   const Site& site = resolved.site.site;
   const std::string site_name = a.site.empty() ? "the site of " + a.log : a.site;
