@@ -172,7 +172,7 @@ json FixQualityFigures(const PoseTrack& track, const PoseTrack* truth, int64_t m
        << Fixed(q.median_d2, 2) << ") over " << q.with_covariance << " fixes |\n";
   }
   *table +=
-      fmt::format(kQualityRow, track.source, track.robot_id, q.fixes, pct(q.share_ok),
+      fmt::format(kQualityRow, track.source.c_str(), track.robot_id, q.fixes, pct(q.share_ok),
                   pct(q.share_degraded), pct(q.share_lost), cm(q.rmse_m), cm(q.p99_m), cm(q.max_m),
                   cm(q.worst_ok_m), pct(q.share_inside_95), Fixed(q.median_d2, 2));
   json j = {{"fixes", q.fixes},          {"ok", q.ok},

@@ -59,9 +59,9 @@ nlohmann::json PrintDifference(const PoseLogs& old_logs, const PoseLogs& new_log
         analysis::CompareToReference(new_track, truth, kMaxReferenceGap_us);
     const analysis::ErrorSummary change =
         analysis::CompareToReference(new_track, old_track, kMaxReferenceGap_us);
-    fmt::print("{:<12} {:5d} {:7d} {:7d} {:10.4f} {:10.4f} {:9d} {:12.4f} {:10.4f}\n", key.first,
-               key.second, old_track.size(), new_track.size(), old_error.rmse_m, new_error.rmse_m,
-               change.compared, change.rmse_m, change.max_m);
+    fmt::print("{:<12} {:5d} {:7d} {:7d} {:10.4f} {:10.4f} {:9d} {:12.4f} {:10.4f}\n",
+               key.first.c_str(), key.second, old_track.size(), new_track.size(), old_error.rmse_m,
+               new_error.rmse_m, change.compared, change.rmse_m, change.max_m);
     out[key.first][std::to_string(key.second)] = {
         {"old_fixes", old_track.size()},      {"new_fixes", new_track.size()},
         {"old_rmse_m", old_error.rmse_m},     {"new_rmse_m", new_error.rmse_m},
@@ -129,8 +129,9 @@ void PrintSources(SourceTracks* tracks, nlohmann::json* out) {
       j["max_m"] = s.max_m;
       j["compared"] = s.compared;
     }
-    fmt::print("{:<12} {:5d} {:7d} {:8.2f} {:8.4f} {:8.4f} {:8.4f} {:12.1f} {:5d}\n", key.first,
-               key.second, t.positions.size(), rate, s.rmse_m, s.p95_m, s.max_m, latency, t.lost);
+    fmt::print("{:<12} {:5d} {:7d} {:8.2f} {:8.4f} {:8.4f} {:8.4f} {:12.1f} {:5d}\n",
+               key.first.c_str(), key.second, t.positions.size(), rate, s.rmse_m, s.p95_m, s.max_m,
+               latency, t.lost);
     // One robot per source in the summary (the first); all in "robots".
     if (!(*out)["sources"].contains(key.first)) (*out)["sources"][key.first] = j;
     (*out)["robots"][std::to_string(key.second)][key.first] = j;
@@ -148,12 +149,12 @@ void PrintCircleFits(const SourceTracks& tracks, nlohmann::json* out) {
     }
     const analysis::CircularMotionFit f = analysis::FitCircularMotion(points);
     if (!f.usable) {
-      fmt::print("{:<12} {:5d} no fit: {}\n", key.first, key.second, f.message);
+      fmt::print("{:<12} {:5d} no fit: {}\n", key.first.c_str(), key.second, f.message);
       continue;
     }
     fmt::print("{:<12} {:5d} {:8.4f} {:9.4f} {:9.4f} {:10.3f} {:10.3f} {:9.4f} {:8.3f} {:8.4f}\n",
-               key.first, key.second, f.radius_m, f.cx_m, f.cy_m, f.vx_mps * 1e3, f.vy_mps * 1e3,
-               f.angular_speed_radps, f.phase_rad, f.mean_error_m);
+               key.first.c_str(), key.second, f.radius_m, f.cx_m, f.cy_m, f.vx_mps * 1e3,
+               f.vy_mps * 1e3, f.angular_speed_radps, f.phase_rad, f.mean_error_m);
     (*out)["robots"][std::to_string(key.second)][key.first]["circle_fit"] = {
         {"radius_m", f.radius_m},
         {"radius_sigma_m", f.radius_sigma_m},
