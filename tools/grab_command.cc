@@ -2,6 +2,8 @@
 // camera_proc opens it (camera_proc/camera_process.h MakeCameraSource: the
 // device with the site's size, format, rate and properties), so that
 // calibration and colour frames are the pixels camera_proc will see.
+#include <fmt/format.h>
+
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
@@ -90,9 +92,7 @@ bool ParseTripod(const GrabFlags& f, const Site& site, const Camera& camera, Tri
 // --tripod tripod_X_Y (the point as typed; _N after it when several).
 std::string FrameStem(const GrabFlags& f, int index) {
   if (f.tripod.empty()) {
-    char stem[32];
-    std::snprintf(stem, sizeof(stem), "frame_%04d", index);
-    return stem;
+    return fmt::format("frame_{:04d}", index);
   }
   std::string point = f.tripod;
   std::replace(point.begin(), point.end(), ',', '_');
