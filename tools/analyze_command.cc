@@ -32,6 +32,7 @@
 #include "msgio/pose_tracks.h"
 #include "msgio/wire_check.h"
 #include "tools/commands.h"
+#include "tools/fixed_text.h"
 #include "tools/tool_site.h"
 
 extern char** environ;
@@ -129,12 +130,6 @@ bool RunGnuplot(const std::string& script_path, std::string* error) {
 // report cut short.
 bool WriteText(const std::string& path, const std::string& text, std::string* error) {
   return WriteOutputFile(path, text, error);
-}
-
-// A figure of the report: `digits` decimals, "-" when it is unknown (NaN).
-std::string Fixed(double v, int digits) {
-  if (!std::isfinite(v)) return "-";
-  return fmt::format("{:.{}f}", v, digits);
 }
 
 // One row of the quality table, and its header.

@@ -36,6 +36,7 @@
 #include "core/world/site.h"
 #include "tools/calibrate_neighbour.h"
 #include "tools/commands.h"
+#include "tools/fixed_text.h"
 #include "tools/flag_checks.h"
 
 namespace roomfix {
@@ -95,12 +96,6 @@ constexpr int kMaxPointRows = 500;
 // value of 1e308 reached the fit and came out as "all points lie on a line".
 constexpr double kMaxAbsPixel = 1e5;
 constexpr double kMaxAbsMetres = 1e4;
-
-// A figure of the output: `digits` decimals, "-" when it is unknown (NaN).
-std::string Fixed(double v, int digits) {
-  if (!std::isfinite(v)) return "-";
-  return fmt::format("{:.{}f}", v, digits);
-}
 
 // A step that fails returns false with a one-line reason
 // (docs/development.md, "Style"); the command prints it and exits 1.
