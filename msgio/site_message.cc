@@ -1,12 +1,12 @@
 #include "msgio/site_message.h"
 
+#include <fmt/format.h>
 #include <openssl/evp.h>
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
 #include <atomic>
-#include <cstdio>
 #include <cstdlib>
 #include <iterator>
 #include <map>
@@ -251,9 +251,7 @@ int64_t SiteHashCounterValue(const std::string& content_hash) {
 }
 
 std::string SiteHashCounterText(int64_t value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof(buffer), "%015llx", static_cast<unsigned long long>(value));
-  return buffer;
+  return fmt::format("{:015x}", static_cast<unsigned long long>(value));
 }
 
 std::string ShortSiteHash(const std::string& content_hash) { return content_hash.substr(0, 12); }
