@@ -6,6 +6,7 @@
 #include "camera_io/frame_source.h"
 
 #include <dirent.h>
+#include <fmt/format.h>
 #include <glob.h>
 #include <sys/stat.h>
 #include <time.h>
@@ -14,7 +15,6 @@
 #include <cctype>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/videoio.hpp>
 #include <thread>
@@ -62,12 +62,6 @@ std::string FourccText(int fourcc) {
     const char c = static_cast<char>((fourcc >> (8 * i)) & 0xFF);
     text += std::isprint(static_cast<unsigned char>(c)) ? c : '?';
   }
-  return text;
-}
-
-std::string Number(double value) {
-  char text[32];
-  std::snprintf(text, sizeof(text), "%g", value);
   return text;
 }
 
@@ -175,7 +169,7 @@ class V4l2Source : public FrameSource {
                          std::to_string(got_width_) + "x" + std::to_string(got_height_));
     }
     if (settings_.fps > 0 && std::fabs(got_fps_ - settings_.fps) > 0.5) {
-      refused_.push_back("fps: asked " + Number(settings_.fps) + ", got " + Number(got_fps_));
+      refused_.push_back(fmt::format("fps: asked {:g}, got {:g}", settings_.fps, got_fps_));
     }
     // MJPEG: the backend hands over the driver's compressed buffer as a 1xN
     // CV_8UC1 Mat when RGB conversion is off.
@@ -240,8 +234,8 @@ class V4l2Source : public FrameSource {
   }
 
   std::string Describe() const override {
-    return "v4l2 " + path_ + " " + std::to_string(got_width_) + "x" + std::to_string(got_height_) +
-           " " + got_fourcc_ + " " + Number(got_fps_) + " fps" + (raw_ ? " (compressed)" : "");
+    return fmt::format("v4l2 {} {}x{} {} {:g} fps{}", path_, got_width_, got_height_, got_fourcc_,
+                       got_fps_, raw_ ? " (compressed)" : "");
   }
   bool live() const override { return true; }
   std::vector<std::string> refused_properties() const override { return refused_; }

@@ -1,5 +1,6 @@
 #include "camera_io/frame_source.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -82,9 +83,8 @@ std::vector<uint8_t> HdJpeg() {
 std::vector<uint8_t> HdMosaicJpeg() {
   cv::Mat mosaic(1440, 1920, CV_8UC3);
   for (int i = 0; i < 9; ++i) {
-    char name[32];
-    std::snprintf(name, sizeof(name), "/left%02d.jpg", i + 1);
-    cv::Mat photo = cv::imread(SamplesDir() + name, cv::IMREAD_COLOR);
+    cv::Mat photo =
+        cv::imread(SamplesDir() + fmt::format("/left{:02d}.jpg", i + 1), cv::IMREAD_COLOR);
     EXPECT_EQ(photo.size(), cv::Size(640, 480));
     photo.copyTo(mosaic(cv::Rect((i % 3) * 640, (i / 3) * 480, 640, 480)));
   }
@@ -311,9 +311,7 @@ TEST(DecodedImage, ViewsAndAreaReduction) {
 std::vector<std::string> LeftJpegs(int n) {
   std::vector<std::string> names;
   for (int i = 1; i <= n; ++i) {
-    char name[32];
-    std::snprintf(name, sizeof(name), "left%02d.jpg", i);
-    names.push_back(name);
+    names.push_back(fmt::format("left{:02d}.jpg", i));
   }
   return names;
 }

@@ -11,6 +11,7 @@
 
 #include "camera_io/jpeg_image.h"
 
+#include <fmt/format.h>
 #include <jpeglib.h>
 // After jpeglib.h: the message codes (JERR_*, JWRN_*).
 #include <jerror.h>
@@ -40,8 +41,10 @@ struct ErrorManager {
   FrameProblem problem;
 };
 
-[[noreturn]] void Fail(ErrorManager* err, const char* message) {
-  std::snprintf(err->message, sizeof(err->message), "%s", message);
+template <typename... Args>
+[[noreturn]] void Fail(ErrorManager* err, fmt::format_string<Args...> format, Args&&... args) {
+  *fmt::format_to_n(err->message, sizeof(err->message) - 1, format, std::forward<Args>(args)...)
+       .out = '\0';
   err->problem = FrameProblem::kUnreadable;
   std::longjmp(err->jump, 1);
 }
@@ -139,10 +142,8 @@ void RunHeader(void* arg) {
   }
   if (c->image_width == 0 || c->image_height == 0 ||
       int64_t{c->image_width} * c->image_height > kMaxPixels) {
-    char message[96];
-    std::snprintf(message, sizeof(message), "JPEG image size out of range (%u x %u px)",
-                  static_cast<unsigned>(c->image_width), static_cast<unsigned>(c->image_height));
-    Fail(job->d->err(), message);
+    Fail(job->d->err(), "JPEG image size out of range ({} x {} px)", c->image_width,
+         c->image_height);
   }
   job->width = static_cast<int>(c->image_width);
   job->height = static_cast<int>(c->image_height);

@@ -1,7 +1,8 @@
 #include "camera_io/v4l2_properties.h"
 
+#include <fmt/format.h>
+
 #include <cmath>
-#include <cstdio>
 #include <opencv2/videoio.hpp>
 
 namespace roomfix::camera {
@@ -13,12 +14,6 @@ namespace {
 constexpr double kV4l2ExposureManual = 1.0;
 // V4L2 controls are integers: a read-back within this of the request is taken.
 constexpr double kReadBackTolerance = 0.5;
-
-std::string Number(double value) {
-  char text[32];
-  std::snprintf(text, sizeof(text), "%g", value);
-  return text;
-}
 
 }  // namespace
 
@@ -69,7 +64,7 @@ std::vector<std::string> ApplyCaptureProperties(const std::map<std::string, doub
     }
     const double got = get(id);
     if (!std::isfinite(got) || std::fabs(got - value) > kReadBackTolerance) {
-      refused.push_back(name + ": asked " + Number(value) + ", got " + Number(got));
+      refused.push_back(fmt::format("{}: asked {:g}, got {:g}", name, value, got));
     }
   }
   return refused;

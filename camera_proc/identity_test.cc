@@ -104,6 +104,48 @@ std::string EnvOr(const char* name, const std::string& fallback) {
   return v != nullptr && *v != '\0' ? std::string(v) : fallback;
 }
 
+// Frame `f` as SimFrameSource::Read makes it, with Wear before the JPEG.
+bool ReadWornFrame(sim::SyntheticCamera* renderer, double fps, int jpeg_quality, int f,
+                   camera::Frame* frame, std::string* error) {
+  const double t_s = f / fps;
+  cv::Mat bgr;
+  renderer->Render(t_s, f, renderer->SimulatedRobots(t_s), &bgr);
+  Wear(t_s, &bgr);
+  std::vector<uint8_t> bytes;
+  if (!renderer->Encode(bgr, jpeg_quality, &bytes)) {
+    *error = "cannot encode frame " + std::to_string(f);
+    return false;
+  }
+  frame->capture_utime = kStartUtime + std::llround((t_s + renderer->TimestampDelayS(f)) * 1e6);
+  frame->seq = f;
+  frame->image = camera::MakeJpegImage(std::move(bytes), error);
+  return frame->image != nullptr;
+}
+
+// Counts one frame's published poses against the robots' true places.
+void Score(const std::vector<pose2d_t>& poses, const std::vector<sim::RobotState>& truth,
+           Tally* tally) {
+  for (const pose2d_t& p : poses) {
+    if (p.status == pose2d_t::STATUS_LOST) {
+      ++tally->missed;
+      continue;
+    }
+    ++tally->published;
+    if (p.status == pose2d_t::STATUS_DEGRADED) ++tally->published_degraded;
+    int nearest = 0;
+    double best = kSameRobotM;
+    for (const sim::RobotState& r : truth) {
+      const double d = std::hypot(r.x_m - p.x_m, r.y_m - p.y_m);
+      if (d <= best) {
+        best = d;
+        nearest = r.robot_id;
+      }
+    }
+    ++tally->confusion[p.robot_id][nearest];
+    ++(nearest == p.robot_id ? tally->correct : tally->wrong);
+  }
+}
+
 // `site` renders the frames; the node detects with `detector_site`'s
 // camera (its colour classes) when given, else the same site's.
 Tally Measure(const Site& site, const std::string& scenario_name, double seconds,
@@ -156,24 +198,9 @@ Tally Measure(const Site& site, const std::string& scenario_name, double seconds
       ADD_FAILURE() << error;
       break;
     }
-    if (wear) {
-      // As SimFrameSource::Read, with Wear before the JPEG.
-      const double t_s = f / camera.fps;
-      cv::Mat bgr;
-      renderer->Render(t_s, f, renderer->SimulatedRobots(t_s), &bgr);
-      Wear(t_s, &bgr);
-      std::vector<uint8_t> bytes;
-      if (!renderer->Encode(bgr, so.jpeg_quality, &bytes)) {
-        ADD_FAILURE() << "cannot encode frame " << f;
-        break;
-      }
-      frame.capture_utime = kStartUtime + std::llround((t_s + renderer->TimestampDelayS(f)) * 1e6);
-      frame.seq = f;
-      frame.image = camera::MakeJpegImage(std::move(bytes), &error);
-      if (frame.image == nullptr) {
-        ADD_FAILURE() << error;
-        break;
-      }
+    if (wear && !ReadWornFrame(renderer.get(), camera.fps, so.jpeg_quality, f, &frame, &error)) {
+      ADD_FAILURE() << error;
+      break;
     }
     // The robots as the frame began (its timestamp comes later with the
     // webcam's readout and latency, tens of milliseconds: millimetres).
@@ -206,25 +233,7 @@ Tally Measure(const Site& site, const std::string& scenario_name, double seconds
     }
     ++tally.frames;
     tally.robot_frames += static_cast<int>(truth.size());
-    for (const pose2d_t& p : poses) {
-      if (p.status == pose2d_t::STATUS_LOST) {
-        ++tally.missed;
-        continue;
-      }
-      ++tally.published;
-      if (p.status == pose2d_t::STATUS_DEGRADED) ++tally.published_degraded;
-      int nearest = 0;
-      double best = kSameRobotM;
-      for (const sim::RobotState& r : truth) {
-        const double d = std::hypot(r.x_m - p.x_m, r.y_m - p.y_m);
-        if (d <= best) {
-          best = d;
-          nearest = r.robot_id;
-        }
-      }
-      ++tally.confusion[p.robot_id][nearest];
-      ++(nearest == p.robot_id ? tally.correct : tally.wrong);
-    }
+    Score(poses, truth, &tally);
   }
   for (const char* name :
        {"interleaved_markers", "code_seen_twice", "impossible_jump", "marker_clipped",

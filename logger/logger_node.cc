@@ -1,9 +1,9 @@
 #include "logger/logger_node.h"
 
+#include <fmt/format.h>
 #include <sys/stat.h>
 
 #include <chrono>
-#include <cstdio>
 #include <ctime>
 #include <string>
 #include <utility>
@@ -39,8 +39,7 @@ bool LoggerOptions::IsValid(std::string* error) const {
 }
 
 std::string RotatedLogPath(const std::string& path, int index) {
-  char number[16];
-  std::snprintf(number, sizeof(number), ".%04d", index);
+  const std::string number = fmt::format(".{:04d}", index);
   const size_t slash = path.find_last_of('/');
   const size_t dot = path.find_last_of('.');
   if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) {
@@ -71,10 +70,8 @@ constexpr int kMaxRunNumber = 100000;
 }  // namespace
 
 std::string IncrementedLogPath(const std::string& path, int number) {
-  char suffix[16];
-  std::snprintf(suffix, sizeof(suffix), "-%02d", number);
   const auto [stem, extension] = SplitExtension(path);
-  return stem + suffix + extension;
+  return fmt::format("{}-{:02d}{}", stem, number, extension);
 }
 
 std::string ExpandLogPath(const std::string& pattern, int64_t utime) {

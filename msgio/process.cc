@@ -1,6 +1,7 @@
 #include "msgio/process.h"
 
 #include <fcntl.h>
+#include <fmt/format.h>
 #include <poll.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
@@ -13,7 +14,6 @@
 #include <chrono>
 #include <csignal>
 #include <cstdint>
-#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <iostream>
@@ -279,9 +279,8 @@ bool InputWatch::Check(int64_t now_utime, StatusReporter* status) {
   in_gap_ = true;
   status->SetState(process_status_t::STATE_DEGRADED);
   status->Count("input_gaps");
-  char seconds[32];
-  std::snprintf(seconds, sizeof(seconds), "%.1f", (now_utime - last_utime_) * 1e-6);
-  status->SetError("no " + what_ + " for " + seconds + " s", now_utime);
+  status->SetError(fmt::format("no {} for {:.1f} s", what_, (now_utime - last_utime_) * 1e-6),
+                   now_utime);
   return true;
 }
 

@@ -1,12 +1,12 @@
 #include "msgio/site_message.h"
 
+#include <fmt/format.h>
 #include <openssl/evp.h>
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
 #include <atomic>
-#include <cstdio>
 #include <cstdlib>
 #include <iterator>
 #include <map>
@@ -251,9 +251,7 @@ int64_t SiteHashCounterValue(const std::string& content_hash) {
 }
 
 std::string SiteHashCounterText(int64_t value) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof(buffer), "%015llx", static_cast<unsigned long long>(value));
-  return buffer;
+  return fmt::format("{:015x}", static_cast<unsigned long long>(value));
 }
 
 std::string ShortSiteHash(const std::string& content_hash) { return content_hash.substr(0, 12); }
@@ -709,61 +707,65 @@ std::string DescribeSite(const LoadedSite& loaded) {
   return line;
 }
 
-bool ResolveToolSite(const std::string& config_path, const std::string& log_path, LoadedSite* out,
-                     std::string* used_line, std::vector<std::string>* warnings,
-                     std::string* error) {
+ToolSite ResolveToolSite(const std::string& config_path, const std::string& log_path) {
+  ToolSite s;
+  s.source = config_path.empty() ? "log" : "--config";
+  // Told apart from a log without SITE: a bad --config stops every tool.
+  if (!config_path.empty() && !LoadSiteWithTexts(config_path, &s.site, &s.error)) {
+    s.config_failed = true;
+    return s;
+  }
   SiteFromLog from_log;
   std::string log_error;
   const bool log_has_site = !log_path.empty() && ReadSiteFromLog(log_path, &from_log, &log_error);
   if (!log_path.empty()) {
     if (from_log.refused > 0) {
-      warnings->push_back(log_path + ": " + std::to_string(from_log.refused) +
-                          " SITE messages refused (" + RefusalCounts(from_log.refused_by_reason) +
-                          "); first " + from_log.first_refusal);
+      s.warnings.push_back(log_path + ": " + std::to_string(from_log.refused) +
+                           " SITE messages refused (" + RefusalCounts(from_log.refused_by_reason) +
+                           "); first " + from_log.first_refusal);
     }
     if (!from_log.disagreement.empty()) {
-      warnings->push_back(log_path + ": " + from_log.disagreement);
+      s.warnings.push_back(log_path + ": " + from_log.disagreement);
     }
   }
   if (config_path.empty()) {
     if (!log_has_site) {
-      *error = log_path.empty() ? "no site: give --config" : log_error;
-      return false;
+      s.error = log_path.empty() ? "no site: give --config" : log_error;
+      return s;
     }
     if (from_log.distinct_sites > 1) {
-      *error = log_path + " holds SITE messages of " + std::to_string(from_log.distinct_sites) +
-               " different sites";
+      s.error = log_path + " holds SITE messages of " + std::to_string(from_log.distinct_sites) +
+                " different sites";
       if (from_log.distinct_sites > static_cast<int64_t>(from_log.publishers_by_hash.size())) {
-        *error += " (the first " + std::to_string(from_log.publishers_by_hash.size()) + " named)";
+        s.error += " (the first " + std::to_string(from_log.publishers_by_hash.size()) + " named)";
       }
-      *error += ":";
+      s.error += ":";
       bool first = true;
       for (const auto& [hash, who] : from_log.publishers_by_hash) {
-        *error += (first ? " " : "; ") + ShortSiteHash(hash) + " by ";
+        s.error += (first ? " " : "; ") + ShortSiteHash(hash) + " by ";
         first = false;
         bool first_who = true;
         for (const std::string& w : who) {
-          *error += (first_who ? "" : ", ") + w;
+          s.error += (first_who ? "" : ", ") + w;
           first_who = false;
         }
       }
-      *error += "; give the site file with --config";
-      return false;
+      s.error += "; give the site file with --config";
+      return s;
     }
-    *out = std::move(from_log.site);
-    *used_line = "site from " + log_path + ": " + DescribeSite(*out);
-    return true;
+    s.site = std::move(from_log.site);
+    s.line = "site from " + log_path + ": " + DescribeSite(s.site);
+    s.known = true;
+    return s;
   }
-  LoadedSite file;
-  if (!LoadSiteWithTexts(config_path, &file, error)) return false;
-  *used_line = "site from --config " + config_path + ": " + DescribeSite(file);
+  s.line = "site from --config " + config_path + ": " + DescribeSite(s.site);
   if (log_has_site) {
-    const std::string mismatch = SiteMismatchWarning(from_log.site, "the site in " + log_path, file,
-                                                     "--config " + config_path);
-    if (!mismatch.empty()) warnings->push_back(mismatch);
+    const std::string mismatch = SiteMismatchWarning(from_log.site, "the site in " + log_path,
+                                                     s.site, "--config " + config_path);
+    if (!mismatch.empty()) s.warnings.push_back(mismatch);
   }
-  *out = std::move(file);
-  return true;
+  s.known = true;
+  return s;
 }
 
 // --- when to publish ---------------------------------------------------------

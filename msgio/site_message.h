@@ -258,16 +258,32 @@ bool ReadSiteFromLog(const std::string& log_path, SiteFromLog* out, std::string*
 // roomfix 0.1.0, published by trilat_proc@lab-pc (pid 12)".
 std::string DescribeSite(const LoadedSite& loaded);
 
-// What a tool uses: the site of --config when given (warning on stderr
-// lines in *warnings when the log's differs, naming the keys), otherwise the
-// log's. *used_line says which ("site from LOG: ..." or "site from --config
-// PATH: ..."). A log with neither SITE nor --config is an error saying so,
-// and so is a log whose valid SITE messages carry different hashes when
-// --config is not given: the error lists each hash with its publishers and
-// asks for --config, rather than silently taking the first.
-bool ResolveToolSite(const std::string& config_path, const std::string& log_path, LoadedSite* out,
-                     std::string* used_line, std::vector<std::string>* warnings,
-                     std::string* error);
+// The site a tool uses for one log, as every tool says it on stderr
+// (docs/analysis.md, "Which site"; tools/tool_site.h prints it): --config
+// when given, otherwise the log's SITE.
+struct ToolSite {
+  bool known = false;
+  LoadedSite site;
+  // "log" or "--config".
+  std::string source;
+  // Which site is used: "site from LOG: ..." or "site from --config PATH: ...".
+  std::string line;
+  // The log's refused SITE messages, disagreeing processes, and the keys at
+  // which the log's site differs from --config.
+  std::vector<std::string> warnings;
+  // Why no site could be had (no SITE and no --config, or a bad --config).
+  std::string error;
+  // True when --config itself failed to load (always fatal).
+  bool config_failed = false;
+};
+
+// What a tool uses: the site of --config when given (a warning when the
+// log's differs, naming the keys), otherwise the log's. A log with neither
+// SITE nor --config is an error saying so, and so is a log whose valid SITE
+// messages carry different hashes when --config is not given: the error
+// lists each hash with its publishers and asks for --config, rather than
+// silently taking the first. `log_path` may be empty (no log).
+ToolSite ResolveToolSite(const std::string& config_path, const std::string& log_path);
 
 // When a process publishes its site (issue #28: the whole SITE from every
 // process every 5 s was the loudest stream on the bus, 18 % of a demo log).

@@ -383,11 +383,9 @@ TEST(SiteFromLog, ALogWithoutASiteIsAClearError) {
   EXPECT_NE(error.find("holds no SITE message"), std::string::npos) << error;
   EXPECT_NE(error.find("--config"), std::string::npos) << error;
 
-  LoadedSite site;
-  std::string used;
-  std::vector<std::string> warnings;
-  EXPECT_FALSE(ResolveToolSite("", path, &site, &used, &warnings, &error));
-  EXPECT_NE(error.find("holds no SITE message"), std::string::npos) << error;
+  const ToolSite resolved = ResolveToolSite("", path);
+  EXPECT_FALSE(resolved.known);
+  EXPECT_NE(resolved.error.find("holds no SITE message"), std::string::npos) << resolved.error;
 }
 
 TEST(SiteFromLog, ProcessesStatingDifferentSitesAreNamed) {
@@ -525,11 +523,9 @@ TEST(SiteFromLog, ALogOfTwoSitesNeedsConfigAndNamesBoth) {
   other.host = "lab-pc2";
   TempDir dir;
   const std::string path = WriteLog(dir, {Encode(DemoMessage(original)), Encode(other)});
-  LoadedSite site;
-  std::string used;
-  std::vector<std::string> warnings;
-  std::string error;
-  EXPECT_FALSE(ResolveToolSite("", path, &site, &used, &warnings, &error));
+  const ToolSite without_config = ResolveToolSite("", path);
+  EXPECT_FALSE(without_config.known);
+  const std::string& error = without_config.error;
   EXPECT_NE(error.find("holds SITE messages of 2 different sites"), std::string::npos) << error;
   EXPECT_NE(error.find(ShortSiteHash(original.content_hash) + " by trilat_proc@"),
             std::string::npos)
@@ -539,10 +535,10 @@ TEST(SiteFromLog, ALogOfTwoSitesNeedsConfigAndNamesBoth) {
       << error;
   EXPECT_NE(error.find("--config"), std::string::npos) << error;
 
-  warnings.clear();
-  ASSERT_TRUE(ResolveToolSite(DemoSitePath(), path, &site, &used, &warnings, &error)) << error;
-  EXPECT_TRUE(Contains(warnings, "processes disagree on the site"))
-      << ::testing::PrintToString(warnings);
+  const ToolSite with_config = ResolveToolSite(DemoSitePath(), path);
+  ASSERT_TRUE(with_config.known) << with_config.error;
+  EXPECT_TRUE(Contains(with_config.warnings, "processes disagree on the site"))
+      << ::testing::PrintToString(with_config.warnings);
 }
 
 // A process repeats its site every 5 s: a repeat with the same texts is not
@@ -573,20 +569,20 @@ TEST(SiteFromLog, ConfigBesideALogWarnsWithTheDifferingKeys) {
   TempDir dir;
   const std::string path = WriteLog(dir, {Encode(DemoMessage(logged))});
 
-  LoadedSite used;
-  std::string line;
-  std::vector<std::string> warnings;
-  std::string error;
-  ASSERT_TRUE(ResolveToolSite(DemoSitePath(), path, &used, &line, &warnings, &error)) << error;
-  EXPECT_EQ(line.rfind("site from --config " + DemoSitePath(), 0), 0u) << line;
-  ASSERT_EQ(warnings.size(), 1u);
-  EXPECT_NE(warnings[0].find("receivers[0].range_offset_m: 0.02 -> 0.0"), std::string::npos)
-      << warnings[0];
+  const ToolSite with_config = ResolveToolSite(DemoSitePath(), path);
+  ASSERT_TRUE(with_config.known) << with_config.error;
+  EXPECT_EQ(with_config.line.rfind("site from --config " + DemoSitePath(), 0), 0u)
+      << with_config.line;
+  ASSERT_EQ(with_config.warnings.size(), 1u);
+  EXPECT_NE(with_config.warnings[0].find("receivers[0].range_offset_m: 0.02 -> 0.0"),
+            std::string::npos)
+      << with_config.warnings[0];
 
-  warnings.clear();
-  ASSERT_TRUE(ResolveToolSite("", path, &used, &line, &warnings, &error)) << error;
-  EXPECT_TRUE(warnings.empty());
-  EXPECT_EQ(used.content_hash, logged.content_hash);
+  const ToolSite from_log = ResolveToolSite("", path);
+  ASSERT_TRUE(from_log.known) << from_log.error;
+  EXPECT_TRUE(from_log.warnings.empty());
+  EXPECT_EQ(from_log.site.content_hash, logged.content_hash);
+  const std::string& line = from_log.line;
   EXPECT_EQ(
       line.rfind("site from " + path + ": demo_room, hash " + ShortSiteHash(logged.content_hash) +
                      ", roomfix " + RoomfixVersion() + ", published by trilat_proc@",

@@ -41,14 +41,15 @@ demo_packages=(
 # The rest of `make test`: the tests and benchmarks, the Java types jar, the
 # viewer's window tests under a virtual X server, the Debian package test
 # (help2man writes the manual pages, lintian checks the package, man reads them),
-# and python3-pandas for docs/export.md's pandas example (python.export_pandas).
+# python3-pandas for docs/export.md's pandas example (python.export_pandas),
+# and universal-ctags for the size rule (build.long_functions).
 test_packages=(
   git dpkg-dev file
   liblcm-java libjchart2d-java default-jdk-headless
   zlib1g-dev libgtest-dev libgmock-dev libbenchmark-dev
   procps xvfb xauth x11-apps
   help2man lintian man-db
-  python3-pandas
+  python3-pandas universal-ctags
 )
 # The devices' firmware (firmware/: avr-gcc, avr-libc) and simavr, which runs
 # it in the tests and in roomfix_sim --devices firmware.

@@ -1,5 +1,6 @@
 #include "sim/synthetic_camera.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
@@ -476,8 +477,7 @@ TEST(WriteSequence, WritesFramesAndTruthIntoAFolder) {
   const std::string out = dir.File("seq");
   ASSERT_TRUE(WriteSequence(camera, o, out, &error)) << error;
   for (int f = 0; f < 5; ++f) {
-    char name[32];
-    std::snprintf(name, sizeof(name), "/frame_%06d.jpg", f);
+    const std::string name = fmt::format("/frame_{:06d}.jpg", f);
     EXPECT_TRUE(std::filesystem::exists(out + name)) << name;
   }
   EXPECT_FALSE(std::filesystem::exists(out + "/frame_000005.jpg"));

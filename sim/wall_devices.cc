@@ -183,6 +183,32 @@ bool VirtualWallDevices::Schedule(int64_t utime, uint64_t source_address, uint16
   return intact;
 }
 
+void VirtualWallDevices::SendReport(size_t receiver_index, int64_t ready_utime,
+                                    const std::vector<uint8_t>& payload,
+                                    FiringRecord::Report* report) {
+  const RadioFaults& faults = options_.faults;
+  const Receiver& receiver = site_.receivers[receiver_index];
+  int64_t utime = ready_utime + RadioLatencyUs();
+  if (Chance(faults.reorder_probability)) {
+    utime += static_cast<int64_t>(air_.frame_s() * 1e6 * Uniform(1.0, 3.0));
+  }
+  int64_t& hold = hold_until_utime_[receiver_index];
+  if (utime < hold) {
+    utime = hold;
+  } else if (Chance(faults.buffer_probability)) {
+    hold = utime + static_cast<int64_t>(Uniform(0.0, faults.buffer_hold_max_s) * 1e6);
+    utime = hold;
+  }
+  if (!Chance(faults.lost_report_probability)) {
+    const uint16_t source16 = ShortAddress(receiver.address);
+    report->delivery_utime = utime;
+    report->intact = Schedule(utime, receiver.address, source16, payload);
+    if (Chance(faults.duplicate_probability)) {
+      Schedule(utime + RadioLatencyUs(), receiver.address, source16, payload);
+    }
+  }
+}
+
 void VirtualWallDevices::Fire(Firer* firer, const SharedAir::Firing& firing) {
   const int64_t fire_utime = firing.fire_utime;
   const RadioFaults& faults = options_.faults;
@@ -230,7 +256,6 @@ void VirtualWallDevices::Fire(Firer* firer, const SharedAir::Firing& firing) {
     own_tof_s[static_cast<size_t>(receiver - site_.receivers.data())] = r.time_of_flight_s;
   }
   const std::vector<Detection> detections = air_.Detect(firing, own_tof_s);
-  const double period_us = air_.frame_s() * 1e6;
   for (size_t i = 0; i < site_.receivers.size(); ++i) {
     const Receiver& receiver = site_.receivers[i];
     const size_t receiver_index = i;
@@ -263,28 +288,10 @@ void VirtualWallDevices::Fire(Firer* firer, const SharedAir::Firing& firing) {
     // A receiver that heard nothing reports when its listening window ends.
     const double heard_after_s =
         report.no_echo ? air_.decay().listen_s : detections[i].time_of_flight_s;
-    int64_t utime =
+    const int64_t ready_utime =
         fire_utime +
-        static_cast<int64_t>(std::llround((heard_after_s + options_.processing_s) * 1e6)) +
-        RadioLatencyUs();
-    if (Chance(faults.reorder_probability)) {
-      utime += static_cast<int64_t>(period_us * Uniform(1.0, 3.0));
-    }
-    int64_t& hold = hold_until_utime_[receiver_index];
-    if (utime < hold) {
-      utime = hold;
-    } else if (Chance(faults.buffer_probability)) {
-      hold = utime + static_cast<int64_t>(Uniform(0.0, faults.buffer_hold_max_s) * 1e6);
-      utime = hold;
-    }
-    if (!Chance(faults.lost_report_probability)) {
-      const uint16_t source16 = ShortAddress(receiver.address);
-      report.delivery_utime = utime;
-      report.intact = Schedule(utime, receiver.address, source16, payload);
-      if (Chance(faults.duplicate_probability)) {
-        Schedule(utime + RadioLatencyUs(), receiver.address, source16, payload);
-      }
-    }
+        static_cast<int64_t>(std::llround((heard_after_s + options_.processing_s) * 1e6));
+    SendReport(receiver_index, ready_utime, payload, &report);
     record.reports.push_back(report);
   }
 

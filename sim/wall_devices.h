@@ -184,6 +184,11 @@ class VirtualWallDevices {
   };
 
   void Fire(Firer* firer, const SharedAir::Firing& firing);
+  // Sends a receiver's report (site order), ready at ready_utime, through
+  // the radio and its faults (reordering, a module holding reports back,
+  // loss, duplicates); fills the report's delivery time and intactness.
+  void SendReport(size_t receiver_index, int64_t ready_utime, const std::vector<uint8_t>& payload,
+                  FiringRecord::Report* report);
   static std::vector<Firer> MakeFirers(const Site& site, uint16_t first_seq);
   // Frames a payload from a source and queues it for utime; returns false
   // when a byte of it was corrupted on the way.

@@ -3,12 +3,14 @@
 // against ground truth, camera against ultrasound. A Markdown report and PNG
 // figures (gnuplot) in an output folder, and the same figures as JSON.
 #include <fcntl.h>
+#include <fmt/format.h>
 #include <spawn.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -30,6 +32,7 @@
 #include "msgio/pose_tracks.h"
 #include "msgio/wire_check.h"
 #include "tools/commands.h"
+#include "tools/fixed_text.h"
 #include "tools/tool_site.h"
 
 extern char** environ;
@@ -129,12 +132,11 @@ bool WriteText(const std::string& path, const std::string& text, std::string* er
   return WriteOutputFile(path, text, error);
 }
 
-std::string Fixed(double v, int digits) {
-  if (!std::isfinite(v)) return "-";
-  char buffer[64];
-  std::snprintf(buffer, sizeof(buffer), "%.*f", digits, v);
-  return buffer;
-}
+// One row of the quality table, and its header.
+constexpr char kQualityRow[] =
+    "{:<12} {:>5} {:>6} {:>6} {:>6} {:>6} {:>8} {:>8} {:>8} {:>9} {:>7} {:>7}\n";
+constexpr char kQualityHeader[] =
+    "\n{:<12} {:>5} {:>6} {:>6} {:>6} {:>6} {:>8} {:>8} {:>8} {:>9} {:>7} {:>7}\n";
 
 // Whether a pose stream can be trusted (analysis::AssessFixes): accuracy
 // with the worst fix flagged ok, the shares of ok / degraded / lost fixes,
@@ -164,13 +166,10 @@ json FixQualityFigures(const PoseTrack& track, const PoseTrack* truth, int64_t m
        << "squared Mahalanobis; calibrated: 95 %, 1.39) | " << pct(q.share_inside_95) << " % ("
        << Fixed(q.median_d2, 2) << ") over " << q.with_covariance << " fixes |\n";
   }
-  char line[256];
-  std::snprintf(line, sizeof(line), "%-12s %5d %6d %6s %6s %6s %8s %8s %8s %9s %7s %7s\n",
-                track.source.c_str(), track.robot_id, q.fixes, pct(q.share_ok).c_str(),
-                pct(q.share_degraded).c_str(), pct(q.share_lost).c_str(), cm(q.rmse_m).c_str(),
-                cm(q.p99_m).c_str(), cm(q.max_m).c_str(), cm(q.worst_ok_m).c_str(),
-                pct(q.share_inside_95).c_str(), Fixed(q.median_d2, 2).c_str());
-  *table += line;
+  *table +=
+      fmt::format(kQualityRow, track.source.c_str(), track.robot_id, q.fixes, pct(q.share_ok),
+                  pct(q.share_degraded), pct(q.share_lost), cm(q.rmse_m), cm(q.p99_m), cm(q.max_m),
+                  cm(q.worst_ok_m), pct(q.share_inside_95), Fixed(q.median_d2, 2));
   json j = {{"fixes", q.fixes},          {"ok", q.ok},
             {"degraded", q.degraded},    {"lost", q.lost},
             {"share_ok", q.share_ok},    {"share_degraded", q.share_degraded},
@@ -388,7 +387,9 @@ std::string DefaultOutDir(const std::string& log) {
   return base + "_analysis";
 }
 
-int RunAnalyze(const AnalyzeOptions& options) {
+// The flags that depend on nothing else, checked by hand (their ranges are
+// part of the messages users see); false after saying why.
+bool CheckOptions(const AnalyzeOptions& options) {
   const std::pair<const char*, bool> checks[] = {
       {"--frame-rate must be in (0, 10000] fps",
        options.frame_rate_hz > 0.0 && options.frame_rate_hz <= 10000.0},
@@ -401,55 +402,59 @@ int RunAnalyze(const AnalyzeOptions& options) {
   for (const auto& [message, ok] : checks) {
     if (!ok) {
       std::cerr << "roomfix analyze: " << message << "\n";
-      return 1;
+      return false;
     }
   }
-  const std::string out_dir =
-      options.out_dir.empty() ? DefaultOutDir(options.logs[0]) : options.out_dir;
-  if (::mkdir(out_dir.c_str(), 0755) != 0 && errno != EEXIST) {
-    std::cerr << "roomfix analyze: cannot make " << out_dir << ": " << std::strerror(errno) << "\n";
-    return 1;
-  }
-  // A progress bar on a terminal only: logs of hours take seconds to read.
+  return true;
+}
+
+// Reads the logs, with a progress bar on a terminal only: logs of hours
+// take seconds to read.
+PoseLogs ReadLogsWithProgress(const std::vector<std::string>& paths) {
   const bool show_progress = ::isatty(2) != 0;
   int last_percent = -1;
-  const PoseLogs logs = ReadPoseLogs(options.logs, [&](double fraction) {
+  return ReadPoseLogs(paths, [&](double fraction) {
     const int percent = static_cast<int>(fraction * 100);
     if (!show_progress || percent == last_percent) return;
     last_percent = percent;
-    std::fprintf(stderr, "\rreading %zu log(s) [%-40s] %3d%%", options.logs.size(),
-                 std::string(static_cast<size_t>(percent * 40 / 100), '#').c_str(), percent);
-    if (percent == 100) std::fprintf(stderr, "\n");
+    fmt::print(stderr, "\rreading {} log(s) [{:<40}] {:>3}%", paths.size(),
+               std::string(static_cast<size_t>(percent * 40 / 100), '#'), percent);
+    if (percent == 100) fmt::print(stderr, "\n");
   });
+}
 
-  json out;
-  out["logs"] = json::array();
-  int unreadable = 0;
-  // Which site each log was recorded in (or --config): said on stderr, in
-  // the summary and the report; two logs of different sites are a warning.
-  // The poses themselves need no site, so a log without SITE is a note.
-  std::vector<ToolSite> sites;
+// Which site each log was recorded in (or --config): said on stderr, in
+// the summary and the report; two logs of different sites are a warning.
+// The poses themselves need no site, so a log without SITE is a note.
+// False when the tool must stop (a bad --config).
+bool ResolveLogSites(const AnalyzeOptions& options, const PoseLogs& logs,
+                     std::vector<ToolSite>* sites) {
   for (const LogReadReport& r : logs.logs) {
-    sites.push_back(r.error.empty() ? ResolveSiteForLog(options.config_path, r.path) : ToolSite{});
+    sites->push_back(r.error.empty() ? ResolveToolSite(options.config_path, r.path) : ToolSite{});
     if (!r.error.empty()) continue;
-    if (!ReportToolSite("roomfix analyze", sites.back(), /*required=*/false)) return 1;
+    if (!ReportToolSite("roomfix analyze", sites->back(), /*required=*/false)) return false;
   }
-  if (options.config_path.empty()) {
-    size_t first = sites.size();
-    for (size_t i = 0; i < sites.size(); ++i) {
-      if (!sites[i].known) continue;
-      if (first == sites.size()) {
-        first = i;
-        continue;
-      }
-      const std::string mismatch =
-          SiteMismatchWarning(sites[first].site, "the site of " + logs.logs[first].path,
-                              sites[i].site, "the site of " + logs.logs[i].path);
-      if (mismatch.empty()) continue;
-      std::cerr << "roomfix analyze: warning: logs of different sites: " << mismatch << "\n";
-      sites[i].warnings.push_back("logs of different sites: " + mismatch);
+  if (!options.config_path.empty()) return true;
+  size_t first = sites->size();
+  for (size_t i = 0; i < sites->size(); ++i) {
+    if (!(*sites)[i].known) continue;
+    if (first == sites->size()) {
+      first = i;
+      continue;
     }
+    const std::string mismatch =
+        SiteMismatchWarning((*sites)[first].site, "the site of " + logs.logs[first].path,
+                            (*sites)[i].site, "the site of " + logs.logs[i].path);
+    if (mismatch.empty()) continue;
+    std::cerr << "roomfix analyze: warning: logs of different sites: " << mismatch << "\n";
+    (*sites)[i].warnings.push_back("logs of different sites: " + mismatch);
   }
+  return true;
+}
+
+// The summary's "logs": each log's state and site.
+json LogsJson(const PoseLogs& logs, const std::vector<ToolSite>& sites) {
+  json out = json::array();
   for (size_t i = 0; i < logs.logs.size(); ++i) {
     const LogReadReport& r = logs.logs[i];
     json j = {{"path", r.path}};
@@ -468,7 +473,6 @@ int RunAnalyze(const AnalyzeOptions& options) {
     if (!site.warnings.empty()) j["site_warnings"] = site.warnings;
     if (!r.error.empty()) {
       j["error"] = r.error;
-      ++unreadable;
     } else {
       j["events"] = r.events;
       j["pose_events"] = r.pose_events;
@@ -480,22 +484,13 @@ int RunAnalyze(const AnalyzeOptions& options) {
       j["bytes_read"] = r.bytes_read;
       j["file_size"] = r.file_size;
     }
-    out["logs"].push_back(j);
+    out.push_back(j);
   }
-  for (const LogReadReport& r : logs.logs) {
-    if (r.damaged) std::cerr << "roomfix analyze: warning: " << r.path << ": " << r.damage << "\n";
-  }
-  if (unreadable == static_cast<int>(logs.logs.size())) {
-    for (const LogReadReport& r : logs.logs) std::cerr << "roomfix analyze: " << r.error << "\n";
-    return 1;
-  }
+  return out;
+}
 
-  Figures figures(out_dir, options.figures);
-  const auto max_gap_us = static_cast<int64_t>(options.max_gap_s * 1e6);
-  std::map<int, std::vector<const PoseTrack*>> by_robot;
-  for (const auto& [key, track] : logs.tracks) by_robot[key.second].push_back(&track);
-
-  std::ostringstream md;
+// The report's head: a table of the logs, then the site of each.
+void WriteReportHead(const PoseLogs& logs, const std::vector<ToolSite>& sites, std::ostream& md) {
   md << "# roomfix analysis\n\n| log | events | poses | state |\n|---|---|---|---|\n";
   for (const LogReadReport& r : logs.logs) {
     md << "| `" << r.path << "` | " << r.events << " | " << r.pose_events << " | ";
@@ -516,197 +511,310 @@ int RunAnalyze(const AnalyzeOptions& options) {
     for (const auto& w : sites[i].warnings) md << "  - warning: " << w << "\n";
   }
   if (logs.tracks.empty()) md << "\nNo pose2d_t on any POSE_* channel.\n";
+}
 
-  out["robots"] = json::object();
-  std::string quality_table;
+// What the figures of one source are computed against: the options, the
+// robot's reference tracks, and where the report and the figures go.
+struct SourceContext {
+  const AnalyzeOptions& options;
+  int64_t max_gap_us;
+  int robot_id;
+  const PoseTrack* truth;
+  const PoseTrack* camera;
+  Figures* figures;
+  std::ostream& md;
+  std::string* quality_table;
+};
+
+// Fix rate and intervals, and the latencies of a source that is not the
+// ground truth.
+analysis::Timing TimingFigures(const PoseTrack& t, const SourceContext& c, json* j) {
+  std::vector<int64_t> utimes;
+  std::vector<double> publish_ms;
+  std::vector<double> arrival_ms;
+  for (const PoseSample& s : t.samples) {
+    utimes.push_back(s.utime);
+    publish_ms.push_back(s.latency_us * 1e-3);
+    // In double: a garbage utime must not overflow the subtraction.
+    arrival_ms.push_back((static_cast<double>(s.recv_utime) - static_cast<double>(s.utime)) * 1e-3);
+  }
+  const analysis::Timing timing = analysis::ComputeTiming(utimes, c.options.frame_rate_hz);
+  (*j)["timing"] = {{"intervals", timing.intervals},
+                    {"rate_hz", timing.rate_hz},
+                    {"mean_ms", timing.mean_ms},
+                    {"std_ms", timing.std_ms},
+                    {"median_ms", timing.median_ms},
+                    {"min_ms", timing.min_ms},
+                    {"max_ms", timing.max_ms},
+                    {"frame_period_ms", timing.frame_period_ms},
+                    {"interval_ms", HistogramJson(timing.interval_ms)},
+                    {"interval_frames", HistogramJson(timing.interval_frames)}};
+  c.md << "| rate | " << Fixed(timing.rate_hz, 2) << " Hz |\n| interval mean, std | "
+       << Fixed(timing.mean_ms, 1) << " ms, " << Fixed(timing.std_ms, 1)
+       << " ms (reference camera: 236 ms, 22.9 ms) |\n";
+  if (t.source != "ground_truth") {
+    const analysis::LatencySummary publish = analysis::SummariseLatency(publish_ms);
+    const analysis::LatencySummary arrival = analysis::SummariseLatency(arrival_ms);
+    (*j)["latency_publish_ms"] = LatencyJson(publish);
+    (*j)["latency_arrival_ms"] = LatencyJson(arrival);
+    c.md << "| latency to publish, median (p95) | " << Fixed(publish.median_ms, 1) << " ("
+         << Fixed(publish.p95_ms, 1) << ") ms |\n| latency to the logger, median (p95) | "
+         << Fixed(arrival.median_ms, 1) << " (" << Fixed(arrival.p95_ms, 1) << ") ms |\n";
+  }
+  return timing;
+}
+
+// A static track's repeatability; returns its figure's file name.
+std::string StaticFigures(const std::vector<analysis::TimedPosition>& positions,
+                          const std::string& stem, const SourceContext& c, json* j) {
+  const analysis::Repeatability r =
+      analysis::ComputeRepeatability(positions, c.options.tolerance_m);
+  (*j)["repeatability"] = {{"n", r.n},
+                           {"mean_x_m", r.mean_x_m},
+                           {"mean_y_m", r.mean_y_m},
+                           {"std_x_m", r.std_x_m},
+                           {"std_y_m", r.std_y_m},
+                           {"tolerance_m", r.tolerance_m},
+                           {"share_outside", r.share_outside},
+                           {"max_deviation_m", r.max_deviation_m},
+                           {"histogram",
+                            {{"x_lo", r.histogram.x_lo},
+                             {"y_lo", r.histogram.y_lo},
+                             {"bin_m", r.histogram.bin_m},
+                             {"nx", r.histogram.nx},
+                             {"ny", r.histogram.ny},
+                             {"counts", r.histogram.counts},
+                             {"outside", r.histogram.outside}}}};
+  c.md << "| static: mean | (" << Fixed(r.mean_x_m, 4) << ", " << Fixed(r.mean_y_m, 4)
+       << ") m |\n| static: std x, y | " << Fixed(r.std_x_m * 100, 3) << " cm, "
+       << Fixed(r.std_y_m * 100, 3) << " cm (reference: 0.38 cm, 0.49 cm) |\n"
+       << "| static: outside +-" << Fixed(r.tolerance_m * 100, 1) << " cm | "
+       << Fixed(r.share_outside * 100, 2) << "% |\n";
+  return c.figures->Static("static_" + stem, r);
+}
+
+// A moving track's two circle fits (a: drifting centre, b: circular motion).
+json CircleFigures(const std::vector<analysis::TimedPosition>& positions, std::ostream& md) {
+  std::vector<analysis::TimedPoint> points;
+  for (const auto& p : positions) {
+    points.push_back(
+        {(static_cast<double>(p.utime) - static_cast<double>(positions.front().utime)) * 1e-6,
+         p.x_m, p.y_m});
+  }
+  const analysis::DriftingCircleFit a = analysis::FitDriftingCircle(points);
+  const analysis::CircularMotionFit b = analysis::FitCircularMotion(points);
+  json circle = json::object();
+  if (a.usable) {
+    circle["drifting_centre"] = CircleJson(a);
+    circle["drifting_centre"]["residual_std_m"] = a.residual_std_m;
+    md << "| circle (a): r, centre, drift | " << Fixed(a.radius_m * 100, 2) << " cm, ("
+       << Fixed(a.cx_m * 100, 1) << ", " << Fixed(a.cy_m * 100, 1) << ") cm, ("
+       << Fixed(a.vx_mps * 1e3, 3) << ", " << Fixed(a.vy_mps * 1e3, 3) << ") mm/s, residual std "
+       << Fixed(a.residual_std_m * 100, 3)
+       << " cm (reference: 41.9 cm, (191.1, 149.6) cm, (0.264, -0.096) mm/s, 0.633 cm) |\n";
+  } else {
+    circle["drifting_centre"] = {{"error", a.message}};
+  }
+  if (b.usable) {
+    circle["circular_motion"] = CircleJson(b);
+    circle["circular_motion"]["angular_speed_radps"] = b.angular_speed_radps;
+    circle["circular_motion"]["angular_speed_sigma_radps"] = b.angular_speed_sigma_radps;
+    circle["circular_motion"]["phase_rad"] = b.phase_rad;
+    circle["circular_motion"]["phase_sigma_rad"] = b.phase_sigma_rad;
+    circle["circular_motion"]["mean_error_m"] = b.mean_error_m;
+    circle["circular_motion"]["std_error_m"] = b.std_error_m;
+    md << "| circle (b): w, phase, error mean (std) | " << Fixed(b.angular_speed_radps, 4)
+       << " rad/s, " << Fixed(b.phase_rad, 3) << " rad, " << Fixed(b.mean_error_m * 100, 2) << " ("
+       << Fixed(b.std_error_m * 100, 2)
+       << ") cm (reference: -0.439 rad/s, 3.163 rad, 2.8 (1.8) cm) |\n";
+  } else {
+    circle["circular_motion"] = {{"error", b.message}};
+  }
+  return circle;
+}
+
+// A source against the references: the error against ground truth, the
+// fix quality, and ultrasound against the camera. Adds figures' names to
+// `pictures`.
+void ReferenceFigures(const PoseTrack& t, const std::vector<analysis::TimedPosition>& positions,
+                      const std::string& stem, const SourceContext& c, json* j,
+                      std::vector<std::string>* pictures) {
+  if (c.truth != nullptr && &t != c.truth) {
+    const std::vector<analysis::TimedPosition> reference = c.truth->Positions();
+    const analysis::ErrorSummary e =
+        analysis::CompareToReference(positions, reference, c.max_gap_us);
+    (*j)["ground_truth_error"] = ErrorJson(e);
+    c.md << "| error vs ground truth: RMSE, p95, max | " << Fixed(e.rmse_m * 100, 2) << ", "
+         << Fixed(e.p95_m * 100, 2) << ", " << Fixed(e.max_m * 100, 2) << " cm |\n";
+    pictures->push_back(c.figures->ErrorOverTime(
+        "error_" + stem, analysis::ErrorsOverTime(positions, reference, c.max_gap_us)));
+  }
+  if (&t != c.truth) {
+    (*j)["quality"] = FixQualityFigures(t, c.truth, c.max_gap_us, c.md, c.quality_table);
+  }
+  if (c.camera != nullptr && t.source == "ultrasound") {
+    const analysis::TrackOffset o =
+        analysis::CompareTracks(positions, c.camera->Positions(), c.max_gap_us);
+    (*j)["vs_camera"] = {
+        {"matched", o.matched},     {"mean_dx_m", o.mean_dx_m},
+        {"mean_dy_m", o.mean_dy_m}, {"std_dx_m", o.std_dx_m},
+        {"std_dy_m", o.std_dy_m},   {"error_after_offset", ErrorJson(o.error_after_offset)}};
+    c.md << "| vs camera: offset (dx, dy) | (" << Fixed(o.mean_dx_m * 100, 2) << ", "
+         << Fixed(o.mean_dy_m * 100, 2) << ") cm over " << o.matched
+         << " fixes |\n| vs camera: RMSE once the offset is removed | "
+         << Fixed(o.error_after_offset.rmse_m * 100, 2) << " cm |\n";
+  }
+}
+
+// Every figure of one source of one robot: its section of the report and
+// its JSON.
+json SourceFigures(const PoseTrack& t, const SourceContext& c) {
+  const std::vector<analysis::TimedPosition> positions = t.Positions();
+  int degraded = 0;
+  for (const PoseSample& s : t.samples) degraded += s.degraded ? 1 : 0;
+  const std::string stem = t.source + "_robot" + std::to_string(c.robot_id);
+  json j = {{"fixes", t.samples.size()}, {"lost", t.lost}, {"degraded", degraded}};
+  c.md << "### " << t.source << "\n\n| figure | value |\n|---|---|\n";
+  c.md << "| fixes (lost, degraded) | " << t.samples.size() << " (" << t.lost << ", " << degraded
+       << ") |\n";
+  const analysis::Timing timing = TimingFigures(t, c, &j);
+  const analysis::Motion motion = analysis::ComputeMotion(positions);
+  j["motion"] = {{"distance_m", motion.distance_m},
+                 {"duration_s", motion.duration_s},
+                 {"mean_speed_mps", motion.mean_speed_mps},
+                 {"std_speed_mps", motion.std_speed_mps},
+                 {"max_speed_mps", motion.max_speed_mps}};
+  c.md << "| distance, speed mean (std) | " << Fixed(motion.distance_m, 3) << " m, "
+       << Fixed(motion.mean_speed_mps * 100, 2) << " (" << Fixed(motion.std_speed_mps * 100, 2)
+       << ") cm/s |\n";
+
+  const bool is_static = analysis::LooksStatic(positions, c.options.static_extent_m);
+  j["static"] = is_static;
+  std::vector<std::string> pictures;
+  if (is_static) {
+    pictures.push_back(StaticFigures(positions, stem, c, &j));
+  } else if (positions.size() >= 10) {
+    j["circle"] = CircleFigures(positions, c.md);
+  }
+  ReferenceFigures(t, positions, stem, c, &j, &pictures);
+  if (timing.intervals > 0) {
+    pictures.push_back(c.figures->Intervals("intervals_" + stem, timing));
+  }
+  c.md << "\n";
+  for (const std::string& p : pictures) {
+    if (!p.empty()) c.md << "![" << p << "](" << p << ")\n";
+  }
+  c.md << "\n";
+  return j;
+}
+
+// Every robot's section of the report (its trajectory, then each source),
+// the summary's "robots" in return; each source's quality row is added to
+// `quality_table`.
+json RobotFigures(const AnalyzeOptions& options, const PoseLogs& logs,
+                  const std::vector<ToolSite>& sites, Figures* figures, std::ostream& md,
+                  std::string* quality_table) {
+  std::map<int, std::vector<const PoseTrack*>> by_robot;
+  for (const auto& [key, track] : logs.tracks) by_robot[key.second].push_back(&track);
   const Site* known_site = nullptr;
   for (const ToolSite& site : sites) {
     if (site.known && known_site == nullptr) known_site = &site.site.site;
   }
+  json robots = json::object();
   for (const auto& [robot_id, tracks] : by_robot) {
     md << "\n## Robot " << robot_id << "\n\n";
-    const std::string trajectory = figures.Trajectory(robot_id, tracks, known_site);
+    const std::string trajectory = figures->Trajectory(robot_id, tracks, known_site);
     if (!trajectory.empty()) md << "![trajectory](" << trajectory << ")\n\n";
-    const PoseTrack* truth = nullptr;
-    const PoseTrack* camera = nullptr;
+    SourceContext context{options,  static_cast<int64_t>(options.max_gap_s * 1e6),
+                          robot_id, nullptr,
+                          nullptr,  figures,
+                          md,       quality_table};
     for (const PoseTrack* t : tracks) {
-      if (t->source == "ground_truth") truth = t;
-      if (t->source == "camera") camera = t;
+      if (t->source == "ground_truth") context.truth = t;
+      if (t->source == "camera") context.camera = t;
     }
     json robot = json::object();
-    for (const PoseTrack* t : tracks) {
-      const std::vector<analysis::TimedPosition> positions = t->Positions();
-      std::vector<int64_t> utimes;
-      std::vector<double> publish_ms;
-      std::vector<double> arrival_ms;
-      int degraded = 0;
-      for (const PoseSample& s : t->samples) {
-        utimes.push_back(s.utime);
-        publish_ms.push_back(s.latency_us * 1e-3);
-        // In double: a garbage utime must not overflow the subtraction.
-        arrival_ms.push_back((static_cast<double>(s.recv_utime) - static_cast<double>(s.utime)) *
-                             1e-3);
-        degraded += s.degraded ? 1 : 0;
-      }
-      const std::string stem = t->source + "_robot" + std::to_string(robot_id);
-      json j = {{"fixes", t->samples.size()}, {"lost", t->lost}, {"degraded", degraded}};
-      md << "### " << t->source << "\n\n| figure | value |\n|---|---|\n";
-      md << "| fixes (lost, degraded) | " << t->samples.size() << " (" << t->lost << ", "
-         << degraded << ") |\n";
-
-      const analysis::Timing timing = analysis::ComputeTiming(utimes, options.frame_rate_hz);
-      j["timing"] = {{"intervals", timing.intervals},
-                     {"rate_hz", timing.rate_hz},
-                     {"mean_ms", timing.mean_ms},
-                     {"std_ms", timing.std_ms},
-                     {"median_ms", timing.median_ms},
-                     {"min_ms", timing.min_ms},
-                     {"max_ms", timing.max_ms},
-                     {"frame_period_ms", timing.frame_period_ms},
-                     {"interval_ms", HistogramJson(timing.interval_ms)},
-                     {"interval_frames", HistogramJson(timing.interval_frames)}};
-      md << "| rate | " << Fixed(timing.rate_hz, 2) << " Hz |\n| interval mean, std | "
-         << Fixed(timing.mean_ms, 1) << " ms, " << Fixed(timing.std_ms, 1)
-         << " ms (reference camera: 236 ms, 22.9 ms) |\n";
-      if (t->source != "ground_truth") {
-        const analysis::LatencySummary publish = analysis::SummariseLatency(publish_ms);
-        const analysis::LatencySummary arrival = analysis::SummariseLatency(arrival_ms);
-        j["latency_publish_ms"] = LatencyJson(publish);
-        j["latency_arrival_ms"] = LatencyJson(arrival);
-        md << "| latency to publish, median (p95) | " << Fixed(publish.median_ms, 1) << " ("
-           << Fixed(publish.p95_ms, 1) << ") ms |\n| latency to the logger, median (p95) | "
-           << Fixed(arrival.median_ms, 1) << " (" << Fixed(arrival.p95_ms, 1) << ") ms |\n";
-      }
-      const analysis::Motion motion = analysis::ComputeMotion(positions);
-      j["motion"] = {{"distance_m", motion.distance_m},
-                     {"duration_s", motion.duration_s},
-                     {"mean_speed_mps", motion.mean_speed_mps},
-                     {"std_speed_mps", motion.std_speed_mps},
-                     {"max_speed_mps", motion.max_speed_mps}};
-      md << "| distance, speed mean (std) | " << Fixed(motion.distance_m, 3) << " m, "
-         << Fixed(motion.mean_speed_mps * 100, 2) << " (" << Fixed(motion.std_speed_mps * 100, 2)
-         << ") cm/s |\n";
-
-      const bool is_static = analysis::LooksStatic(positions, options.static_extent_m);
-      j["static"] = is_static;
-      std::vector<std::string> pictures;
-      if (is_static) {
-        const analysis::Repeatability r =
-            analysis::ComputeRepeatability(positions, options.tolerance_m);
-        j["repeatability"] = {{"n", r.n},
-                              {"mean_x_m", r.mean_x_m},
-                              {"mean_y_m", r.mean_y_m},
-                              {"std_x_m", r.std_x_m},
-                              {"std_y_m", r.std_y_m},
-                              {"tolerance_m", r.tolerance_m},
-                              {"share_outside", r.share_outside},
-                              {"max_deviation_m", r.max_deviation_m},
-                              {"histogram",
-                               {{"x_lo", r.histogram.x_lo},
-                                {"y_lo", r.histogram.y_lo},
-                                {"bin_m", r.histogram.bin_m},
-                                {"nx", r.histogram.nx},
-                                {"ny", r.histogram.ny},
-                                {"counts", r.histogram.counts},
-                                {"outside", r.histogram.outside}}}};
-        md << "| static: mean | (" << Fixed(r.mean_x_m, 4) << ", " << Fixed(r.mean_y_m, 4)
-           << ") m |\n| static: std x, y | " << Fixed(r.std_x_m * 100, 3) << " cm, "
-           << Fixed(r.std_y_m * 100, 3) << " cm (reference: 0.38 cm, 0.49 cm) |\n"
-           << "| static: outside +-" << Fixed(r.tolerance_m * 100, 1) << " cm | "
-           << Fixed(r.share_outside * 100, 2) << "% |\n";
-        pictures.push_back(figures.Static("static_" + stem, r));
-      } else if (positions.size() >= 10) {
-        std::vector<analysis::TimedPoint> points;
-        for (const auto& p : positions) {
-          points.push_back(
-              {(static_cast<double>(p.utime) - static_cast<double>(positions.front().utime)) * 1e-6,
-               p.x_m, p.y_m});
-        }
-        const analysis::DriftingCircleFit a = analysis::FitDriftingCircle(points);
-        const analysis::CircularMotionFit b = analysis::FitCircularMotion(points);
-        json circle = json::object();
-        if (a.usable) {
-          circle["drifting_centre"] = CircleJson(a);
-          circle["drifting_centre"]["residual_std_m"] = a.residual_std_m;
-          md << "| circle (a): r, centre, drift | " << Fixed(a.radius_m * 100, 2) << " cm, ("
-             << Fixed(a.cx_m * 100, 1) << ", " << Fixed(a.cy_m * 100, 1) << ") cm, ("
-             << Fixed(a.vx_mps * 1e3, 3) << ", " << Fixed(a.vy_mps * 1e3, 3)
-             << ") mm/s, residual std " << Fixed(a.residual_std_m * 100, 3)
-             << " cm (reference: 41.9 cm, (191.1, 149.6) cm, (0.264, -0.096) mm/s, 0.633 cm) |\n";
-        } else {
-          circle["drifting_centre"] = {{"error", a.message}};
-        }
-        if (b.usable) {
-          circle["circular_motion"] = CircleJson(b);
-          circle["circular_motion"]["angular_speed_radps"] = b.angular_speed_radps;
-          circle["circular_motion"]["angular_speed_sigma_radps"] = b.angular_speed_sigma_radps;
-          circle["circular_motion"]["phase_rad"] = b.phase_rad;
-          circle["circular_motion"]["phase_sigma_rad"] = b.phase_sigma_rad;
-          circle["circular_motion"]["mean_error_m"] = b.mean_error_m;
-          circle["circular_motion"]["std_error_m"] = b.std_error_m;
-          md << "| circle (b): w, phase, error mean (std) | " << Fixed(b.angular_speed_radps, 4)
-             << " rad/s, " << Fixed(b.phase_rad, 3) << " rad, " << Fixed(b.mean_error_m * 100, 2)
-             << " (" << Fixed(b.std_error_m * 100, 2)
-             << ") cm (reference: -0.439 rad/s, 3.163 rad, 2.8 (1.8) cm) |\n";
-        } else {
-          circle["circular_motion"] = {{"error", b.message}};
-        }
-        j["circle"] = circle;
-      }
-      if (truth != nullptr && t != truth) {
-        const std::vector<analysis::TimedPosition> reference = truth->Positions();
-        const analysis::ErrorSummary e =
-            analysis::CompareToReference(positions, reference, max_gap_us);
-        j["ground_truth_error"] = ErrorJson(e);
-        md << "| error vs ground truth: RMSE, p95, max | " << Fixed(e.rmse_m * 100, 2) << ", "
-           << Fixed(e.p95_m * 100, 2) << ", " << Fixed(e.max_m * 100, 2) << " cm |\n";
-        pictures.push_back(figures.ErrorOverTime(
-            "error_" + stem, analysis::ErrorsOverTime(positions, reference, max_gap_us)));
-      }
-      if (t != truth) {
-        j["quality"] = FixQualityFigures(*t, truth, max_gap_us, md, &quality_table);
-      }
-      if (camera != nullptr && t->source == "ultrasound") {
-        const analysis::TrackOffset o =
-            analysis::CompareTracks(positions, camera->Positions(), max_gap_us);
-        j["vs_camera"] = {
-            {"matched", o.matched},     {"mean_dx_m", o.mean_dx_m},
-            {"mean_dy_m", o.mean_dy_m}, {"std_dx_m", o.std_dx_m},
-            {"std_dy_m", o.std_dy_m},   {"error_after_offset", ErrorJson(o.error_after_offset)}};
-        md << "| vs camera: offset (dx, dy) | (" << Fixed(o.mean_dx_m * 100, 2) << ", "
-           << Fixed(o.mean_dy_m * 100, 2) << ") cm over " << o.matched
-           << " fixes |\n| vs camera: RMSE once the offset is removed | "
-           << Fixed(o.error_after_offset.rmse_m * 100, 2) << " cm |\n";
-      }
-      if (timing.intervals > 0) pictures.push_back(figures.Intervals("intervals_" + stem, timing));
-      md << "\n";
-      for (const std::string& p : pictures) {
-        if (!p.empty()) md << "![" << p << "](" << p << ")\n";
-      }
-      md << "\n";
-      robot[t->source] = j;
-    }
-    out["robots"][std::to_string(robot_id)] = robot;
+    for (const PoseTrack* t : tracks) robot[t->source] = SourceFigures(*t, context);
+    robots[std::to_string(robot_id)] = robot;
   }
+  return robots;
+}
+
+// The per-source summary of the first robot, the shape `make demo` prints.
+json SourcesSummary(const json& robots) {
+  json sources = json::object();
+  if (robots.empty()) return sources;
+  for (const auto& [source, j] : robots.begin()->items()) {
+    if (source == "ground_truth") continue;
+    json s = {{"rate_hz", j["timing"]["rate_hz"]}};
+    if (j.contains("ground_truth_error")) {
+      s["rmse_m"] = j["ground_truth_error"]["rmse_m"];
+      s["p95_m"] = j["ground_truth_error"]["p95_m"];
+    }
+    if (j.contains("latency_publish_ms")) {
+      s["latency_ms_median"] = j["latency_publish_ms"]["median_ms"];
+    }
+    if (j.contains("quality")) s["quality"] = j["quality"];
+    sources[source] = s;
+  }
+  return sources;
+}
+
+// Standard output: the summary as JSON, or where the report is, the
+// quality table and the logs that could not be read in full.
+void PrintResult(const AnalyzeOptions& options, const PoseLogs& logs, const std::string& out_dir,
+                 const json& out, const std::string& quality_table) {
+  if (options.json) {
+    std::cout << out.dump() << "\n";
+    return;
+  }
+  std::cout << "report: " << out_dir << "/report.md\nsummary: " << out_dir << "/summary.json\n";
+  if (!quality_table.empty()) {
+    // Whether each source can be trusted: status shares, accuracy with
+    // the worst fix flagged ok, and the share of errors inside the fix's
+    // own 95 % ellipse (calibrated: 95 %, median squared Mahalanobis 1.39).
+    std::cout << fmt::format(kQualityHeader, "source", "robot", "fixes", "ok%", "degr%", "lost%",
+                             "rmse_cm", "p99_cm", "max_cm", "worst_ok", "in95%", "med_d2")
+              << quality_table;
+  }
+  for (const LogReadReport& r : logs.logs) {
+    if (!r.error.empty()) std::cout << "unreadable: " << r.error << "\n";
+    if (r.damaged) std::cout << r.path << ": damaged, " << r.damage << "\n";
+  }
+}
+
+// parse (CLI11, CheckOptions) -> load (the logs and their sites) ->
+// compute (the figures, into the report) -> report (files and stdout).
+int RunAnalyze(const AnalyzeOptions& options) {
+  if (!CheckOptions(options)) return 1;
+  const std::string out_dir =
+      options.out_dir.empty() ? DefaultOutDir(options.logs[0]) : options.out_dir;
+  if (::mkdir(out_dir.c_str(), 0755) != 0 && errno != EEXIST) {
+    std::cerr << "roomfix analyze: cannot make " << out_dir << ": " << std::strerror(errno) << "\n";
+    return 1;
+  }
+  const PoseLogs logs = ReadLogsWithProgress(options.logs);
+  std::vector<ToolSite> sites;
+  if (!ResolveLogSites(options, logs, &sites)) return 1;
+  json out;
+  out["logs"] = LogsJson(logs, sites);
+  for (const LogReadReport& r : logs.logs) {
+    if (r.damaged) std::cerr << "roomfix analyze: warning: " << r.path << ": " << r.damage << "\n";
+  }
+  const bool all_unreadable = std::all_of(logs.logs.begin(), logs.logs.end(),
+                                          [](const LogReadReport& r) { return !r.error.empty(); });
+  if (all_unreadable) {
+    for (const LogReadReport& r : logs.logs) std::cerr << "roomfix analyze: " << r.error << "\n";
+    return 1;
+  }
+
+  Figures figures(out_dir, options.figures);
+  std::ostringstream md;
+  WriteReportHead(logs, sites, md);
+  std::string quality_table;
+  out["robots"] = RobotFigures(options, logs, sites, &figures, md, &quality_table);
   for (const std::string& note : figures.notes()) md << "\nFigure not drawn: " << note << "\n";
-
-  // The per-source summary of the first robot, the shape `make demo` prints.
-  out["sources"] = json::object();
-  if (!out["robots"].empty()) {
-    for (const auto& [source, j] : out["robots"].begin()->items()) {
-      if (source == "ground_truth") continue;
-      json s = {{"rate_hz", j["timing"]["rate_hz"]}};
-      if (j.contains("ground_truth_error")) {
-        s["rmse_m"] = j["ground_truth_error"]["rmse_m"];
-        s["p95_m"] = j["ground_truth_error"]["p95_m"];
-      }
-      if (j.contains("latency_publish_ms")) {
-        s["latency_ms_median"] = j["latency_publish_ms"]["median_ms"];
-      }
-      if (j.contains("quality")) s["quality"] = j["quality"];
-      out["sources"][source] = s;
-    }
-  }
+  out["sources"] = SourcesSummary(out["robots"]);
   out["report"] = out_dir + "/report.md";
   std::string write_error = figures.write_error();
   if (!write_error.empty() || !WriteText(out_dir + "/report.md", md.str(), &write_error) ||
@@ -720,25 +828,7 @@ int RunAnalyze(const AnalyzeOptions& options) {
                 << " POSE_* events refused (" << RefusalCounts(r.refused) << ")\n";
     }
   }
-  if (options.json) {
-    std::cout << out.dump() << "\n";
-  } else {
-    std::cout << "report: " << out_dir << "/report.md\nsummary: " << out_dir << "/summary.json\n";
-    if (!quality_table.empty()) {
-      // Whether each source can be trusted: status shares, accuracy with
-      // the worst fix flagged ok, and the share of errors inside the fix's
-      // own 95 % ellipse (calibrated: 95 %, median squared Mahalanobis 1.39).
-      std::printf("\n%-12s %5s %6s %6s %6s %6s %8s %8s %8s %9s %7s %7s\n", "source", "robot",
-                  "fixes", "ok%", "degr%", "lost%", "rmse_cm", "p99_cm", "max_cm", "worst_ok",
-                  "in95%", "med_d2");
-      std::fputs(quality_table.c_str(), stdout);
-      std::fflush(stdout);
-    }
-    for (const LogReadReport& r : logs.logs) {
-      if (!r.error.empty()) std::cout << "unreadable: " << r.error << "\n";
-      if (r.damaged) std::cout << r.path << ": damaged, " << r.damage << "\n";
-    }
-  }
+  PrintResult(options, logs, out_dir, out, quality_table);
   return 0;
 }
 

@@ -3,6 +3,8 @@
 // and/or chessboards lying on the floor (detected with OpenCV), prints the
 // residuals, writes the calibration YAML a site file can name, and draws the
 // fit on the image.
+#include <fmt/format.h>
+
 #include <CLI/CLI.hpp>
 #include <Eigen/Core>
 #include <algorithm>
@@ -20,7 +22,6 @@
 #include <opencv2/imgproc.hpp>
 #include <optional>
 #include <sstream>
-#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -35,6 +36,7 @@
 #include "core/world/site.h"
 #include "tools/calibrate_neighbour.h"
 #include "tools/commands.h"
+#include "tools/fixed_text.h"
 #include "tools/flag_checks.h"
 
 namespace roomfix {
@@ -95,12 +97,12 @@ constexpr int kMaxPointRows = 500;
 constexpr double kMaxAbsPixel = 1e5;
 constexpr double kMaxAbsMetres = 1e4;
 
-std::string Fixed(double v, int digits);
-
-// Thrown inside the command for a one-line refusal.
-struct Refusal : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
+// A step that fails returns false with a one-line reason
+// (docs/development.md, "Style"); the command prints it and exits 1.
+bool Refuse(std::string* error, std::string reason) {
+  *error = std::move(reason);
+  return false;
+}
 
 std::vector<std::string> SplitComma(const std::string& line) {
   std::vector<std::string> out;
@@ -122,22 +124,24 @@ bool ParseNumber(const std::string& text, double* value) {
 
 // A CSV the command reads: a regular file under the configuration-file cap
 // (file_io.h), so /dev/zero or a FIFO is refused at once.
-std::string ReadCsv(const std::string& path) {
-  std::string text, error;
-  if (!ReadConfigFile(path, &text, &error)) throw Refusal(error);
-  return text;
+bool ReadCsv(const std::string& path, std::istringstream* in, std::string* error) {
+  std::string text;
+  if (!ReadConfigFile(path, &text, error)) return false;
+  in->str(text);
+  return true;
 }
 
 // The CSV: a header naming u, v, x_m, y_m, height_m (any order), then one
 // point per line. `lines` receives each point's line number for messages.
-std::vector<Correspondence> ReadPoints(const std::string& path, std::vector<int>* lines) {
-  std::istringstream in(ReadCsv(path));
+bool ReadPoints(const std::string& path, std::vector<Correspondence>* points,
+                std::vector<int>* lines, std::string* error) {
+  std::istringstream in;
+  if (!ReadCsv(path, &in, error)) return false;
   const char* names[5] = {"u", "v", "x_m", "y_m", "height_m"};
   int column[5] = {-1, -1, -1, -1, -1};
   std::string line;
   int number = 0;
   size_t width = 0;
-  std::vector<Correspondence> points;
   while (std::getline(in, line)) {
     ++number;
     if (line.find_first_not_of(" \t\r") == std::string::npos || line[0] == '#') continue;
@@ -150,52 +154,57 @@ std::vector<Correspondence> ReadPoints(const std::string& path, std::vector<int>
       }
       for (int k = 0; k < 5; ++k) {
         if (column[k] < 0) {
-          throw Refusal(path + ":" + std::to_string(number) +
-                        ": the header must name the columns u,v,x_m,y_m,height_m (missing " +
-                        names[k] + ")");
+          return Refuse(error,
+                        path + ":" + std::to_string(number) +
+                            ": the header must name the columns u,v,x_m,y_m,height_m (missing " +
+                            names[k] + ")");
         }
       }
       width = fields.size();
       continue;
     }
     if (fields.size() != width) {
-      throw Refusal(path + ":" + std::to_string(number) + ": expected " + std::to_string(width) +
-                    " fields, got " + std::to_string(fields.size()));
+      return Refuse(error, path + ":" + std::to_string(number) + ": expected " +
+                               std::to_string(width) + " fields, got " +
+                               std::to_string(fields.size()));
     }
     double v[5];
     for (int k = 0; k < 5; ++k) {
       if (!ParseNumber(fields[static_cast<size_t>(column[k])], &v[k])) {
-        throw Refusal(path + ":" + std::to_string(number) + ": " + names[k] +
-                      ": expected a number, got '" + fields[static_cast<size_t>(column[k])] + "'");
+        return Refuse(error, path + ":" + std::to_string(number) + ": " + names[k] +
+                                 ": expected a number, got '" +
+                                 fields[static_cast<size_t>(column[k])] + "'");
       }
     }
     for (int k = 0; k < 5; ++k) {
       const double limit = k < 2 ? kMaxAbsPixel : kMaxAbsMetres;
       if (std::abs(v[k]) > limit) {
-        throw Refusal(path + ":" + std::to_string(number) + ": " + names[k] + ": " +
-                      fields[static_cast<size_t>(column[k])] + " is out of range (at most " +
-                      Fixed(limit, 0) + (k < 2 ? " px" : " m") + " either way)");
+        return Refuse(error, path + ":" + std::to_string(number) + ": " + names[k] + ": " +
+                                 fields[static_cast<size_t>(column[k])] +
+                                 " is out of range (at most " + Fixed(limit, 0) +
+                                 (k < 2 ? " px" : " m") + " either way)");
       }
     }
-    if (points.size() >= static_cast<size_t>(kMaxPointRows)) {
-      throw Refusal(path + ":" + std::to_string(number) + ": more than " +
-                    std::to_string(kMaxPointRows) + " points (the cap of a calibration CSV)");
+    if (points->size() >= static_cast<size_t>(kMaxPointRows)) {
+      return Refuse(error, path + ":" + std::to_string(number) + ": more than " +
+                               std::to_string(kMaxPointRows) +
+                               " points (the cap of a calibration CSV)");
     }
-    points.push_back(Correspondence{v[0], v[1], v[2], v[3], v[4]});
+    points->push_back(Correspondence{v[0], v[1], v[2], v[3], v[4]});
     lines->push_back(number);
   }
-  if (width == 0) throw Refusal(path + ": empty (expected a header u,v,x_m,y_m,height_m)");
-  return points;
+  if (width == 0) return Refuse(error, path + ": empty (expected a header u,v,x_m,y_m,height_m)");
+  return true;
 }
 
-std::array<double, 3> ParseTriple(const std::string& text, const std::string& flag) {
+bool ParseTriple(const std::string& text, const std::string& flag, std::array<double, 3>* out,
+                 std::string* error) {
   const auto fields = SplitComma(text);
-  std::array<double, 3> out{};
-  if (fields.size() != 3 || !ParseNumber(fields[0], &out[0]) || !ParseNumber(fields[1], &out[1]) ||
-      !ParseNumber(fields[2], &out[2])) {
-    throw Refusal(flag + ": expected X,Y,Z in metres, got '" + text + "'");
+  if (fields.size() != 3 || !ParseNumber(fields[0], &(*out)[0]) ||
+      !ParseNumber(fields[1], &(*out)[1]) || !ParseNumber(fields[2], &(*out)[2])) {
+    return Refuse(error, flag + ": expected X,Y,Z in metres, got '" + text + "'");
   }
-  return out;
+  return true;
 }
 
 // Inner corners of a chessboard, columns x rows in OpenCV's sense.
@@ -205,14 +214,14 @@ struct BoardSize {
   std::string Text() const { return std::to_string(cols) + "x" + std::to_string(rows); }
 };
 
-BoardSize ParseBoard(const std::string& text) {
-  BoardSize b;
+bool ParseBoard(const std::string& text, BoardSize* b, std::string* error) {
   char tail = 0;
-  if (std::sscanf(text.c_str(), "%dx%d%c", &b.cols, &b.rows, &tail) != 2 || b.cols < 2 ||
-      b.rows < 2) {
-    throw Refusal("--board: expected COLSxROWS inner corners (e.g. 9x6), got '" + text + "'");
+  if (std::sscanf(text.c_str(), "%dx%d%c", &b->cols, &b->rows, &tail) != 2 || b->cols < 2 ||
+      b->rows < 2) {
+    return Refuse(error,
+                  "--board: expected COLSxROWS inner corners (e.g. 9x6), got '" + text + "'");
   }
-  return b;
+  return true;
 }
 
 // One detected corner: (i, j) = (column, row) index in OpenCV's order.
@@ -254,22 +263,19 @@ bool ParseBoardAxes(const std::string& text, BoardAxes* out) {
 
 // An image from outside: a regular file, its size checked from its header
 // before decoding (camera_io/image_file.h), OpenCV's exceptions caught.
-cv::Mat ReadImage(const std::string& path, int flags) {
-  cv::Mat image;
-  std::string error;
-  if (!camera::ReadImageChecked(path, camera::kMaxToolImageSidePx, camera::kMaxToolImageSidePx,
-                                flags, &image, &error)) {
-    throw Refusal(error);
-  }
-  return image;
+bool ReadImage(const std::string& path, int flags, cv::Mat* image, std::string* error) {
+  return camera::ReadImageChecked(path, camera::kMaxToolImageSidePx, camera::kMaxToolImageSidePx,
+                                  flags, image, error);
 }
 
 // Finds the board's inner corners in the image, row by row as OpenCV
 // orders them. The sector-based detector first: it copes with the strong
 // distortion of a fisheye lens and is sub-pixel by itself; the classic
 // detector with cornerSubPix is the fallback for images it misses.
-std::vector<DetectedCorner> DetectChessboard(const std::string& path, const BoardSize& board) {
-  const cv::Mat gray = ReadImage(path, cv::IMREAD_GRAYSCALE);
+bool DetectChessboard(const std::string& path, const BoardSize& board,
+                      std::vector<DetectedCorner>* out, std::string* error) {
+  cv::Mat gray;
+  if (!ReadImage(path, cv::IMREAD_GRAYSCALE, &gray, error)) return false;
   const cv::Size pattern(board.cols, board.rows);
   std::vector<cv::Point2f> corners;
   bool found = cv::findChessboardCornersSB(
@@ -285,7 +291,7 @@ std::vector<DetectedCorner> DetectChessboard(const std::string& path, const Boar
     }
   }
   if (!found || corners.size() != static_cast<size_t>(board.cols * board.rows)) {
-    throw Refusal(path + ": no " + board.Text() + " chessboard found");
+    return Refuse(error, path + ": no " + board.Text() + " chessboard found");
   }
   // With cols + rows even the board looks the same turned by 180 degrees,
   // so which end of it OpenCV reports first is arbitrary (the two
@@ -296,43 +302,46 @@ std::vector<DetectedCorner> DetectChessboard(const std::string& path, const Boar
       corners.front().x + corners.front().y > corners.back().x + corners.back().y) {
     std::reverse(corners.begin(), corners.end());
   }
-  std::vector<DetectedCorner> out;
-  out.reserve(corners.size());
+  out->reserve(corners.size());
   for (size_t k = 0; k < corners.size(); ++k) {
     const int index = static_cast<int>(k);
-    out.push_back(
+    out->push_back(
         DetectedCorner{index % board.cols, index / board.cols, corners[k].x, corners[k].y});
   }
-  return out;
+  return true;
 }
 
-std::array<double, 2> ParsePair(const std::string& text, const std::string& flag) {
+bool ParsePair(const std::string& text, const std::string& flag, std::array<double, 2>* out,
+               std::string* error) {
   const auto fields = SplitComma(text);
-  std::array<double, 2> out{};
-  if (fields.size() != 2 || !ParseNumber(fields[0], &out[0]) || !ParseNumber(fields[1], &out[1])) {
-    throw Refusal(flag + ": expected X,Y in metres, got '" + text + "'");
+  if (fields.size() != 2 || !ParseNumber(fields[0], &(*out)[0]) ||
+      !ParseNumber(fields[1], &(*out)[1])) {
+    return Refuse(error, flag + ": expected X,Y in metres, got '" + text + "'");
   }
-  return out;
+  return true;
 }
 
 // Detects every --chessboard and appends its corners to `points` as room
 // correspondences (and, with --corners-csv, writes them). `lines` gets 0
 // for each: the corners have no CSV line.
-void AddChessboards(const Flags& f, std::vector<Correspondence>* points, std::vector<int>* lines) {
-  if (f.chessboards.empty()) return;
-  const BoardSize board = ParseBoard(f.board);
+bool AddChessboards(const Flags& f, std::vector<Correspondence>* points, std::vector<int>* lines,
+                    std::string* error) {
+  if (f.chessboards.empty()) return true;
+  BoardSize board;
+  if (!ParseBoard(f.board, &board, error)) return false;
   const bool fitting = !f.out.empty();
   if (fitting) {
     // Unset (0): its value, when given, was checked with the flags.
-    if (f.square_m == 0.0) throw Refusal("--square: expected the square size in metres (> 0)");
+    if (f.square_m == 0.0)
+      return Refuse(error, "--square: expected the square size in metres (> 0)");
     if (f.board_origins.size() != f.chessboards.size()) {
-      throw Refusal("--board-origin: expected one per --chessboard (" +
-                    std::to_string(f.chessboards.size()) + "), got " +
-                    std::to_string(f.board_origins.size()));
+      return Refuse(error, "--board-origin: expected one per --chessboard (" +
+                               std::to_string(f.chessboards.size()) + "), got " +
+                               std::to_string(f.board_origins.size()));
     }
     if (!ParseBoardAxes(f.board_axes, nullptr)) {
-      throw Refusal("--board-axes: expected x, y or a signed pair such as +x-y, got '" +
-                    f.board_axes + "'");
+      return Refuse(error, "--board-axes: expected x, y or a signed pair such as +x-y, got '" +
+                               f.board_axes + "'");
     }
   }
   // Written whole at the end, every step checked (WriteOutputFile).
@@ -340,7 +349,8 @@ void AddChessboards(const Flags& f, std::vector<Correspondence>* points, std::ve
   csv << "image,i,j,u_px,v_px\n";
   csv.precision(10);
   for (size_t b = 0; b < f.chessboards.size(); ++b) {
-    const std::vector<DetectedCorner> corners = DetectChessboard(f.chessboards[b], board);
+    std::vector<DetectedCorner> corners;
+    if (!DetectChessboard(f.chessboards[b], board, &corners, error)) return false;
     std::cout << f.chessboards[b] << ": " << board.Text() << " chessboard, " << corners.size()
               << " corners\n";
     for (const DetectedCorner& c : corners) {
@@ -350,7 +360,8 @@ void AddChessboards(const Flags& f, std::vector<Correspondence>* points, std::ve
       }
     }
     if (!fitting) continue;
-    const std::array<double, 2> origin = ParsePair(f.board_origins[b], "--board-origin");
+    std::array<double, 2> origin{};
+    if (!ParsePair(f.board_origins[b], "--board-origin", &origin, error)) return false;
     BoardAxes axes;
     ParseBoardAxes(f.board_axes, &axes);
     for (const DetectedCorner& c : corners) {
@@ -362,13 +373,11 @@ void AddChessboards(const Flags& f, std::vector<Correspondence>* points, std::ve
     }
   }
   if (!f.corners_csv.empty()) {
-    std::string error;
-    if (!WriteOutputFile(f.corners_csv, csv.str(), &error)) throw Refusal(error);
+    if (!WriteOutputFile(f.corners_csv, csv.str(), error)) return false;
     std::cout << "wrote " << f.corners_csv << "\n";
   }
+  return true;
 }
-
-std::string Fixed(double v, int digits);
 
 // The reference's tripod procedure: images of one marker placed at surveyed
 // points, listed in a CSV `image,x_m,y_m,height_m` (image paths relative to
@@ -387,25 +396,28 @@ vision::MarkerDetector CalibrationDetector(const MarkerClass& mc) {
   return vision::MarkerDetector({cls}, options);
 }
 
-// The one marker of `class_name` in the image at `path`; a Refusal naming
-// the CSV line when the image cannot be read or does not show exactly one.
-vision::Blob FindOneMarker(const vision::MarkerDetector& detector, const std::string& class_name,
-                           const std::string& path, const std::string& where) {
+// The one marker of `class_name` in the image at `path`; false with a
+// reason naming the CSV line when the image cannot be read or does not
+// show exactly one.
+bool FindOneMarker(const vision::MarkerDetector& detector, const std::string& class_name,
+                   const std::string& path, const std::string& where, vision::Blob* blob,
+                   std::string* error) {
   cv::Mat image;
   std::string image_error;
   if (!camera::ReadImageChecked(path, camera::kMaxToolImageSidePx, camera::kMaxToolImageSidePx,
                                 cv::IMREAD_COLOR, &image, &image_error)) {
-    throw Refusal(where + ": " + image_error);
+    return Refuse(error, where + ": " + image_error);
   }
   const std::vector<vision::Blob> blobs = detector.Detect(image, vision::ImageWindow{});
   if (blobs.size() != 1) {
     std::string at;
     for (const vision::Blob& b : blobs)
       at += " (" + Fixed(b.u_px, 1) + ", " + Fixed(b.v_px, 1) + ")";
-    throw Refusal(path + ": expected one " + class_name + " marker, found " +
-                  std::to_string(blobs.size()) + (at.empty() ? "" : " at" + at));
+    return Refuse(error, path + ": expected one " + class_name + " marker, found " +
+                             std::to_string(blobs.size()) + (at.empty() ? "" : " at" + at));
   }
-  return blobs[0];
+  *blob = blobs[0];
+  return true;
 }
 
 const MarkerClass* FindClass(const roomfix::Camera& camera, const std::string& name) {
@@ -415,20 +427,22 @@ const MarkerClass* FindClass(const roomfix::Camera& camera, const std::string& n
   return nullptr;
 }
 
-void AddMarkerImages(const Flags& f, std::vector<Correspondence>* points, std::vector<int>* lines) {
-  if (f.marker_images.empty()) return;
-  if (f.site.empty()) throw Refusal("--marker-images needs --site (the marker's colour class)");
+bool AddMarkerImages(const Flags& f, std::vector<Correspondence>* points, std::vector<int>* lines,
+                     std::string* error) {
+  if (f.marker_images.empty()) return true;
+  if (f.site.empty())
+    return Refuse(error, "--marker-images needs --site (the marker's colour class)");
   Site site;
-  std::string error;
-  if (!LoadSite(f.site, &site, &error)) throw Refusal(error);
+  if (!LoadSite(f.site, &site, error)) return false;
   const roomfix::Camera* camera = site.FindCameraOrFirst(f.camera_id);
-  if (camera == nullptr) throw Refusal(f.site + ": no such camera");
+  if (camera == nullptr) return Refuse(error, f.site + ": no such camera");
   std::string class_name = f.marker_class;
   if (class_name.empty() && !camera->robots.empty()) {
     class_name = camera->robots.front().position_marker;
   }
   const MarkerClass* mc = FindClass(*camera, class_name);
-  if (mc == nullptr) throw Refusal("--marker-class: the camera has no class '" + class_name + "'");
+  if (mc == nullptr)
+    return Refuse(error, "--marker-class: the camera has no class '" + class_name + "'");
   // The tripod carries a position marker: the code's position size when the
   // site has a marker code, else the class's own diameter. The fit maps the
   // disc's centre, as camera_proc does (calib::FitCameraToMarkers).
@@ -437,7 +451,8 @@ void AddMarkerImages(const Flags& f, std::vector<Correspondence>* points, std::v
       (camera->marker_code.enabled() ? camera->marker_code.position_diameter_m : mc->diameter_m);
   const vision::MarkerDetector detector = CalibrationDetector(*mc);
 
-  std::istringstream in(ReadCsv(f.marker_images));
+  std::istringstream in;
+  if (!ReadCsv(f.marker_images, &in, error)) return false;
   const std::string dir = std::filesystem::path(f.marker_images).parent_path().string();
   std::string line;
   int line_no = 0;
@@ -450,20 +465,23 @@ void AddMarkerImages(const Flags& f, std::vector<Correspondence>* points, std::v
     if (line_no == 1) {
       if (cells.size() != 4 || cells[0] != "image" || cells[1] != "x_m" || cells[2] != "y_m" ||
           cells[3] != "height_m") {
-        throw Refusal(f.marker_images + ":1: expected the header image,x_m,y_m,height_m");
+        return Refuse(error, f.marker_images + ":1: expected the header image,x_m,y_m,height_m");
       }
       continue;
     }
     double x = 0, y = 0, h = 0;
     if (cells.size() != 4 || !ParseNumber(cells[1], &x) || !ParseNumber(cells[2], &y) ||
         !ParseNumber(cells[3], &h)) {
-      throw Refusal(f.marker_images + ":" + std::to_string(line_no) +
-                    ": expected image,x_m,y_m,height_m");
+      return Refuse(error, f.marker_images + ":" + std::to_string(line_no) +
+                               ": expected image,x_m,y_m,height_m");
     }
     std::string path = cells[0];
     if (!path.empty() && path[0] != '/' && !dir.empty()) path = dir + "/" + path;
-    const vision::Blob blob =
-        FindOneMarker(detector, class_name, path, f.marker_images + ":" + std::to_string(line_no));
+    vision::Blob blob;
+    if (!FindOneMarker(detector, class_name, path, f.marker_images + ":" + std::to_string(line_no),
+                       &blob, error)) {
+      return false;
+    }
     std::cout << path << ": " << class_name << " marker at (" << Fixed(blob.u_px, 2) << ", "
               << Fixed(blob.v_px, 2) << ") px for (" << Fixed(x, 3) << ", " << Fixed(y, 3) << ", "
               << Fixed(h, 3) << ") m\n";
@@ -471,35 +489,34 @@ void AddMarkerImages(const Flags& f, std::vector<Correspondence>* points, std::v
     lines->push_back(line_no);
     ++used;
   }
-  if (used == 0) throw Refusal(f.marker_images + ": no images listed");
+  if (used == 0) return Refuse(error, f.marker_images + ": no images listed");
+  return true;
 }
 
 // Marker images shared with an already calibrated neighbour camera
 // (tools/calibrate_neighbour.h); the marker class as for --marker-images.
-void AddNeighbourPoints(const Flags& f, std::vector<Correspondence>* points,
-                        std::vector<int>* lines) {
+bool AddNeighbourPoints(const Flags& f, std::vector<Correspondence>* points,
+                        std::vector<int>* lines, std::string* error) {
   if (f.shared_images.empty() != f.neighbour.empty()) {
-    throw Refusal("--shared-images and --neighbour go together");
+    return Refuse(error, "--shared-images and --neighbour go together");
   }
-  if (f.shared_images.empty()) return;
-  if (f.site.empty()) throw Refusal("--shared-images needs --site (the marker's colour class)");
+  if (f.shared_images.empty()) return true;
+  if (f.site.empty())
+    return Refuse(error, "--shared-images needs --site (the marker's colour class)");
   Site site;
   Calibration neighbour;
-  std::string error;
-  if (!LoadSite(f.site, &site, &error)) throw Refusal(error);
+  if (!LoadSite(f.site, &site, error)) return false;
   const roomfix::Camera* camera = f.camera_id < 0
                                       ? (site.cameras.empty() ? nullptr : &site.cameras.front())
                                       : site.FindCamera(f.camera_id);
-  if (camera == nullptr) throw Refusal(f.site + ": no such camera");
+  if (camera == nullptr) return Refuse(error, f.site + ": no such camera");
   std::string class_name = f.marker_class;
   if (class_name.empty() && !camera->robots.empty()) {
     class_name = camera->robots.front().position_marker;
   }
-  if (!calib::LoadCalibration(f.neighbour, &neighbour, &error) ||
-      !AddSharedImagePoints(f.shared_images, neighbour, *camera, class_name, points, lines,
-                            &error)) {
-    throw Refusal(error);
-  }
+  return calib::LoadCalibration(f.neighbour, &neighbour, error) &&
+         AddSharedImagePoints(f.shared_images, neighbour, *camera, class_name, points, lines,
+                              error);
 }
 
 // Each robot's own pixel sigma, held out from the fit: images of the robot
@@ -513,16 +530,17 @@ void AddNeighbourPoints(const Flags& f, std::vector<Correspondence>* points,
 // it will be in operation. A robot needs kMinRobotImages images.
 constexpr int kMinRobotImages = 5;
 
-std::map<int, double> RobotPixelSigmas(const Flags& f, const calib::CameraModel& lens) {
-  std::map<int, double> sigmas;
-  if (f.robot_images.empty()) return sigmas;
-  if (f.site.empty()) throw Refusal("--robot-images needs --site (the robots' markers)");
+bool RobotPixelSigmas(const Flags& f, const calib::CameraModel& lens,
+                      std::map<int, double>* sigmas_out, std::string* error) {
+  std::map<int, double>& sigmas = *sigmas_out;
+  if (f.robot_images.empty()) return true;
+  if (f.site.empty()) return Refuse(error, "--robot-images needs --site (the robots' markers)");
   Site site;
-  std::string error;
-  if (!LoadSite(f.site, &site, &error)) throw Refusal(error);
+  if (!LoadSite(f.site, &site, error)) return false;
   const roomfix::Camera* camera = site.FindCameraOrFirst(f.camera_id);
-  if (camera == nullptr) throw Refusal(f.site + ": no such camera");
-  std::istringstream in(ReadCsv(f.robot_images));
+  if (camera == nullptr) return Refuse(error, f.site + ": no such camera");
+  std::istringstream in;
+  if (!ReadCsv(f.robot_images, &in, error)) return false;
   const std::string dir = std::filesystem::path(f.robot_images).parent_path().string();
   std::map<int, std::pair<int, double>> sums;  // robot: images, sum |d|^2 px^2
   std::map<int, double> floor_sums;            // robot: sum of squared floor errors, m^2
@@ -537,29 +555,33 @@ std::map<int, double> RobotPixelSigmas(const Flags& f, const calib::CameraModel&
     const std::string where = f.robot_images + ":" + std::to_string(line_no);
     if (line_no == 1) {
       if (cells != std::vector<std::string>{"image", "x_m", "y_m", "height_m", "robot_id"}) {
-        throw Refusal(where + ": expected the header image,x_m,y_m,height_m,robot_id");
+        return Refuse(error, where + ": expected the header image,x_m,y_m,height_m,robot_id");
       }
       continue;
     }
     double x = 0, y = 0, h = 0, id = 0;
     if (cells.size() != 5 || !ParseNumber(cells[1], &x) || !ParseNumber(cells[2], &y) ||
         !ParseNumber(cells[3], &h) || !ParseNumber(cells[4], &id) || id != std::floor(id)) {
-      throw Refusal(where + ": expected image,x_m,y_m,height_m,robot_id");
+      return Refuse(error, where + ": expected image,x_m,y_m,height_m,robot_id");
     }
     const auto robot = std::find_if(camera->robots.begin(), camera->robots.end(),
                                     [&](const CameraRobot& r) { return r.robot_id == id; });
     if (robot == camera->robots.end()) {
-      throw Refusal(where + ": camera " + std::to_string(camera->id) + " has no robot " + cells[4]);
+      return Refuse(error,
+                    where + ": camera " + std::to_string(camera->id) + " has no robot " + cells[4]);
     }
     const MarkerClass* mc = FindClass(*camera, robot->position_marker);
-    if (mc == nullptr) throw Refusal(where + ": no class '" + robot->position_marker + "'");
+    if (mc == nullptr) return Refuse(error, where + ": no class '" + robot->position_marker + "'");
     std::string path = cells[0];
     if (!path.empty() && path[0] != '/' && !dir.empty()) path = dir + "/" + path;
     auto detector = detectors.find(mc->name);
     if (detector == detectors.end()) {
       detector = detectors.emplace(mc->name, CalibrationDetector(*mc)).first;
     }
-    const vision::Blob blob = FindOneMarker(detector->second, robot->position_marker, path, where);
+    vision::Blob blob;
+    if (!FindOneMarker(detector->second, robot->position_marker, path, where, &blob, error)) {
+      return false;
+    }
     const double radius_m = PositionMarkerDiameterM(*camera, *robot) / 2.0;
     const Eigen::Vector3d centre(x, y, h);
     Eigen::Vector2d image_px, offset_px = Eigen::Vector2d::Zero();
@@ -567,7 +589,7 @@ std::map<int, double> RobotPixelSigmas(const Flags& f, const calib::CameraModel&
     if (!lens.ProjectToPixel(centre, &image_px.x(), &image_px.y()) ||
         (radius_m > 0.0 && !calib::DiscCentroidOffset(lens, centre, radius_m, &offset_px)) ||
         !calib::DiscCentroidToFloor(lens, blob.u_px, blob.v_px, radius_m, h, &fx, &fy)) {
-      throw Refusal(where + ": the point is outside the fitted lens's view");
+      return Refuse(error, where + ": the point is outside the fitted lens's view");
     }
     const Eigen::Vector2d d = Eigen::Vector2d(blob.u_px, blob.v_px) - image_px - offset_px;
     auto& [n, sum_px2] = sums[robot->robot_id];
@@ -578,16 +600,17 @@ std::map<int, double> RobotPixelSigmas(const Flags& f, const calib::CameraModel&
   for (const auto& [id, entry] : sums) {
     const auto [n, sum_px2] = entry;
     if (n < kMinRobotImages) {
-      throw Refusal(f.robot_images + ": robot " + std::to_string(id) + " has " + std::to_string(n) +
-                    " images; a held-out sigma needs at least " + std::to_string(kMinRobotImages));
+      return Refuse(error, f.robot_images + ": robot " + std::to_string(id) + " has " +
+                               std::to_string(n) + " images; a held-out sigma needs at least " +
+                               std::to_string(kMinRobotImages));
     }
     sigmas[id] = std::sqrt(sum_px2 / (2.0 * n));
     std::cout << "robot " << id << ": " << n << " held-out images, pixel sigma "
               << Fixed(sigmas[id], 4) << " px per axis, floor RMS "
               << Fixed(1e3 * std::sqrt(floor_sums[id] / n), 2) << " mm\n";
   }
-  if (sigmas.empty()) throw Refusal(f.robot_images + ": no images listed");
-  return sigmas;
+  if (sigmas.empty()) return Refuse(error, f.robot_images + ": no images listed");
+  return true;
 }
 
 // The reprojection of room point `p` at its height under the chosen model.
@@ -601,16 +624,17 @@ struct Stats {
   int worst = -1;
 };
 
-void Render(const Flags& f, const Calibration& c, const std::vector<Correspondence>& points,
-            const std::vector<bool>& outlier, const std::array<double, 4>& room_xy_m,
-            double grid_m) {
+bool Render(const Flags& f, const Calibration& c, const std::vector<Correspondence>& points,
+            const std::vector<bool>& outlier, const std::array<double, 4>& room_xy_m, double grid_m,
+            std::string* error) {
   cv::Mat image;
   if (!f.image.empty()) {
-    image = ReadImage(f.image, cv::IMREAD_COLOR);
+    if (!ReadImage(f.image, cv::IMREAD_COLOR, &image, error)) return false;
     if (image.cols != c.width_px() || image.rows != c.height_px()) {
-      throw Refusal(f.image + ": the image is " + std::to_string(image.cols) + " x " +
-                    std::to_string(image.rows) + " px, the camera " + std::to_string(c.width_px()) +
-                    " x " + std::to_string(c.height_px()));
+      return Refuse(error, f.image + ": the image is " + std::to_string(image.cols) + " x " +
+                               std::to_string(image.rows) + " px, the camera " +
+                               std::to_string(c.width_px()) + " x " +
+                               std::to_string(c.height_px()));
     }
   } else {
     image = cv::Mat(c.height_px(), c.width_px(), CV_8UC3, cv::Scalar(48, 48, 48));
@@ -680,15 +704,7 @@ void Render(const Flags& f, const Calibration& c, const std::vector<Corresponden
                   " m, residual arrows x20, outliers circled",
               cv::Point(10, 24), cv::FONT_HERSHEY_SIMPLEX, 0.6, cv::Scalar(255, 255, 255), 1,
               cv::LINE_AA);
-  std::string error;
-  if (!camera::WriteImageChecked(f.png, image, &error)) throw Refusal(error);
-}
-
-std::string Fixed(double v, int digits) {
-  if (!std::isfinite(v)) return "-";
-  char buffer[64];
-  std::snprintf(buffer, sizeof(buffer), "%.*f", digits, v);
-  return buffer;
+  return camera::WriteImageChecked(f.png, image, error);
 }
 
 // For a refused full model: the point worst off the last fit tried, by its
@@ -708,151 +724,183 @@ std::string WorstPoint(const CameraFitSummary& fit, const std::vector<int>& line
          " px off: check that row first";
 }
 
-void Run(const Flags& f) {
+// Which inputs were given, and whether they make a run.
+bool CheckSources(const Flags& f, std::string* error) {
   if (f.points.empty() && f.chessboards.empty() && f.marker_images.empty() &&
       f.shared_images.empty()) {
-    throw Refusal("no points: give --points CSV, --chessboard IMAGE and/or --marker-images CSV");
+    return Refuse(error,
+                  "no points: give --points CSV, --chessboard IMAGE and/or --marker-images CSV");
   }
   if (!f.chessboards.empty() && f.board.empty()) {
-    throw Refusal("--chessboard needs --board COLSxROWS (inner corners)");
+    return Refuse(error, "--chessboard needs --board COLSxROWS (inner corners)");
   }
   // --corners-csv alone only detects: no fit, so no --out.
   if (f.out.empty() && (f.corners_csv.empty() || f.chessboards.empty() || !f.points.empty())) {
-    throw Refusal("--out is required (only --chessboard with --corners-csv runs without it)");
+    return Refuse(error,
+                  "--out is required (only --chessboard with --corners-csv runs without it)");
   }
-  std::vector<int> lines;
-  std::vector<Correspondence> points;
-  if (!f.points.empty()) {
-    points = ReadPoints(f.points, &lines);
-    if (points.empty()) throw Refusal(f.points + ": no points");
-  }
-  AddChessboards(f, &points, &lines);
-  AddMarkerImages(f, &points, &lines);
-  AddNeighbourPoints(f, &points, &lines);
-  if (f.out.empty()) return;
+  return true;
+}
 
-  // Camera size, field of view and mount: flags over the site's camera.
-  int width_px = 0, height_px = 0;
+// Every point of every source, each with its CSV line (`lines`, 0 where
+// there is none).
+bool ReadAllPoints(const Flags& f, std::vector<Correspondence>* points, std::vector<int>* lines,
+                   std::string* error) {
+  if (!f.points.empty()) {
+    if (!ReadPoints(f.points, points, lines, error)) return false;
+    if (points->empty()) return Refuse(error, f.points + ": no points");
+  }
+  return AddChessboards(f, points, lines, error) && AddMarkerImages(f, points, lines, error) &&
+         AddNeighbourPoints(f, points, lines, error);
+}
+
+// Camera size, field of view and mount, and the room drawn: flags over the
+// site's camera.
+struct CameraGeometry {
+  int width_px = 0;
+  int height_px = 0;
   double fov_deg = 120.0;
   std::optional<std::array<double, 3>> mount;
   std::array<double, 4> room_xy_m{};
   double grid_m = 0.5;
+};
+
+bool FindCameraGeometry(const Flags& f, const std::vector<Correspondence>& points,
+                        CameraGeometry* g, std::string* error) {
   bool have_room = false;
   if (!f.site.empty()) {
     Site site;
-    std::string error;
-    if (!LoadSite(f.site, &site, &error)) throw Refusal(error);
+    if (!LoadSite(f.site, &site, error)) return false;
     const roomfix::Camera* camera = site.FindCameraOrFirst(f.camera_id);
     if (camera == nullptr) {
-      throw Refusal(f.site + ": no camera " +
-                    (f.camera_id < 0 ? std::string("at all") : std::to_string(f.camera_id)));
+      return Refuse(error,
+                    f.site + ": no camera " +
+                        (f.camera_id < 0 ? std::string("at all") : std::to_string(f.camera_id)));
     }
-    width_px = camera->width_px;
-    height_px = camera->height_px;
-    fov_deg = camera->field_of_view_deg;
-    mount = camera->mount_position_m;
-    room_xy_m = {site.room.min_x_m, site.room.min_y_m, site.room.min_x_m + site.room.size_x_m,
-                 site.room.min_y_m + site.room.size_y_m};
-    grid_m = site.room.grid_m;
+    g->width_px = camera->width_px;
+    g->height_px = camera->height_px;
+    g->fov_deg = camera->field_of_view_deg;
+    g->mount = camera->mount_position_m;
+    g->room_xy_m = {site.room.min_x_m, site.room.min_y_m, site.room.min_x_m + site.room.size_x_m,
+                    site.room.min_y_m + site.room.size_y_m};
+    g->grid_m = site.room.grid_m;
     have_room = true;
   }
   if (!f.size.empty()) {
-    if (std::sscanf(f.size.c_str(), "%dx%d", &width_px, &height_px) != 2 || width_px <= 0 ||
-        height_px <= 0) {
-      throw Refusal("--size: expected WIDTHxHEIGHT in pixels, got '" + f.size + "'");
+    if (std::sscanf(f.size.c_str(), "%dx%d", &g->width_px, &g->height_px) != 2 ||
+        g->width_px <= 0 || g->height_px <= 0) {
+      return Refuse(error, "--size: expected WIDTHxHEIGHT in pixels, got '" + f.size + "'");
     }
   }
-  if (width_px <= 0 && !f.image.empty()) {
-    const cv::Mat image = ReadImage(f.image, cv::IMREAD_UNCHANGED);
-    width_px = image.cols;
-    height_px = image.rows;
+  if (g->width_px <= 0 && !f.image.empty()) {
+    cv::Mat image;
+    if (!ReadImage(f.image, cv::IMREAD_UNCHANGED, &image, error)) return false;
+    g->width_px = image.cols;
+    g->height_px = image.rows;
   }
-  if (width_px <= 0) {
-    throw Refusal("the image size is unknown: give --size WxH, --image FILE or --site FILE");
+  if (g->width_px <= 0) {
+    return Refuse(error, "the image size is unknown: give --size WxH, --image FILE or --site FILE");
   }
-  if (f.fov_deg > 0) fov_deg = f.fov_deg;
-  if (!f.mount.empty()) mount = ParseTriple(f.mount, "--mount");
+  if (f.fov_deg > 0) g->fov_deg = f.fov_deg;
+  if (!f.mount.empty()) {
+    std::array<double, 3> mount{};
+    if (!ParseTriple(f.mount, "--mount", &mount, error)) return false;
+    g->mount = mount;
+  }
   if (!have_room) {
     // The points' extent rounded out to the grid.
-    room_xy_m = {INFINITY, INFINITY, -INFINITY, -INFINITY};
+    const double grid_m = g->grid_m;
+    g->room_xy_m = {INFINITY, INFINITY, -INFINITY, -INFINITY};
     for (const auto& p : points) {
-      room_xy_m[0] = std::min(room_xy_m[0], std::floor(p.x_m / grid_m) * grid_m);
-      room_xy_m[1] = std::min(room_xy_m[1], std::floor(p.y_m / grid_m) * grid_m);
-      room_xy_m[2] = std::max(room_xy_m[2], std::ceil(p.x_m / grid_m) * grid_m);
-      room_xy_m[3] = std::max(room_xy_m[3], std::ceil(p.y_m / grid_m) * grid_m);
+      g->room_xy_m[0] = std::min(g->room_xy_m[0], std::floor(p.x_m / grid_m) * grid_m);
+      g->room_xy_m[1] = std::min(g->room_xy_m[1], std::floor(p.y_m / grid_m) * grid_m);
+      g->room_xy_m[2] = std::max(g->room_xy_m[2], std::ceil(p.x_m / grid_m) * grid_m);
+      g->room_xy_m[3] = std::max(g->room_xy_m[3], std::ceil(p.y_m / grid_m) * grid_m);
     }
   }
+  return true;
+}
 
+// Both models fitted to the points; `full_why` says why the full one was
+// not (empty when it was tried).
+struct ModelFits {
+  CameraFitSummary full;
+  std::string full_why;
+  RegionFitSummary regions;
+};
+
+ModelFits FitModels(const Flags& f, const std::vector<Correspondence>& points,
+                    const CameraGeometry& g) {
   // The full model, started from the points alone (camera_start.h: the
   // nominal lens's undistorted pixels through a planar pose solver); a
   // measured mount, when given, enters as a prior, because points at one
   // height do not fix the camera's height (camera_fit.h). Points that cannot
   // give a start (too small a patch of the image) still fit from the
   // nominal camera at the mount, as before; mirrored axes never do.
-  CameraFitSummary full;
-  std::string full_why;
+  ModelFits fits;
   const calib::CameraModel nominal = calib::NominalCamera(
-      mount.value_or(std::array<double, 3>{0.0, 0.0, 1.0}), fov_deg, width_px, height_px);
+      g.mount.value_or(std::array<double, 3>{0.0, 0.0, 1.0}), g.fov_deg, g.width_px, g.height_px);
   const calib::CameraStart start = calib::FindCameraStart(points, nominal);
   if (start.usable) {
     std::cout << start.message << "\n";
-  } else if (mount && !start.mirrored) {
+  } else if (g.mount && !start.mirrored) {
     std::cout << "start from the mount (not from the points: " << start.message << ")\n";
   } else {
-    full_why = start.message;
+    fits.full_why = start.message;
   }
-  if (full_why.empty()) {
+  if (fits.full_why.empty()) {
     calib::CameraFitOptions options;
     options.equal_focal_lengths = true;
     options.distortion_terms = f.distortion_terms;
-    if (mount) {
+    if (g.mount) {
       options.position_prior_sigma_m = f.mount_sigma_m;
-      options.prior_position_m = *mount;
+      options.prior_position_m = *g.mount;
     }
     options.pixel_sigma_px = f.pixel_sigma_px;
     options.outlier_px = f.outlier_px;
     options.max_iterations = f.max_iterations;
     options.max_outliers = std::min(
         kMaxOutliers, static_cast<int>(kMaxOutlierFraction * static_cast<double>(points.size())));
-    full = calib::FitCameraToMarkers(points, start.usable ? start.model : nominal, options);
-    if (!full.usable) full_why = full.message;
+    fits.full = calib::FitCameraToMarkers(points, start.usable ? start.model : nominal, options);
+    if (!fits.full.usable) fits.full_why = fits.full.message;
   }
-  const RegionFitSummary regions =
-      calib::FitRegions(points, calib::ThirdsRegionModel(width_px, height_px));
+  fits.regions = calib::FitRegions(points, calib::ThirdsRegionModel(g.width_px, g.height_px));
+  return fits;
+}
 
-  const bool want_full = f.model == "full";
-  if (want_full && !full.usable) throw Refusal("full model: " + full_why + WorstPoint(full, lines));
-  if (!want_full && !regions.usable) throw Refusal("9-region model: " + regions.message);
-
-  Calibration full_cal, region_cal;
-  full_cal.model = Calibration::Model::kFull;
-  full_cal.camera = full.model;
-  region_cal.model = Calibration::Model::kRegions;
-  region_cal.regions = regions.model;
-  std::vector<bool> outlier = full.usable ? full.outlier : std::vector<bool>(points.size(), false);
-
-  // Residual table: floor distance of the mapped pixel from the marker (mm)
-  // and pixel distance of the reprojected marker from its pixel (px).
-  Stats fs, rs;
+// The residuals of both models over the points (outliers of the full
+// model left out of its figures).
+struct Residuals {
+  Stats full, regions;
   int n_full = 0;
+};
+
+// The residual table: floor distance of the mapped pixel from the marker
+// (mm) and pixel distance of the reprojected marker from its pixel (px).
+Residuals PrintResidualTable(const std::vector<Correspondence>& points,
+                             const std::vector<int>& lines, const ModelFits& fits,
+                             const Calibration& full_cal, const std::vector<bool>& outlier) {
+  Residuals r;
+  Stats& fs = r.full;
+  Stats& rs = r.regions;
   std::cout << "point line        u_px        v_px     x_m     y_m  height_m | full_mm  full_px "
                "| regions_mm regions_px\n";
   for (size_t i = 0; i < points.size(); ++i) {
     const Correspondence& p = points[i];
     std::string ignored;
     double fmm = NAN, fpx = NAN, rmm = NAN, rpx = NAN, x, y;
-    if (full.usable) {
+    if (fits.full.usable) {
       // A marker is mapped as camera_proc maps it: its disc's centre.
       const bool mapped = p.disc_radius_m > 0.0
-                              ? calib::DiscCentroidToFloor(full.model, p.u_px, p.v_px,
+                              ? calib::DiscCentroidToFloor(fits.full.model, p.u_px, p.v_px,
                                                            p.disc_radius_m, p.height_m, &x, &y)
                               : full_cal.PixelToFloor(p.u_px, p.v_px, p.height_m, &x, &y, &ignored);
       if (mapped) {
         fmm = 1e3 * std::hypot(x - p.x_m, y - p.y_m);
       }
-      fpx = full.residual_px[i];
+      fpx = fits.full.residual_px[i];
       if (!outlier[i]) {
-        ++n_full;
+        ++r.n_full;
         fs.rms_mm += fmm * fmm;
         fs.rms_px += fpx * fpx;
         if (fs.worst < 0 || fpx > fs.worst_px) {
@@ -862,9 +910,9 @@ void Run(const Flags& f) {
         }
       }
     }
-    if (regions.usable) {
-      rmm = 1e3 * regions.residual_m[i];
-      rpx = regions.residual_px[i];
+    if (fits.regions.usable) {
+      rmm = 1e3 * fits.regions.residual_m[i];
+      rpx = fits.regions.residual_px[i];
       rs.rms_mm += rmm * rmm;
       rs.rms_px += rpx * rpx;
       if (rs.worst < 0 || rmm > rs.worst_mm) {
@@ -873,65 +921,53 @@ void Run(const Flags& f) {
         rs.worst_mm = rmm;
       }
     }
-    char row[256];
-    std::snprintf(row, sizeof(row),
-                  "%5zu %4d %11.3f %11.3f %7.3f %7.3f %9.3f | %7s %8s | %10s %10s%s\n", i, lines[i],
-                  p.u_px, p.v_px, p.x_m, p.y_m, p.height_m, Fixed(fmm, 2).c_str(),
-                  Fixed(fpx, 3).c_str(), Fixed(rmm, 2).c_str(), Fixed(rpx, 3).c_str(),
-                  outlier[i] ? "  OUTLIER" : "");
-    std::cout << row;
+    std::cout << fmt::format(
+        "{:5} {:4} {:11.3f} {:11.3f} {:7.3f} {:7.3f} {:9.3f} | {:>7} {:>8} | {:>10} {:>10}{}\n", i,
+        lines[i], p.u_px, p.v_px, p.x_m, p.y_m, p.height_m, Fixed(fmm, 2), Fixed(fpx, 3),
+        Fixed(rmm, 2), Fixed(rpx, 3), outlier[i] ? "  OUTLIER" : "");
   }
-  if (full.usable) {
-    std::cout << "full model: RMS " << Fixed(std::sqrt(fs.rms_mm / n_full), 2) << " mm, "
-              << Fixed(std::sqrt(fs.rms_px / n_full), 3) << " px over " << n_full
+  return r;
+}
+
+// Each model's RMS and worst point, and the outliers left out.
+void PrintFitSummaries(const Flags& f, const std::vector<Correspondence>& points,
+                       const std::vector<int>& lines, const ModelFits& fits, const Residuals& r,
+                       const std::vector<bool>& outlier) {
+  const Stats& fs = r.full;
+  const Stats& rs = r.regions;
+  if (fits.full.usable) {
+    std::cout << "full model: RMS " << Fixed(std::sqrt(fs.rms_mm / r.n_full), 2) << " mm, "
+              << Fixed(std::sqrt(fs.rms_px / r.n_full), 3) << " px over " << r.n_full
               << " points; worst point " << fs.worst << " (line "
               << lines[static_cast<size_t>(fs.worst)] << "): " << Fixed(fs.worst_mm, 2) << " mm, "
-              << Fixed(fs.worst_px, 3) << " px; " << full.message << "\n";
+              << Fixed(fs.worst_px, 3) << " px; " << fits.full.message << "\n";
   } else {
-    std::cout << "full model: not fitted: " << full_why << "\n";
+    std::cout << "full model: not fitted: " << fits.full_why << "\n";
   }
-  if (regions.usable) {
+  if (fits.regions.usable) {
     const double n = static_cast<double>(points.size());
     std::cout << "9-region model: RMS " << Fixed(std::sqrt(rs.rms_mm / n), 2) << " mm, "
               << Fixed(std::sqrt(rs.rms_px / n), 3) << " px over " << points.size()
               << " points; worst point " << rs.worst << " (line "
               << lines[static_cast<size_t>(rs.worst)] << "): " << Fixed(rs.worst_mm, 2) << " mm, "
               << Fixed(rs.worst_px, 3) << " px; valid only at "
-              << regions.model.calibration_height_m << " m\n";
+              << fits.regions.model.calibration_height_m << " m\n";
   } else {
-    std::cout << "9-region model: not fitted: " << regions.message << "\n";
+    std::cout << "9-region model: not fitted: " << fits.regions.message << "\n";
   }
   for (size_t i = 0; i < points.size(); ++i) {
     if (outlier[i]) {
       std::cout << "outlier: point " << i << " (line " << lines[i] << ") is "
-                << Fixed(full.residual_px[i], 2) << " px off the fit (over " << f.outlier_px
+                << Fixed(fits.full.residual_px[i], 2) << " px off the fit (over " << f.outlier_px
                 << " px), left out of it: check the marker's position or its pixel\n";
     }
   }
+}
 
-  // The fit must reproduce its points: a calibration that misses them by
-  // more than the tolerance would misplace every marker by as much.
-  const double rms_px =
-      want_full ? std::sqrt(fs.rms_px / n_full) : std::sqrt(rs.rms_px / points.size());
-  if (!(rms_px <= f.max_rms_px)) {
-    throw Refusal(std::string(want_full ? "full model" : "9-region model") + ": RMS " +
-                  (std::isfinite(rms_px) ? Fixed(rms_px, 2) + " px"
-                                         : std::string("not finite (points it cannot reproject)")) +
-                  " over the points is over the " + Fixed(f.max_rms_px, 2) +
-                  " px tolerance (--max-rms-px); not written");
-  }
-  full_cal.fit_rms_px = want_full ? rms_px : -1.0;
-  // The full fit's parameters: one focal length, the principal point, k1
-  // to k_n, the rotation and the position (the options above).
-  const int kFullModelParameters = 1 + 2 + f.distortion_terms + 3 + 3;
-  full_cal.pixel_sigma_px =
-      want_full ? calib::PixelSigmaFromFit(rms_px, n_full, kFullModelParameters) : -1.0;
-  if (!f.robot_images.empty()) {
-    if (!want_full) throw Refusal("--robot-images needs the full model");
-    full_cal.robot_pixel_sigma_px = RobotPixelSigmas(f, full.model);
-  }
-  region_cal.fit_rms_px = want_full ? -1.0 : rms_px;
-  const Calibration& chosen = want_full ? full_cal : region_cal;
+// The calibration file's header: where the points came from and how well
+// the chosen model fits them.
+std::string CalibrationHeader(const Flags& f, size_t n_points, const ModelFits& fits,
+                              const Residuals& r) {
   std::ostringstream header;
   std::vector<std::string> sources;
   if (!f.points.empty()) sources.push_back(f.points);
@@ -944,25 +980,86 @@ void Run(const Flags& f) {
   }
   std::string from;
   for (size_t i = 0; i < sources.size(); ++i) from += (i > 0 ? " and " : "") + sources[i];
-  header << "Written by roomfix calibrate from " << from << " (" << points.size()
-         << " points), model " << f.model << ".\n";
-  if (want_full) {
-    header << "RMS " << Fixed(std::sqrt(fs.rms_mm / n_full), 2) << " mm / "
-           << Fixed(std::sqrt(fs.rms_px / n_full), 3) << " px over the points; " << full.message;
+  header << "Written by roomfix calibrate from " << from << " (" << n_points << " points), model "
+         << f.model << ".\n";
+  if (f.model == "full") {
+    header << "RMS " << Fixed(std::sqrt(r.full.rms_mm / r.n_full), 2) << " mm / "
+           << Fixed(std::sqrt(r.full.rms_px / r.n_full), 3) << " px over the points; "
+           << fits.full.message;
   } else {
-    header << "Valid only for markers at " << regions.model.calibration_height_m
+    header << "Valid only for markers at " << fits.regions.model.calibration_height_m
            << " m (the 9-region model knows one height).";
   }
+  return header.str();
+}
+
+// parse (CLI11, CheckSources) -> load (the points, the camera) -> compute
+// (both fits, their residuals) -> report (the table, the PNG, the YAML).
+bool Run(const Flags& f, std::string* error) {
+  std::vector<int> lines;
+  std::vector<Correspondence> points;
+  if (!CheckSources(f, error) || !ReadAllPoints(f, &points, &lines, error)) return false;
+  if (f.out.empty()) return true;
+  CameraGeometry geometry;
+  if (!FindCameraGeometry(f, points, &geometry, error)) return false;
+  const ModelFits fits = FitModels(f, points, geometry);
+  const bool want_full = f.model == "full";
+  if (want_full && !fits.full.usable) {
+    return Refuse(error, "full model: " + fits.full_why + WorstPoint(fits.full, lines));
+  }
+  if (!want_full && !fits.regions.usable) {
+    return Refuse(error, "9-region model: " + fits.regions.message);
+  }
+
+  Calibration full_cal, region_cal;
+  full_cal.model = Calibration::Model::kFull;
+  full_cal.camera = fits.full.model;
+  region_cal.model = Calibration::Model::kRegions;
+  region_cal.regions = fits.regions.model;
+  std::vector<bool> outlier =
+      fits.full.usable ? fits.full.outlier : std::vector<bool>(points.size(), false);
+  const Residuals r = PrintResidualTable(points, lines, fits, full_cal, outlier);
+  PrintFitSummaries(f, points, lines, fits, r, outlier);
+
+  // The fit must reproduce its points: a calibration that misses them by
+  // more than the tolerance would misplace every marker by as much.
+  const double rms_px =
+      want_full ? std::sqrt(r.full.rms_px / r.n_full) : std::sqrt(r.regions.rms_px / points.size());
+  if (!(rms_px <= f.max_rms_px)) {
+    return Refuse(error, std::string(want_full ? "full model" : "9-region model") + ": RMS " +
+                             (std::isfinite(rms_px)
+                                  ? Fixed(rms_px, 2) + " px"
+                                  : std::string("not finite (points it cannot reproject)")) +
+                             " over the points is over the " + Fixed(f.max_rms_px, 2) +
+                             " px tolerance (--max-rms-px); not written");
+  }
+  full_cal.fit_rms_px = want_full ? rms_px : -1.0;
+  // The full fit's parameters: one focal length, the principal point, k1
+  // to k_n, the rotation and the position (the options above).
+  const int kFullModelParameters = 1 + 2 + f.distortion_terms + 3 + 3;
+  full_cal.pixel_sigma_px =
+      want_full ? calib::PixelSigmaFromFit(rms_px, r.n_full, kFullModelParameters) : -1.0;
+  if (!f.robot_images.empty()) {
+    if (!want_full) return Refuse(error, "--robot-images needs the full model");
+    if (!RobotPixelSigmas(f, fits.full.model, &full_cal.robot_pixel_sigma_px, error)) {
+      return false;
+    }
+  }
+  region_cal.fit_rms_px = want_full ? -1.0 : rms_px;
+  const Calibration& chosen = want_full ? full_cal : region_cal;
+  const std::string header = CalibrationHeader(f, points.size(), fits, r);
   // The residual picture first and the calibration last, each whole or
   // absent (WriteOutputFile): a run that fails never leaves a calibration
   // beside a picture that stops short, and a new calibration file means the
   // run finished (issue #28: a full disk left a complete YAML and a partial
   // PNG).
-  Render(f, chosen, points, outlier, room_xy_m, grid_m);
-  std::string error;
-  if (!calib::SaveCalibration(f.out, chosen, header.str(), &error)) throw Refusal(error);
+  if (!Render(f, chosen, points, outlier, geometry.room_xy_m, geometry.grid_m, error) ||
+      !calib::SaveCalibration(f.out, chosen, header, error)) {
+    return false;
+  }
   std::cout << "wrote " << f.png << "\n";
   std::cout << "wrote " << f.out << "\n";
+  return true;
 }
 
 }  // namespace
@@ -1058,12 +1155,12 @@ void AddCalibrateCommand(CLI::App* app, int* exit_code) {
                     : f->out) +
                ".png";
     }
+    // OpenCV reports a failure by throwing: caught here, at the command's
+    // edge, and said as the command's own refusals are.
     try {
-      Run(*f);
-      *exit_code = 0;
-    } catch (const Refusal& e) {
-      std::cerr << "roomfix calibrate: " << e.what() << "\n";
-      *exit_code = 1;
+      std::string error;
+      *exit_code = Run(*f, &error) ? 0 : 1;
+      if (*exit_code != 0) std::cerr << "roomfix calibrate: " << error << "\n";
     } catch (const cv::Exception& e) {
       std::cerr << "roomfix calibrate: OpenCV: " << e.msg << "\n";
       *exit_code = 1;

@@ -1,7 +1,8 @@
 #include "tools/calibrate_neighbour.h"
 
+#include <fmt/format.h>
+
 #include <cmath>
-#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
@@ -27,12 +28,6 @@ std::vector<std::string> SplitCells(const std::string& line) {
     cells.push_back(b == std::string::npos ? std::string() : cell.substr(b, e - b + 1));
   }
   return cells;
-}
-
-std::string Px(double v) {
-  char text[32];
-  std::snprintf(text, sizeof(text), "%.2f", v);
-  return text;
 }
 
 }  // namespace
@@ -122,15 +117,17 @@ bool AddSharedImagePoints(const std::string& csv_path, const calib::Calibration&
             ? calib::DiscCentroidToFloor(neighbour.camera, nu, nv, disc_radius_m, height_m, &x, &y)
             : neighbour.PixelToFloor(nu, nv, height_m, &x, &y, &map_error);
     if (!mapped) {
-      *error = name + std::to_string(line_no) + ": the neighbour's pixel (" + Px(nu) + ", " +
-               Px(nv) + ") does not map to the floor: " + map_error;
+      *error = name + std::to_string(line_no) +
+               fmt::format(
+                   ": the neighbour's pixel ({:.2f}, {:.2f}) does not map to the floor: ", nu, nv) +
+               map_error;
       return false;
     }
-    char floor[64];
-    std::snprintf(floor, sizeof(floor), "(%.4f, %.4f, %.3f) m", x, y, height_m);
-    std::cout << cells[0] << ": marker at (" << Px(u) << ", " << Px(v)
-              << ") px; the neighbour's at (" << Px(nu) << ", " << Px(nv) << ") px maps to "
-              << floor << "\n";
+    std::cout << cells[0]
+              << fmt::format(
+                     ": marker at ({:.2f}, {:.2f}) px; the neighbour's at ({:.2f}, {:.2f}) "
+                     "px maps to ({:.4f}, {:.4f}, {:.3f}) m\n",
+                     u, v, nu, nv, x, y, height_m);
     points->push_back(calib::Correspondence{u, v, x, y, height_m, disc_radius_m});
     lines->push_back(line_no);
     ++used;

@@ -1,5 +1,6 @@
 // roomfix colours: a camera's colour classes learned from its own frames
 // (core/vision/colour_learning.h; docs/camera.md, "Colours from frames").
+#include <fmt/format.h>
 #include <yaml-cpp/yaml.h>
 
 #include <CLI/CLI.hpp>
@@ -346,28 +347,23 @@ void PrintClasses(const vision::ColourLearning& learned, const std::string& titl
             << (clipped > 0 ? " (" + std::to_string(clipped) + " more cut by the edge, not used)"
                             : std::string())
             << ", " << learned.background_pixels << " background pixels\n";
-  char line[512];
   for (const vision::LearnedClass& c : learned.classes) {
-    std::snprintf(line, sizeof(line),
-                  "  %-10s H %3d..%3d  S %3d..%3d  V %3d..%3d   %d disc(s), median H %.0f S %.0f V "
-                  "%.0f\n",
-                  c.name.c_str(), c.hsv_min[0], c.hsv_max[0], c.hsv_min[1], c.hsv_max[1],
-                  c.hsv_min[2], c.hsv_max[2], c.discs, c.median_hsv[0], c.median_hsv[1],
-                  c.median_hsv[2]);
-    std::cout << line;
+    std::cout << fmt::format(
+        "  {:<10} H {:3d}..{:3d}  S {:3d}..{:3d}  V {:3d}..{:3d}   {} disc(s), median H {:.0f} S "
+        "{:.0f} V {:.0f}\n",
+        c.name.c_str(), c.hsv_min[0], c.hsv_max[0], c.hsv_min[1], c.hsv_max[1], c.hsv_min[2],
+        c.hsv_max[2], c.discs, c.median_hsv[0], c.median_hsv[1], c.median_hsv[2]);
     if (!c.nearest_neighbour.empty()) {
-      std::snprintf(line, sizeof(line),
-                    "      nearest %s: %.0f %s units from its box (drift moves it %.0f); %.3g %% "
-                    "of its pixels in that box\n",
-                    c.nearest_neighbour.c_str(), c.neighbour_gap_hsv, c.neighbour_channel.c_str(),
-                    c.neighbour_drift_hsv, 100.0 * c.own_in_neighbour_share);
-      std::cout << line;
+      std::cout << fmt::format(
+          "      nearest {}: {:.0f} {} units from its box (drift moves it {:.0f}); {:.3g} % of its "
+          "pixels in that box\n",
+          c.nearest_neighbour.c_str(), c.neighbour_gap_hsv, c.neighbour_channel.c_str(),
+          c.neighbour_drift_hsv, 100.0 * c.own_in_neighbour_share);
     }
-    std::snprintf(line, sizeof(line),
-                  "      background: %.0f HSV units from the box, %.3g %% of it inside; %.3g %% of "
-                  "its own pixels outside\n",
-                  c.background_gap_hsv, 100.0 * c.background_share, 100.0 * c.own_outside_share);
-    std::cout << line;
+    std::cout << fmt::format(
+        "      background: {:.0f} HSV units from the box, {:.3g} % of it inside; {:.3g} % of its "
+        "own pixels outside\n",
+        c.background_gap_hsv, 100.0 * c.background_share, 100.0 * c.own_outside_share);
     std::cout << "      "
               << (c.fragile.empty() ? "holds its drift budget" : "FRAGILE: " + c.fragile) << "\n";
   }

@@ -8,8 +8,8 @@ class App;
 namespace roomfix {
 
 // Each subcommand of `roomfix` registers itself on the top-level app and sets
-// *exit_code from its callback. Later issues add solve, frames, calibrate,
-// analyze, bench and sim here.
+// *exit_code from its callback (roomfix_main.cc adds them in this order;
+// docs/architecture.md lists what each does).
 void AddVersionCommand(CLI::App* app, int* exit_code);
 void AddCheckConfigCommand(CLI::App* app, int* exit_code);
 void AddLogInfoCommand(CLI::App* app, int* exit_code);

@@ -2,6 +2,7 @@
 // from the site file (docs/devices.md, "Configure"), one Intel hex image per
 // device for avrdude, and `roomfix devices show` to read an image back as the
 // firmware will (the same checks, the same fault).
+#include <fmt/format.h>
 #include <sys/stat.h>
 
 #include <CLI/CLI.hpp>
@@ -42,20 +43,20 @@ const char* RoleName(radio::DeviceRole role) {
 }
 
 void PrintConfig(const radio::DeviceConfig& c) {
-  std::printf("  role %s, id %u, address %s\n", RoleName(c.role), c.id,
-              FormatRadioAddress(c.own_address).c_str());
+  fmt::print("  role {}, id {}, address {}\n", RoleName(c.role), c.id,
+             FormatRadioAddress(c.own_address));
   if (c.role == radio::DeviceRole::kBeacon) {
-    std::printf("  slot %u of %u, slot %.3f ms, frame %.3f ms (%.2f Hz)\n", c.slot_index,
-                c.slot_count, c.slot_us / 1e3, c.frame_us / 1e3, 1e6 / c.frame_us);
-    std::printf("  burst %u cycles at 40 kHz, %u us after the announcement's last byte\n",
-                c.burst_cycles, c.fire_delay_us);
+    fmt::print("  slot {} of {}, slot {:.3f} ms, frame {:.3f} ms ({:.2f} Hz)\n", c.slot_index,
+               c.slot_count, c.slot_us / 1e3, c.frame_us / 1e3, 1e6 / c.frame_us);
+    fmt::print("  burst {} cycles at 40 kHz, {} us after the announcement's last byte\n",
+               c.burst_cycles, c.fire_delay_us);
   } else {
-    std::printf("  reports to %s, %u us after the window closes\n",
-                FormatRadioAddress(c.coordinator_address).c_str(), c.report_delay_us);
+    fmt::print("  reports to {}, {} us after the window closes\n",
+               FormatRadioAddress(c.coordinator_address), c.report_delay_us);
   }
-  std::printf(
-      "  window %.3f .. %.3f ms after the announcement, offset %.3f us "
-      "(radio latency %u us), sized for %.2f m at %.1f m/s\n",
+  fmt::print(
+      "  window {:.3f} .. {:.3f} ms after the announcement, offset {:.3f} us "
+      "(radio latency {} us), sized for {:.2f} m at {:.1f} m/s\n",
       c.window_open_us / 1e3, c.window_close_us / 1e3, c.tof_offset_ns / 1e3, c.radio_latency_us,
       c.max_range_cm / 100.0, c.sound_speed_mm_s / 1000.0);
 }
@@ -82,8 +83,8 @@ int RunShow(const DevicesArgs& a) {
               << "over the radio and neither fire nor report): " << error << "\n";
     return 2;
   }
-  std::printf("%s: layout %u, %zu bytes, CRC good\n", a.show.c_str(),
-              radio::kDeviceConfigLayoutVersion, radio::kDeviceConfigBytes);
+  fmt::print("{}: layout {}, {} bytes, CRC good\n", a.show, radio::kDeviceConfigLayoutVersion,
+             radio::kDeviceConfigBytes);
   PrintConfig(c);
   return 0;
 }
@@ -125,7 +126,7 @@ int RunWrite(const DevicesArgs& a) {
       std::cerr << "roomfix devices: " << error << "\n";
       return 1;
     }
-    std::printf("%s\n", path.c_str());
+    fmt::print("{}\n", path);
     PrintConfig(image.config);
   }
   // The bridge publishes a firing's set --deadline-ms after its first packet
@@ -142,14 +143,14 @@ int RunWrite(const DevicesArgs& a) {
                               (c.window_close_us + c.report_delay_us + c.radio_latency_us) / 1e3);
   }
   if (last_report_ms > 0.0) {
-    std::printf(
-        "zigbee_bridge: the last report reaches the coordinator about %.1f ms after the "
+    fmt::print(
+        "zigbee_bridge: the last report reaches the coordinator about {:.1f} ms after the "
         "announcement; give --deadline-ms that plus what a buffering module may hold, "
-        "e.g. %.0f (docs/devices.md, \"The bridge's deadline\")\n",
+        "e.g. {:.0f} (docs/devices.md, \"The bridge's deadline\")\n",
         last_report_ms, std::ceil((last_report_ms + 40.0) / 10.0) * 10.0);
   }
   if (o.coordinator_address == 0xFFFF) {
-    std::printf(
+    fmt::print(
         "note: receivers broadcast their reports (no MAC acknowledgement or retry); "
         "give --coordinator-address for unicast\n");
   }

@@ -1,5 +1,7 @@
 // roomfix export LOG --csv DIR: every roomfix message of a log as CSV, one
 // file per channel (tools/csv_export.h; docs/export.md lists the columns).
+#include <fmt/format.h>
+
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <iostream>
@@ -26,15 +28,14 @@ std::string ChannelCounts(const std::map<std::string, int64_t>& counts, int64_t*
 
 // Says what was written (stdout) and what was not (stderr); the exit code.
 int Report(const CsvExportOptions& o, const CsvExportReport& r) {
-  std::printf("%s: %lld events, %zu files in %s (and %s, %s)\n", o.log_path.c_str(),
-              static_cast<long long>(r.events), r.files.size(), o.out_dir.c_str(), kCsvChannelsFile,
-              kCsvDamageFile);
-  std::printf("%-28s %-24s %-26s %8s %8s %8s\n", "file", "channel", "type", "events", "rows",
-              "refused");
+  fmt::print("{}: {} events, {} files in {} (and {}, {})\n", o.log_path, r.events, r.files.size(),
+             o.out_dir, kCsvChannelsFile, kCsvDamageFile);
+  fmt::print("{:<28} {:<24} {:<26} {:>8} {:>8} {:>8}\n", "file", "channel", "type", "events",
+             "rows", "refused");
+  // Channel names come from the log: printed as C strings, up to a NUL byte.
   for (const CsvFileReport& f : r.files) {
-    std::printf("%-28s %-24s %-26s %8lld %8lld %8lld\n", f.file.c_str(), f.channel.c_str(),
-                f.type.c_str(), static_cast<long long>(f.events), static_cast<long long>(f.rows),
-                static_cast<long long>(f.refused));
+    fmt::print("{:<28} {:<24} {:<26} {:8} {:8} {:8}\n", f.file.c_str(), f.channel.c_str(),
+               f.type.c_str(), f.events, f.rows, f.refused);
   }
   std::fflush(stdout);
   int64_t total = 0;
@@ -59,7 +60,7 @@ int Report(const CsvExportOptions& o, const CsvExportReport& r) {
   }
   if (r.damaged) {
     // Every good event before and after the damage is in the files.
-    std::printf("damaged: %s\n", r.damage.c_str());
+    fmt::print("damaged: {}\n", r.damage);
     std::fflush(stdout);
     std::cerr << "roomfix export: warning: " << o.log_path << ": " << r.damage << " (listed in "
               << kCsvDamageFile << ")\n";

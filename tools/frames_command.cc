@@ -1,6 +1,7 @@
 // roomfix frames decode: an XBee API byte stream in, one JSON line per frame
 // and per error out.
 #include <fcntl.h>
+#include <fmt/format.h>
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
@@ -40,11 +41,7 @@ std::string Hex(const uint8_t* data, size_t size) {
   return out;
 }
 
-std::string HexByte(unsigned value, int digits) {
-  char buffer[8];
-  std::snprintf(buffer, sizeof(buffer), "0x%0*X", digits, value);
-  return buffer;
-}
+std::string HexByte(unsigned value, int digits) { return fmt::format("0x{:0{}X}", value, digits); }
 
 const char* FrameTypeName(uint8_t type) {
   switch (type) {

@@ -2,8 +2,11 @@
 // camera_proc opens it (sim/sim_camera_source.h MakeCameraSource: the
 // device with the site's size, format, rate and properties), so that
 // calibration and colour frames are the pixels camera_proc will see.
+#include <fmt/format.h>
+
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
@@ -58,17 +61,17 @@ struct TripodPoint {
 
 bool ParseTripod(const GrabFlags& f, const Site& site, const Camera& camera, TripodPoint* p,
                  std::string* error) {
+  // The whole text one finite number, in range (what std::stod accepts).
+  const auto number = [](const std::string& text, double* value) {
+    char* end = nullptr;
+    errno = 0;
+    *value = std::strtod(text.c_str(), &end);
+    return end != text.c_str() && end == text.c_str() + text.size() && errno != ERANGE &&
+           std::isfinite(*value);
+  };
   const size_t comma = f.tripod.find(',');
-  try {
-    size_t used_x = 0, used_y = 0;
-    if (comma == std::string::npos) throw std::invalid_argument("no comma");
-    p->x_m = std::stod(f.tripod.substr(0, comma), &used_x);
-    p->y_m = std::stod(f.tripod.substr(comma + 1), &used_y);
-    if (used_x != comma || used_y != f.tripod.size() - comma - 1 || !std::isfinite(p->x_m) ||
-        !std::isfinite(p->y_m)) {
-      throw std::invalid_argument("trailing text");
-    }
-  } catch (const std::exception&) {
+  if (comma == std::string::npos || !number(f.tripod.substr(0, comma), &p->x_m) ||
+      !number(f.tripod.substr(comma + 1), &p->y_m)) {
     *error = "--tripod " + f.tripod + ": expected X,Y in metres, e.g. 1.5,0.5";
     return false;
   }
@@ -91,9 +94,7 @@ bool ParseTripod(const GrabFlags& f, const Site& site, const Camera& camera, Tri
 // --tripod tripod_X_Y (the point as typed; _N after it when several).
 std::string FrameStem(const GrabFlags& f, int index) {
   if (f.tripod.empty()) {
-    char stem[32];
-    std::snprintf(stem, sizeof(stem), "frame_%04d", index);
-    return stem;
+    return fmt::format("frame_{:04d}", index);
   }
   std::string point = f.tripod;
   std::replace(point.begin(), point.end(), ',', '_');

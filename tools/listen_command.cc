@@ -1,3 +1,5 @@
+#include <fmt/format.h>
+
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <condition_variable>
@@ -172,7 +174,7 @@ void PrintMessage(const std::string& channel, int64_t recv_utime, const void* da
     line["refused"] = reason;
     line["error"] = why;
   }
-  std::printf("%s\n", JsonLine(line).c_str());
+  fmt::print("{}\n", JsonLine(line));
   std::fflush(stdout);
 }
 
@@ -208,7 +210,7 @@ int ListenToLog(const ListenOptions& o) {
     return 1;
   }
   // Which site the log was recorded in, before its messages.
-  if (!ReportToolSite("roomfix listen", ResolveSiteForLog(o.config_path, path),
+  if (!ReportToolSite("roomfix listen", ResolveToolSite(o.config_path, path),
                       /*required=*/false)) {
     return 1;
   }

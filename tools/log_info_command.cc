@@ -1,3 +1,5 @@
+#include <fmt/format.h>
+
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cstdio>
@@ -77,6 +79,155 @@ const char* ForeignTypeName(const std::string& channel) {
 constexpr size_t kMaxListedChannels = 1024;
 constexpr char kUnlistedChannels[] = "(other channels)";
 
+// Everything log-info counts over a log.
+struct LogSummary {
+  // A log holds whatever was on the bus, and anyone can invent channel
+  // names: past kMaxListedChannels distinct names the rest share one row,
+  // so the table (and memory) stays bounded however many there are.
+  std::map<std::string, ChannelSummary> channels;
+  std::map<int, CameraFrames> cameras;
+  // By pid (STATUS carries no camera id); as many as there are cameras.
+  std::map<int32_t, CameraProcStatus> camera_procs;
+  int64_t unlisted_channel_events = 0;
+  // MARKER_PIXELS and STATUS events refused before decoding, by reason.
+  std::map<std::string, int64_t> refused;
+};
+
+// The event's row of the channel table.
+void CountChannel(const LogEvent& event, LogSummary* s) {
+  auto it = s->channels.find(event.channel);
+  if (it == s->channels.end()) {
+    const bool listed = s->channels.size() < kMaxListedChannels;
+    if (!listed) ++s->unlisted_channel_events;
+    it = s->channels.emplace(listed ? event.channel : kUnlistedChannels, ChannelSummary{}).first;
+  }
+  ChannelSummary& c = it->second;
+  if (c.events == 0) c.first_utime = event.utime;
+  c.last_utime = event.utime;
+  ++c.events;
+  c.bytes += static_cast<int64_t>(event.data.size());
+  const char* type = RoomfixTypeName(event.data.data(), static_cast<int>(event.data.size()));
+  ++c.types[type != nullptr ? type : ForeignTypeName(event.channel)];
+}
+
+// A camera's frame (MARKER_PIXELS) or a camera_proc's heartbeat (STATUS).
+void CountCameraEvent(const LogEvent& event, LogSummary* s) {
+  marker_pixels_t pixels;
+  process_status_t status;
+  std::string reason;
+  const bool is_status = event.channel == "STATUS";
+  const bool is_pixels = event.channel == "MARKER_PIXELS";
+  const int size = static_cast<int>(event.data.size());
+  // A refused event is not a frame or a heartbeat: counted for the
+  // warning, never read.
+  const bool decoded = (is_status && DecodeChecked(event.data.data(), size, &status, &reason)) ||
+                       (is_pixels && DecodeChecked(event.data.data(), size, &pixels, &reason));
+  if ((is_status || is_pixels) && !decoded) ++s->refused[reason];
+  if (is_status && decoded && status.process == "camera_proc" &&
+      (s->camera_procs.size() < kMaxCameras || s->camera_procs.count(status.pid) > 0)) {
+    // Counters are totals since start: the last heartbeat holds them all.
+    CameraProcStatus& p = s->camera_procs[status.pid];
+    for (const counter_t& counter : status.counters) {
+      if (counter.name == "source_skipped_frames") p.source_skipped = counter.count;
+    }
+  }
+  if (!is_pixels || !decoded) return;
+  if (s->cameras.size() >= kMaxCameras && s->cameras.count(pixels.camera_id) == 0) return;
+  CameraFrames& f = s->cameras[pixels.camera_id];
+  if (f.frames == 0) {
+    f.first_seq = pixels.frame_seq;
+    f.first_utime = pixels.utime;
+  } else if (pixels.frame_seq > f.last_seq) {
+    f.dropped += pixels.frame_seq - f.last_seq - 1;
+  } else {
+    ++f.out_of_order;
+  }
+  f.last_seq = std::max(f.last_seq, pixels.frame_seq);
+  f.last_utime = std::max(f.last_utime, pixels.utime);
+  ++f.frames;
+  f.processing_us.push_back(pixels.processing_time_us);
+}
+
+// Channel names come from the log: printed as C strings, up to a NUL byte.
+void PrintChannels(const LogSummary& s) {
+  fmt::print("{:<24} {:>8} {:>10} {:>9}  {}\n", "channel", "events", "bytes", "rate_hz", "type");
+  for (const auto& [name, c] : s.channels) {
+    const double span_s = (c.last_utime - c.first_utime) * 1e-6;
+    const double rate = span_s > 0 ? (c.events - 1) / span_s : 0.0;
+    for (const auto& [type, count] : c.types) {
+      fmt::print("{:<24} {:8d} {:10d} {:9.2f}  {}\n", name.c_str(), count, c.bytes, rate,
+                 type.c_str());
+    }
+  }
+}
+
+void PrintCameras(LogSummary* s) {
+  int64_t source_skipped = 0;
+  for (const auto& [pid, p] : s->camera_procs) source_skipped += p.source_skipped;
+  for (auto& [id, f] : s->cameras) {
+    const double span_s = (f.last_utime - f.first_utime) * 1e-6;
+    // One camera, so its camera_procs' skips are its own: split the gaps.
+    // With several the STATUS cannot say whose they are (listed below).
+    std::string split;
+    if (s->cameras.size() == 1 && !s->camera_procs.empty()) {
+      split = ": " + std::to_string(f.dropped - source_skipped) + " by camera_proc, " +
+              std::to_string(source_skipped) + " skipped by the synthetic camera's renderer";
+    }
+    auto mid = f.processing_us.begin() + static_cast<std::ptrdiff_t>(f.processing_us.size() / 2);
+    std::nth_element(f.processing_us.begin(), mid, f.processing_us.end());
+    fmt::print(
+        "camera {}: {} frames (seq {}..{}) at {:.2f} fps, {} dropped (gaps in frame_seq{}){}, "
+        "capture to detection median {:.1f} ms\n",
+        id, f.frames, f.first_seq, f.last_seq, span_s > 0 ? (f.frames - 1) / span_s : 0.0,
+        f.dropped, split,
+        f.out_of_order > 0 ? ", " + std::to_string(f.out_of_order) + " out of order"
+                           : std::string(),
+        *mid * 1e-3);
+  }
+  if (s->cameras.size() != 1) {
+    for (const auto& [pid, p] : s->camera_procs) {
+      if (p.source_skipped == 0) continue;
+      fmt::print("camera_proc pid {}: {} frames skipped by the synthetic camera's renderer\n", pid,
+                 p.source_skipped);
+    }
+  }
+}
+
+// parse (CLI11) -> load and count (every event) -> report. Exit 2 for a
+// damaged log: every good event around the damage is in the table.
+int RunLogInfo(const std::string& path) {
+  std::string error;
+  auto reader = LogReader::Open(path, &error);
+  if (reader == nullptr) {
+    std::cerr << "roomfix log-info: " << error << "\n";
+    return 1;
+  }
+  LogSummary s;
+  LogEvent event;
+  while (reader->Next(&event)) {
+    CountChannel(event, &s);
+    CountCameraEvent(event, &s);
+  }
+  fmt::print("{}: {} events, {} bytes\n", path, reader->events_read(), reader->file_size());
+  PrintChannels(s);
+  PrintCameras(&s);
+  if (!s.refused.empty()) {
+    int64_t total = 0;
+    for (const auto& [reason, count] : s.refused) total += count;
+    std::cerr << "roomfix log-info: warning: " << total
+              << " MARKER_PIXELS and STATUS events refused (" << RefusalCounts(s.refused) << ")\n";
+  }
+  if (s.unlisted_channel_events > 0) {
+    std::cerr << "roomfix log-info: warning: more than " << kMaxListedChannels
+              << " channels; events on the rest are summed under " << kUnlistedChannels << "\n";
+  }
+  if (!reader->damaged()) return 0;
+  fmt::print("damaged: {}\n", reader->DamageSummary());
+  std::fflush(stdout);
+  std::cerr << "roomfix log-info: warning: " << path << ": " << reader->DamageSummary() << "\n";
+  return 2;
+}
+
 }  // namespace
 
 void AddLogInfoCommand(CLI::App* app, int* exit_code) {
@@ -84,139 +235,7 @@ void AddLogInfoCommand(CLI::App* app, int* exit_code) {
       "log-info", "Summarise an LCM log: events, types and rate per channel, and any damage");
   auto path = std::make_shared<std::string>();
   cmd->add_option("LOG", *path, "LCM log file (roomfix_logger or lcm-logger)")->required();
-  cmd->callback([path, exit_code] {
-    std::string error;
-    auto reader = LogReader::Open(*path, &error);
-    if (reader == nullptr) {
-      std::cerr << "roomfix log-info: " << error << "\n";
-      *exit_code = 1;
-      return;
-    }
-    // A log holds whatever was on the bus, and anyone can invent channel
-    // names: past kMaxListedChannels distinct names the rest share one row,
-    // so the table (and memory) stays bounded however many there are.
-    std::map<std::string, ChannelSummary> channels;
-    std::map<int, CameraFrames> cameras;
-    // By pid (STATUS carries no camera id); as many as there are cameras.
-    std::map<int32_t, CameraProcStatus> camera_procs;
-    int64_t unlisted_channel_events = 0;
-    // MARKER_PIXELS and STATUS events refused before decoding, by reason.
-    std::map<std::string, int64_t> refused;
-    LogEvent event;
-    while (reader->Next(&event)) {
-      auto it = channels.find(event.channel);
-      if (it == channels.end()) {
-        const bool listed = channels.size() < kMaxListedChannels;
-        if (!listed) ++unlisted_channel_events;
-        it = channels.emplace(listed ? event.channel : kUnlistedChannels, ChannelSummary{}).first;
-      }
-      ChannelSummary& c = it->second;
-      if (c.events == 0) c.first_utime = event.utime;
-      c.last_utime = event.utime;
-      ++c.events;
-      c.bytes += static_cast<int64_t>(event.data.size());
-      const char* type = RoomfixTypeName(event.data.data(), static_cast<int>(event.data.size()));
-      ++c.types[type != nullptr ? type : ForeignTypeName(event.channel)];
-      marker_pixels_t pixels;
-      process_status_t status;
-      std::string reason;
-      const bool is_status = event.channel == "STATUS";
-      const bool is_pixels = event.channel == "MARKER_PIXELS";
-      const int size = static_cast<int>(event.data.size());
-      // A refused event is not a frame or a heartbeat: counted for the
-      // warning below, never read.
-      const bool decoded =
-          (is_status && DecodeChecked(event.data.data(), size, &status, &reason)) ||
-          (is_pixels && DecodeChecked(event.data.data(), size, &pixels, &reason));
-      if ((is_status || is_pixels) && !decoded) ++refused[reason];
-      if (is_status && decoded && status.process == "camera_proc" &&
-          (camera_procs.size() < kMaxCameras || camera_procs.count(status.pid) > 0)) {
-        // Counters are totals since start: the last heartbeat holds them all.
-        CameraProcStatus& p = camera_procs[status.pid];
-        for (const counter_t& counter : status.counters) {
-          if (counter.name == "source_skipped_frames") p.source_skipped = counter.count;
-        }
-      }
-      if (is_pixels && decoded) {
-        if (cameras.size() >= kMaxCameras && cameras.count(pixels.camera_id) == 0) continue;
-        CameraFrames& f = cameras[pixels.camera_id];
-        if (f.frames == 0) {
-          f.first_seq = pixels.frame_seq;
-          f.first_utime = pixels.utime;
-        } else if (pixels.frame_seq > f.last_seq) {
-          f.dropped += pixels.frame_seq - f.last_seq - 1;
-        } else {
-          ++f.out_of_order;
-        }
-        f.last_seq = std::max(f.last_seq, pixels.frame_seq);
-        f.last_utime = std::max(f.last_utime, pixels.utime);
-        ++f.frames;
-        f.processing_us.push_back(pixels.processing_time_us);
-      }
-    }
-    std::printf("%s: %lld events, %lld bytes\n", path->c_str(),
-                static_cast<long long>(reader->events_read()),
-                static_cast<long long>(reader->file_size()));
-    std::printf("%-24s %8s %10s %9s  %s\n", "channel", "events", "bytes", "rate_hz", "type");
-    for (const auto& [name, c] : channels) {
-      const double span_s = (c.last_utime - c.first_utime) * 1e-6;
-      const double rate = span_s > 0 ? (c.events - 1) / span_s : 0.0;
-      for (const auto& [type, count] : c.types) {
-        std::printf("%-24s %8lld %10lld %9.2f  %s\n", name.c_str(), static_cast<long long>(count),
-                    static_cast<long long>(c.bytes), rate, type.c_str());
-      }
-    }
-    int64_t source_skipped = 0;
-    for (const auto& [pid, p] : camera_procs) source_skipped += p.source_skipped;
-    for (auto& [id, f] : cameras) {
-      const double span_s = (f.last_utime - f.first_utime) * 1e-6;
-      // One camera, so its camera_procs' skips are its own: split the gaps.
-      // With several the STATUS cannot say whose they are (listed below).
-      std::string split;
-      if (cameras.size() == 1 && !camera_procs.empty()) {
-        split = ": " + std::to_string(f.dropped - source_skipped) + " by camera_proc, " +
-                std::to_string(source_skipped) + " skipped by the synthetic camera's renderer";
-      }
-      auto mid = f.processing_us.begin() + static_cast<std::ptrdiff_t>(f.processing_us.size() / 2);
-      std::nth_element(f.processing_us.begin(), mid, f.processing_us.end());
-      std::printf(
-          "camera %d: %lld frames (seq %lld..%lld) at %.2f fps, %lld dropped (gaps in "
-          "frame_seq%s)%s, "
-          "capture to detection median %.1f ms\n",
-          id, static_cast<long long>(f.frames), static_cast<long long>(f.first_seq),
-          static_cast<long long>(f.last_seq), span_s > 0 ? (f.frames - 1) / span_s : 0.0,
-          static_cast<long long>(f.dropped), split.c_str(),
-          f.out_of_order > 0 ? (", " + std::to_string(f.out_of_order) + " out of order").c_str()
-                             : "",
-          *mid * 1e-3);
-    }
-    if (cameras.size() != 1) {
-      for (const auto& [pid, p] : camera_procs) {
-        if (p.source_skipped == 0) continue;
-        std::printf("camera_proc pid %d: %lld frames skipped by the synthetic camera's renderer\n",
-                    pid, static_cast<long long>(p.source_skipped));
-      }
-    }
-    if (!refused.empty()) {
-      int64_t total = 0;
-      for (const auto& [reason, count] : refused) total += count;
-      std::cerr << "roomfix log-info: warning: " << total
-                << " MARKER_PIXELS and STATUS events refused (" << RefusalCounts(refused) << ")\n";
-    }
-    if (unlisted_channel_events > 0) {
-      std::cerr << "roomfix log-info: warning: more than " << kMaxListedChannels
-                << " channels; events on the rest are summed under " << kUnlistedChannels << "\n";
-    }
-    *exit_code = 0;
-    if (reader->damaged()) {
-      // Every good event around the damage is in the table above.
-      std::printf("damaged: %s\n", reader->DamageSummary().c_str());
-      std::fflush(stdout);
-      std::cerr << "roomfix log-info: warning: " << *path << ": " << reader->DamageSummary()
-                << "\n";
-      *exit_code = 2;
-    }
-  });
+  cmd->callback([path, exit_code] { *exit_code = RunLogInfo(*path); });
 }
 
 }  // namespace roomfix

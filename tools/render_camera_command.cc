@@ -1,5 +1,7 @@
 // roomfix render-camera: synthetic ceiling-camera frames of a site with
 // ground truth (sim/synthetic_camera.h).
+#include <fmt/format.h>
+
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
@@ -118,8 +120,7 @@ int WriteTripodImages(const RenderCameraFlags& f, const Site& site, const Camera
   robots_csv << "image,x_m,y_m,height_m,robot_id\n";
   int n = 0, out_of_view = 0, held_out = 0;
   bool ok = each_point(0.0, [&](double x, double y) {
-    char stem[32];
-    std::snprintf(stem, sizeof(stem), "tripod_%03d", n);
+    const std::string stem = fmt::format("tripod_{:03d}", n);
     std::string name;
     if (!write(tripod, x, y, 0.0, stem, &name)) {
       ++out_of_view;
@@ -136,8 +137,7 @@ int WriteTripodImages(const RenderCameraFlags& f, const Site& site, const Camera
         // Headings spread by the golden angle: every robot is seen at many,
         // as it will be while it drives.
         const double heading_rad = std::remainder(2.399963 * (point + robot.robot_id), 2 * M_PI);
-        char stem[48];
-        std::snprintf(stem, sizeof(stem), "robot_%d_%03d", robot.robot_id, point);
+        const std::string stem = fmt::format("robot_{}_{:03d}", robot.robot_id, point);
         std::string name;
         if (!write(robot, x, y, heading_rad, stem, &name)) {
           if (!error.empty()) return false;

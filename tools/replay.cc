@@ -163,11 +163,14 @@ bool ResolveReplaySite(const std::string& log_path, const std::string& config_pa
   out->is_new = !new_site_path.empty();
   out->from_file = !config_path.empty() || out->is_new;
   const std::string& path = out->is_new ? new_site_path : config_path;
-  std::vector<std::string> lines;
-  if (!ResolveToolSite(path, log_path, &out->loaded, &out->used_line, &lines, error)) {
-    if (!out->from_file) *error += " (or --site NEW.yaml)";
+  ToolSite resolved = ResolveToolSite(path, log_path);
+  if (!resolved.known) {
+    *error = resolved.error + (out->from_file ? "" : " (or --site NEW.yaml)");
     return false;
   }
+  out->loaded = std::move(resolved.site);
+  out->used_line = resolved.line;
+  const std::vector<std::string>& lines = resolved.warnings;
   if (out->is_new) {
     out->used_line = "new site from --site " + new_site_path + ": " + DescribeSite(out->loaded);
     out->notes = lines;
@@ -238,29 +241,68 @@ bool PipelineReplayOptions::IsValid(std::string* error) const {
   return true;
 }
 
-PipelineReplaySummary ReplayPipeline(LogReader* in, const Site& site,
-                                     const PipelineReplayOptions& options, LogWriter* out) {
-  PipelineReplaySummary summary;
-  if (!options.IsValid(&summary.error)) return summary;
-  summary.ok = true;
-  std::string write_error;
-  auto write = [&](int64_t utime, const std::string& channel, const void* data, int size) {
-    if (!write_error.empty()) return;
-    out->Write(utime, channel, data, size, &write_error);
-  };
+namespace {
 
-  // Input bytes read so far, and when each node last had a heartbeat
-  // written (kStatusRepeatInputRatio). The node is the one being ticked or
-  // stopped (camera nodes share a process name): trilat 0, fusion 1, the
-  // cameras 2...
-  int64_t input_bytes_read = 0;
-  int publishing_node = -1;
-  std::map<int, int64_t> input_at_last_status;
-  std::unique_ptr<ReplayBus> bus;
-  bus = std::make_unique<ReplayBus>([&](const std::string& channel, const void* data, int size) {
+// One replay of a log through the re-run nodes: the state ReplayPipeline's
+// steps share. Members are destroyed in reverse order: the nodes before the
+// bus they subscribe to.
+class PipelineReplay {
+ public:
+  PipelineReplay(const Site& site, const PipelineReplayOptions& options, LogWriter* out)
+      : site_(site), options_(options), out_(out) {
+    summary_.ok = true;
+    bus_ = std::make_unique<ReplayBus>([this](const std::string& channel, const void* data,
+                                              int size) { OnPublish(channel, data, size); });
+    // The recorded outputs the new ones replace.
+    if (options.trilat) replaced_.push_back(kUltrasoundPoseChannel);
+    if (options.fusion) replaced_.push_back(options.fusion_options.fused_channel);
+    if (options.camera) replaced_.push_back(kCameraPoseChannel);
+    if (options.site_message) replaced_.push_back(kSiteChannel);
+    camera_options_ = options.camera_options;
+    // OnMarkerPixels never measures time, and nothing else may read a clock.
+    camera_options_.steady_clock = [] { return int64_t{0}; };
+  }
+
+  PipelineReplaySummary Run(LogReader* in) {
+    LogEvent event;
+    EventTimeScreen screen(in);
+    while (write_error_.empty() && screen.Next(&event)) {
+      input_bytes_read_ += LoggedSize(event.channel, event.data.size());
+      if (summary_.events_read == 0 && !StartNodes(event.utime)) return summary_;
+      ++summary_.events_read;
+      summary_.last_utime = event.utime;
+      CatchUp(event.utime);
+      MaybeWriteSite(event.utime);
+      PassOn(&event);
+    }
+    if (summary_.events_read > 0 && write_error_.empty()) StopNodes();
+    if (write_error_.empty()) out_->Flush(&write_error_);
+    summary_.events_time_refused = screen.refused();
+    summary_.events_read += screen.refused();
+    summary_.refused = bus_->stats().refused;
+    summary_.damaged = in->damaged();
+    summary_.bytes_skipped = in->bytes_skipped();
+    summary_.damage_regions = in->damage_regions();
+    summary_.damage = in->DamageSummary();
+    if (!write_error_.empty()) {
+      summary_.ok = false;
+      summary_.error = write_error_;
+    }
+    return summary_;
+  }
+
+ private:
+  void Write(int64_t utime, const std::string& channel, const void* data, int size) {
+    if (!write_error_.empty()) return;
+    out_->Write(utime, channel, data, size, &write_error_);
+  }
+
+  // What a node publishes: into the new log, its heartbeats on
+  // REPLAY_STATUS, thinned (kStatusRepeatInputRatio).
+  void OnPublish(const std::string& channel, const void* data, int size) {
     if (channel != kStatusChannel) {
-      ++summary.new_outputs[channel];
-      write(bus->now_utime(), channel, data, size);
+      ++summary_.new_outputs[channel];
+      Write(bus_->now_utime(), channel, data, size);
       return;
     }
     process_status_t status{};
@@ -270,171 +312,183 @@ PipelineReplaySummary ReplayPipeline(LogReader* in, const Site& site,
     status.pid = 0;
     std::vector<uint8_t> buffer(static_cast<size_t>(status.getEncodedSize()));
     status.encode(buffer.data(), 0, static_cast<int>(buffer.size()));
-    const auto last = input_at_last_status.find(publishing_node);
-    if (last != input_at_last_status.end() &&
-        input_bytes_read - last->second <
+    const auto last = input_at_last_status_.find(publishing_node_);
+    if (last != input_at_last_status_.end() &&
+        input_bytes_read_ - last->second <
             kStatusRepeatInputRatio * LoggedSize(kReplayStatusChannel, buffer.size())) {
-      ++summary.heartbeats_thinned;
+      ++summary_.heartbeats_thinned;
       return;
     }
-    input_at_last_status[publishing_node] = input_bytes_read;
-    ++summary.new_outputs[kReplayStatusChannel];
-    write(bus->now_utime(), kReplayStatusChannel, buffer.data(), static_cast<int>(buffer.size()));
-  });
-
-  // The recorded outputs the new ones replace.
-  std::vector<std::string> replaced;
-  if (options.trilat) replaced.push_back(kUltrasoundPoseChannel);
-  if (options.fusion) replaced.push_back(options.fusion_options.fused_channel);
-  if (options.camera) replaced.push_back(kCameraPoseChannel);
-  if (options.site_message) replaced.push_back(kSiteChannel);
-  std::vector<uint8_t> site_bytes;
-  int64_t next_site_utime = 0;
-  int64_t input_bytes_since_site = 0;
+    input_at_last_status_[publishing_node_] = input_bytes_read_;
+    ++summary_.new_outputs[kReplayStatusChannel];
+    Write(bus_->now_utime(), kReplayStatusChannel, buffer.data(), static_cast<int>(buffer.size()));
+  }
 
   // The nodes start at the log's first event, as the live ones started
-  // before it; their uptime in REPLAY_STATUS is log time.
-  std::optional<TrilatNode> trilat;
-  std::optional<FusionNode> fusion;
-  // Heap-held: a node's subscriptions capture its address.
-  std::vector<std::unique_ptr<CameraNode>> cameras;
-  CameraNodeOptions camera_options = options.camera_options;
-  // OnMarkerPixels never measures time, and nothing else may read a clock.
-  camera_options.steady_clock = [] { return int64_t{0}; };
-  const int64_t tick_us = int64_t{options.tick_period_ms} * 1000;
-  int64_t next_tick = 0;
-  auto tick = [&](int64_t now) {
-    bus->set_now_utime(now);
-    publishing_node = 0;
-    if (trilat) trilat->Tick(now);
-    publishing_node = 1;
-    if (fusion) fusion->Tick(now);
-    for (size_t i = 0; i < cameras.size(); ++i) {
-      publishing_node = 2 + static_cast<int>(i);
-      cameras[i]->Tick(now);
-    }
-    publishing_node = -1;
-    ++summary.ticks;
-  };
-
-  LogEvent event;
-  EventTimeScreen screen(in);
-  while (write_error.empty() && screen.Next(&event)) {
-    input_bytes_read += LoggedSize(event.channel, event.data.size());
-    if (summary.events_read == 0) {
-      summary.first_utime = event.utime;
-      bus->set_now_utime(event.utime);
-      if (options.trilat) trilat.emplace(site, bus.get(), options.trilat_options, event.utime);
-      if (options.fusion) fusion.emplace(site, bus.get(), options.fusion_options, event.utime);
-      // The node keeps a reference to its camera: the site's own entry.
-      for (const Camera& camera : site.cameras) {
-        if (!options.camera) break;
-        auto it = options.camera_calibrations.find(camera.id);
-        if (it == options.camera_calibrations.end()) continue;
-        auto node = std::make_unique<CameraNode>(site, camera, it->second, bus.get(),
-                                                 camera_options, event.utime);
-        std::string why;
-        if (!node->ok(&why)) {
-          summary.ok = false;
-          summary.error = "camera " + std::to_string(camera.id) + ": " + why;
-          return summary;
-        }
-        CameraNode* raw = node.get();
-        bus->Subscribe<marker_pixels_t>(kMarkerPixelsChannel,
-                                        [raw](const marker_pixels_t& m, const MessageInfo& info) {
-                                          raw->OnMarkerPixels(m, info.recv_utime);
-                                        });
-        cameras.push_back(std::move(node));
+  // before it; their uptime in REPLAY_STATUS is log time. False (the
+  // summary saying why) when a camera node cannot run.
+  bool StartNodes(int64_t utime) {
+    summary_.first_utime = utime;
+    bus_->set_now_utime(utime);
+    if (options_.trilat) trilat_.emplace(site_, bus_.get(), options_.trilat_options, utime);
+    if (options_.fusion) fusion_.emplace(site_, bus_.get(), options_.fusion_options, utime);
+    // The node keeps a reference to its camera: the site's own entry.
+    for (const Camera& camera : site_.cameras) {
+      if (!options_.camera) break;
+      auto it = options_.camera_calibrations.find(camera.id);
+      if (it == options_.camera_calibrations.end()) continue;
+      auto node = std::make_unique<CameraNode>(site_, camera, it->second, bus_.get(),
+                                               camera_options_, utime);
+      std::string why;
+      if (!node->ok(&why)) {
+        summary_.ok = false;
+        summary_.error = "camera " + std::to_string(camera.id) + ": " + why;
+        return false;
       }
-      next_tick = event.utime;
+      CameraNode* raw = node.get();
+      bus_->Subscribe<marker_pixels_t>(kMarkerPixelsChannel,
+                                       [raw](const marker_pixels_t& m, const MessageInfo& info) {
+                                         raw->OnMarkerPixels(m, info.recv_utime);
+                                       });
+      cameras_.push_back(std::move(node));
     }
-    ++summary.events_read;
-    summary.last_utime = event.utime;
-    // The ticks a live node would have had before this event arrived. A gap
-    // longer than kMaxCatchUpUs (a pause, a sparse log, a timestamp that
-    // jumps) is crossed with one tick at the event's time; the grid ticks
-    // in it are counted, not run.
-    const int64_t gap_us = SaturatingDifferenceUs(event.utime, next_tick);
+    next_tick_ = utime;
+    return true;
+  }
+
+  // Every node's tick at `now`. The node publishing is the one being ticked
+  // or stopped (camera nodes share a process name): trilat 0, fusion 1, the
+  // cameras 2...
+  void Tick(int64_t now) {
+    bus_->set_now_utime(now);
+    publishing_node_ = 0;
+    if (trilat_) trilat_->Tick(now);
+    publishing_node_ = 1;
+    if (fusion_) fusion_->Tick(now);
+    for (size_t i = 0; i < cameras_.size(); ++i) {
+      publishing_node_ = 2 + static_cast<int>(i);
+      cameras_[i]->Tick(now);
+    }
+    publishing_node_ = -1;
+    ++summary_.ticks;
+  }
+
+  // The ticks a live node would have had before an event at `utime`
+  // arrived. A gap longer than kMaxCatchUpUs (a pause, a sparse log, a
+  // timestamp that jumps) is crossed with one tick at the event's time; the
+  // grid ticks in it are counted, not run.
+  void CatchUp(int64_t utime) {
+    const int64_t tick_us = int64_t{options_.tick_period_ms} * 1000;
+    const int64_t gap_us = SaturatingDifferenceUs(utime, next_tick_);
     if (gap_us > kMaxCatchUpUs) {
-      summary.ticks_skipped += gap_us / tick_us;
-      next_tick = event.utime;
+      summary_.ticks_skipped += gap_us / tick_us;
+      next_tick_ = utime;
     }
-    while (next_tick <= event.utime) {
-      tick(next_tick);
-      if (next_tick == INT64_MAX) break;
-      next_tick = SaturatingAddUs(next_tick, tick_us);
+    while (next_tick_ <= utime) {
+      Tick(next_tick_);
+      if (next_tick_ == INT64_MAX) break;
+      next_tick_ = SaturatingAddUs(next_tick_, tick_us);
     }
-    if (options.site_message && event.utime >= next_site_utime &&
-        (site_bytes.empty() ||
-         input_bytes_since_site >=
-             kSiteRepeatInputRatio * static_cast<int64_t>(site_bytes.size()))) {
-      site_t site_msg = *options.site_message;
-      site_msg.utime = event.utime;
-      site_bytes.assign(static_cast<size_t>(site_msg.getEncodedSize()), 0);
-      site_msg.encode(site_bytes.data(), 0, static_cast<int>(site_bytes.size()));
-      write(event.utime, kSiteChannel, site_bytes.data(), static_cast<int>(site_bytes.size()));
-      ++summary.new_outputs[kSiteChannel];
-      next_site_utime = SaturatingAddUs(event.utime, kSitePeriodUs);
-      input_bytes_since_site = 0;
+  }
+
+  // A new site's SITE, every kSitePeriodUs and no more often than
+  // kSiteRepeatInputRatio of the input allows.
+  void MaybeWriteSite(int64_t utime) {
+    if (!options_.site_message || utime < next_site_utime_ ||
+        (!site_bytes_.empty() &&
+         input_bytes_since_site_ <
+             kSiteRepeatInputRatio * static_cast<int64_t>(site_bytes_.size()))) {
+      return;
     }
-    bool is_replaced = false;
-    for (const std::string& channel : replaced)
-      is_replaced = is_replaced || event.channel == channel;
-    if (is_replaced) {
-      ++summary.old_outputs_dropped[event.channel];
-      continue;
+    site_t site_msg = *options_.site_message;
+    site_msg.utime = utime;
+    site_bytes_.assign(static_cast<size_t>(site_msg.getEncodedSize()), 0);
+    site_msg.encode(site_bytes_.data(), 0, static_cast<int>(site_bytes_.size()));
+    Write(utime, kSiteChannel, site_bytes_.data(), static_cast<int>(site_bytes_.size()));
+    ++summary_.new_outputs[kSiteChannel];
+    next_site_utime_ = SaturatingAddUs(utime, kSitePeriodUs);
+    input_bytes_since_site_ = 0;
+  }
+
+  // A recorded event: dropped when a re-run node replaces its channel,
+  // otherwise copied into the new log and delivered to the nodes.
+  void PassOn(LogEvent* event) {
+    if (std::find(replaced_.begin(), replaced_.end(), event->channel) != replaced_.end()) {
+      ++summary_.old_outputs_dropped[event->channel];
+      return;
     }
-    if (options.restamp_ranges && event.channel == kRangesChannel) {
-      RestampRanges(site, &event.data, &summary);
+    if (options_.restamp_ranges && event->channel == kRangesChannel) {
+      RestampRanges(site_, &event->data, &summary_);
     }
-    const int size = static_cast<int>(event.data.size());
+    const int size = static_cast<int>(event->data.size());
     std::string why;
-    if (!LogWriter::Loggable(event.channel, size, &why)) {
+    if (!LogWriter::Loggable(event->channel, size, &why)) {
       // LogReader reads channels LCM's tools cannot replay (up to 999
       // bytes); such an event is counted and left out, not a failed run.
-      ++summary.inputs_not_loggable;
-      continue;
+      ++summary_.inputs_not_loggable;
+      return;
     }
-    write(event.utime, event.channel, event.data.data(), size);
-    ++summary.inputs_written;
-    input_bytes_since_site += size;
-    bus->set_now_utime(event.utime);
-    bus->Inject(event.channel, event.data.data(), size);
+    Write(event->utime, event->channel, event->data.data(), size);
+    ++summary_.inputs_written;
+    input_bytes_since_site_ += size;
+    bus_->set_now_utime(event->utime);
+    bus_->Inject(event->channel, event->data.data(), size);
   }
-  if (summary.events_read > 0 && write_error.empty()) {
-    tick(summary.last_utime);
-    // Each node's last word is always written.
-    input_at_last_status.clear();
-    publishing_node = 0;
-    if (trilat) {
-      trilat->Stop(summary.last_utime);
-      summary.trilat_status = trilat->status().Make(summary.last_utime, nullptr);
+
+  // A last tick at the last event, then each node's last word, always
+  // written.
+  void StopNodes() {
+    const int64_t last = summary_.last_utime;
+    Tick(last);
+    input_at_last_status_.clear();
+    publishing_node_ = 0;
+    if (trilat_) {
+      trilat_->Stop(last);
+      summary_.trilat_status = trilat_->status().Make(last, nullptr);
     }
-    publishing_node = 1;
-    if (fusion) {
-      fusion->Stop(summary.last_utime);
-      summary.fusion_status = fusion->status().Make(summary.last_utime, nullptr);
+    publishing_node_ = 1;
+    if (fusion_) {
+      fusion_->Stop(last);
+      summary_.fusion_status = fusion_->status().Make(last, nullptr);
     }
-    for (size_t i = 0; i < cameras.size(); ++i) {
-      publishing_node = 2 + static_cast<int>(i);
-      cameras[i]->Stop(summary.last_utime);
-      summary.camera_status.push_back(cameras[i]->status().Make(summary.last_utime, nullptr));
+    for (size_t i = 0; i < cameras_.size(); ++i) {
+      publishing_node_ = 2 + static_cast<int>(i);
+      cameras_[i]->Stop(last);
+      summary_.camera_status.push_back(cameras_[i]->status().Make(last, nullptr));
     }
-    publishing_node = -1;
+    publishing_node_ = -1;
   }
-  if (write_error.empty()) out->Flush(&write_error);
-  summary.events_time_refused = screen.refused();
-  summary.events_read += screen.refused();
-  summary.refused = bus->stats().refused;
-  summary.damaged = in->damaged();
-  summary.bytes_skipped = in->bytes_skipped();
-  summary.damage_regions = in->damage_regions();
-  summary.damage = in->DamageSummary();
-  if (!write_error.empty()) {
-    summary.ok = false;
-    summary.error = write_error;
-  }
-  return summary;
+
+  const Site& site_;
+  const PipelineReplayOptions& options_;
+  LogWriter* out_;
+  PipelineReplaySummary summary_;
+  std::string write_error_;
+  // Input bytes read so far, and the input read when each node last had a
+  // heartbeat written (kStatusRepeatInputRatio); the node publishing now.
+  int64_t input_bytes_read_ = 0;
+  int publishing_node_ = -1;
+  std::map<int, int64_t> input_at_last_status_;
+  std::vector<std::string> replaced_;
+  std::vector<uint8_t> site_bytes_;
+  int64_t next_site_utime_ = 0;
+  int64_t input_bytes_since_site_ = 0;
+  CameraNodeOptions camera_options_;
+  int64_t next_tick_ = 0;
+  std::unique_ptr<ReplayBus> bus_;
+  std::optional<TrilatNode> trilat_;
+  std::optional<FusionNode> fusion_;
+  // Heap-held: a node's subscriptions capture its address.
+  std::vector<std::unique_ptr<CameraNode>> cameras_;
+};
+
+}  // namespace
+
+PipelineReplaySummary ReplayPipeline(LogReader* in, const Site& site,
+                                     const PipelineReplayOptions& options, LogWriter* out) {
+  PipelineReplaySummary summary;
+  if (!options.IsValid(&summary.error)) return summary;
+  return PipelineReplay(site, options, out).Run(in);
 }
 
 PipelineReplaySummary ReplayPipelineFile(const std::string& in_path, const Site& site,

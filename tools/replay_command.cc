@@ -2,6 +2,8 @@
 // from recorded MARKER_PIXELS) nodes over a
 // recorded log, on the log's time and as fast as the machine allows, and
 // writes a new log (docs/replay.md).
+#include <fmt/format.h>
+
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <cstdio>
@@ -83,148 +85,170 @@ nlohmann::json StatusJson(const process_status_t& s) {
   return j;
 }
 
-int RunReplayCommand(const ReplayCommandArgs& args) {
-  PipelineReplayOptions options;
-  std::string error;
-  if (!ParseNodes(args.nodes, &options, &error)) {
-    std::cerr << "roomfix replay: " << error << "\n";
-    return 1;
+// The nodes, their options and the site of the replay, from the flags and
+// the log; says on stderr which site is used. False with the reason.
+bool PrepareReplay(const ReplayCommandArgs& args, PipelineReplayOptions* options,
+                   ReplaySite* replay_site, std::string* error) {
+  if (!ParseNodes(args.nodes, options, error)) return false;
+  options->trilat_options = args.trilat_options;
+  options->fusion_options = args.fusion_options;
+  if (!ApplyTrilatFlags(args.trilat_flags, &options->trilat_options, error)) return false;
+  if (!ResolveReplaySite(args.log_path, args.config_path, args.site_path, replay_site, error)) {
+    return false;
   }
-  options.trilat_options = args.trilat_options;
-  options.fusion_options = args.fusion_options;
-  if (!ApplyTrilatFlags(args.trilat_flags, &options.trilat_options, &error)) {
-    std::cerr << "roomfix replay: " << error << "\n";
-    return 1;
-  }
-  ReplaySite replay_site;
-  if (!ResolveReplaySite(args.log_path, args.config_path, args.site_path, &replay_site, &error)) {
-    std::cerr << "roomfix replay: " << error << "\n";
-    return 1;
-  }
-  std::cerr << "roomfix replay: " << replay_site.used_line << "\n";
-  for (const std::string& line : replay_site.warnings) {
+  std::cerr << "roomfix replay: " << replay_site->used_line << "\n";
+  for (const std::string& line : replay_site->warnings) {
     std::cerr << "roomfix replay: warning: " << line << "\n";
   }
-  for (const std::string& line : replay_site.notes) {
+  for (const std::string& line : replay_site->notes) {
     std::cerr << "roomfix replay: " << line << "\n";
   }
-  if (options.camera) {
+  if (options->camera) {
     // camera_proc's node starts from the detector's output: without it there
     // is nothing to track (logs never hold the full frames).
     bool holds = false;
-    if (!LogHoldsChannel(args.log_path, kMarkerPixelsChannel, &holds, &error)) {
-      std::cerr << "roomfix replay: " << error << "\n";
-      return 1;
-    }
+    if (!LogHoldsChannel(args.log_path, kMarkerPixelsChannel, &holds, error)) return false;
     if (!holds) {
-      std::cerr << "roomfix replay: --nodes camera: " << args.log_path
-                << " holds no MARKER_PIXELS (the camera's detections), so camera_proc's node has "
-                   "no input; record MARKER_PIXELS too, or replay trilat,fusion and keep the "
-                   "recorded POSE_CAMERA\n";
-      return 1;
+      *error = "--nodes camera: " + args.log_path +
+               " holds no MARKER_PIXELS (the camera's detections), so camera_proc's node has "
+               "no input; record MARKER_PIXELS too, or replay trilat,fusion and keep the "
+               "recorded POSE_CAMERA";
+      return false;
     }
-    if (!ReplayCameraCalibrations(replay_site.loaded, &options.camera_calibrations, &error)) {
-      std::cerr << "roomfix replay: --nodes camera: " << error << "\n";
-      return 1;
+    if (!ReplayCameraCalibrations(replay_site->loaded, &options->camera_calibrations, error)) {
+      *error = "--nodes camera: " + *error;
+      return false;
     }
   }
-  const Site& site = replay_site.loaded.site;
-  const std::string site_path = replay_site.used_line;
   // The point of a new site is new receiver positions and offsets: the
   // recorded ranges are re-derived from it. The recorded site is used as
   // is, so the ranges are exactly the recorded ones.
-  options.restamp_ranges = replay_site.is_new;
+  options->restamp_ranges = replay_site->is_new;
   // A site from a file travels in the new log in place of the recorded one.
-  if (replay_site.from_file) {
+  if (replay_site->from_file) {
     site_t msg{};
-    if (!MakeReplaySiteMessage(replay_site.loaded, &msg, &error)) {
-      std::cerr << "roomfix replay: warning: the new log carries no SITE: " << error << "\n";
+    std::string site_error;
+    if (!MakeReplaySiteMessage(replay_site->loaded, &msg, &site_error)) {
+      std::cerr << "roomfix replay: warning: the new log carries no SITE: " << site_error << "\n";
     } else {
-      options.site_message = msg;
+      options->site_message = msg;
     }
   }
-  const auto start = std::chrono::steady_clock::now();
-  const PipelineReplaySummary s =
-      ReplayPipelineFile(args.log_path, site, options, args.out_path, args.force);
-  const double wall_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  if (!s.ok) {
-    std::cerr << "roomfix replay: " << s.error << "\n";
-    return 1;
+  return true;
+}
+
+// How long the replay took against the log's span.
+struct ReplayTiming {
+  double span_s = 0.0;
+  double wall_s = 0.0;
+  double speedup = 0.0;
+};
+
+void PrintSummaryJson(const ReplayCommandArgs& args, const std::string& site_line,
+                      const PipelineReplayOptions& options, const PipelineReplaySummary& s,
+                      const ReplayTiming& t) {
+  nlohmann::json j = {{"log", args.log_path},
+                      {"out", args.out_path},
+                      {"site", site_line},
+                      {"ranges_rederived", options.restamp_ranges},
+                      {"nodes", args.nodes},
+                      {"events_read", s.events_read},
+                      {"inputs_written", s.inputs_written},
+                      {"inputs_not_loggable", s.inputs_not_loggable},
+                      {"old_outputs_dropped", s.old_outputs_dropped},
+                      {"new_outputs", s.new_outputs},
+                      {"ranges_restamped", s.ranges_restamped},
+                      {"ranges_kept", s.ranges_kept},
+                      {"ranges_unknown_receiver", s.ranges_unknown_receiver},
+                      {"ticks", s.ticks},
+                      {"ticks_skipped", s.ticks_skipped},
+                      {"events_time_refused", s.events_time_refused},
+                      {"heartbeats_thinned", s.heartbeats_thinned},
+                      {"refused", s.refused},
+                      {"log_span_s", t.span_s},
+                      {"wall_s", t.wall_s},
+                      {"times_real_time", t.speedup},
+                      {"damaged", s.damaged},
+                      {"bytes_skipped", s.bytes_skipped},
+                      {"damage_regions", s.damage_regions},
+                      {"damage", s.damage}};
+  if (options.trilat) j["trilat_proc"] = StatusJson(s.trilat_status);
+  if (options.fusion) j["fusion_proc"] = StatusJson(s.fusion_status);
+  for (const process_status_t& c : s.camera_status) j["camera_proc"].push_back(StatusJson(c));
+  fmt::print("{}\n", j.dump(2));
+}
+
+void PrintSummaryText(const ReplayCommandArgs& args, const std::string& site_line,
+                      const PipelineReplayOptions& options, const PipelineReplaySummary& s,
+                      const ReplayTiming& t) {
+  fmt::print("{} -> {}: {} events, {:.2f} s of log, {}\n", args.log_path, args.out_path,
+             s.events_read, t.span_s, site_line);
+  fmt::print("  copied:   {} recorded events ({} ranges re-derived from the site)\n",
+             s.inputs_written, s.ranges_restamped);
+  fmt::print("  replaced: {}\n", Counts(s.old_outputs_dropped));
+  fmt::print("  new:      {}\n", Counts(s.new_outputs));
+  if (options.trilat) fmt::print("  trilat:   {}\n", StatusLine(s.trilat_status));
+  if (options.fusion) fmt::print("  fusion:   {}\n", StatusLine(s.fusion_status));
+  for (const process_status_t& c : s.camera_status) {
+    fmt::print("  camera:   {}\n", StatusLine(c));
   }
-  const double span_s = (s.last_utime - s.first_utime) * 1e-6;
-  const double speedup = wall_s > 0 ? span_s / wall_s : 0.0;
-  if (args.json) {
-    nlohmann::json j = {{"log", args.log_path},
-                        {"out", args.out_path},
-                        {"site", site_path},
-                        {"ranges_rederived", options.restamp_ranges},
-                        {"nodes", args.nodes},
-                        {"events_read", s.events_read},
-                        {"inputs_written", s.inputs_written},
-                        {"inputs_not_loggable", s.inputs_not_loggable},
-                        {"old_outputs_dropped", s.old_outputs_dropped},
-                        {"new_outputs", s.new_outputs},
-                        {"ranges_restamped", s.ranges_restamped},
-                        {"ranges_kept", s.ranges_kept},
-                        {"ranges_unknown_receiver", s.ranges_unknown_receiver},
-                        {"ticks", s.ticks},
-                        {"ticks_skipped", s.ticks_skipped},
-                        {"events_time_refused", s.events_time_refused},
-                        {"heartbeats_thinned", s.heartbeats_thinned},
-                        {"refused", s.refused},
-                        {"log_span_s", span_s},
-                        {"wall_s", wall_s},
-                        {"times_real_time", speedup},
-                        {"damaged", s.damaged},
-                        {"bytes_skipped", s.bytes_skipped},
-                        {"damage_regions", s.damage_regions},
-                        {"damage", s.damage}};
-    if (options.trilat) j["trilat_proc"] = StatusJson(s.trilat_status);
-    if (options.fusion) j["fusion_proc"] = StatusJson(s.fusion_status);
-    for (const process_status_t& c : s.camera_status) j["camera_proc"].push_back(StatusJson(c));
-    std::printf("%s\n", j.dump(2).c_str());
-  } else {
-    std::printf("%s -> %s: %lld events, %.2f s of log, %s\n", args.log_path.c_str(),
-                args.out_path.c_str(), static_cast<long long>(s.events_read), span_s,
-                site_path.c_str());
-    std::printf("  copied:   %lld recorded events (%lld ranges re-derived from the site)\n",
-                static_cast<long long>(s.inputs_written),
-                static_cast<long long>(s.ranges_restamped));
-    std::printf("  replaced: %s\n", Counts(s.old_outputs_dropped).c_str());
-    std::printf("  new:      %s\n", Counts(s.new_outputs).c_str());
-    if (options.trilat) std::printf("  trilat:   %s\n", StatusLine(s.trilat_status).c_str());
-    if (options.fusion) std::printf("  fusion:   %s\n", StatusLine(s.fusion_status).c_str());
-    for (const process_status_t& c : s.camera_status) {
-      std::printf("  camera:   %s\n", StatusLine(c).c_str());
-    }
-    std::printf("  ticks:    %lld run, %lld skipped in gaps over %.0f s\n",
-                static_cast<long long>(s.ticks), static_cast<long long>(s.ticks_skipped),
-                kMaxCatchUpUs * 1e-6);
-    if (s.heartbeats_thinned > 0) {
-      std::printf("  heartbeats: %lld not written (a sparse log)\n",
-                  static_cast<long long>(s.heartbeats_thinned));
-    }
-    std::printf("  ran in %.3f s: %.0fx real time\n", wall_s, speedup);
+  fmt::print("  ticks:    {} run, {} skipped in gaps over {:.0f} s\n", s.ticks, s.ticks_skipped,
+             kMaxCatchUpUs * 1e-6);
+  if (s.heartbeats_thinned > 0) {
+    fmt::print("  heartbeats: {} not written (a sparse log)\n", s.heartbeats_thinned);
   }
-  std::fflush(stdout);
+  fmt::print("  ran in {:.3f} s: {:.0f}x real time\n", t.wall_s, t.speedup);
+}
+
+// What of the recorded log was refused or left out.
+void WarnAboutInput(const std::string& log_path, const PipelineReplaySummary& s) {
   if (!s.refused.empty()) {
-    std::cerr << "roomfix replay: warning: " << args.log_path
+    std::cerr << "roomfix replay: warning: " << log_path
               << ": recorded messages refused before decoding: " << Counts(s.refused) << "\n";
   }
   if (s.events_time_refused > 0) {
-    std::cerr << "roomfix replay: warning: " << args.log_path << ": " << s.events_time_refused
+    std::cerr << "roomfix replay: warning: " << log_path << ": " << s.events_time_refused
               << " events whose time is more than " << kMaxEventTimeOffsetUs * 1e-6
               << " s from their neighbours' refused (events_time_refused)\n";
   }
   if (s.inputs_not_loggable > 0) {
-    std::cerr << "roomfix replay: warning: " << args.log_path << ": " << s.inputs_not_loggable
+    std::cerr << "roomfix replay: warning: " << log_path << ": " << s.inputs_not_loggable
               << " events on channels LCM cannot replay left out\n";
   }
   if (s.damaged) {
-    std::cerr << "roomfix replay: warning: " << args.log_path << ": " << s.damage
+    std::cerr << "roomfix replay: warning: " << log_path << ": " << s.damage
               << "; every readable event was replayed\n";
   }
+}
+
+// parse (CLI11, PrepareReplay) -> load and compute (ReplayPipelineFile) ->
+// report.
+int RunReplayCommand(const ReplayCommandArgs& args) {
+  PipelineReplayOptions options;
+  ReplaySite replay_site;
+  std::string error;
+  if (!PrepareReplay(args, &options, &replay_site, &error)) {
+    std::cerr << "roomfix replay: " << error << "\n";
+    return 1;
+  }
+  const auto start = std::chrono::steady_clock::now();
+  const PipelineReplaySummary s = ReplayPipelineFile(args.log_path, replay_site.loaded.site,
+                                                     options, args.out_path, args.force);
+  ReplayTiming t;
+  t.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (!s.ok) {
+    std::cerr << "roomfix replay: " << s.error << "\n";
+    return 1;
+  }
+  t.span_s = (s.last_utime - s.first_utime) * 1e-6;
+  t.speedup = t.wall_s > 0 ? t.span_s / t.wall_s : 0.0;
+  if (args.json) {
+    PrintSummaryJson(args, replay_site.used_line, options, s, t);
+  } else {
+    PrintSummaryText(args, replay_site.used_line, options, s, t);
+  }
+  std::fflush(stdout);
+  WarnAboutInput(args.log_path, s);
   return 0;
 }
 

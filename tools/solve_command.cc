@@ -19,49 +19,52 @@ using nlohmann::json;
 json Number(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 
 // Parses {"anchors": [[x,y(,z)],...], "distances": [...], "height": h,
-// "method": "...", "sigma": s}. Throws std::runtime_error with the reason.
-json SolveOne(const json& in) {
-  if (!in.is_object()) throw std::runtime_error("expected a JSON object");
+// "method": "...", "sigma": s} and solves it; false with the reason.
+bool SolveOne(const json& in, json* answer, std::string* error) {
+  auto refuse = [error](std::string reason) {
+    *error = std::move(reason);
+    return false;
+  };
+  if (!in.is_object()) return refuse("expected a JSON object");
   if (!in.contains("anchors") || !in["anchors"].is_array()) {
-    throw std::runtime_error("\"anchors\" must be a list of [x, y] or [x, y, z]");
+    return refuse("\"anchors\" must be a list of [x, y] or [x, y, z]");
   }
   if (!in.contains("distances") || !in["distances"].is_array()) {
-    throw std::runtime_error("\"distances\" must be a list of numbers");
+    return refuse("\"distances\" must be a list of numbers");
   }
   const json& anchors = in["anchors"];
   const json& distances = in["distances"];
   if (anchors.size() != distances.size()) {
-    throw std::runtime_error("\"anchors\" and \"distances\" differ in length (" +
-                             std::to_string(anchors.size()) + " and " +
-                             std::to_string(distances.size()) + ")");
+    return refuse("\"anchors\" and \"distances\" differ in length (" +
+                  std::to_string(anchors.size()) + " and " + std::to_string(distances.size()) +
+                  ")");
   }
   size_t dim = 0;
   std::vector<trilat::RangeMeasurement> ranges;
   for (size_t i = 0; i < anchors.size(); ++i) {
     const json& a = anchors[i];
     if (!a.is_array() || (a.size() != 2 && a.size() != 3)) {
-      throw std::runtime_error("anchor " + std::to_string(i) + " must be [x, y] or [x, y, z]");
+      return refuse("anchor " + std::to_string(i) + " must be [x, y] or [x, y, z]");
     }
     if (dim == 0) dim = a.size();
-    if (a.size() != dim) throw std::runtime_error("anchors mix 2 and 3 coordinates");
+    if (a.size() != dim) return refuse("anchors mix 2 and 3 coordinates");
     trilat::RangeMeasurement m;
     m.receiver_id = static_cast<int>(i);
     for (size_t k = 0; k < dim; ++k) {
-      if (!a[k].is_number())
-        throw std::runtime_error("anchor " + std::to_string(i) + " is not numeric");
+      if (!a[k].is_number()) return refuse("anchor " + std::to_string(i) + " is not numeric");
       m.receiver_m[static_cast<int>(k)] = a[k].get<double>();
     }
     // null stands for a missing or non-finite distance; the solver drops it.
     m.range_m = distances[i].is_number() ? distances[i].get<double>()
                                          : std::numeric_limits<double>::quiet_NaN();
     if (!distances[i].is_number() && !distances[i].is_null()) {
-      throw std::runtime_error("distance " + std::to_string(i) + " is not a number");
+      return refuse("distance " + std::to_string(i) + " is not a number");
     }
     ranges.push_back(m);
   }
   trilat::SolverOptions options;
   if (in.contains("height")) {
-    if (!in["height"].is_number()) throw std::runtime_error("\"height\" must be a number");
+    if (!in["height"].is_number()) return refuse("\"height\" must be a number");
     options.dimension = trilat::Dimension::kFixedHeight2D;
     options.fixed_height_m = in["height"].get<double>();
   } else {
@@ -70,16 +73,14 @@ json SolveOne(const json& in) {
   if (in.contains("method")) {
     if (!in["method"].is_string() ||
         !trilat::ParseMethod(in["method"].get<std::string>(), &options.method)) {
-      throw std::runtime_error(
-          "\"method\" must be \"nelder-mead\", \"default\", \"robust\" or \"cauchy\"");
+      return refuse("\"method\" must be \"nelder-mead\", \"default\", \"robust\" or \"cauchy\"");
     }
   }
   if (in.contains("sigma")) {
-    if (!in["sigma"].is_number()) throw std::runtime_error("\"sigma\" must be a number");
+    if (!in["sigma"].is_number()) return refuse("\"sigma\" must be a number");
     options.range_sigma_m = in["sigma"].get<double>();
   }
-  std::string error;
-  if (!options.IsValid(&error)) throw std::runtime_error(error);
+  if (!options.IsValid(error)) return false;
 
   const trilat::Fix fix = trilat::Solve(ranges, options);
   const int n = options.dimension == trilat::Dimension::kPlanar2D ? 2 : 3;
@@ -109,7 +110,29 @@ json SolveOne(const json& in) {
   out["flags"] = trilat::DescribeFlags(fix.flags);
   out["method"] = trilat::MethodName(options.method);
   out["iterations"] = fix.iterations;
-  return out;
+  *answer = std::move(out);
+  return true;
+}
+
+// One input line's answer: the solution, or {"line": N, "error": WHY}.
+// nlohmann reports a syntax error by throwing: caught here, where the
+// library is called.
+bool AnswerLine(const std::string& line, int number, json* answer) {
+  json in;
+  std::string why;
+  try {
+    in = json::parse(line);
+  } catch (const json::exception& e) {
+    // json::parse_error's text starts with its own "[json.exception...]".
+    why = e.what();
+    const size_t bracket = why.find("] ");
+    if (why.rfind("[json.exception", 0) == 0 && bracket != std::string::npos) {
+      why = why.substr(bracket + 2);
+    }
+  }
+  if (why.empty() && SolveOne(in, answer, &why)) return true;
+  *answer = {{"line", number}, {"error", why}};
+  return false;
 }
 
 }  // namespace
@@ -149,18 +172,7 @@ void AddSolveCommand(CLI::App* app, int* exit_code) {
       }
       if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
       json answer;
-      try {
-        answer = SolveOne(json::parse(line));
-      } catch (const std::exception& e) {
-        // json::parse_error's text starts with its own "[json.exception...]".
-        std::string why = e.what();
-        const size_t bracket = why.find("] ");
-        if (why.rfind("[json.exception", 0) == 0 && bracket != std::string::npos) {
-          why = why.substr(bracket + 2);
-        }
-        answer = {{"line", number}, {"error", why}};
-        ++failures;
-      }
+      if (!AnswerLine(line, number, &answer)) ++failures;
       std::cout << answer.dump() << "\n";
     }
     *exit_code = failures > 0 ? 2 : 0;

@@ -1,3 +1,4 @@
+#include <fmt/format.h>
 #include <lcm/lcm.h>
 
 #include <CLI/CLI.hpp>
@@ -21,10 +22,9 @@ void AddVersionCommand(CLI::App* app, int* exit_code) {
     for (const char* type : {"roomfix.marker_pixels_t", "roomfix.range_set_t", "roomfix.pose2d_t",
                              "roomfix.process_status_t", "roomfix.image_t", "roomfix.site_t",
                              "roomfix.detector_view_t", "roomfix.detector_view_request_t"}) {
-      char fingerprint[32];
-      std::snprintf(fingerprint, sizeof(fingerprint), "0x%016llx",
-                    static_cast<unsigned long long>(RoomfixTypeFingerprint(type)));
-      std::cout << "  " << type << " fingerprint " << fingerprint << "\n";
+      std::cout << "  " << type << " fingerprint "
+                << fmt::format("0x{:016x}", static_cast<uint64_t>(RoomfixTypeFingerprint(type)))
+                << "\n";
     }
     *exit_code = 0;
   });

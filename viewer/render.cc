@@ -1,10 +1,10 @@
 #include "viewer/render.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <cstdarg>
-#include <cstdio>
 #include <cstring>
 #include <ctime>
 #include <functional>
@@ -83,22 +83,12 @@ const cv::Scalar kRunningColour(40, 150, 40);
 const cv::Scalar kDegradedColour(0, 130, 240);
 const cv::Scalar kWhite(255, 255, 255);
 
-std::string Format(const char* format, ...) __attribute__((format(printf, 1, 2)));
-std::string Format(const char* format, ...) {
-  char buffer[256];
-  va_list args;
-  va_start(args, format);
-  const int n = std::vsnprintf(buffer, sizeof buffer, format, args);
-  va_end(args);
-  return n < 0 ? std::string() : std::string(buffer);
-}
-
 // A number for the panel: "-" when unknown (NaN) or not finite, compact when
 // huge, so a garbage value cannot widen a column.
 std::string Number(double value, int decimals) {
   if (!std::isfinite(value)) return "-";
-  if (std::fabs(value) >= 1e5) return Format("%.2g", value);
-  return Format("%.*f", decimals, value);
+  if (std::fabs(value) >= 1e5) return fmt::format("{:.2g}", value);
+  return fmt::format("{:.{}f}", value, decimals);
 }
 
 // Hershey fonts draw printable ASCII; anything else (a process name in UTF-8,
@@ -367,7 +357,7 @@ void DrawGrid(Canvas* c, const Room& room) {
     c->Line({u, bottom_left.y}, {u, top_right.y}, metre ? kGridMetreColour : kGridColour, 1,
             cv::LINE_8);
     if (metre && label_metres && c->Inside({u, bottom_left.y + 16})) {
-      const std::string label = Format("%g", std::round(x * 100) / 100);
+      const std::string label = fmt::format("{:g}", std::round(x * 100) / 100);
       Text(c->image, label,
            Canvas::ToInt({u - TextWidth(label, kSmallFontScale) / 2.0, bottom_left.y + 16}),
            kSmallFontScale, kMutedTextColour);
@@ -382,7 +372,7 @@ void DrawGrid(Canvas* c, const Room& room) {
     c->Line({bottom_left.x, v}, {top_right.x, v}, metre ? kGridMetreColour : kGridColour, 1,
             cv::LINE_8);
     if (metre && label_metres) {
-      const std::string label = Format("%g", std::round(y * 100) / 100);
+      const std::string label = fmt::format("{:g}", std::round(y * 100) / 100);
       const cv::Point2d at(bottom_left.x - 8 - TextWidth(label, kSmallFontScale), v + 4);
       if (c->Inside(at))
         Text(c->image, label, Canvas::ToInt(at), kSmallFontScale, kMutedTextColour);
@@ -450,7 +440,7 @@ void DrawCameras(Canvas* c, const Site& site, const std::vector<CameraFootprint>
       if (c->Inside(centre)) {
         const cv::Point ic = Canvas::ToInt(centre);
         cv::rectangle(c->image, ic - cv::Point(5, 4), ic + cv::Point(5, 4), colour, 2, cv::LINE_AA);
-        HaloText(c->image, Format("cam %d", camera.id), ic + cv::Point(9, 15), kSmallFontScale,
+        HaloText(c->image, fmt::format("cam {}", camera.id), ic + cv::Point(9, 15), kSmallFontScale,
                  Blend(kTextColour, SourceColour(Source::kCamera), 0.5));
       }
       continue;
@@ -469,7 +459,7 @@ void DrawCameras(Canvas* c, const Site& site, const std::vector<CameraFootprint>
     if (c->Inside(centre)) {
       const cv::Point ic = Canvas::ToInt(centre);
       cv::rectangle(c->image, ic - cv::Point(5, 4), ic + cv::Point(5, 4), colour, 2, cv::LINE_AA);
-      HaloText(c->image, Format("cam %d", camera.id), ic + cv::Point(9, 15), kSmallFontScale,
+      HaloText(c->image, fmt::format("cam {}", camera.id), ic + cv::Point(9, 15), kSmallFontScale,
                Blend(kTextColour, SourceColour(Source::kCamera), 0.5));
     }
   }
@@ -530,7 +520,7 @@ void DrawReceivers(Canvas* c, const Site& site) {
     cv::rectangle(c->image, ip - half - cv::Point(1, 1), ip + half + cv::Point(1, 1), kWhite,
                   cv::FILLED);
     cv::rectangle(c->image, ip - half, ip + half, ReceiverColour(), cv::FILLED);
-    HaloText(c->image, Format("%d", r.id),
+    HaloText(c->image, std::to_string(r.id),
              ip + cv::Point(kReceiverHalfPx + 3, -kReceiverHalfPx - 2), kFontScale,
              ReceiverColour());
   }
@@ -746,7 +736,7 @@ void DrawPose(Canvas* c, const TrackView& t, bool stale, const cv::Scalar& colou
 std::string RobotName(const Site& site, int robot_id) {
   const Robot* robot = site.FindRobot(robot_id);
   return robot != nullptr && !robot->name.empty() ? Printable(robot->name, 24)
-                                                  : Format("robot %d", robot_id);
+                                                  : "robot " + std::to_string(robot_id);
 }
 
 void DrawTracks(Canvas* c, const ViewState& state) {
@@ -833,10 +823,11 @@ std::string TimeText(int64_t utime) {
   std::tm tm{};
   const auto t = static_cast<std::time_t>(seconds);
   if (utime == 0 || gmtime_r(&t, &tm) == nullptr || tm.tm_year + 1900 > 9999) {
-    return Format("t = %.3f s", static_cast<double>(utime) * 1e-6);
+    return fmt::format("t = {:.3f} s", static_cast<double>(utime) * 1e-6);
   }
-  return Format("%04d-%02d-%02d %02d:%02d:%02d.%03d UTC", tm.tm_year + 1900, tm.tm_mon + 1,
-                tm.tm_mday, tm.tm_hour, tm.tm_min, tm.tm_sec, static_cast<int>(micros / 1000));
+  return fmt::format("{:04d}-{:02d}-{:02d} {:02d}:{:02d}:{:02d}.{:03d} UTC", tm.tm_year + 1900,
+                     tm.tm_mon + 1, tm.tm_mday, tm.tm_hour, tm.tm_min, tm.tm_sec,
+                     static_cast<int>(micros / 1000));
 }
 
 struct ProcessStateText {
@@ -893,7 +884,7 @@ class PanelWriter {
   // no line is left.
   void More(int left) {
     if (left <= 0) return;
-    const std::string text = Format("+%d more", left);
+    const std::string text = fmt::format("+{} more", left);
     const int x = panel_.cols - kPanelPadPx - TextWidth(text, kSmallFontScale);
     Text(panel_, text, {x, y_ + kLinePx <= bottom_ ? y_ + kLinePx : y_}, kSmallFontScale,
          WarningColour());
@@ -921,7 +912,7 @@ void DrawSourceTable(PanelWriter* w, const ViewState& state) {
     auto& row = rows[t.robot_id];
     if (row[static_cast<size_t>(s)] == nullptr) row[static_cast<size_t>(s)] = &t;
   }
-  w->Heading(Format("Sources (%zu robot%s)", rows.size(), rows.size() == 1 ? "" : "s"));
+  w->Heading(fmt::format("Sources ({} robot{})", rows.size(), rows.size() == 1 ? "" : "s"));
   // Hidden sources are still listed, and named hidden on the heading line.
   std::string hidden;
   for (int i = 0; i < kNumSources; ++i) {
@@ -963,7 +954,7 @@ void DrawSourceTable(PanelWriter* w, const ViewState& state) {
       std::string text;
       cv::Scalar colour = kTextColour;
       if (IsStale(state, t->recv_utime)) {
-        text = std::isfinite(age_s) && age_s < 1e5 ? Format("STALE %.0fs", age_s) : "STALE";
+        text = std::isfinite(age_s) && age_s < 1e5 ? fmt::format("STALE {:.0f}s", age_s) : "STALE";
         colour = kMutedTextColour;
       } else if (t->lost) {
         text = "lost " + Number(t->rate_hz, 0);
@@ -981,7 +972,7 @@ void DrawSourceTable(PanelWriter* w, const ViewState& state) {
 }
 
 void DrawProcesses(PanelWriter* w, const ViewState& state) {
-  w->Heading(Format("Processes (%zu)", state.processes.size()));
+  w->Heading(fmt::format("Processes ({})", state.processes.size()));
   int left = static_cast<int>(state.processes.size());
   const int right = w->width() - kPanelPadPx;
   if (!state.site_warning.empty() && w->Next()) {
@@ -995,7 +986,7 @@ void DrawProcesses(PanelWriter* w, const ViewState& state) {
     ProcessStateText st = StateText(p.state);
     std::string state_text = st.text;
     if (stale) {
-      state_text = Format("STALE (%s)", st.text);
+      state_text = fmt::format("STALE ({})", st.text);
       st.colour = kMutedTextColour;
     }
     const int state_px = TextWidth(state_text, kFontScale);
@@ -1005,11 +996,11 @@ void DrawProcesses(PanelWriter* w, const ViewState& state) {
              right - state_px - kPanelPadPx - 8),
          {kPanelPadPx, w->y()}, kFontScale, stale ? kMutedTextColour : kTextColour);
     if (!w->Next()) break;
-    std::string detail = Format("%s/s out", Number(p.output_rate_hz, 1).c_str());
-    detail += Format(", %lld dropped", static_cast<long long>(p.dropped));
+    std::string detail =
+        fmt::format("{}/s out, {} dropped", Number(p.output_rate_hz, 1), p.dropped);
     for (size_t i = 0; i < p.losses.size(); ++i) {
-      detail += Format("%s%s %lld", i == 0 ? " (" : ", ", Printable(p.losses[i].first, 40).c_str(),
-                       static_cast<long long>(p.losses[i].second));
+      detail += fmt::format("{}{} {}", i == 0 ? " (" : ", ", Printable(p.losses[i].first, 40),
+                            p.losses[i].second);
       if (i + 1 == p.losses.size()) detail += ")";
     }
     // The most frequent rejection reasons first.
@@ -1017,9 +1008,8 @@ void DrawProcesses(PanelWriter* w, const ViewState& state) {
     std::sort(rejected.begin(), rejected.end(),
               [](const auto& a, const auto& b) { return a.second > b.second; });
     for (size_t i = 0; i < rejected.size() && i < 3; ++i) {
-      detail +=
-          Format("%s %s %lld", i == 0 ? "; rej" : ",", Printable(rejected[i].first, 40).c_str(),
-                 static_cast<long long>(rejected[i].second));
+      detail += fmt::format("{} {} {}", i == 0 ? "; rej" : ",", Printable(rejected[i].first, 40),
+                            rejected[i].second);
     }
     Text(w->panel(), Fit(detail, kSmallFontScale, right - kPanelPadPx - 10),
          {kPanelPadPx + 10, w->y()}, kSmallFontScale,
@@ -1086,8 +1076,8 @@ int DrawDetectorViewLines(cv::Mat& panel, const ViewState& state, int bottom) {
   int y = bottom - kLinePx * static_cast<int>(v.robots.size());
   if (y - kLinePx < kPanelBodyTopPx) return bottom;
   Text(panel,
-       Format("camera %d detector view, %s s old", v.camera_id,
-              Number(AgeS(state.now_utime, v.utime), 1).c_str()),
+       fmt::format("camera {} detector view, {} s old", v.camera_id,
+                   Number(AgeS(state.now_utime, v.utime), 1)),
        {kPanelPadPx, y - kLinePx + 4}, kSmallFontScale, kTextColour);
   for (const DetectorViewView::Robot& r : v.robots) {
     Text(panel, Fit(r.text, kSmallFontScale, panel.cols - 2 * kPanelPadPx), {kPanelPadPx, y + 4},
@@ -1153,8 +1143,8 @@ int DrawPreview(cv::Mat& panel, const ViewState& state, PreviewCache* cache) {
   if (label_y < kPanelBodyTopPx) return panel.rows;
   const double age_s = AgeS(state.now_utime, state.preview.utime);
   Text(panel,
-       Format("camera %d preview, %s s old%s", state.preview.camera_id, Number(age_s, 1).c_str(),
-              scaled.empty() ? ": cannot decode" : ""),
+       fmt::format("camera {} preview, {} s old{}", state.preview.camera_id, Number(age_s, 1),
+                   scaled.empty() ? ": cannot decode" : ""),
        {kPanelPadPx, label_y}, kSmallFontScale, scaled.empty() ? WarningColour() : kTextColour);
   if (scaled.empty()) return label_y - kLinePx;
   const cv::Rect where(kPanelPadPx, panel.rows - kPanelPadPx - scaled.rows, scaled.cols,
@@ -1223,20 +1213,20 @@ bool RenderOptions::IsValid(std::string* error) const {
   };
   if (width_px < kMinSidePx || width_px > kMaxSidePx || height_px < kMinSidePx ||
       height_px > kMaxSidePx) {
-    return fail(Format("picture %d x %d px: each side must be in [%d, %d]", width_px, height_px,
-                       kMinSidePx, kMaxSidePx));
+    return fail(fmt::format("picture {} x {} px: each side must be in [{}, {}]", width_px,
+                            height_px, kMinSidePx, kMaxSidePx));
   }
   if (panel_px < 0 || panel_px > width_px - kMinFloorPx) {
-    return fail(Format("panel_px %d: must be in [0, width_px - %d] (%d)", panel_px, kMinFloorPx,
-                       width_px - kMinFloorPx));
+    return fail(fmt::format("panel_px {}: must be in [0, width_px - {}] ({})", panel_px,
+                            kMinFloorPx, width_px - kMinFloorPx));
   }
   if (!std::isfinite(zoom) || zoom < kMinZoom || zoom > kMaxZoom) {
-    return fail(Format("zoom %g: must be in [%g, %g]", zoom, kMinZoom, kMaxZoom));
+    return fail(fmt::format("zoom {:g}: must be in [{:g}, {:g}]", zoom, kMinZoom, kMaxZoom));
   }
   if (!std::isfinite(pan_x_m) || !std::isfinite(pan_y_m) || std::fabs(pan_x_m) > kMaxPanM ||
       std::fabs(pan_y_m) > kMaxPanM) {
-    return fail(
-        Format("pan (%g, %g) m: must be finite and within %g m", pan_x_m, pan_y_m, kMaxPanM));
+    return fail(fmt::format("pan ({:g}, {:g}) m: must be finite and within {:g} m", pan_x_m,
+                            pan_y_m, kMaxPanM));
   }
   return true;
 }

@@ -171,13 +171,11 @@ int main(int argc, char** argv) {
   // texts, never a file the site names (a log's names paths of its host).
   roomfix::LoadedSite site;
   if (!flags.log.empty()) {
-    std::string used;
-    std::vector<std::string> warnings;
-    if (!roomfix::ResolveToolSite(config_path, flags.log, &site, &used, &warnings, &error)) {
-      return roomfix::PrintFailure(kProcessName, error);
-    }
-    std::cerr << "roomfix_viewer: " << used << "\n";
-    for (const auto& w : warnings) std::cerr << "roomfix_viewer: warning: " << w << "\n";
+    roomfix::ToolSite resolved = roomfix::ResolveToolSite(config_path, flags.log);
+    if (!resolved.known) return roomfix::PrintFailure(kProcessName, resolved.error);
+    site = std::move(resolved.site);
+    std::cerr << "roomfix_viewer: " << resolved.line << "\n";
+    for (const auto& w : resolved.warnings) std::cerr << "roomfix_viewer: warning: " << w << "\n";
   } else if (!roomfix::LoadSiteWithTexts(config_path, &site, &error)) {
     return roomfix::PrintFailure(kProcessName, error);
   }

@@ -1,11 +1,11 @@
 #include "viewer/viewer_app.h"
 
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 #include <sys/stat.h>
 
 #include <algorithm>
 #include <cerrno>
-#include <cstdio>
 #include <opencv2/videoio.hpp>
 
 #include "camera_io/image_file.h"
@@ -103,9 +103,8 @@ bool FrameSink::Write(const cv::Mat& frame) {
     writer_.Write(frame);
     return true;
   }
-  char name[32];
-  std::snprintf(name, sizeof(name), "/frame_%06lld.png", static_cast<long long>(frames_));
-  return camera::WriteImageChecked(folder_ + name, frame, &error_);
+  return camera::WriteImageChecked(fmt::format("{}/frame_{:06d}.png", folder_, frames_), frame,
+                                   &error_);
 }
 
 bool FrameSink::Close(std::string* error) { return !writer_.is_open() || writer_.Close(error); }
@@ -175,10 +174,7 @@ KeyAction ApplyKey(int key, RenderOptions* render, ViewState* view) {
 }
 
 std::string ScreenshotPath(const std::string& dir, int64_t now_utime) {
-  char name[64];
-  std::snprintf(name, sizeof(name), "/roomfix_viewer_%lld.png",
-                static_cast<long long>(now_utime / 1000));
-  return dir + name;
+  return fmt::format("{}/roomfix_viewer_{}.png", dir, now_utime / 1000);
 }
 
 int ReplayIntoView(const Site& site, const ViewerNodeOptions& node_options, RenderOptions* render,

@@ -1,9 +1,7 @@
 #include "zigbee_bridge/bridge_node.h"
 
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
-
-#include <cinttypes>
-#include <cstdio>
 
 #include "msgio/radio_conversions.h"
 #include "roomfix/range_set_t.hpp"
@@ -65,11 +63,9 @@ void BridgeNode::OnFrame(const uint8_t* frame_data, size_t size, uint64_t stream
   }
   if (parse == radio::PacketParse::kTooShort) {
     status_.Reject("short_frame");
-    char text[96];
-    std::snprintf(text, sizeof(text),
-                  "frame type 0x%02X at byte %" PRIu64 ": %zu bytes is too short", frame_data[0],
-                  stream_offset, size);
-    status_.SetError(text, now_utime_);
+    status_.SetError(fmt::format("frame type 0x{:02X} at byte {}: {} bytes is too short",
+                                 frame_data[0], stream_offset, size),
+                     now_utime_);
     return;
   }
   status_.AddInputs();
@@ -99,10 +95,10 @@ void BridgeNode::OnFrameError(const radio::FrameErrorInfo& error) {
   if (error.error == radio::FrameError::kGarbage) {
     status_.Count("garbage_bytes", static_cast<int64_t>(error.size_bytes));
   }
-  char text[64];
-  std::snprintf(text, sizeof(text), "%s at byte %" PRIu64 ": ", reason, error.stream_offset);
-  status_.SetError(text + error.detail, now_utime_);
-  spdlog::debug("{}{}", text, error.detail);
+  const std::string text =
+      fmt::format("{} at byte {}: {}", reason, error.stream_offset, error.detail);
+  status_.SetError(text, now_utime_);
+  spdlog::debug("{}", text);
 }
 
 void BridgeNode::PublishClosed(int64_t now_utime) {

@@ -1,11 +1,11 @@
 #include "core/calib/calibration_file.h"
 
+#include <fmt/format.h>
 #include <yaml-cpp/yaml.h>
 
 #include <Eigen/Geometry>
 #include <cerrno>
 #include <cmath>
-#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <iomanip>
@@ -253,14 +253,6 @@ bool LoadCalibration(const std::string& path, Calibration* calibration, std::str
   return ParseCalibration(text, path, calibration, error);
 }
 
-// A residual or tolerance in pixels, to 4 significant digits (messages and
-// fit_rms_px: its precision is not that of the model).
-std::string Px(double v) {
-  char text[32];
-  std::snprintf(text, sizeof(text), "%.4g", v);
-  return text;
-}
-
 double PixelSigmaFromFit(double rms_px, int points, int parameters) {
   const double n2 = 2.0 * points;
   if (!(n2 > parameters) || !(rms_px >= 0.0) || parameters < 0) return -1.0;
@@ -270,8 +262,12 @@ double PixelSigmaFromFit(double rms_px, int points, int parameters) {
 
 std::string CheckFitResidual(const Calibration& calibration, double max_rms_px) {
   if (calibration.fit_rms_px < 0.0 || calibration.fit_rms_px <= max_rms_px) return "";
-  return "fit_rms_px: the fit's RMS residual " + Px(calibration.fit_rms_px) + " px is over the " +
-         Px(max_rms_px) + " px tolerance (recalibrate: check the points and the mount)";
+  // Residual and tolerance to 4 significant digits, as the file writes
+  // fit_rms_px: its precision is not that of the model.
+  return fmt::format(
+      "fit_rms_px: the fit's RMS residual {:.4g} px is over the {:.4g} px tolerance (recalibrate: "
+      "check the points and the mount)",
+      calibration.fit_rms_px, max_rms_px);
 }
 
 namespace {

@@ -1,11 +1,12 @@
 #include "core/calib/camera_start.h"
 
+#include <fmt/format.h>
+
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
-#include <sstream>
 
 namespace roomfix::calib {
 namespace {
@@ -26,13 +27,6 @@ constexpr double kSamePlaneM = 0.01;
 // PnP needs at least this many points (IPPE: 4; SQPnP: 3, more for a
 // unique answer).
 constexpr int kMinPnpPoints = 6;
-
-std::string Format(double v, int precision) {
-  std::ostringstream os;
-  os.precision(precision);
-  os << v;
-  return os.str();
-}
 
 // The smaller principal standard deviation of 2-D points.
 double SmallerSpread(const std::vector<Eigen::Vector2d>& p) {
@@ -167,10 +161,8 @@ CameraStart FindCameraStart(const std::vector<Correspondence>& points, const Cam
     }
     if (!(c.u_px >= -margin && c.u_px <= in.width_px + margin && c.v_px >= -margin &&
           c.v_px <= in.height_px + margin)) {
-      std::ostringstream os;
-      os << "point " << i << ": pixel (" << c.u_px << ", " << c.v_px << ") is outside the "
-         << in.width_px << " x " << in.height_px << " image";
-      s.message = os.str();
+      s.message = fmt::format("point {}: pixel ({:g}, {:g}) is outside the {} x {} image", i,
+                              c.u_px, c.v_px, in.width_px, in.height_px);
       return s;
     }
     room.emplace_back(c.x_m, c.y_m);
@@ -180,18 +172,19 @@ CameraStart FindCameraStart(const std::vector<Correspondence>& points, const Cam
   }
   const double room_spread_m = SmallerSpread(room);
   if (room_spread_m < 0.01) {
-    s.message = "all points lie on a line: their spread across it is " +
-                Format(room_spread_m * 1000, 3) + " mm (need 10 mm)";
+    s.message =
+        fmt::format("all points lie on a line: their spread across it is {:.3g} mm (need 10 mm)",
+                    room_spread_m * 1000);
     return s;
   }
   // Equidistant lens: pixels / f are angles in radians.
   const double view_spread_deg = SmallerSpread(view) * 180.0 / kPi;
   if (view_spread_deg < kMinViewSpreadDeg) {
-    s.message = "all points lie in one small patch of the image: they span " +
-                Format(view_spread_deg, 2) + " deg of view across it (need " +
-                Format(kMinViewSpreadDeg, 2) +
-                "), too little to tell the camera's distance from its focal length; spread "
-                "them over the image";
+    s.message = fmt::format(
+        "all points lie in one small patch of the image: they span {:.2g} deg of view across it "
+        "(need {:.2g}), too little to tell the camera's distance from its focal length; spread "
+        "them over the image",
+        view_spread_deg, kMinViewSpreadDeg);
     return s;
   }
   // The start's points: the largest group at one height (within
@@ -210,11 +203,10 @@ CameraStart FindCameraStart(const std::vector<Correspondence>& points, const Cam
 
   const double best_rms = SearchFocal(used, nominal, planar, plane_height_m, &s.model);
   if (!std::isfinite(best_rms)) {
-    s.message =
-        "no camera explains the points: the planar pose solver found none for focal "
-        "lengths " +
-        Format(kSearchLow * in.fx_px, 4) + " to " + Format(kSearchHigh * in.fx_px, 4) +
-        " px (check the image size, the field of view and the points)";
+    s.message = fmt::format(
+        "no camera explains the points: the planar pose solver found none for focal lengths "
+        "{:.4g} to {:.4g} px (check the image size, the field of view and the points)",
+        kSearchLow * in.fx_px, kSearchHigh * in.fx_px);
     return s;
   }
   const double camera_z = s.model.pose.position_m.z();
@@ -223,28 +215,30 @@ CameraStart FindCameraStart(const std::vector<Correspondence>& points, const Cam
     // wrong height, not a mirrored floor.
     for (int i = 0; i < n; ++i) {
       if (points[i].height_m >= camera_z) {
-        s.message = "point " + std::to_string(i) + ": height " + Format(points[i].height_m, 4) +
-                    " m is inconsistent: the points place the " +
-                    "camera at z = " + Format(camera_z, 3) + " m, below it";
+        s.message = fmt::format(
+            "point {}: height {:.4g} m is inconsistent: the points place the camera at z = "
+            "{:.3g} m, below it",
+            i, points[i].height_m, camera_z);
         return s;
       }
     }
   }
   if (!(camera_z > highest_m)) {
-    s.message =
-        "the points put the camera below them (at z = " + Format(camera_z, 3) +
-        " m, points up to " + Format(highest_m, 3) +
-        " m): their x and y are mirrored against the image (a left-handed axis pair, e.g. a "
-        "chessboard's --board-axes x where +x-y was meant); swap x and y or negate one";
+    s.message = fmt::format(
+        "the points put the camera below them (at z = {:.3g} m, points up to {:.3g} m): their x "
+        "and y are mirrored against the image (a left-handed axis pair, e.g. a chessboard's "
+        "--board-axes x where +x-y was meant); swap x and y or negate one",
+        camera_z, highest_m);
     s.mirrored = true;
     return s;
   }
   s.usable = true;
   s.rms_px = best_rms;
-  s.message = "start from the points alone: camera at (" + Format(s.model.pose.position_m.x(), 4) +
-              ", " + Format(s.model.pose.position_m.y(), 4) + ", " + Format(camera_z, 4) +
-              ") m, f " + Format(s.model.intrinsics.fx_px, 4) + " px, " + Format(s.rms_px, 3) +
-              " px RMS through the equidistant lens";
+  s.message = fmt::format(
+      "start from the points alone: camera at ({:.4g}, {:.4g}, {:.4g}) m, f {:.4g} px, {:.3g} px "
+      "RMS through the equidistant lens",
+      s.model.pose.position_m.x(), s.model.pose.position_m.y(), camera_z, s.model.intrinsics.fx_px,
+      s.rms_px);
   return s;
 }
 

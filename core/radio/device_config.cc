@@ -1,8 +1,10 @@
 #include "core/radio/device_config.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
+#include <iterator>
 #include <sstream>
 
 #include "core/radio/wall_payload.h"
@@ -124,10 +126,8 @@ bool DecodeDeviceConfig(const uint8_t* data, size_t size, DeviceConfig* c, std::
   }
   const uint16_t crc = Crc16CcittFalse(data, kDeviceConfigBytes - 2);
   if (crc != GetU16(data + kDeviceConfigBytes - 2)) {
-    char text[96];
-    std::snprintf(text, sizeof text, "CRC 0x%04X, the image says 0x%04X", crc,
-                  GetU16(data + kDeviceConfigBytes - 2));
-    return Fail(error, text);
+    return Fail(error, fmt::format("CRC 0x{:04X}, the image says 0x{:04X}", crc,
+                                   GetU16(data + kDeviceConfigBytes - 2)));
   }
   if (data[2] != kDeviceConfigLayoutVersion) {
     return Fail(error, "layout version " + std::to_string(data[2]) + ", this reads " +
@@ -302,24 +302,21 @@ bool DeviceConfigsForSite(const Site& site, const DeviceConfigOptions& o,
 }
 
 std::string EncodeIntelHex(const std::vector<uint8_t>& data, uint16_t address) {
-  std::ostringstream out;
-  char line[64];
+  std::string text;
+  auto out = std::back_inserter(text);
   for (size_t at = 0; at < data.size(); at += 16) {
     const size_t n = std::min<size_t>(16, data.size() - at);
     const uint16_t where = static_cast<uint16_t>(address + at);
     unsigned sum = static_cast<unsigned>(n + (where >> 8) + (where & 0xFF));
-    std::snprintf(line, sizeof line, ":%02X%04X00", static_cast<unsigned>(n), where);
-    out << line;
+    fmt::format_to(out, ":{:02X}{:04X}00", n, where);
     for (size_t i = 0; i < n; ++i) {
-      std::snprintf(line, sizeof line, "%02X", data[at + i]);
-      out << line;
+      fmt::format_to(out, "{:02X}", data[at + i]);
       sum += data[at + i];
     }
-    std::snprintf(line, sizeof line, "%02X\n", (0x100 - (sum & 0xFF)) & 0xFF);
-    out << line;
+    fmt::format_to(out, "{:02X}\n", (0x100 - (sum & 0xFF)) & 0xFF);
   }
-  out << ":00000001FF\n";
-  return out.str();
+  text += ":00000001FF\n";
+  return text;
 }
 
 namespace {

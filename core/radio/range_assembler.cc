@@ -1,9 +1,10 @@
 #include "core/radio/range_assembler.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <climits>
 #include <cmath>
-#include <cstdio>
 
 #include "core/world/ultrasound_model.h"
 
@@ -202,9 +203,7 @@ const char* RangeAssembler::OnPacket(const RadioPacket& packet, std::vector<Asse
     // short_address in the site file can be recognised.
     receiver = site_.FindReceiverByShortAddress(packet.address16);
     beacon = site_.FindBeaconByShortAddress(packet.address16);
-    char buffer[8];
-    std::snprintf(buffer, sizeof(buffer), "0x%04X", packet.address16);
-    source = std::string("short address ") + buffer;
+    source = fmt::format("short address 0x{:04X}", packet.address16);
   } else {
     source = "unknown 64-bit address";
   }
@@ -377,9 +376,9 @@ const char* RangeAssembler::OnReport(int receiver_index, const WallMessage& mess
     const double lo = state->min_range_m[static_cast<size_t>(receiver_index)];
     const double hi = state->max_range_m[static_cast<size_t>(receiver_index)];
     if (raw_m < lo || raw_m > hi) {
-      char text[96];
-      std::snprintf(text, sizeof(text), ": %.3f m is outside [%.3f, %.3f] m", raw_m, lo, hi);
-      reason = Reject("tof_out_of_range", what + text);
+      reason =
+          Reject("tof_out_of_range",
+                 what + fmt::format(": {:.3f} m is outside [{:.3f}, {:.3f}] m", raw_m, lo, hi));
     } else {
       answer.has_range = true;
     }

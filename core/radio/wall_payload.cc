@@ -1,9 +1,10 @@
 #include "core/radio/wall_payload.h"
 
+#include <fmt/format.h>
+
 #include <array>
 #include <climits>
 #include <cmath>
-#include <cstdio>
 
 namespace roomfix::radio {
 namespace {
@@ -40,12 +41,6 @@ void Put32(uint32_t v, std::vector<uint8_t>* out) {
 PayloadError Fail(PayloadError error, std::string* detail, const std::string& text) {
   if (detail != nullptr) *detail = text;
   return error;
-}
-
-std::string Hex(unsigned value, int digits) {
-  char buffer[16];
-  std::snprintf(buffer, sizeof(buffer), "0x%0*X", digits, value);
-  return buffer;
 }
 
 }  // namespace
@@ -93,17 +88,18 @@ PayloadError DecodeWallMessage(const uint8_t* data, size_t size, WallMessage* me
   } else if (data[1] == static_cast<uint8_t>(PayloadType::kRangeReport)) {
     expected = kRangeReportPayloadBytes;
   } else {
-    return Fail(PayloadError::kUnknownType, detail, "unknown message type " + Hex(data[1], 2));
+    return Fail(PayloadError::kUnknownType, detail,
+                fmt::format("unknown message type 0x{:02X}", data[1]));
   }
   if (size != expected) {
     return Fail(PayloadError::kBadLength, detail,
-                "message type " + Hex(data[1], 2) + " is " + std::to_string(expected) +
-                    " bytes, got " + std::to_string(size));
+                fmt::format("message type 0x{:02X} is {} bytes, got {}", data[1], expected, size));
   }
   const uint16_t crc = Crc16CcittFalse(data, size - 2);
   const uint16_t sent = Get16(data + size - 2);
   if (crc != sent) {
-    return Fail(PayloadError::kBadCrc, detail, "CRC " + Hex(sent, 4) + ", computed " + Hex(crc, 4));
+    return Fail(PayloadError::kBadCrc, detail,
+                fmt::format("CRC 0x{:04X}, computed 0x{:04X}", sent, crc));
   }
   if (data[2] == 0) return Fail(PayloadError::kBadBeaconId, detail, "beacon id 0 is reserved");
 

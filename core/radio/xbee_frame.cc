@@ -1,7 +1,8 @@
 #include "core/radio/xbee_frame.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
-#include <cstdio>
 #include <cstring>
 #include <utility>
 
@@ -15,6 +16,14 @@ constexpr size_t kFrameOverhead = 4;
 // Mode 1 takes at most this many fed bytes into its window at a time, which
 // bounds the window (and its one allocation) whatever the caller feeds.
 constexpr size_t kWindowSlice = 4096;
+
+// A failure's detail, formatted into the caller's fixed buffer (cut to
+// fit): a stream of bad frames costs no allocation per frame.
+template <size_t N, typename... Args>
+const char* FormatDetail(char (&buffer)[N], fmt::format_string<Args...> format, Args&&... args) {
+  *fmt::format_to_n(buffer, N - 1, format, std::forward<Args>(args)...).out = '\0';
+  return buffer;
+}
 
 bool NeedsEscape(uint8_t byte) {
   return byte == kStartDelimiter || byte == kEscape || byte == kXon || byte == kXoff;
@@ -123,9 +132,10 @@ void FrameDecoder::FlushPartial(FrameSink* sink) {
   // In mode 1 the rescan of a truncated candidate may start another one that
   // is just as incomplete; each starts later in the stream, so this ends.
   while (phase_ != Phase::kIdle) {
-    std::snprintf(detail, sizeof(detail), "stream paused or ended %llu bytes into the frame",
-                  static_cast<unsigned long long>(bytes_fed_ - frame_offset_));
-    FailFrame(FrameError::kTruncated, bytes_fed_, detail, sink);
+    FailFrame(FrameError::kTruncated, bytes_fed_,
+              FormatDetail(detail, "stream paused or ended {} bytes into the frame",
+                           bytes_fed_ - frame_offset_),
+              sink);
     if (!escaped_) ScanWindow(1, sink);
   }
   FlushGarbage(sink);
@@ -161,8 +171,7 @@ void FrameDecoder::FailChecksum(uint8_t checksum, uint32_t sum, uint64_t end_off
   // Mode 1 suppresses most failures in adversarial input; formatting their
   // detail would then be most of the cost.
   if (frame_offset_ >= covered_until_) {
-    std::snprintf(detail, sizeof(detail), "checksum 0x%02X, expected 0x%02X",
-                  static_cast<unsigned>(checksum), static_cast<unsigned>(0xFF - (sum & 0xFF)));
+    FormatDetail(detail, "checksum 0x{:02X}, expected 0x{:02X}", checksum, 0xFF - (sum & 0xFF));
   }
   FailFrame(FrameError::kBadChecksum, end_offset, detail, sink);
 }
@@ -183,10 +192,7 @@ void FrameDecoder::FlushGarbage(FrameSink* sink) {
   info.error = FrameError::kGarbage;
   info.stream_offset = garbage_start_;
   info.size_bytes = garbage_bytes_;
-  char detail[64];
-  std::snprintf(detail, sizeof(detail), "%llu bytes outside any frame",
-                static_cast<unsigned long long>(garbage_bytes_));
-  info.detail = detail;
+  info.detail = fmt::format("{} bytes outside any frame", garbage_bytes_);
   garbage_bytes_ = 0;
   sink->OnFrameError(info);
 }
@@ -213,7 +219,7 @@ void FrameDecoder::ScanWindow(size_t from, FrameSink* sink) {
     if (length == 0 || length > max_length_) {
       detail[0] = '\0';
       if (frame_offset_ >= covered_until_) {
-        std::snprintf(detail, sizeof(detail), "length %zu, accepted 1 to %zu", length, max_length_);
+        FormatDetail(detail, "length {}, accepted 1 to {}", length, max_length_);
       }
       FailFrame(FrameError::kBadLength, frame_offset_ + 3, detail, sink);
       i = candidate + 1;
@@ -282,9 +288,10 @@ void FrameDecoder::FeedEscaped(const uint8_t* data, size_t size, uint64_t offset
       if (escape_next_) {
         FailFrame(FrameError::kBadEscape, at, "escape byte followed by a start delimiter", sink);
       } else {
-        std::snprintf(detail, sizeof(detail), "start delimiter %llu bytes into the frame",
-                      static_cast<unsigned long long>(at - frame_offset_));
-        FailFrame(FrameError::kTruncated, at, detail, sink);
+        FailFrame(
+            FrameError::kTruncated, at,
+            FormatDetail(detail, "start delimiter {} bytes into the frame", at - frame_offset_),
+            sink);
       }
       continue;
     }
@@ -293,9 +300,9 @@ void FrameDecoder::FeedEscaped(const uint8_t* data, size_t size, uint64_t offset
       escape_next_ = false;
       byte ^= kEscapeXor;
       if (!NeedsEscape(byte)) {
-        std::snprintf(detail, sizeof(detail), "escape byte followed by 0x%02X",
-                      static_cast<unsigned>(byte ^ kEscapeXor));
-        FailFrame(FrameError::kBadEscape, offset + (p - data), detail, sink);
+        FailFrame(FrameError::kBadEscape, offset + (p - data),
+                  FormatDetail(detail, "escape byte followed by 0x{:02X}", byte ^ kEscapeXor),
+                  sink);
         continue;
       }
     } else if (byte == kEscape) {
@@ -312,9 +319,9 @@ void FrameDecoder::FeedEscaped(const uint8_t* data, size_t size, uint64_t offset
       case Phase::kLengthLsb:
         length_ |= byte;
         if (length_ == 0 || length_ > max_length_) {
-          std::snprintf(detail, sizeof(detail), "length %zu, accepted 1 to %zu", length_,
-                        max_length_);
-          FailFrame(FrameError::kBadLength, offset + (p - data), detail, sink);
+          FailFrame(FrameError::kBadLength, offset + (p - data),
+                    FormatDetail(detail, "length {}, accepted 1 to {}", length_, max_length_),
+                    sink);
         } else {
           phase_ = Phase::kData;
         }

@@ -1,8 +1,9 @@
 #include "core/radio/xbee_frame.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
-#include <cstdio>
+#include <iterator>
 #include <random>
 #include <sstream>
 #include <string>
@@ -38,10 +39,8 @@ class RecordingSink : public FrameSink {
  public:
   void OnFrame(const uint8_t* frame_data, size_t size, uint64_t stream_offset) override {
     std::string line = "frame@" + std::to_string(stream_offset) + ":";
-    char hex[3];
     for (size_t i = 0; i < size; ++i) {
-      std::snprintf(hex, sizeof(hex), "%02X", frame_data[i]);
-      line += hex;
+      fmt::format_to(std::back_inserter(line), "{:02X}", frame_data[i]);
     }
     Add(line);
     frames.emplace_back(frame_data, frame_data + size);

@@ -1,5 +1,6 @@
 #include "core/survey/receiver_survey.h"
 
+#include <fmt/format.h>
 #include <gsl/gsl_matrix.h>
 #include <gsl/gsl_multilarge_nlinear.h>
 #include <gsl/gsl_vector.h>
@@ -9,7 +10,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <cstdio>
 #include <map>
 #include <numeric>
 
@@ -24,12 +24,6 @@ using Eigen::MatrixXd;
 using Eigen::Vector2d;
 using Eigen::Vector3d;
 using Eigen::VectorXd;
-
-std::string Format(const char* fmt, double a, double b = 0.0, double c = 0.0) {
-  char buffer[256];
-  std::snprintf(buffer, sizeof(buffer), fmt, a, b, c);
-  return buffer;
-}
 
 double Median(std::vector<double> v) {
   if (v.empty()) return kNaN;
@@ -503,14 +497,15 @@ void Summarise(const Problem& p, const RobustFit& fit, const SurveyOptions& opti
     for (int k = 0; k < 3; ++k) {
       if (p.pos_idx[r][k] >= 0 && !(e.position_sigma_m[k] <= options.undetermined_sigma_m &&
                                     cov(p.pos_idx[r][k], p.pos_idx[r][k]) > 0)) {
-        result->notes.push_back("receiver " + std::to_string(e.id) + ": " + axes[k] +
-                                Format(" not determined (1-sigma %.3f m)", e.position_sigma_m[k]));
+        result->notes.push_back(
+            "receiver " + std::to_string(e.id) + ": " + axes[k] +
+            fmt::format(" not determined (1-sigma {:.3f} m)", e.position_sigma_m[k]));
       }
     }
     if (p.off_idx[r] >= 0 && !(e.range_offset_sigma_m <= options.undetermined_sigma_m)) {
       result->notes.push_back(
           "receiver " + std::to_string(e.id) +
-          Format(": offset not determined (1-sigma %.3f m)", e.range_offset_sigma_m));
+          fmt::format(": offset not determined (1-sigma {:.3f} m)", e.range_offset_sigma_m));
     }
   }
   result->ranges_used = fit.inliers;
@@ -525,7 +520,7 @@ void Summarise(const Problem& p, const RobustFit& fit, const SurveyOptions& opti
                             "(J^T J singular): their values stay at the starting ones");
   }
   result->notes.push_back(
-      Format("condition number of the scaled normal matrix %.3g", result->condition_number));
+      fmt::format("condition number of the scaled normal matrix {:.3g}", result->condition_number));
 }
 
 bool CollectObservations(const std::vector<ReceiverModel>& initial,
@@ -583,10 +578,10 @@ SurveyResult FitAndSummarise(Problem base, const SurveyOptions& options, int inv
     double min_span = std::numeric_limits<double>::infinity();
     for (const auto& [r, s] : span) min_span = std::min(min_span, s.second - s.first);
     if (min_span < options.min_range_span_for_scale_m) {
-      result.notes.push_back(
-          Format("scale not estimated: some receiver's ranges span only %.2f m (< %.2f m needed to "
-                 "tell a scale from an offset)",
-                 min_span, options.min_range_span_for_scale_m));
+      result.notes.push_back(fmt::format(
+          "scale not estimated: some receiver's ranges span only {:.2f} m (< {:.2f} m needed to "
+          "tell a scale from an offset)",
+          min_span, options.min_range_span_for_scale_m));
     } else {
       Problem q = base;
       AssignIndices(&q, options, true);
@@ -604,14 +599,14 @@ SurveyResult FitAndSummarise(Problem base, const SurveyOptions& options, int inv
         p = q;
         fit = fit_q;
         result.notes.push_back(
-            Format("scale estimated: ranges span >= %.2f m per receiver and a scale differs "
-                   "from 1 by %.1f sigma",
-                   min_span, max_z));
+            fmt::format("scale estimated: ranges span >= {:.2f} m per receiver and a scale differs "
+                        "from 1 by {:.1f} sigma",
+                        min_span, max_z));
       } else {
         result.notes.push_back(
-            Format("scale not estimated: no scale differs from 1 by more than 3 sigma "
-                   "(largest %.1f sigma)",
-                   max_z));
+            fmt::format("scale not estimated: no scale differs from 1 by more than 3 sigma "
+                        "(largest {:.1f} sigma)",
+                        max_z));
       }
     }
   } else if (with_scale) {

@@ -1,5 +1,7 @@
 #include "core/vision/colour_learning.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -672,11 +674,7 @@ bool KeepBackgroundOut(const BackgroundHistogram& bg, const Extent& e, double ma
   return c->background_share <= max_share;
 }
 
-std::string Percent(double share) {
-  char buffer[32];
-  std::snprintf(buffer, sizeof(buffer), "%.3g %%", 100.0 * share);
-  return buffer;
-}
+std::string Percent(double share) { return fmt::format("{:.3g} %", 100.0 * share); }
 
 struct Learned {
   std::vector<DiscSamples> discs;

@@ -1,8 +1,9 @@
 #include "core/vision/detector_view.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <opencv2/imgproc.hpp>
 
 namespace roomfix::vision {
@@ -17,12 +18,6 @@ constexpr double kDimFactor = 0.45;
 const cv::Scalar kFoundBgr(255, 255, 255);
 const cv::Scalar kRejectedBgr(60, 60, 255);
 const cv::Scalar kTextShadowBgr(0, 0, 0);
-
-std::string Format(const char* format, double a, double b) {
-  char buffer[160];
-  std::snprintf(buffer, sizeof(buffer), format, a, b);
-  return buffer;
-}
 
 // Text with a one-pixel dark shadow: readable on any mask colour.
 void Label(cv::Mat* image, const std::string& text, cv::Point at, const cv::Scalar& colour) {
@@ -113,19 +108,20 @@ RobotDiagnosis ClassProblem(const MarkerDetector& detector, const DetectorView& 
       d.reason = RobotViewReason::kTooSmall;
       d.value = best->area_px;
       d.limit = cls.min_area_px;
-      d.text = blob + Format(" too small (area %.0f px vs min %.0f px)", d.value, d.limit);
+      d.text = blob + fmt::format(" too small (area {:.0f} px vs min {:.0f} px)", d.value, d.limit);
       break;
     case BlobReject::kTooLarge:
       d.reason = RobotViewReason::kTooLarge;
       d.value = best->area_px;
       d.limit = cls.max_area_px;
-      d.text = blob + Format(" too large (area %.0f px vs max %.0f px)", d.value, d.limit);
+      d.text = blob + fmt::format(" too large (area {:.0f} px vs max {:.0f} px)", d.value, d.limit);
       break;
     default:
       d.reason = RobotViewReason::kNotRound;
       d.value = best->circularity;
       d.limit = cls.min_circularity;
-      d.text = blob + Format(" not round enough (circularity %.2f vs min %.2f)", d.value, d.limit);
+      d.text = blob + fmt::format(" not round enough (circularity {:.2f} vs min {:.2f})", d.value,
+                                  d.limit);
       break;
   }
   return d;
@@ -139,7 +135,7 @@ RobotDiagnosis Diagnose(const MarkerDetector& detector, const DetectorViewInput&
   const cv::Point2d* expected = hint == in.expected_px.end() ? nullptr : &hint->second;
   if (obs.found) {
     d.reason = RobotViewReason::kFound;
-    d.text = Format("found at (%.1f, %.1f) px", obs.position.u_px, obs.position.v_px);
+    d.text = fmt::format("found at ({:.1f}, {:.1f}) px", obs.position.u_px, obs.position.v_px);
   } else if (obs.state == TrackState::kAmbiguous || obs.identity_problem == "code_seen_twice" ||
              obs.identity_problem == "interleaved_markers" ||
              obs.identity_problem == "too_many_blobs") {
@@ -152,14 +148,14 @@ RobotDiagnosis Diagnose(const MarkerDetector& detector, const DetectorViewInput&
              !cv::Rect2d(-0.5, -0.5, in.source_size.width, in.source_size.height)
                   .contains(*expected)) {
     d.reason = RobotViewReason::kOutOfView;
-    d.text =
-        Format("out of the calibrated view (expected at %.0f, %.0f px)", expected->x, expected->y);
+    d.text = fmt::format("out of the calibrated view (expected at {:.0f}, {:.0f} px)", expected->x,
+                         expected->y);
   } else if (expected != nullptr && !cv::Rect2d(in.region_px.x - 0.5, in.region_px.y - 0.5,
                                                 in.region_px.width, in.region_px.height)
                                          .contains(*expected)) {
     d.reason = RobotViewReason::kOutOfView;
-    d.text = Format("outside the region looked at (expected at %.0f, %.0f px)", expected->x,
-                    expected->y);
+    d.text = fmt::format("outside the region looked at (expected at {:.0f}, {:.0f} px)",
+                         expected->x, expected->y);
   } else {
     for (const int k : {spec.position_class, spec.heading_class}) {
       // A spec naming no class of the detector (never from MakeCameraSetup)

@@ -1,8 +1,9 @@
 #include "core/vision/robot_tracker.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <map>
 #include <set>
@@ -27,11 +28,7 @@ bool Inside(const cv::Rect& r, const Blob& b) {
   return b.u_px >= r.x && b.u_px < r.x + r.width && b.v_px >= r.y && b.v_px < r.y + r.height;
 }
 
-std::string Pixel(double u, double v) {
-  char text[48];
-  std::snprintf(text, sizeof(text), "(%.1f, %.1f)", u, v);
-  return text;
-}
+std::string Pixel(double u, double v) { return fmt::format("({:.1f}, {:.1f})", u, v); }
 
 // Whether the clip reach around `b` (TrackerOptions::clip_radius_factor)
 // leaves `area`. Pixel centres are integers, so a rectangle of pixels spans

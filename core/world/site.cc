@@ -1,12 +1,12 @@
 #include "core/world/site.h"
 
+#include <fmt/format.h>
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
 #include <cmath>
-#include <cstdio>
 #include <cstring>
 #include <set>
 #include <sstream>
@@ -160,10 +160,8 @@ void ParseRadios(const Reader& r, const YAML::Node& root, Site* site) {
   auto claim_short = [&](const YAML::Node& node, const std::string& key, uint16_t address) {
     auto [it, fresh] = short_owner.emplace(address, key);
     if (!fresh) {
-      char text[8];
-      std::snprintf(text, sizeof(text), "0x%04X", address);
       r.Fail(node, key,
-             std::string("duplicate short address ") + text + " (also " + it->second + ")");
+             fmt::format("duplicate short address 0x{:04X} (also {})", address, it->second));
     }
   };
 
@@ -275,23 +273,19 @@ MarkerCode ParseMarkerCode(const Reader& r, const YAML::Node& node, const std::s
   const YAML::Node offset = r.Required(node, key, "heading_offset_m");
   code.heading_offset_m = r.Positive(offset, key + ".heading_offset_m");
   if (code.heading_diameter_m > kMaxHeadingToPositionRatio * code.position_diameter_m) {
-    char text[160];
-    std::snprintf(text, sizeof(text),
-                  "must be at most %.1f times position_diameter_m (%.3f m): the size tells a "
-                  "heading marker from a position marker",
-                  kMaxHeadingToPositionRatio,
-                  kMaxHeadingToPositionRatio * code.position_diameter_m);
-    r.Fail(heading, key + ".heading_diameter_m", text);
+    r.Fail(heading, key + ".heading_diameter_m",
+           fmt::format("must be at most {:.1f} times position_diameter_m ({:.3f} m): the size "
+                       "tells a heading marker from a position marker",
+                       kMaxHeadingToPositionRatio,
+                       kMaxHeadingToPositionRatio * code.position_diameter_m));
   }
   const double gap_m =
       code.heading_offset_m - 0.5 * (code.position_diameter_m + code.heading_diameter_m);
   if (gap_m < kMinMarkerGapM) {
-    char text[160];
-    std::snprintf(text, sizeof(text),
-                  "leaves %.3f m between the two markers' edges, under %.2f m: they would "
-                  "blur into one blob",
-                  gap_m, kMinMarkerGapM);
-    r.Fail(offset, key + ".heading_offset_m", text);
+    r.Fail(offset, key + ".heading_offset_m",
+           fmt::format("leaves {:.3f} m between the two markers' edges, under {:.2f} m: they "
+                       "would blur into one blob",
+                       gap_m, kMinMarkerGapM));
   }
   return code;
 }
@@ -1059,11 +1053,7 @@ bool ParseRadioAddress(const std::string& text, uint64_t* address) {
   return true;
 }
 
-std::string FormatRadioAddress(uint64_t address) {
-  char buffer[19];
-  std::snprintf(buffer, sizeof(buffer), "0x%016llX", static_cast<unsigned long long>(address));
-  return buffer;
-}
+std::string FormatRadioAddress(uint64_t address) { return fmt::format("0x{:016X}", address); }
 
 bool ParseSite(const std::string& yaml_text, const std::string& name, const std::string& base_dir,
                Site* site, std::string* error) {

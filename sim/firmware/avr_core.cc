@@ -122,7 +122,7 @@ std::unique_ptr<AvrCore> AvrCore::Create(const AvrCoreOptions& options, std::str
   avr_t* avr = core->avr_;
   avr_init(avr);
   avr->log = LOG_NONE;
-  std::snprintf(elf.mmcu, sizeof(elf.mmcu), "%s", options.mcu.c_str());
+  elf.mmcu[options.mcu.copy(elf.mmcu, sizeof(elf.mmcu) - 1)] = '\0';
   elf.frequency = options.frequency_hz;
   avr_load_firmware(avr, &elf);
   FreeElf(&elf);

@@ -19,6 +19,7 @@
 //   roomfix listen     one warning line per reason on stderr
 #include "tests/testing/hostile_traffic.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <unistd.h>
@@ -903,11 +904,7 @@ TEST_F(HostileTraffic, LoggerRecordsGoodTrafficAndItsFileStaysReadable) {
   double rss = 0;
   ASSERT_TRUE(WaitReady(&listener, "roomfix_logger", &logger, &rss));
   FileTail tail(path, "probe-", 10);
-  auto token = [](int64_t id) {
-    char text[32];
-    std::snprintf(text, sizeof(text), "probe-%010lld", static_cast<long long>(id));
-    return std::string(text);
-  };
+  auto token = [](int64_t id) { return fmt::format("probe-{:010d}", id); };
   std::vector<int64_t> probes;
   Probe probe{[&](int64_t id) {
                 probes.push_back(id);
@@ -999,32 +996,48 @@ int64_t TransportDropped(const process_status_t& s) {
   return Counter(s, "dropped_kernel_overflow") + Counter(s, "dropped_queue_overflow");
 }
 
+// Freezes `process` (SIGSTOP) while kSentWhileStopped range sets go out on
+// `channel` at kStoppedRateHz, then thaws it; its STATUS from before the
+// freeze and from after it.
+void SendWhileStopped(hostile::Sender* sender, Listener* listener, ChildProcess* process,
+                      const std::string& name, const std::string& channel, process_status_t* before,
+                      process_status_t* after) {
+  ASSERT_TRUE(listener->StatusAfter(name, Clock::now(), 3.0, before));
+  process->Signal(SIGSTOP);
+  const auto start = Clock::now();
+  for (int k = 0; k < kSentWhileStopped; ++k) {
+    std::this_thread::sleep_until(start + std::chrono::duration<double>(k / kStoppedRateHz));
+    sender->Publish(channel, Encode(hostile::GoodRanges(k, NowUtime())));
+  }
+  process->Signal(SIGCONT);
+  ASSERT_TRUE(
+      listener->StatusAfter(name, Clock::now() + std::chrono::milliseconds(200), 3.0, after));
+}
+
+// What a stopped process `missed` is in its STATUS `dropped` and in the
+// kernel or queue overflow counters.
+void ExpectMissedCounted(int64_t missed, const process_status_t& before,
+                         const process_status_t& after) {
+  ASSERT_GT(missed, 0) << "the small receive buffer did not overflow: the test proves nothing";
+  EXPECT_GE(after.dropped - before.dropped, missed) << Describe(after);
+  EXPECT_GE(TransportDropped(after) - TransportDropped(before), missed) << Describe(after);
+}
+
 TEST_F(HostileTraffic, TrilatProcStoppedAccountsForEveryRangeSetItMissed) {
   Listener listener("");
   ChildProcess trilat({BinDir() + "/trilat_proc", "--config", DemoSitePath(), "--lcm-url",
                        kSmallBufferUrl, "--log-level", "error"});
   double rss = 0;
   ASSERT_TRUE(WaitReady(&listener, "trilat_proc", &trilat, &rss));
-  process_status_t before;
-  ASSERT_TRUE(listener.StatusAfter("trilat_proc", Clock::now(), 3.0, &before));
-  trilat.Signal(SIGSTOP);
-  const auto start = Clock::now();
-  for (int k = 0; k < kSentWhileStopped; ++k) {
-    std::this_thread::sleep_until(start + std::chrono::duration<double>(k / kStoppedRateHz));
-    sender_.Publish("RANGES", Encode(hostile::GoodRanges(k, NowUtime())));
-  }
-  trilat.Signal(SIGCONT);
-  process_status_t after;
-  ASSERT_TRUE(listener.StatusAfter("trilat_proc", Clock::now() + std::chrono::milliseconds(200),
-                                   3.0, &after));
+  process_status_t before, after;
+  ASSERT_NO_FATAL_FAILURE(
+      SendWhileStopped(&sender_, &listener, &trilat, "trilat_proc", "RANGES", &before, &after));
   const int64_t taken = after.inputs - before.inputs;
   const int64_t missed = kSentWhileStopped - taken;
   std::printf("trilat_proc stopped: %lld of %d range sets taken, %lld missed, dropped +%lld\n",
               static_cast<long long>(taken), kSentWhileStopped, static_cast<long long>(missed),
               static_cast<long long>(after.dropped - before.dropped));
-  ASSERT_GT(missed, 0) << "the small receive buffer did not overflow: the test proves nothing";
-  EXPECT_GE(after.dropped - before.dropped, missed) << Describe(after);
-  EXPECT_GE(TransportDropped(after) - TransportDropped(before), missed) << Describe(after);
+  ASSERT_NO_FATAL_FAILURE(ExpectMissedCounted(missed, before, after));
   trilat.Signal(SIGINT);
   EXPECT_EQ(trilat.Wait(5), 0);
 }
@@ -1037,18 +1050,9 @@ TEST_F(HostileTraffic, LoggerStoppedAccountsForEveryMessageItMissed) {
                        kSmallBufferUrl, "--log-level", "error"});
   double rss = 0;
   ASSERT_TRUE(WaitReady(&listener, "roomfix_logger", &logger, &rss));
-  process_status_t before;
-  ASSERT_TRUE(listener.StatusAfter("roomfix_logger", Clock::now(), 3.0, &before));
-  logger.Signal(SIGSTOP);
-  const auto start = Clock::now();
-  for (int k = 0; k < kSentWhileStopped; ++k) {
-    std::this_thread::sleep_until(start + std::chrono::duration<double>(k / kStoppedRateHz));
-    sender_.Publish("SEQ", Encode(hostile::GoodRanges(k, NowUtime())));
-  }
-  logger.Signal(SIGCONT);
-  process_status_t after;
-  ASSERT_TRUE(listener.StatusAfter("roomfix_logger", Clock::now() + std::chrono::milliseconds(200),
-                                   3.0, &after));
+  process_status_t before, after;
+  ASSERT_NO_FATAL_FAILURE(
+      SendWhileStopped(&sender_, &listener, &logger, "roomfix_logger", "SEQ", &before, &after));
   logger.Signal(SIGINT);
   EXPECT_EQ(logger.Wait(10), 0);
   int64_t logged = 0;
@@ -1059,9 +1063,7 @@ TEST_F(HostileTraffic, LoggerStoppedAccountsForEveryMessageItMissed) {
   std::printf("roomfix_logger stopped: %lld of %d logged, %lld missed, dropped +%lld\n",
               static_cast<long long>(logged), kSentWhileStopped, static_cast<long long>(missed),
               static_cast<long long>(after.dropped - before.dropped));
-  ASSERT_GT(missed, 0) << "the small receive buffer did not overflow: the test proves nothing";
-  EXPECT_GE(after.dropped - before.dropped, missed) << Describe(after);
-  EXPECT_GE(TransportDropped(after) - TransportDropped(before), missed) << Describe(after);
+  ASSERT_NO_FATAL_FAILURE(ExpectMissedCounted(missed, before, after));
 }
 
 }  // namespace

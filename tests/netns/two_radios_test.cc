@@ -37,6 +37,55 @@ int64_t Counter(const std::vector<counter_t>& counters, const std::string& name)
   return -1;
 }
 
+// Firings, by (beacon id, 16-bit firing number): the parts of each.
+using Parts = std::map<std::pair<int, int>, std::vector<range_set_t>>;
+
+// One pose per firing of `parts` (those before end_utime), solved from all
+// eight ranges, on the trajectory; counts them in *solved.
+void ExpectPosesOnTrajectory(const Site& site, const Parts& parts,
+                             const std::vector<pose2d_t>& poses, int64_t start_utime,
+                             int64_t end_utime, size_t* solved) {
+  std::map<std::pair<int, int>, const pose2d_t*> by_firing;
+  for (const pose2d_t& p : poses)
+    by_firing[{p.robot_id, static_cast<int>(p.measurement_seq & 0xFFFF)}] = &p;
+  // The simulator's range noise is 0.01 m per range; eight ranges put the
+  // fix within a few cm. 0.1 m catches a fix from half the ranges gone wrong.
+  constexpr double kFixTolerance_m = 0.1;
+  for (const auto& [key, list] : parts) {
+    if (list.front().utime > end_utime) continue;
+    const Robot* robot = nullptr;
+    for (const Robot& r : site.robots) {
+      if (r.beacon_id && *r.beacon_id == key.first) robot = &r;
+    }
+    ASSERT_NE(robot, nullptr);
+    auto it = by_firing.find({robot->id, key.second});
+    if (it == by_firing.end()) {
+      ADD_FAILURE() << "no pose for beacon " << key.first << " firing " << key.second;
+      continue;
+    }
+    const pose2d_t& p = *it->second;
+    EXPECT_EQ(p.num_measurements, 8) << "beacon " << key.first << " firing " << key.second;
+    const SimulatedRobot* sr = nullptr;
+    for (const SimulatedRobot& s : site.simulation.robots) {
+      if (s.robot_id == robot->id) sr = &s;
+    }
+    ASSERT_NE(sr, nullptr);
+    // The set's time is the announcement's arrival at the bridge: a few ms
+    // after the firing on a quiet host, but up to a few hundred ms on the
+    // shared CI machine when the bridge is descheduled (0.15 m at 0.5 m/s
+    // once). So the fix must lie on the trajectory at some instant of the
+    // kArrivalLag_s before its stamp, sampled every 5 ms (2.5 mm of travel).
+    constexpr double kArrivalLag_s = 0.5;
+    double nearest_m = INFINITY;
+    for (double lag_s = 0.0; lag_s <= kArrivalLag_s; lag_s += 0.005) {
+      const GroundTruthPose truth = sr->trajectory->PoseAt((p.utime - start_utime) * 1e-6 - lag_s);
+      nearest_m = std::min(nearest_m, std::hypot(p.x_m - truth.x_m, p.y_m - truth.y_m));
+    }
+    EXPECT_LT(nearest_m, kFixTolerance_m) << "beacon " << key.first << " firing " << key.second;
+    ++*solved;
+  }
+}
+
 TEST(TwoRadios, EveryFiringIsSolvedFromTheRangesOfBothCoordinators) {
   Site site;
   std::string error;
@@ -46,7 +95,7 @@ TEST(TwoRadios, EveryFiringIsSolvedFromTheRangesOfBothCoordinators) {
   // Sets and poses whose firing came after the warm-up (both bridges up).
   const int64_t start_utime = NowUtime();
   const int64_t warm_utime = start_utime + 4'000'000;
-  std::map<std::pair<int, int>, std::vector<range_set_t>> parts;  // (beacon, seq16)
+  Parts parts;
   std::vector<pose2d_t> poses;
   process_status_t trilat_status{};
   bool have_status = false;
@@ -120,46 +169,9 @@ TEST(TwoRadios, EveryFiringIsSolvedFromTheRangesOfBothCoordinators) {
   EXPECT_EQ(whole, firings);
 
   // One pose per firing, solved from all eight ranges, on the trajectory.
-  std::map<std::pair<int, int>, const pose2d_t*> by_firing;
-  for (const pose2d_t& p : poses)
-    by_firing[{p.robot_id, static_cast<int>(p.measurement_seq & 0xFFFF)}] = &p;
   size_t solved = 0;
-  // The simulator's range noise is 0.01 m per range; eight ranges put the
-  // fix within a few cm. 0.1 m catches a fix from half the ranges gone wrong.
-  constexpr double kFixTolerance_m = 0.1;
-  for (const auto& [key, list] : parts) {
-    if (list.front().utime > end_utime) continue;
-    const Robot* robot = nullptr;
-    for (const Robot& r : site.robots) {
-      if (r.beacon_id && *r.beacon_id == key.first) robot = &r;
-    }
-    ASSERT_NE(robot, nullptr);
-    auto it = by_firing.find({robot->id, key.second});
-    if (it == by_firing.end()) {
-      ADD_FAILURE() << "no pose for beacon " << key.first << " firing " << key.second;
-      continue;
-    }
-    const pose2d_t& p = *it->second;
-    EXPECT_EQ(p.num_measurements, 8) << "beacon " << key.first << " firing " << key.second;
-    const SimulatedRobot* sr = nullptr;
-    for (const SimulatedRobot& s : site.simulation.robots) {
-      if (s.robot_id == robot->id) sr = &s;
-    }
-    ASSERT_NE(sr, nullptr);
-    // The set's time is the announcement's arrival at the bridge: a few ms
-    // after the firing on a quiet host, but up to a few hundred ms on the
-    // shared CI machine when the bridge is descheduled (0.15 m at 0.5 m/s
-    // once). So the fix must lie on the trajectory at some instant of the
-    // kArrivalLag_s before its stamp, sampled every 5 ms (2.5 mm of travel).
-    constexpr double kArrivalLag_s = 0.5;
-    double nearest_m = INFINITY;
-    for (double lag_s = 0.0; lag_s <= kArrivalLag_s; lag_s += 0.005) {
-      const GroundTruthPose truth = sr->trajectory->PoseAt((p.utime - start_utime) * 1e-6 - lag_s);
-      nearest_m = std::min(nearest_m, std::hypot(p.x_m - truth.x_m, p.y_m - truth.y_m));
-    }
-    EXPECT_LT(nearest_m, kFixTolerance_m) << "beacon " << key.first << " firing " << key.second;
-    ++solved;
-  }
+  ASSERT_NO_FATAL_FAILURE(
+      ExpectPosesOnTrajectory(site, parts, poses, start_utime, end_utime, &solved));
   EXPECT_EQ(solved, firings);
 
   ASSERT_TRUE(have_status);

@@ -12,6 +12,8 @@
 // (no summary, unlike `roomfix listen`'s JSON): the Python test fails when a
 // type gains a field this file does not write. Doubles are printed to 17
 // digits (JsonLine), so they read back to the same bits; NaN is null.
+#include <fmt/format.h>
+
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -195,11 +197,7 @@ std::string Hex(const void* data, size_t size) {
 
 // The fingerprint as LCM writes it first in every message: 8 bytes,
 // big-endian, here as 16 hex digits.
-std::string FingerprintHex(uint64_t hash) {
-  char text[17];
-  std::snprintf(text, sizeof(text), "%016llx", static_cast<unsigned long long>(hash));
-  return text;
-}
+std::string FingerprintHex(uint64_t hash) { return fmt::format("{:016x}", hash); }
 
 template <class Msg>
 void Print(const std::string& origin, const std::string& channel, const Msg& msg, const void* bytes,

@@ -1,6 +1,7 @@
 #include "tests/testing/demo_site.h"
 
-#include <cstdio>
+#include <fmt/format.h>
+
 #include <filesystem>
 #include <system_error>
 
@@ -43,13 +44,10 @@ std::string DemoSiteTextWithReceivers(size_t extra) {
   if (at == std::string::npos) return "";
   std::string more;
   for (size_t i = 0; i < extra; ++i) {
-    char line[160];
-    std::snprintf(line, sizeof(line),
-                  "  - {id: %zu, address: \"0x0013A20043%06zX\", position_m: [%.1f, %.1f, 2.5], "
-                  "range_offset_m: 0.0}\n",
-                  1001 + i, i, 0.1 * static_cast<double>(i % 40),
-                  0.1 * static_cast<double>((i / 40) % 30));
-    more += line;
+    more += fmt::format(
+        "  - {{id: {}, address: \"0x0013A20043{:06X}\", position_m: [{:.1f}, {:.1f}, 2.5], "
+        "range_offset_m: 0.0}}\n",
+        1001 + i, i, 0.1 * static_cast<double>(i % 40), 0.1 * static_cast<double>((i / 40) % 30));
   }
   text.insert(at + last.size(), more);
   return text;

@@ -218,10 +218,9 @@ TEST(ToolSiteFromLog, AForgedSiteOfTensOfThousandsOfKeysCostsWorkLinearInItsSize
 
   // In this process, as every tool resolves its site: the work counted.
   const int64_t before = SiteComparisonNodesVisited();
-  LoadedSite used;
-  std::string line;
-  std::vector<std::string> warnings;
-  ASSERT_TRUE(ResolveToolSite(DemoSite(), log, &used, &line, &warnings, &error)) << error;
+  const ToolSite used = ResolveToolSite(DemoSite(), log);
+  ASSERT_TRUE(used.known) << used.error;
+  const std::vector<std::string>& warnings = used.warnings;
   const int64_t work = SiteComparisonNodesVisited() - before;
   EXPECT_GT(work, static_cast<int64_t>(keys));
   EXPECT_LE(work, kVisitsPerByte * bytes + 2 * kVisitsPerText);
@@ -321,13 +320,11 @@ TEST(ToolSiteFromLog, ALogOfManySitesIsSaidToHoldEveryOne) {
   ASSERT_TRUE(ReadSiteFromLog(log, &from_log, &error)) << error;
   EXPECT_EQ(from_log.distinct_sites, kDistinctSites);
   EXPECT_EQ(from_log.publishers_by_hash.size(), SiteFromLog::kMaxSiteHashes);
-  LoadedSite used;
-  std::string line;
-  std::vector<std::string> warnings;
-  EXPECT_FALSE(ResolveToolSite("", log, &used, &line, &warnings, &error));
-  EXPECT_NE(error.find("holds SITE messages of 40 different sites (the first 16 named): "),
+  const ToolSite used = ResolveToolSite("", log);
+  EXPECT_FALSE(used.known);
+  EXPECT_NE(used.error.find("holds SITE messages of 40 different sites (the first 16 named): "),
             std::string::npos)
-      << error;
+      << used.error;
 }
 
 // Issue #28, item 8: 30 distinct SITEs of 5 MB cost `compare` 109 MB over

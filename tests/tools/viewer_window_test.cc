@@ -1,13 +1,13 @@
 // roomfix_viewer in a real window: under Xvfb (a real X server without a
 // screen), the window shows a replayed log; a screenshot of the whole
 // display, taken by xwd, must show a picture, not a blank screen.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <unistd.h>
 
 #include <chrono>
 #include <cstdint>
-#include <cstdio>
 #include <cstdlib>
 #include <map>
 #include <string>
@@ -150,9 +150,8 @@ TEST(RoomfixViewerHeadless, WritesAFramePerTickOfLogTimeAndTheLastPicture) {
   ASSERT_EQ(viewer.Wait(60), 0);
   int frames = 0;
   for (int k = 1; k <= 40; ++k) {
-    char name[32];
-    std::snprintf(name, sizeof(name), "/frame_%06d.png", k);
-    frames += ::access((dir.File("frames") + name).c_str(), R_OK) == 0 ? 1 : 0;
+    const std::string name = fmt::format("{}/frame_{:06d}.png", dir.File("frames"), k);
+    frames += ::access(name.c_str(), R_OK) == 0 ? 1 : 0;
   }
   EXPECT_EQ(frames, 31);
   EXPECT_EQ(::access(dir.File("last.png").c_str(), R_OK), 0);
