@@ -35,16 +35,16 @@ constexpr int64_t kStartUtime = 1'700'000'000'000'000;
 // The camera issue's target was 5 mm; each bound here is what its test
 // measures (printed by it) with a named margin, so a regression shows.
 // A folder of rendered frames read from files: deterministic (fixed scene,
-// noise seed and start time), measured 0.25 mm in four runs; 1.5x for
+// noise seed and start time), measured 0.25 mm in five runs; 1.5x for
 // another compiler's or libjpeg's rounding.
 constexpr double kFolderRmseM = 0.00025 * 1.5;
 // The live synthetic camera (sim:reference_circle, real time, its t = 0
-// from roomfix_sim's heartbeat): measured 0.19 to 0.20 mm in four runs on a
-// shared 2-core machine (load 3 to 4); 2x for the frames a busier machine
+// from roomfix_sim's heartbeat): measured 0.19 to 0.20 mm in five runs on a
+// shared 2-core machine (load 3 to 13); 2x for the frames a busier machine
 // skips and a heartbeat heard late.
 constexpr double kLiveRmseM = 0.00020 * 2.0;
 // The simulated webcam of sim_demo.pmd (the robot leans and rocks, 1.9 mm
-// per axis): measured 2.39 to 2.43 mm in four runs; 1.5x as above, still a
+// per axis): measured 2.32 to 2.43 mm in five runs; 1.5x as above, still a
 // sixth of the 23 mm that the nominal lens's calibration gave (issue #32).
 constexpr double kWebcamRmseM = 0.0024 * 1.5;
 // Peak memory of any child in the oversize-image test: a 1920 x 1080 camera
