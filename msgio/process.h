@@ -156,7 +156,8 @@ int RunLoop(Bus* bus, const std::function<void(int64_t now_utime)>& tick,
             const RunLoopOptions& options);
 
 // Opens the bus for an LCM URL as processes do: udpm:// through UdpmBus (or
-// liblcm when direct_udpm is false), memq:// and file:// through LcmBus.
+// liblcm when direct_udpm is false), memq:// through LcmBus and file://
+// through LogFileBus.
 // Tools that receive without StartProcess (`roomfix listen`) use it too.
 std::unique_ptr<Bus> OpenBus(const std::string& url, std::string* error, bool direct_udpm = true);
 
