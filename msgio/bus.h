@@ -139,7 +139,7 @@ inline constexpr int kMaxRefusedChannels = 64;
 // A bus over lcm::LCM. Received messages are dispatched from Handle() on the
 // calling thread. Processes use it for memq:// and file://; udpm:// goes
 // through UdpmBus (msgio/udpm_bus.h says why), except where liblcm is asked
-// for by name (roomfix_logger --via-liblcm, for `roomfix bench logger`).
+// for by name (roomfix_logger --via-liblcm, for `roomfix_bench logger`).
 //
 // Tuned for load: every subscription may queue kLcmQueueCapacity messages
 // (liblcm's default is 30, which a 100 000/s burst overflows in 0.3 ms), and
