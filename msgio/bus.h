@@ -143,7 +143,7 @@ inline constexpr int kMaxRefusedChannels = 64;
 // A bus over lcm::LCM. Received messages are dispatched from Handle() on the
 // calling thread. Processes use it for memq://; udpm:// goes through UdpmBus
 // (msgio/udpm_bus.h says why), except where liblcm is asked for by name
-// (roomfix_logger --via-liblcm, for `roomfix bench logger`), and file://
+// (roomfix_logger --via-liblcm, for `roomfix_bench logger`), and file://
 // through LogFileBus (msgio/log.h says why).
 //
 // Tuned for load: every subscription may queue kLcmQueueCapacity messages

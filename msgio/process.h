@@ -41,7 +41,7 @@ struct ProcessOptions {
   // For udpm:// URLs, speak LCM's wire format on our own socket (UdpmBus)
   // instead of going through liblcm, whose 1.3.1 fragment reassembly one
   // datagram crashes and whose queue losses cannot be counted
-  // (msgio/udpm_bus.h). false only to measure liblcm (`roomfix bench logger`).
+  // (msgio/udpm_bus.h). false only to measure liblcm (`roomfix_bench logger`).
   bool direct_udpm = true;
 };
 

@@ -1,4 +1,4 @@
-// roomfix bench radio: how fast the bridge decodes the coordinator's bytes,
+// roomfix_bench radio: how fast the bridge decodes the coordinator's bytes,
 // how soon a completed firing is published, and how the reference's way of
 // grouping reports (by arrival, with no firing number) fares on the same
 // faulty radio as roomfix's (by beacon and firing number).
@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "bench/commands.h"
 #include "core/analysis/track_error.h"
 #include "core/radio/wall_payload.h"
 #include "core/radio/xbee_frame.h"
@@ -24,7 +25,6 @@
 #include "roomfix/range_set_t.hpp"
 #include "sim/pseudo_terminal.h"
 #include "sim/wall_devices.h"
-#include "tools/commands.h"
 #include "zigbee_bridge/bridge_node.h"
 #include "zigbee_bridge/serial_link.h"
 
@@ -111,7 +111,7 @@ json DecodeThroughput(const Site& site, const BenchRadioOptions& options) {
       }
       const double s = Seconds(std::chrono::steady_clock::now() - t0);
       if (sink.frames != frames || sink.errors != 0) {
-        std::cerr << "roomfix bench radio: decoder lost frames (" << sink.frames << " of " << frames
+        std::cerr << "roomfix_bench radio: decoder lost frames (" << sink.frames << " of " << frames
                   << ", " << sink.errors << " errors)\n";
         return nullptr;
       }
@@ -135,7 +135,7 @@ json DecodeThroughput(const Site& site, const BenchRadioOptions& options) {
       const double s = Seconds(std::chrono::steady_clock::now() - t0);
       node_fps.push_back(frames / s);
       if (sets < frames / 5 - 1) {
-        std::cerr << "roomfix bench radio: the node published " << sets << " sets of " << frames / 5
+        std::cerr << "roomfix_bench radio: the node published " << sets << " sets of " << frames / 5
                   << "\n";
         return nullptr;
       }
@@ -393,11 +393,11 @@ int RunRadioBench(const BenchRadioOptions& options) {
   Site site;
   std::string error;
   if (!LoadSite(options.site, &site, &error)) {
-    std::cerr << "roomfix bench radio: " << error << "\n";
+    std::cerr << "roomfix_bench radio: " << error << "\n";
     return 1;
   }
   if (site.beacons.empty() || site.simulation.robots.empty()) {
-    std::cerr << "roomfix bench radio: " << options.site
+    std::cerr << "roomfix_bench radio: " << options.site
               << ": needs a beacon and a simulated robot carrying it\n";
     return 1;
   }
@@ -406,7 +406,7 @@ int RunRadioBench(const BenchRadioOptions& options) {
   if (result["decode"].is_null()) return 1;
   result["latency"] = PublishLatency(site, options, &error);
   if (result["latency"].is_null()) {
-    std::cerr << "roomfix bench radio: latency: " << error << "\n";
+    std::cerr << "roomfix_bench radio: latency: " << error << "\n";
     return 1;
   }
   result["grouping"] = CompareGrouping(site, options);
