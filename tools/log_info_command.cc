@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "msgio/channels.h"
 #include "msgio/log.h"
 #include "msgio/message_json.h"
 #include "msgio/wire_check.h"
@@ -120,8 +121,8 @@ void AddLogInfoCommand(CLI::App* app, int* exit_code) {
       marker_pixels_t pixels;
       process_status_t status;
       std::string reason;
-      const bool is_status = event.channel == "STATUS";
-      const bool is_pixels = event.channel == "MARKER_PIXELS";
+      const bool is_status = event.channel == kStatusChannel;
+      const bool is_pixels = event.channel == kMarkerPixelsChannel;
       const int size = static_cast<int>(event.data.size());
       // A refused event is not a frame or a heartbeat: counted for the
       // warning below, never read.

@@ -22,6 +22,7 @@
 #include "core/survey/receiver_survey.h"
 #include "core/world/file_io.h"
 #include "core/world/site.h"
+#include "msgio/channels.h"
 #include "msgio/log.h"
 #include "msgio/pose_tracks.h"
 #include "msgio/wire_check.h"
@@ -155,7 +156,7 @@ int Run(const SurveyArgs& a) {
   std::map<std::string, int64_t> refused;  // by reason
   LogEvent event;
   while (reader->Next(&event)) {
-    if (event.channel != "RANGES") continue;
+    if (event.channel != kRangesChannel) continue;
     range_set_t set;
     std::string reason;
     if (!DecodeChecked(event.data.data(), static_cast<int>(event.data.size()), &set, &reason)) {
