@@ -37,8 +37,7 @@ Message Delivered(const Message& msg) {
   msg.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
   Message out;
   std::string reason;
-  EXPECT_TRUE(DecodeChecked(bytes.data(), static_cast<int>(bytes.size()), &out, &reason))
-      << reason;
+  EXPECT_TRUE(DecodeChecked(bytes.data(), static_cast<int>(bytes.size()), &out, &reason)) << reason;
   return out;
 }
 
