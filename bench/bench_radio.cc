@@ -20,6 +20,7 @@
 #include "core/analysis/track_error.h"
 #include "core/radio/wall_payload.h"
 #include "core/radio/xbee_frame.h"
+#include "msgio/channels.h"
 #include "msgio/install_paths.h"
 #include "msgio/process.h"
 #include "roomfix/range_set_t.hpp"
@@ -122,7 +123,8 @@ json DecodeThroughput(const Site& site, const BenchRadioOptions& options) {
     for (int r = 0; r < std::max(1, options.repeats / 2); ++r) {
       LoopbackBus bus;
       int64_t sets = 0;
-      bus.Subscribe<range_set_t>("RANGES", [&](const range_set_t&, const MessageInfo&) { ++sets; });
+      bus.Subscribe<range_set_t>(kRangesChannel,
+                                 [&](const range_set_t&, const MessageInfo&) { ++sets; });
       BridgeNodeOptions node_options;
       node_options.api_mode = mode;
       BridgeNode node(site, &bus, node_options, 0);
@@ -207,7 +209,7 @@ json PublishLatency(const Site& site, const BenchRadioOptions& options, std::str
     SerialLink link_port(SerialLinkOptions{link, 115200, 0.01, 0.1});
     BridgeNode node(site, &bus, {}, NowUtime());
     int64_t last_read = 0;
-    bus.Subscribe<range_set_t>("RANGES", [&](const range_set_t& s, const MessageInfo&) {
+    bus.Subscribe<range_set_t>(kRangesChannel, [&](const range_set_t& s, const MessageInfo&) {
       const auto k = static_cast<size_t>(s.firing_seq);
       if (k < publish_utime.size()) {
         publish_utime[k] = NowUtime();
@@ -328,7 +330,7 @@ json CompareGrouping(const Site& site, const BenchRadioOptions& options) {
   radio::FrameDecoder reference_decoder;
   LoopbackBus bus;
   std::vector<range_set_t> sets;
-  bus.Subscribe<range_set_t>("RANGES",
+  bus.Subscribe<range_set_t>(kRangesChannel,
                              [&](const range_set_t& s, const MessageInfo&) { sets.push_back(s); });
   BridgeNode node(site, &bus, {}, 0);
   node.OnLinkUp("simulated", 0);

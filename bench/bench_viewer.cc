@@ -24,7 +24,7 @@ namespace roomfix {
 namespace {
 
 using json = nlohmann::ordered_json;
-using viewer::Source;
+using Source = PoseSource;
 
 struct BenchViewerOptions {
   int frames = 300;
@@ -115,7 +115,7 @@ void MakeState(const Site& site, double t_s, const std::vector<std::vector<uint8
   for (int k = 0; k < kRobots; ++k) {
     for (int s = 0; s < viewer::kNumSources; ++s) {
       viewer::TrackView t;
-      t.source = static_cast<Source>(s);
+      t.source = viewer::kSources[s];
       t.robot_id = k + 1;
       const double period_s = 1.0 / kSourceRateHz[s];
       const auto samples = static_cast<int>(state->trail_s * kSourceRateHz[s]);

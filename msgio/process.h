@@ -10,6 +10,7 @@
 
 #include "core/world/site.h"
 #include "msgio/bus.h"
+#include "msgio/channels.h"
 #include "roomfix/process_status_t.hpp"
 
 namespace CLI {
@@ -21,7 +22,6 @@ namespace roomfix {
 // LCM's default group and port with ttl=0: packets never leave this host.
 // Several hosts need ttl=1 (docs/operations.md).
 inline constexpr char kDefaultLcmUrl[] = "udpm://239.255.76.67:7667?ttl=0";
-inline constexpr char kStatusChannel[] = "STATUS";
 
 // Host wall clock, microseconds since the Unix epoch. Only processes and
 // msgio read the clock; core/ takes time as an argument.
