@@ -22,7 +22,7 @@ struct JpegDecodeOptions {
   // pixel, and the marker centroid is measured on colour: on 1080p
   // quality-90 frames of the synthetic camera the centroid error is
   // 0.094 px RMS with replication and 0.033 px with triangular upsampling,
-  // for under 0.1 ms more per frame (roomfix bench camera).
+  // for under 0.1 ms more per frame (roomfix_bench camera).
   bool fancy_upsampling = true;
 };
 

@@ -15,6 +15,7 @@
 #include "core/calib/pose_covariance.h"
 #include "core/vision/detector_view.h"
 #include "msgio/message_conversions.h"
+#include "msgio/received.h"
 #include "msgio/time_limits.h"
 #include "msgio/wire_check.h"
 #include "roomfix/detector_view_request_t.hpp"
@@ -244,11 +245,11 @@ CameraNode::CameraNode(const Site& site, const Camera& camera,
                        std::optional<calib::Calibration> calibration, Bus* bus,
                        const CameraNodeOptions& options, int64_t start_utime)
     : camera_(camera),
+      site_(site),
       calibration_(std::move(calibration)),
       bus_(bus),
       options_(options),
       status_("camera_proc", start_utime) {
-  for (const Robot& robot : site.robots) site_robots_.insert(robot.id);
   if (!options_.steady_clock) options_.steady_clock = SteadyMicros;
   timing_.readout_s = camera.readout_s;
   timing_.exposure_s = camera.exposure_s;
@@ -316,24 +317,18 @@ CameraNode::CameraNode(const Site& site, const Camera& camera,
   }
 }
 
-void CameraNode::OnHint(const pose2d_t& pose, const MessageInfo& info) {
+void CameraNode::OnHint(const pose2d_t& msg, const MessageInfo& info) {
   // A hint moves a robot's search window: one with an absurd time, for a
   // robot the site does not have, or with an infinity in it is refused and
   // counted, never followed.
-  if (!UtimeNear(pose.utime, info.recv_utime)) {
-    status_.Reject("utime_out_of_range");
+  Pose2d pose;
+  std::string why;
+  InputProblem problem = InputProblem::kNone;
+  if (!ReceivePose(msg, site_, info.recv_utime, &pose, &why, &problem)) {
+    status_.Reject(InputProblemCounter(problem));
     return;
   }
-  if (site_robots_.count(pose.robot_id) == 0) {
-    status_.Reject("unknown_robot");
-    return;
-  }
-  if (pose.status == pose2d_t::STATUS_LOST) return;
-  if (!std::isfinite(pose.x_m) || !std::isfinite(pose.y_m) || std::isinf(pose.covariance[0][0]) ||
-      std::isinf(pose.covariance[1][1])) {
-    status_.Reject("non_finite");
-    return;
-  }
+  if (pose.status == PoseStatus::kLost) return;
   for (size_t i = 0; i < setup_.robots.size(); ++i) {
     if (setup_.robots[i].robot_id != pose.robot_id) continue;
     const double h = setup_.marker_height_m[i];
@@ -401,43 +396,41 @@ bool CameraNode::SearchFullFrame(camera::FrameImage* image, std::vector<vision::
   return true;
 }
 
-void CameraNode::OnFrame(camera::Frame* frame, int64_t now_utime) {
-  if (tracker_ == nullptr || frame->image == nullptr) return;
-  const int64_t begin_us = options_.steady_clock();
+bool CameraNode::AcceptFrame(const camera::Frame& frame, int64_t now_utime) {
   status_.AddInputs();
   // A gap in the source's numbering is frames the camera dropped, less the
   // ones that came but were unreadable (counted as such in OnBadFrame).
   // The source's own skips (a synthetic renderer behind real time) are
   // counted apart: they are not frames camera_proc failed to keep up with.
-  if (frame->source_skipped > 0) status_.Count("source_skipped_frames", frame->source_skipped);
-  if (last_seq_ >= 0 && frame->seq > last_seq_ + 1) {
-    const int64_t dropped = frame->seq - last_seq_ - 1 - bad_since_last_ - frame->source_skipped;
+  if (frame.source_skipped > 0) status_.Count("source_skipped_frames", frame.source_skipped);
+  if (last_seq_ >= 0 && frame.seq > last_seq_ + 1) {
+    const int64_t dropped = frame.seq - last_seq_ - 1 - bad_since_last_ - frame.source_skipped;
     if (dropped > 0) status_.AddDropped(dropped);
   }
   bad_since_last_ = 0;
-  last_seq_ = frame->seq;
+  last_seq_ = frame.seq;
   // A frame handed over more than two frame periods after its capture
   // waited behind a slow one: the pipeline is not keeping up.
-  if (camera_.fps > 0.0 && now_utime - frame->capture_utime > 2.0e6 / camera_.fps) {
+  if (camera_.fps > 0.0 && now_utime - frame.capture_utime > 2.0e6 / camera_.fps) {
     status_.Count("late_frames");
   }
-  camera::FrameImage* image = frame->image.get();
+  const camera::FrameImage* image = frame.image.get();
   if (image->width_px() != camera_.width_px || image->height_px() != camera_.height_px) {
     status_.Reject("wrong_frame_size");
-    status_.SetError("frame " + std::to_string(frame->seq) + " is " +
+    status_.SetError("frame " + std::to_string(frame.seq) + " is " +
                          std::to_string(image->width_px()) + "x" +
                          std::to_string(image->height_px()) + ", the site says " +
                          std::to_string(camera_.width_px) + "x" + std::to_string(camera_.height_px),
                      now_utime);
-    return;
+    return false;
   }
+  return true;
+}
 
-  std::vector<vision::SearchPlan> plans = tracker_->Plan(frame->capture_utime);
-  if (options_.always_full_search) {
-    for (vision::SearchPlan& p : plans) p.full_frame = true;
-  }
-  bool full = false;
-  for (const vision::SearchPlan& p : plans) full = full || p.full_frame;
+bool CameraNode::DetectBlobs(const camera::Frame& frame,
+                             const std::vector<vision::SearchPlan>& plans, bool full,
+                             std::vector<vision::Blob>* all, int64_t now_utime) {
+  camera::FrameImage* image = frame.image.get();
   std::string error;
   std::vector<vision::Blob> full_blobs;
   std::vector<std::vector<vision::Blob>> window_blobs(plans.size());
@@ -462,8 +455,8 @@ void CameraNode::OnFrame(camera::Frame* frame, int64_t now_utime) {
   }
   if (!decoded) {
     status_.Reject("corrupt_frame");
-    status_.SetError("frame " + std::to_string(frame->seq) + ": " + error, now_utime);
-    return;
+    status_.SetError("frame " + std::to_string(frame.seq) + ": " + error, now_utime);
+    return false;
   }
   // Every blob seen, once: a robot's markers may be in its window and in the
   // full-frame search of the same frame. A window's own measurement is kept
@@ -474,15 +467,18 @@ void CameraNode::OnFrame(camera::Frame* frame, int64_t now_utime) {
     for (const vision::Blob& b : list) unique.Add(b);
   }
   for (const vision::Blob& b : full_blobs) unique.Add(b);
-  const std::vector<vision::Blob> all = unique.Take();
-  Track(frame->capture_utime, plans, all, now_utime);
+  *all = unique.Take();
+  return true;
+}
 
+MarkerPixels CameraNode::MarkerPixelsOf(const camera::Frame& frame, bool full,
+                                        const std::vector<vision::Blob>& all) {
   MarkerPixels msg;
-  msg.utime = frame->capture_utime;
+  msg.utime = frame.capture_utime;
   msg.camera_id = camera_.id;
-  msg.frame_seq = frame->seq;
-  msg.width_px = image->width_px();
-  msg.height_px = image->height_px();
+  msg.frame_seq = frame.seq;
+  msg.width_px = frame.image->width_px();
+  msg.height_px = frame.image->height_px();
   msg.search_mode = full ? SearchMode::kFullFrame : SearchMode::kRegionOfInterest;
   for (const vision::Blob& b : all) {
     PixelMarker m;
@@ -518,6 +514,25 @@ void CameraNode::OnFrame(camera::Frame* frame, int64_t now_utime) {
                   static_cast<int64_t>(msg.markers.size()) - wire_cap::kMarkersPerFrame);
     msg.markers.resize(static_cast<size_t>(wire_cap::kMarkersPerFrame));
   }
+  return msg;
+}
+
+void CameraNode::OnFrame(camera::Frame* frame, int64_t now_utime) {
+  if (tracker_ == nullptr || frame->image == nullptr) return;
+  const int64_t begin_us = options_.steady_clock();
+  if (!AcceptFrame(*frame, now_utime)) return;
+
+  std::vector<vision::SearchPlan> plans = tracker_->Plan(frame->capture_utime);
+  if (options_.always_full_search) {
+    for (vision::SearchPlan& p : plans) p.full_frame = true;
+  }
+  bool full = false;
+  for (const vision::SearchPlan& p : plans) full = full || p.full_frame;
+  std::vector<vision::Blob> all;
+  if (!DetectBlobs(*frame, plans, full, &all, now_utime)) return;
+  Track(frame->capture_utime, plans, all, now_utime);
+
+  MarkerPixels msg = MarkerPixelsOf(*frame, full, all);
   for (const vision::RobotObservation& o : observations_) {
     if (!o.found) continue;
     detector_->ObserveTracked(o.position);

@@ -7,7 +7,6 @@
 #include <map>
 #include <memory>
 #include <optional>
-#include <set>
 #include <string>
 #include <vector>
 
@@ -18,18 +17,13 @@
 #include "core/vision/robot_tracker.h"
 #include "core/world/site.h"
 #include "msgio/bus.h"
+#include "msgio/channels.h"
 #include "msgio/lcm_types_fwd.h"
 #include "msgio/messages.h"
 #include "msgio/process.h"
 #include "msgio/subscriptions.h"
 
 namespace roomfix {
-
-inline constexpr char kMarkerPixelsChannel[] = "MARKER_PIXELS";
-inline constexpr char kCameraPoseChannel[] = "POSE_CAMERA";
-inline constexpr char kCameraPreviewChannel[] = "CAMERA_PREVIEW";
-inline constexpr char kDetectorViewChannel[] = "CAMERA_DETECTOR_VIEW";
-inline constexpr char kDetectorViewRequestChannel[] = "CAMERA_DETECTOR_VIEW_REQUEST";
 
 struct CameraNodeOptions {
   vision::LightingMode lighting = vision::LightingMode::kAdaptive;
@@ -76,7 +70,7 @@ struct CameraNodeOptions {
   // Poses on these channels (the ultrasound, the fused track) tell the
   // tracker roughly where a robot is, so a start-up with a look-alike in view
   // resolves itself; empty: none.
-  std::vector<std::string> hint_channels = {"POSE_ULTRASOUND"};
+  std::vector<std::string> hint_channels = {kUltrasoundPoseChannel};
   // The hint's radius: 3 sigma of its covariance, at least this (m).
   double hint_min_radius_m = 0.15;
   double hint_max_radius_m = 0.5;
@@ -178,6 +172,19 @@ class CameraNode {
   const calib::CameraTiming& timing() const { return timing_; }
 
  private:
+  // The steps of OnFrame. Counts the frame (and the frames missed before
+  // it); false, counted, when its size is not the camera's.
+  bool AcceptFrame(const camera::Frame& frame, int64_t now_utime);
+  // Every blob of the frame once, from the full-frame search (when `full`)
+  // and the planned windows; false, counted, when the image cannot be
+  // decoded.
+  bool DetectBlobs(const camera::Frame& frame, const std::vector<vision::SearchPlan>& plans,
+                   bool full, std::vector<vision::Blob>* all, int64_t now_utime);
+  // The frame's MARKER_PIXELS (without its processing time): each blob with
+  // the robot and role the tracker gave it, cut to the wire cap with the
+  // robots' markers first.
+  MarkerPixels MarkerPixelsOf(const camera::Frame& frame, bool full,
+                              const std::vector<vision::Blob>& all);
   bool SearchFullFrame(camera::FrameImage* image, std::vector<vision::Blob>* blobs,
                        std::string* error);
   // Tracking from one frame's blobs (each marker once): sets observations_
@@ -185,7 +192,7 @@ class CameraNode {
   void Track(int64_t capture_utime, const std::vector<vision::SearchPlan>& plans,
              const std::vector<vision::Blob>& blobs, int64_t now_utime);
   void PublishPoses(int64_t capture_utime, int64_t frame_seq, int64_t latency_us);
-  void OnHint(const pose2d_t& pose, const MessageInfo& info);
+  void OnHint(const pose2d_t& msg, const MessageInfo& info);
   // The low-rate images after a frame's work: the preview and the detector
   // view, each when due.
   void PublishLowRateViews(const camera::Frame& frame, int64_t now_utime);
@@ -205,8 +212,8 @@ class CameraNode {
   Eigen::Vector2d Velocity(size_t robot) const;
 
   const Camera& camera_;
-  // The site's robot ids: a hint for any other is refused (unknown_robot).
-  std::set<int> site_robots_;
+  // A copy: what ReceivePose checks a hint's robot against.
+  Site site_;
   std::optional<calib::Calibration> calibration_;
   Bus* bus_;
   CameraNodeOptions options_;

@@ -26,16 +26,31 @@
 namespace roomfix {
 namespace {
 
-// Targets of the camera issue (#5) and the pipeline target of the
-// calibration issue (#6), here with the true lens as the calibration so that
-// only detection and mapping are judged.
-constexpr double kStaticRmseM = 0.003;
-constexpr double kCircleRmseM = 0.005;
+// The issue targets (camera #5: 3 mm static, 5 mm on the circle) are met
+// ten times over here, with the true lens as the calibration so that only
+// detection and mapping are judged; the bounds are what these renders
+// measure (deterministic: fixed scenes, seeds and JPEG quality; printed by
+// each test), times kMargin. The margin leaves room for another compiler's
+// or libjpeg's rounding, which moves these figures by a few hundredths of a
+// millimetre, and fails a change that makes them half as bad again.
+constexpr double kMargin = 1.5;
+// Measured 0.05, 0.19 and 0.30 mm at the three static places (the worst at
+// the corner (3.4, 2.5), where the fisheye squeezes a pixel into most floor).
+constexpr double kStaticRmseM = 0.00030 * kMargin;
+// Measured 0.11 mm on the reference circle (300 clean frames).
+constexpr double kCircleRmseM = 0.00011 * kMargin;
+// Measured 0.23 mm under "lighting" and "harsh" (with hints), worst fix
+// 0.73 mm in both.
+constexpr double kLightingRmseM = 0.00023 * kMargin;
+constexpr double kLightingWorstM = 0.00073 * kMargin;
+// Measured 0.12 and 0.13 mm for the two robots of 60 frames.
+constexpr double kTwoRobotsRmseM = 0.00013 * kMargin;
 constexpr double kDetectionRate = 0.995;
 // A find farther than this from the truth is a false track.
 constexpr double kFalseTrackM = 0.03;
-// Heading from two markers 10 cm apart: a few milliradians.
-constexpr double kHeadingRmseRad = 0.03;
+// Heading from two markers 10 cm apart: measured 0.38 to 2.69 mrad (the
+// largest under the rolling shutter, 2.20 on the circle).
+constexpr double kHeadingRmseRad = 0.00269 * kMargin;
 constexpr int64_t kStartUtime = 1'700'000'000'000'000;
 
 struct PipelineRun {
@@ -186,7 +201,7 @@ class CameraNodeTest : public ::testing::Test {
   std::function<void(int, CameraNode*)> before_frame_;
 };
 
-TEST_F(CameraNodeTest, StaticRobotIsLocatedToThreeMillimetres) {
+TEST_F(CameraNodeTest, StaticRobotIsLocatedToHalfAMillimetre) {
   for (const auto& [x, y] :
        std::vector<std::pair<double, double>>{{2.0, 1.5}, {0.6, 0.5}, {3.4, 2.5}}) {
     MakeStatic(x, y, 0.7);
@@ -200,7 +215,7 @@ TEST_F(CameraNodeTest, StaticRobotIsLocatedToThreeMillimetres) {
   }
 }
 
-TEST_F(CameraNodeTest, ReferenceCircleIsTrackedToFiveMillimetres) {
+TEST_F(CameraNodeTest, ReferenceCircleIsTrackedToAFifthOfAMillimetre) {
   // The reference's test drive at about 18 cm/s; 10 s of frames.
   const PipelineRun run = RunFrames("clean", 300);
   const Errors e = Score(run);
@@ -236,8 +251,8 @@ TEST_F(CameraNodeTest, HoldsThroughLightingChangesFlickerAndNoise) {
   std::printf("lighting: RMSE %.2f mm, worst %.2f mm, detection %.4f\n", e.rmse_m * 1e3,
               e.worst_m * 1e3, e.detection_rate);
   EXPECT_GE(e.detection_rate, kDetectionRate);
-  EXPECT_LT(e.worst_m, kFalseTrackM);
-  EXPECT_LT(e.rmse_m, kCircleRmseM);
+  EXPECT_LT(e.worst_m, kLightingWorstM);
+  EXPECT_LT(e.rmse_m, kLightingRmseM);
 }
 
 TEST_F(CameraNodeTest, NeverLocksOnToALookalikeAtStartUp) {
@@ -260,7 +275,9 @@ TEST_F(CameraNodeTest, AnUltrasoundHintResolvesTheLookalikeAndTheTrackHolds) {
   std::printf("distractors + lighting, with hints: RMSE %.2f mm, worst %.2f mm, detection %.4f\n",
               e.rmse_m * 1e3, e.worst_m * 1e3, e.detection_rate);
   EXPECT_GE(e.detection_rate, kDetectionRate);
-  EXPECT_LT(e.worst_m, kFalseTrackM);
+  EXPECT_LT(e.worst_m, kFalseTrackM) << "locked on to the look-alike";
+  EXPECT_LT(e.worst_m, kLightingWorstM);
+  EXPECT_LT(e.rmse_m, kLightingRmseM);
   EXPECT_GT(run.node->status().counter("hints"), 0);
 }
 
@@ -296,15 +313,16 @@ TEST_F(CameraNodeTest, TwoRobotsWithTheirOwnMarkerPairsKeepTheirIds) {
     const double rmse = std::sqrt(s.first / s.second);
     std::printf("robot %d: %d poses, %.2f mm RMS\n", id, s.second, rmse * 1e3);
     EXPECT_EQ(s.second, 60);
-    EXPECT_LT(rmse, kCircleRmseM);
+    EXPECT_LT(rmse, kTwoRobotsRmseM);
   }
 }
 
 TEST_F(CameraNodeTest, AReferenceNineRegionTableStillWorks) {
   // The reference's calibration form, loaded from its table: the robot is
   // found and mapped, to the table's (centimetre-level) accuracy; a robot at
-  // another height than the table's is refused up front.
-  constexpr double kNineRegionRmseM = 0.05;
+  // another height than the table's is refused up front. Measured 4.4 mm
+  // (the table's interpolation error at this place, deterministic).
+  constexpr double kNineRegionRmseM = 0.0044 * kMargin;
   lens_ = calib::NominalCamera(camera_.mount_position_m, camera_.field_of_view_deg,
                                camera_.width_px, camera_.height_px);
   calib::Calibration table;
@@ -705,9 +723,9 @@ TEST_F(CameraNodeTest, RollingShutterPoseIsWhereTheRobotWasAtItsStatedUtime) {
       "rolling shutter: RMSE %.2f mm at the stated utime, %.2f mm at the capture time, "
       "heading %.2f mrad\n",
       rmse_m * 1e3, rmse_capture_m * 1e3, heading_rmse_rad * 1e3);
-  // The clean pipeline's 0.3 mm plus the 1 ms sub-steps' time quantisation
-  // and the streak's JPEG edges: well under a millimetre.
-  constexpr double kStatedTimeRmseM = 0.001;
+  // The clean pipeline's 0.1 mm on the circle plus the 1 ms sub-steps' time
+  // quantisation and the streak's JPEG edges: measured 0.13 mm.
+  constexpr double kStatedTimeRmseM = 0.00013 * kMargin;
   EXPECT_LT(rmse_m, kStatedTimeRmseM);
   // Stamped with the capture time the same poses are a centimetre off.
   EXPECT_GT(rmse_capture_m, 0.008);

@@ -1,6 +1,7 @@
 # Install rules and the Debian package (docs/install.md says what goes where).
 #
-#   <prefix>/bin/                     the processes, the roomfix tool and
+#   <prefix>/bin/                     the processes, the roomfix tool, its
+#                                     benchmarks (roomfix_bench) and
 #                                     roomfix-spy (scripts/spy; with the jar)
 #   <prefix>/share/roomfix/config/    sites, calibrations, bot-procman files
 #   <prefix>/share/roomfix/lcmtypes/  the message definitions (.lcm)
@@ -20,8 +21,10 @@
 # static: the programs need no RPATH and link system libraries only.
 include(CMakePackageConfigHelpers)
 
+# roomfix_bench too: docs/operations.md, "Sizing a lab", has a lab run its
+# capacity bench on its own hosts (docs/install.md).
 set(ROOMFIX_PROGRAMS camera_proc trilat_proc fusion_proc zigbee_bridge roomfix_logger
-    roomfix_viewer roomfix_sim roomfix)
+    roomfix_viewer roomfix_sim roomfix roomfix_bench)
 install(TARGETS ${ROOMFIX_PROGRAMS} RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR}
         COMPONENT runtime)
 
@@ -71,7 +74,8 @@ if(ROOMFIX_MAN_PAGES)
   set(man_name_roomfix_logger "records roomfix's LCM channels into log files")
   set(man_name_roomfix_viewer "shows the room, the robots' poses and every process's health")
   set(man_name_roomfix_sim "simulates a site: robots, ultrasonic beacons and receivers, cameras")
-  set(man_name_roomfix "roomfix's tool: check-config, listen, log-info, analyze, replay, bench")
+  set(man_name_roomfix "roomfix's tool: check-config, listen, log-info, analyze, replay, export")
+  set(man_name_roomfix_bench "roomfix's benchmarks: camera, trilat, radio, capacity, logger, replay")
   set(man_name_roomfix-spy "lcm-spy with roomfix's message types")
   set(man_programs ${ROOMFIX_PROGRAMS})
   if(ROOMFIX_JAVA)
@@ -155,7 +159,8 @@ set(CPACK_PACKAGE_DESCRIPTION_SUMMARY
 set(CPACK_PACKAGE_DESCRIPTION [=[
 Small processes exchanging LCM messages: camera_proc (the ceiling camera),
 zigbee_bridge and trilat_proc (ultrasonic trilateration), fusion_proc,
-roomfix_logger, roomfix_viewer, roomfix_sim and the roomfix tool.
+roomfix_logger, roomfix_viewer, roomfix_sim, the roomfix tool and
+roomfix_bench (its benchmarks).
 For other lab software: the message headers, the .lcm files, a CMake
 package (roomfix::lcmtypes) and the Java types jar.]=])
 set(CPACK_PACKAGING_INSTALL_PREFIX /usr)

@@ -35,7 +35,7 @@ analysis::FixQuality ReplayIntoFilter(const PoseLogs& logs, const std::string& s
   for (const PoseSample& s : samples) {
     fusion::Measurement m;
     m.utime = s.utime;
-    m.source = fusion::Source::kUltrasound;
+    m.source = PoseSource::kUltrasound;
     m.position_m = {s.x_m, s.y_m};
     m.position_cov_m2 << s.cov_xx_m2, s.cov_xy_m2, s.cov_xy_m2, s.cov_yy_m2;
     fusion::Estimate e;

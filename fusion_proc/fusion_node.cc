@@ -7,6 +7,7 @@
 #include <string>
 
 #include "msgio/message_conversions.h"
+#include "msgio/received.h"
 #include "msgio/time_limits.h"
 
 namespace roomfix {
@@ -47,8 +48,7 @@ bool FusionNodeOptions::IsValid(std::string* error) const {
 
 FusionNode::FusionNode(const Site& site, Bus* bus, const FusionNodeOptions& options,
                        int64_t start_utime)
-    : bus_(bus), options_(options), status_("fusion_proc", start_utime) {
-  for (const Robot& robot : site.robots) site_robots_.insert(robot.id);
+    : site_(site), bus_(bus), options_(options), status_("fusion_proc", start_utime) {
   for (const Camera& camera : site.cameras) {
     site_cameras_.insert(camera.id);
     for (const CameraRobot& robot : camera.robots) {
@@ -62,11 +62,11 @@ FusionNode::FusionNode(const Site& site, Bus* bus, const FusionNodeOptions& opti
   }
   subscriptions_.Add(bus_->Subscribe<pose2d_t>(
       options_.camera_channel, [this](const pose2d_t& pose, const MessageInfo& info) {
-        OnPose(pose, info, fusion::Source::kCamera);
+        OnPose(pose, info, PoseSource::kCamera);
       }));
   subscriptions_.Add(bus_->Subscribe<pose2d_t>(
       options_.ultrasound_channel, [this](const pose2d_t& pose, const MessageInfo& info) {
-        OnPose(pose, info, fusion::Source::kUltrasound);
+        OnPose(pose, info, PoseSource::kUltrasound);
       }));
   status_.SetState(process_status_t::STATE_RUNNING);
 }
@@ -76,86 +76,42 @@ const fusion::PoseFilter* FusionNode::filter(int robot_id) const {
   return it == tracks_.end() ? nullptr : &it->second.filter;
 }
 
-void FusionNode::OnPose(const pose2d_t& pose, const MessageInfo& info, fusion::Source source) {
-  const std::string name = fusion::SourceName(source);
+void FusionNode::OnPose(const pose2d_t& msg, const MessageInfo& info, PoseSource source) {
+  const std::string name = PoseSourceName(source);
   status_.AddInputs();
   status_.Count("inputs_" + name);
   // Per-camera counters, for the site's cameras only (a sender can invent
   // ids; the counter list must stay bounded): camera_<id>_inputs,
   // camera_<id>_accepted (initialisations included), camera_<id>_gated.
   std::string per_camera;
-  if (source == fusion::Source::kCamera) {
-    if (site_cameras_.count(pose.camera_id) != 0) {
-      per_camera = "camera_" + std::to_string(pose.camera_id) + "_";
+  if (source == PoseSource::kCamera) {
+    if (site_cameras_.count(msg.camera_id) != 0) {
+      per_camera = "camera_" + std::to_string(msg.camera_id) + "_";
       status_.Count(per_camera + "inputs");
     } else {
       status_.Count("camera_unlisted_inputs");
     }
   }
-  auto refuse = [&](const char* reason, const std::string& why) {
-    status_.Reject(reason);
-    status_.SetError(name + " pose of robot " + std::to_string(pose.robot_id) + ": " + why,
+  Pose2d pose;
+  std::string why;
+  InputProblem problem = InputProblem::kNone;
+  if (!ReceivePose(msg, site_, info.recv_utime, &pose, &why, &problem)) {
+    status_.Reject(InputProblemCounter(problem));
+    status_.SetError(name + " pose of robot " + std::to_string(msg.robot_id) + ": " + why,
                      info.recv_utime);
-  };
-  if (!UtimeNear(pose.utime, info.recv_utime)) {
-    refuse("utime_out_of_range",
-           "measurement time " + std::to_string(pose.utime) +
-               " us is more than an hour before or 0.1 s after its receive time");
     return;
   }
-  if (site_robots_.count(pose.robot_id) == 0) {
-    refuse("unknown_robot", "the site file does not list this robot");
-    return;
-  }
-  if (pose.status == pose2d_t::STATUS_LOST) {
+  if (pose.status == PoseStatus::kLost) {
     // The sensor saw nothing: not a measurement, and not an error.
     status_.Count("lost_input_" + name);
     return;
   }
-  // NaN stands for "unknown" where the message allows it (heading, its
-  // variance and covariances, z); an infinity never, and a position with its
-  // covariance must be there in a pose that is not LOST.
-  bool infinite = std::isinf(pose.z_m) || std::isinf(pose.heading_rad);
-  for (const auto& row : pose.covariance) {
-    for (double v : row) infinite = infinite || std::isinf(v);
-  }
-  if (infinite || !std::isfinite(pose.x_m) || !std::isfinite(pose.y_m) ||
-      !std::isfinite(pose.covariance[0][0]) || !std::isfinite(pose.covariance[0][1]) ||
-      !std::isfinite(pose.covariance[1][0]) || !std::isfinite(pose.covariance[1][1])) {
-    refuse("non_finite", "a position, covariance or heading that is not a finite number");
-    return;
-  }
-  fusion::Measurement m;
-  m.utime = pose.utime;
-  m.source = source;
-  m.camera_id = source == fusion::Source::kCamera ? pose.camera_id : kNoCameraId;
-  m.seq = pose.measurement_seq;
-  m.position_m = {pose.x_m, pose.y_m};
-  m.position_cov_m2 << pose.covariance[0][0], pose.covariance[0][1], pose.covariance[1][0],
-      pose.covariance[1][1];
-  m.heading_rad = pose.heading_rad;
-  m.heading_var_rad2 = pose.covariance[2][2];
-  if (source == fusion::Source::kCamera) {
-    auto tilt = tilt_sigma_m_.find({pose.camera_id, pose.robot_id});
-    if (tilt != tilt_sigma_m_.end()) m.correlated_sigma_m = tilt->second;
-  }
-
-  auto it = tracks_.find(pose.robot_id);
-  if (it == tracks_.end()) {
-    // The robot's camera bias from the site, unless the options turned the
-    // model off (a correlation time of 0).
-    fusion::PoseFilterOptions filter_options = options_.filter;
-    auto bias = robot_bias_sigma_m_.find(pose.robot_id);
-    if (bias != robot_bias_sigma_m_.end() && filter_options.camera_bias_sigma_m == 0.0) {
-      filter_options.camera_bias_sigma_m = bias->second;
-    }
-    it = tracks_.emplace(pose.robot_id, Track(filter_options)).first;
-  }
-  Track& track = it->second;
+  Track& track = TrackOf(pose.robot_id);
   track.last_recv_utime = info.recv_utime;
   const bool was_initialised = track.filter.initialised();
   fusion::Estimate estimate;
-  const fusion::Outcome outcome = track.filter.Add(m, info.recv_utime, &estimate);
+  const fusion::Outcome outcome =
+      track.filter.Add(MeasurementOf(pose, source), info.recv_utime, &estimate);
   // Only a measurement the filter took says how late this source runs: a
   // refused one (too late, from the future, invalid, gated) may be a stale
   // log replayed onto the bus or a hostile datagram, and would stretch or
@@ -166,6 +122,52 @@ void FusionNode::OnPose(const pose2d_t& pose, const MessageInfo& info, fusion::S
     track.delay_us[src] = std::max<int64_t>(0, SaturatingDifferenceUs(info.recv_utime, pose.utime));
     track.delay_recv_utime[src] = info.recv_utime;
   }
+  if (!CountOutcome(outcome, was_initialised, name, pose, info.recv_utime)) return;
+  if (!per_camera.empty()) {
+    status_.Count(per_camera + (outcome == fusion::Outcome::kGated ? "gated" : "accepted"));
+  }
+  if (outcome != fusion::Outcome::kGated) {
+    track.lost_reported = false;
+    if (std::isfinite(pose.z_m)) track.z_m = pose.z_m;
+  }
+  Publish(pose.robot_id, estimate, track.z_m, info.recv_utime);
+}
+
+fusion::Measurement FusionNode::MeasurementOf(const Pose2d& pose, PoseSource source) const {
+  fusion::Measurement m;
+  m.utime = pose.utime;
+  m.source = source;
+  m.camera_id = source == PoseSource::kCamera ? pose.camera_id : kNoCameraId;
+  m.seq = pose.measurement_seq;
+  m.position_m = {pose.x_m, pose.y_m};
+  m.position_cov_m2 << pose.covariance[0][0], pose.covariance[0][1], pose.covariance[1][0],
+      pose.covariance[1][1];
+  m.heading_rad = pose.heading_rad;
+  m.heading_var_rad2 = pose.covariance[2][2];
+  if (source == PoseSource::kCamera) {
+    auto tilt = tilt_sigma_m_.find({pose.camera_id, pose.robot_id});
+    if (tilt != tilt_sigma_m_.end()) m.correlated_sigma_m = tilt->second;
+  }
+  return m;
+}
+
+FusionNode::Track& FusionNode::TrackOf(int32_t robot_id) {
+  auto it = tracks_.find(robot_id);
+  if (it == tracks_.end()) {
+    // The robot's camera bias from the site, unless the options turned the
+    // model off (a correlation time of 0).
+    fusion::PoseFilterOptions filter_options = options_.filter;
+    auto bias = robot_bias_sigma_m_.find(robot_id);
+    if (bias != robot_bias_sigma_m_.end() && filter_options.camera_bias_sigma_m == 0.0) {
+      filter_options.camera_bias_sigma_m = bias->second;
+    }
+    it = tracks_.emplace(robot_id, Track(filter_options)).first;
+  }
+  return it->second;
+}
+
+bool FusionNode::CountOutcome(fusion::Outcome outcome, bool was_initialised,
+                              const std::string& name, const Pose2d& pose, int64_t recv_utime) {
   switch (outcome) {
     case fusion::Outcome::kAccepted:
       break;
@@ -183,26 +185,19 @@ void FusionNode::OnPose(const pose2d_t& pose, const MessageInfo& info, fusion::S
       break;
     case fusion::Outcome::kTooLate:
       status_.Reject("too_late");
-      return;
+      return false;
     case fusion::Outcome::kFromFuture:
       status_.Reject("from_future");
       status_.SetError(name + " pose of robot " + std::to_string(pose.robot_id) + " is " +
-                           std::to_string((pose.utime - info.recv_utime) / 1000) +
+                           std::to_string((pose.utime - recv_utime) / 1000) +
                            " ms ahead of the clock",
-                       info.recv_utime);
-      return;
+                       recv_utime);
+      return false;
     case fusion::Outcome::kInvalid:
       status_.Reject("invalid_" + name);
-      return;
+      return false;
   }
-  if (!per_camera.empty()) {
-    status_.Count(per_camera + (outcome == fusion::Outcome::kGated ? "gated" : "accepted"));
-  }
-  if (outcome != fusion::Outcome::kGated) {
-    track.lost_reported = false;
-    if (std::isfinite(pose.z_m)) track.z_m = pose.z_m;
-  }
-  Publish(pose.robot_id, estimate, track.z_m, info.recv_utime);
+  return true;
 }
 
 void FusionNode::Publish(int32_t robot_id, const fusion::Estimate& e, double z_m,

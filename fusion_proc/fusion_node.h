@@ -11,18 +11,18 @@
 #include "core/fusion/pose_filter.h"
 #include "core/world/site.h"
 #include "msgio/bus.h"
+#include "msgio/channels.h"
 #include "msgio/lcm_types_fwd.h"
+#include "msgio/messages.h"
 #include "msgio/process.h"
 #include "msgio/subscriptions.h"
 
 namespace roomfix {
 
-inline constexpr char kFusedPoseChannel[] = "POSE_FUSED";
-
 struct FusionNodeOptions {
   fusion::PoseFilterOptions filter;
-  std::string camera_channel = "POSE_CAMERA";
-  std::string ultrasound_channel = "POSE_ULTRASOUND";
+  std::string camera_channel = kCameraPoseChannel;
+  std::string ultrasound_channel = kUltrasoundPoseChannel;
   std::string fused_channel = kFusedPoseChannel;
   // Besides one pose per measurement, publish every robot's newest estimate
   // predicted to "now" at this rate, Hz (0: only per measurement). A lost
@@ -80,8 +80,8 @@ class FusionNode {
     // Per source, the newest measurement's delay (receive time minus
     // measurement time, us, at least 0) and when it arrived: Tick judges
     // the track on the measurement clock (JudgedUtime).
-    std::array<int64_t, fusion::kNumSources> delay_us{};
-    std::array<int64_t, fusion::kNumSources> delay_recv_utime{};
+    std::array<int64_t, kNumPoseSources> delay_us{};
+    std::array<int64_t, kNumPoseSources> delay_recv_utime{};
   };
 
   // The time, on the measurement clock, at which a track's status is judged
@@ -89,13 +89,25 @@ class FusionNode {
   // within lost_after_s (docs/fusion.md, "Lost").
   int64_t JudgedUtime(const Track& track, int64_t now_utime) const;
 
-  void OnPose(const pose2d_t& pose, const MessageInfo& info, fusion::Source source);
+  // A pose from the channel of `source`: checked (ReceivePose), fused,
+  // counted and published.
+  void OnPose(const pose2d_t& msg, const MessageInfo& info, PoseSource source);
+  // The steps of OnPose. A checked pose as the filter's measurement, with
+  // the camera's correlated error from the site.
+  fusion::Measurement MeasurementOf(const Pose2d& pose, PoseSource source) const;
+  // The robot's track, created with its camera bias on its first pose.
+  Track& TrackOf(int32_t robot_id);
+  // Counts what the filter did with the pose; false when it was dropped
+  // (too late, from the future, invalid) and nothing is published.
+  bool CountOutcome(fusion::Outcome outcome, bool was_initialised, const std::string& name,
+                    const Pose2d& pose, int64_t recv_utime);
   void Publish(int32_t robot_id, const fusion::Estimate& estimate, double z_m, int64_t now_utime);
 
+  // A copy: what ReceivePose checks a pose's robot against.
+  Site site_;
   Bus* bus_;
   FusionNodeOptions options_;
   StatusReporter status_;
-  std::set<int32_t> site_robots_;
   std::set<int32_t> site_cameras_;
   // The camera's correlated error (docs/fusion.md, "Correlated camera
   // error"), m per axis: of each (camera, robot) the site lists, its marker

@@ -37,7 +37,7 @@ pose2d_t PoseOf(const StreamItem& item) {
   const fusion::Measurement& m = item.measurement;
   pose2d_t p{};
   p.utime = m.utime;
-  const bool camera = m.source == fusion::Source::kCamera;
+  const bool camera = m.source == PoseSource::kCamera;
   p.source = camera ? pose2d_t::SOURCE_CAMERA : pose2d_t::SOURCE_ULTRASOUND;
   p.camera_id = camera ? m.camera_id : kNoCameraId;
   p.robot_id = item.robot_id;
@@ -143,7 +143,7 @@ TEST_F(FusionNodeTest, FusesTheReferenceCircleNoWorseThanTheCameraAtTheCombinedR
 
   std::vector<double> camera_errors, fused_errors;
   for (const StreamItem& item : stream) {
-    if (item.measurement.source != fusion::Source::kCamera) continue;
+    if (item.measurement.source != PoseSource::kCamera) continue;
     if (SecondsSinceStart(item.measurement.utime) < kSettle_s) continue;
     camera_errors.push_back(std::hypot(item.measurement.position_m.x() - item.truth_x_m,
                                        item.measurement.position_m.y() - item.truth_y_m));
@@ -241,7 +241,7 @@ TEST_F(FusionNodeTest, PublishesLostAtEveryTickAfterASilenceThenReinitialises) {
   fused_.clear();
   StreamItem next = MakeStream(*circle_, StreamOptions()).back();
   next.measurement.utime = UtimeAt(8.0);
-  next.measurement.source = fusion::Source::kCamera;
+  next.measurement.source = PoseSource::kCamera;
   pose2d_t pose = PoseOf(next);
   pose.x_m = 1.0;
   pose.y_m = 1.0;
@@ -359,7 +359,7 @@ TEST_F(FusionNodeTest, KeepsTwoRobotsIndependent) {
     std::vector<uint8_t> bytes(p.getEncodedSize());
     p.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
     other_bus.Inject(
-        item.measurement.source == fusion::Source::kCamera ? "POSE_CAMERA" : "POSE_ULTRASOUND",
+        item.measurement.source == PoseSource::kCamera ? "POSE_CAMERA" : "POSE_ULTRASOUND",
         bytes.data(), static_cast<int>(bytes.size()), item.recv_utime);
   }
   std::vector<pose2d_t> robot1, robot2;
@@ -608,7 +608,7 @@ HandoverRun RunHandover(double camera1_latency_s,
   }
   std::vector<StreamItem> zero = MakeStream(*trajectory, cam0);
   for (StreamItem& item : zero) {
-    if (item.measurement.source == fusion::Source::kCamera) item.measurement.camera_id = 0;
+    if (item.measurement.source == PoseSource::kCamera) item.measurement.camera_id = 0;
   }
   run.stream = Merge(zero, one);
 
@@ -622,9 +622,8 @@ HandoverRun RunHandover(double camera1_latency_s,
     const pose2d_t p = PoseOf(item);
     std::vector<uint8_t> bytes(p.getEncodedSize());
     p.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
-    bus.Inject(
-        item.measurement.source == fusion::Source::kCamera ? "POSE_CAMERA" : "POSE_ULTRASOUND",
-        bytes.data(), static_cast<int>(bytes.size()), item.recv_utime);
+    bus.Inject(item.measurement.source == PoseSource::kCamera ? "POSE_CAMERA" : "POSE_ULTRASOUND",
+               bytes.data(), static_cast<int>(bytes.size()), item.recv_utime);
     node.Tick(item.recv_utime);
   }
   for (const char* name :
@@ -644,7 +643,7 @@ TEST(FusionNodeCameras, HandsARobotFromOneCameraToTheNextWithoutLosingItOrJumpin
   const HandoverRun run = RunHandover(0.070);
   int64_t frames[2] = {0, 0};
   for (const StreamItem& item : run.stream) {
-    if (item.measurement.source == fusion::Source::kCamera) ++frames[item.measurement.camera_id];
+    if (item.measurement.source == PoseSource::kCamera) ++frames[item.measurement.camera_id];
   }
   EXPECT_EQ(run.counters.at("camera_0_inputs"), frames[0]);
   EXPECT_EQ(run.counters.at("camera_1_inputs"), frames[1]);
@@ -745,13 +744,12 @@ double FusedCoverageWithATiltingRobot(const FusionNodeOptions& options) {
                             [&](const pose2d_t& p, const MessageInfo&) { fused.push_back(p); });
     FusionNode node(site, &bus, options, fusion::synthetic::kStartUtime);
     for (StreamItem& item : stream) {
-      if (item.measurement.source == fusion::Source::kCamera) item.measurement.camera_id = 0;
+      if (item.measurement.source == PoseSource::kCamera) item.measurement.camera_id = 0;
       const pose2d_t p = PoseOf(item);
       std::vector<uint8_t> bytes(p.getEncodedSize());
       p.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
-      bus.Inject(
-          item.measurement.source == fusion::Source::kCamera ? "POSE_CAMERA" : "POSE_ULTRASOUND",
-          bytes.data(), static_cast<int>(bytes.size()), item.recv_utime);
+      bus.Inject(item.measurement.source == PoseSource::kCamera ? "POSE_CAMERA" : "POSE_ULTRASOUND",
+                 bytes.data(), static_cast<int>(bytes.size()), item.recv_utime);
       node.Tick(item.recv_utime);
     }
     for (const pose2d_t& p : fused) {

@@ -70,8 +70,12 @@ struct BusStats {
 // on top that encode and decode LCM types. Channel patterns follow LCM: a
 // POSIX extended regular expression that must match the whole channel name.
 //
-// Implementations: LcmBus (lcm::LCM: udpm://, memq://, file://) for
-// processes, and LoopbackBus (synchronous, in process) for log replay.
+// Implementations (OpenBus in msgio/process.h picks one for a URL):
+// UdpmBus (msgio/udpm_bus.h, our own receiver) for udpm://, LcmBus (liblcm)
+// for memq:// and where liblcm's udpm:// is asked for by name, LogFileBus
+// (msgio/log.h) for file://, and LoopbackBus (synchronous, in process) for
+// ReplayLog (the viewer's --log, the benches) and the node tests. `roomfix
+// replay` has its own (ReplayBus, tools/replay.cc).
 class Bus {
  public:
   virtual ~Bus() = default;
@@ -137,9 +141,10 @@ class Bus {
 inline constexpr int kMaxRefusedChannels = 64;
 
 // A bus over lcm::LCM. Received messages are dispatched from Handle() on the
-// calling thread. Processes use it for memq:// and file://; udpm:// goes
-// through UdpmBus (msgio/udpm_bus.h says why), except where liblcm is asked
-// for by name (roomfix_logger --via-liblcm, for `roomfix bench logger`).
+// calling thread. Processes use it for memq://; udpm:// goes through UdpmBus
+// (msgio/udpm_bus.h says why), except where liblcm is asked for by name
+// (roomfix_logger --via-liblcm, for `roomfix_bench logger`), and file://
+// through LogFileBus (msgio/log.h says why).
 //
 // Tuned for load: every subscription may queue kLcmQueueCapacity messages
 // (liblcm's default is 30, which a 100 000/s burst overflows in 0.3 ms), and

@@ -6,10 +6,12 @@ namespace roomfix {
 
 // The enums mirror the generated constants by value; a .lcm change that
 // renumbers one stops the build here.
+static_assert(static_cast<int8_t>(PoseSource::kUnknown) == pose2d_t::SOURCE_UNKNOWN);
 static_assert(static_cast<int8_t>(PoseSource::kCamera) == pose2d_t::SOURCE_CAMERA);
 static_assert(static_cast<int8_t>(PoseSource::kUltrasound) == pose2d_t::SOURCE_ULTRASOUND);
 static_assert(static_cast<int8_t>(PoseSource::kFused) == pose2d_t::SOURCE_FUSED);
 static_assert(static_cast<int8_t>(PoseSource::kGroundTruth) == pose2d_t::SOURCE_GROUND_TRUTH);
+static_assert(kNumPoseSources == pose2d_t::SOURCE_GROUND_TRUTH + 1);
 static_assert(static_cast<int8_t>(PoseStatus::kOk) == pose2d_t::STATUS_OK);
 static_assert(static_cast<int8_t>(PoseStatus::kDegraded) == pose2d_t::STATUS_DEGRADED);
 static_assert(static_cast<int8_t>(PoseStatus::kLost) == pose2d_t::STATUS_LOST);
@@ -19,22 +21,6 @@ static_assert(static_cast<int8_t>(MarkerRole::kHeading) == marker_t::ROLE_HEADIN
 static_assert(static_cast<int8_t>(SearchMode::kFullFrame) == marker_pixels_t::SEARCH_FULL_FRAME);
 static_assert(static_cast<int8_t>(SearchMode::kRegionOfInterest) ==
               marker_pixels_t::SEARCH_REGION_OF_INTEREST);
-
-const char* PoseSourceName(PoseSource source) {
-  switch (source) {
-    case PoseSource::kCamera:
-      return "camera";
-    case PoseSource::kUltrasound:
-      return "ultrasound";
-    case PoseSource::kFused:
-      return "fused";
-    case PoseSource::kGroundTruth:
-      return "ground_truth";
-    case PoseSource::kUnknown:
-      break;
-  }
-  return "unknown";
-}
 
 namespace {
 

@@ -1,7 +1,5 @@
 #include "msgio/message_json.h"
 
-#include <charconv>
-#include <cmath>
 #include <nlohmann/json.hpp>
 
 #include "msgio/wire_check.h"
@@ -191,58 +189,6 @@ ordered_json ToJson(const site_t& m) {
           {"pid", m.pid}};
 }
 
-// A string or key as nlohmann escapes it; bytes that are not UTF-8 (a
-// publisher's choice) become U+FFFD, so the line stays valid JSON.
-std::string Quoted(const std::string& text) {
-  return ordered_json(text).dump(-1, ' ', false, ordered_json::error_handler_t::replace);
-}
-
-// What ordered_json::dump() writes, but for doubles (JsonLine in the
-// header says why); objects keep their keys' insertion order.
-void AppendLine(const ordered_json& v, std::string* out) {
-  switch (v.type()) {
-    case ordered_json::value_t::object: {
-      out->push_back('{');
-      for (auto it = v.begin(); it != v.end(); ++it) {
-        if (it != v.begin()) out->push_back(',');
-        *out += Quoted(it.key());
-        out->push_back(':');
-        AppendLine(it.value(), out);
-      }
-      out->push_back('}');
-      return;
-    }
-    case ordered_json::value_t::array: {
-      out->push_back('[');
-      for (auto it = v.begin(); it != v.end(); ++it) {
-        if (it != v.begin()) out->push_back(',');
-        AppendLine(*it, out);
-      }
-      out->push_back(']');
-      return;
-    }
-    case ordered_json::value_t::number_float: {
-      const double d = v.get<double>();
-      if (!std::isfinite(d)) {
-        *out += "null";
-        return;
-      }
-      // "%.17g" in the C locale: 17 significant digits always read back to
-      // the same double; an integral value has no ".0".
-      char text[32];
-      const auto end = std::to_chars(text, text + sizeof(text), d, std::chars_format::general, 17);
-      out->append(text, end.ptr);
-      return;
-    }
-    case ordered_json::value_t::string:
-      *out += Quoted(v.get_ref<const std::string&>());
-      return;
-    default:  // integers, booleans, null
-      *out += v.dump();
-      return;
-  }
-}
-
 template <class Msg>
 bool Decode(const void* data, int size, ordered_json* json, std::string* error,
             std::string* reason) {
@@ -284,17 +230,11 @@ int64_t RoomfixTypeFingerprint(const std::string& type_name) {
   return 0;
 }
 
-std::string JsonLine(const nlohmann::ordered_json& value) {
-  std::string line;
-  AppendLine(value, &line);
-  return line;
-}
-
 bool MessageToJson(const void* data, int size, std::string* json, std::string* error,
                    std::string* reason) {
   ordered_json value;
   if (!MessageToJsonValue(data, size, &value, error, reason)) return false;
-  *json = JsonLine(value);
+  *json = value.dump(-1, ' ', false, ordered_json::error_handler_t::replace);
   return true;
 }
 

@@ -18,8 +18,11 @@ int64_t RoomfixTypeFingerprint(const std::string& type_name);
 inline constexpr char kUnknownTypeReason[] = "unknown_type";
 
 // Decodes any top-level roomfix message into one line of JSON with every
-// field ({"type": "roomfix.pose2d_t", "utime": ..., ...}); NaN and infinities
-// become null. The payload goes through DecodeChecked (wire_check.h) first.
+// field ({"type": "roomfix.pose2d_t", "utime": ..., ...}), written by
+// nlohmann's dump(): a double in the shortest form that reads back to the
+// same bits (0.1, 4.0, -0.0), NaN and infinities as null, and bytes of a
+// string that are not UTF-8 as U+FFFD, so the line always parses. The
+// payload goes through DecodeChecked (wire_check.h) first.
 // False for an unknown type or a refused payload, with a line for humans in
 // *error and the counting name in *reason (kUnknownTypeReason or one of
 // wire_refusal::*); either may be null.
@@ -27,16 +30,11 @@ bool MessageToJson(const void* data, int size, std::string* json, std::string* e
                    std::string* reason = nullptr);
 
 // The same as a value (keys in the message's field order), for a caller
-// that wraps it in its own object (`roomfix listen`); write it with JsonLine.
+// that wraps it in its own object (`roomfix listen`); dump it as
+// MessageToJson does, with error_handler_t::replace (the default handler
+// throws on a string that is not UTF-8, and strings are a publisher's bytes).
 bool MessageToJsonValue(const void* data, int size, nlohmann::ordered_json* json,
                         std::string* error, std::string* reason = nullptr);
-
-// One line of JSON. nlohmann escapes the strings and keys (bytes that are
-// not UTF-8 become U+FFFD, so the line always parses); numbers keep the
-// format roomfix has always printed: a double as "%.17g" (reads back to the
-// same bits, 4 not 4.0; nlohmann's own dump would print the shortest form,
-// 0.1 for 0.10000000000000001 and 4.0 for 4), NaN and infinities as null.
-std::string JsonLine(const nlohmann::ordered_json& value);
 
 }  // namespace roomfix
 

@@ -3,6 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <climits>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <limits>
 #include <nlohmann/json.hpp>
 
@@ -67,7 +70,7 @@ TEST(MessageJson, WritesARangeSetWithItsRanges) {
   std::string json, error;
   ASSERT_TRUE(MessageToJson(bytes.data(), static_cast<int>(bytes.size()), &json, &error));
   EXPECT_NE(json.find("\"firing_seq\":77"), std::string::npos) << json;
-  EXPECT_NE(json.find("\"ranges\":[{\"receiver_id\":3,\"receiver_position_m\":[4,0,0]"),
+  EXPECT_NE(json.find("\"ranges\":[{\"receiver_id\":3,\"receiver_position_m\":[4.0,0.0,0.0]"),
             std::string::npos)
       << json;
 }
@@ -147,11 +150,11 @@ std::string JsonOf(const Msg& m) {
   return json;
 }
 
-// One line per type, byte for byte as `roomfix listen` printed it before
-// the writer became nlohmann's (these strings are that writer's output):
-// tools and scripts reading the lines see no change, numbers included
-// (every double to 17 significant digits, "%.17g", so it reads back to the
-// same bits; integers without ".0").
+// One line per type, byte for byte as `roomfix listen` prints it: the keys
+// in the message's field order, written by nlohmann's dump(). Doubles are
+// printed in the shortest form that reads back to the same bits (0.1, not
+// 0.10000000000000001; 4.0 and -0.0, not 4 and -0; exponents as 1e-07),
+// NaN and infinities as null; integers without ".0".
 TEST(MessageJson, KeepsEveryTypesBytes) {
   pose2d_t pose = testing::MakeTestPose(1700000000000001, 3, 0.1, 1.0 / 3.0);
   pose.camera_id = 2;
@@ -161,7 +164,7 @@ TEST(MessageJson, KeepsEveryTypesBytes) {
   pose.residual_m = kAwkwardDoubles[9];
   EXPECT_EQ(
       JsonOf(pose),
-      R"({"type":"roomfix.pose2d_t","utime":1700000000000001,"source":2,"camera_id":2,"robot_id":3,"measurement_seq":17000000000,"x_m":0.10000000000000001,"y_m":0.33333333333333331,"z_m":4,"heading_rad":-2.5,"covariance":[0.10000000000000001,0.33333333333333331,4,-2.5,9.9999999999999995e-08,1e+20,-0,4.9406564584124654e-324,1.0000000000000001e+300],"residual_m":123456789.125,"num_measurements":4,"status":0,"latency_us":1500})");
+      R"({"type":"roomfix.pose2d_t","utime":1700000000000001,"source":2,"camera_id":2,"robot_id":3,"measurement_seq":17000000000,"x_m":0.1,"y_m":0.3333333333333333,"z_m":4.0,"heading_rad":-2.5,"covariance":[0.1,0.3333333333333333,4.0,-2.5,1e-07,1e+20,-0.0,5e-324,1e+300],"residual_m":123456789.125,"num_measurements":4,"status":0,"latency_us":1500})");
 
   marker_pixels_t pixels{};
   pixels.utime = 5;
@@ -184,7 +187,7 @@ TEST(MessageJson, KeepsEveryTypesBytes) {
   pixels.num_markers = 2;
   EXPECT_EQ(
       JsonOf(pixels),
-      R"({"type":"roomfix.marker_pixels_t","utime":5,"camera_id":1,"frame_seq":99,"width_px":640,"height_px":480,"search_mode":1,"processing_time_us":1234,"markers":[{"colour_class":"red","robot_id":7,"role":2,"u_px":0.10000000000000001,"v_px":123456789.125,"radius_px":null,"circularity":null,"area_px":4.9406564584124654e-324},{"colour_class":"red","robot_id":7,"role":2,"u_px":0.10000000000000001,"v_px":123456789.125,"radius_px":null,"circularity":null,"area_px":4.9406564584124654e-324}]})");
+      R"({"type":"roomfix.marker_pixels_t","utime":5,"camera_id":1,"frame_seq":99,"width_px":640,"height_px":480,"search_mode":1,"processing_time_us":1234,"markers":[{"colour_class":"red","robot_id":7,"role":2,"u_px":0.1,"v_px":123456789.125,"radius_px":null,"circularity":null,"area_px":5e-324},{"colour_class":"red","robot_id":7,"role":2,"u_px":0.1,"v_px":123456789.125,"radius_px":null,"circularity":null,"area_px":5e-324}]})");
 
   range_set_t set{};
   set.utime = 10;
@@ -205,7 +208,7 @@ TEST(MessageJson, KeepsEveryTypesBytes) {
   set.num_ranges = 1;
   EXPECT_EQ(
       JsonOf(set),
-      R"({"type":"roomfix.range_set_t","utime":10,"beacon_id":2,"firing_seq":77,"speed_of_sound_mps":343.20999999999998,"temperature_c":-0,"num_expected":4,"ranges":[{"receiver_id":3,"receiver_position_m":[9.9999999999999995e-08,1e+20,1.0000000000000001e+300],"time_of_flight_us":7284.170041665453,"range_m":2.5,"arrival_utime":11}]})");
+      R"({"type":"roomfix.range_set_t","utime":10,"beacon_id":2,"firing_seq":77,"speed_of_sound_mps":343.21,"temperature_c":-0.0,"num_expected":4,"ranges":[{"receiver_id":3,"receiver_position_m":[1e-07,1e+20,1e+300],"time_of_flight_us":7284.170041665453,"range_m":2.5,"arrival_utime":11}]})");
 
   process_status_t status{};
   status.utime = 12;
@@ -269,6 +272,50 @@ TEST(MessageJson, KeepsEveryTypesBytes) {
   EXPECT_EQ(
       JsonOf(site),
       R"({"type":"roomfix.site_t","utime":14,"site_name":"demo","site_path":"/etc/roomfix/demo.yaml","site_text_bytes":11,"files":[{"name":"camera0.yaml","bytes":12}],"missing":"","content_hash":"abc123","roomfix_version":"0.9.0","process":"trilat_proc","host":"solver","pid":4321})");
+}
+
+uint64_t Bits(double d) {
+  uint64_t bits;
+  std::memcpy(&bits, &d, sizeof bits);
+  return bits;
+}
+
+// The shortest form loses nothing: every finite double of a line parses
+// back to the same bits, the sign of a zero included, and non-finite ones
+// are null (as docs/python.md tells a reader of `roomfix listen`).
+TEST(MessageJson, EveryDoubleReadsBackBitForBit) {
+  const double doubles[] = {0.1,
+                            1e-300,
+                            123456789.123456789,
+                            -0.0,
+                            0.0,
+                            1.0 / 3.0,
+                            4.0,
+                            -2.5,
+                            1e-7,
+                            1e20,
+                            4.9406564584124654e-324,
+                            2.2250738585072014e-308,
+                            std::numeric_limits<double>::max(),
+                            1e300,
+                            123456789.125,
+                            std::nextafter(1.0, 2.0),
+                            2.5 / 343.21 * 1e6};
+  for (const double d : doubles) {
+    pose2d_t pose = testing::MakeTestPose(1, 3, d, -d);
+    pose.covariance[1][2] = d;
+    const nlohmann::json parsed = nlohmann::json::parse(JsonOf(pose));
+    EXPECT_EQ(Bits(parsed["x_m"].get<double>()), Bits(d)) << parsed["x_m"];
+    EXPECT_EQ(Bits(parsed["y_m"].get<double>()), Bits(-d)) << parsed["y_m"];
+    EXPECT_EQ(Bits(parsed["covariance"][5].get<double>()), Bits(d)) << parsed["covariance"][5];
+  }
+  pose2d_t pose = testing::MakeTestPose(1, 3, std::numeric_limits<double>::quiet_NaN(),
+                                        std::numeric_limits<double>::infinity());
+  pose.z_m = -std::numeric_limits<double>::infinity();
+  const nlohmann::json parsed = nlohmann::json::parse(JsonOf(pose));
+  EXPECT_TRUE(parsed["x_m"].is_null());
+  EXPECT_TRUE(parsed["y_m"].is_null());
+  EXPECT_TRUE(parsed["z_m"].is_null());
 }
 
 }  // namespace

@@ -16,18 +16,10 @@
 #include <string>
 #include <vector>
 
+#include "core/world/pose_source.h"
 #include "core/world/site.h"
 
 namespace roomfix {
-
-// pose2d_t::SOURCE_*.
-enum class PoseSource : int8_t {
-  kUnknown = 0,
-  kCamera = 1,
-  kUltrasound = 2,
-  kFused = 3,
-  kGroundTruth = 4,
-};
 
 // pose2d_t::STATUS_*.
 enum class PoseStatus : int8_t {
@@ -35,10 +27,6 @@ enum class PoseStatus : int8_t {
   kDegraded = 1,
   kLost = 2,
 };
-
-// "camera", "ultrasound", "fused", "ground_truth" or "unknown" (also for a
-// value outside the enum, which DecodeChecked refuses on the wire).
-const char* PoseSourceName(PoseSource source);
 
 // A pose2d_t. What a producer does not state is unknown: position, heading
 // and covariance start as NaN and the status as lost, so a lost pose needs

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "msgio/channels.h"
 #include "msgio/log.h"
 #include "msgio/message_conversions.h"
 #include "msgio/wire_check.h"
@@ -45,7 +46,7 @@ PoseLogs ReadPoseLogs(const std::vector<std::string>& paths,
         last_progress = reader->bytes_read();
         progress(static_cast<double>(done_bytes + last_progress) / total_bytes);
       }
-      if (e.channel.rfind("POSE_", 0) != 0) continue;
+      if (e.channel.rfind(kPoseChannelPrefix, 0) != 0) continue;
       ++report.pose_events;
       pose2d_t msg{};
       std::string reason;

@@ -10,6 +10,7 @@
 
 #include "core/world/site.h"
 #include "msgio/bus.h"
+#include "msgio/channels.h"
 #include "roomfix/process_status_t.hpp"
 
 namespace CLI {
@@ -21,7 +22,6 @@ namespace roomfix {
 // LCM's default group and port with ttl=0: packets never leave this host.
 // Several hosts need ttl=1 (docs/operations.md).
 inline constexpr char kDefaultLcmUrl[] = "udpm://239.255.76.67:7667?ttl=0";
-inline constexpr char kStatusChannel[] = "STATUS";
 
 // Host wall clock, microseconds since the Unix epoch. Only processes and
 // msgio read the clock; core/ takes time as an argument.
@@ -41,7 +41,7 @@ struct ProcessOptions {
   // For udpm:// URLs, speak LCM's wire format on our own socket (UdpmBus)
   // instead of going through liblcm, whose 1.3.1 fragment reassembly one
   // datagram crashes and whose queue losses cannot be counted
-  // (msgio/udpm_bus.h). false only to measure liblcm (`roomfix bench logger`).
+  // (msgio/udpm_bus.h). false only to measure liblcm (`roomfix_bench logger`).
   bool direct_udpm = true;
 };
 
@@ -156,7 +156,8 @@ int RunLoop(Bus* bus, const std::function<void(int64_t now_utime)>& tick,
             const RunLoopOptions& options);
 
 // Opens the bus for an LCM URL as processes do: udpm:// through UdpmBus (or
-// liblcm when direct_udpm is false), memq:// and file:// through LcmBus.
+// liblcm when direct_udpm is false), memq:// through LcmBus and file://
+// through LogFileBus.
 // Tools that receive without StartProcess (`roomfix listen`) use it too.
 std::unique_ptr<Bus> OpenBus(const std::string& url, std::string* error, bool direct_udpm = true);
 

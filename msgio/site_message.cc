@@ -16,6 +16,7 @@
 #include <utility>
 
 #include "core/world/file_io.h"
+#include "msgio/channels.h"
 #include "msgio/log.h"
 #include "msgio/process.h"
 #include "msgio/time_limits.h"
@@ -617,7 +618,7 @@ bool ReadSiteFromLog(const std::string& log_path, SiteFromLog* out, std::string*
   LogEvent event;
   while (reader->Next(&event)) {
     const bool is_site = event.channel == kSiteChannel;
-    if (!is_site && event.channel != "STATUS") continue;
+    if (!is_site && event.channel != kStatusChannel) continue;
     const int size = static_cast<int>(event.data.size());
     if (!is_site) {
       process_status_t status;

@@ -26,12 +26,12 @@
 
 #include "core/world/site.h"
 #include "msgio/bus.h"
+#include "msgio/channels.h"
 #include "roomfix/process_status_t.hpp"
 #include "roomfix/site_t.hpp"
 
 namespace roomfix {
 
-inline constexpr char kSiteChannel[] = "SITE";
 // How often the process elected for a site republishes it: a log started
 // (or a logger restarted) mid-run holds a SITE within this long. One site of
 // a few kB every 5 s is about 2 % of a demo log (docs/messages.md).

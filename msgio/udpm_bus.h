@@ -55,7 +55,7 @@ struct FragmentLimits {
 // (2) liblcm drops silently when a subscription's queue is full (no counter,
 // no message), so its losses cannot be reported. Throughput is no longer the
 // reason: tuned liblcm also keeps up with 100 000 small messages/s
-// (`roomfix bench logger` measures both in one run).
+// (`roomfix_bench logger` measures both in one run).
 //
 // Here Handle() drains the socket with recvmmsg in batches on the caller's
 // thread: no queue between the socket and the handlers, so the only place a

@@ -49,9 +49,9 @@ bin=$build/bin
 mapfile -t camera_ids < <("$bin/roomfix" check-config --ids cameras "$site")
 mapfile -t radio_ids < <("$bin/roomfix" check-config --ids radios "$site")
 ((camera)) || camera_ids=()
-# Every camera_proc renders and searches its own frames: measured (roomfix
-# bench capacity) a 1280 x 960 synthetic camera at 30 fps takes most of a
-# core, so with fewer than two cores per camera they run slower.
+# Every camera_proc renders and searches its own frames: measured
+# (roomfix_bench capacity) a 1280 x 960 synthetic camera at 30 fps takes
+# most of a core, so with fewer than two cores per camera they run slower.
 camera_fps=${DEMO_CAMERA_FPS:-}
 if [[ -z "$camera_fps" ]] && ((${#camera_ids[@]} > 1 && $(nproc) < 2 * ${#camera_ids[@]})); then
   camera_fps=10

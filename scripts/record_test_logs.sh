@@ -74,3 +74,12 @@ record "$data/pipeline_replay.lcm" 'RANGES|POSE_.*|STATUS|SITE|MARKER_PIXELS' --
    '$bin/roomfix_sim' --config '$site' --start-utime \$start --ranges --range-noise 0.02 \
      --nlos-probability 0.05 --dropout-probability 0.02 --seed 11 --duration 5 --log-level warn;
    sleep 0.3; kill -INT \$camera \$fusion \$solver; wait \$camera \$fusion \$solver"
+
+# The demo itself (scripts/demo.sh, 30 s: the synthetic webcam, the radio
+# with the demo's faults, zigbee_bridge, trilat_proc robust, fusion_proc)
+# without its previews and heartbeats, for the regression test of the
+# README's headline figures (DemoFigures in tests/tools/analyze_test.cc), which
+# replays its camera, trilat and fusion nodes: their inputs (MARKER_PIXELS,
+# RANGES), the ground truth, the site and the live poses.
+record "$data/demo_30s.lcm" 'RANGES|POSE_.*|SITE|MARKER_PIXELS' -- \
+  "'$here/scripts/demo.sh' '$build' 30 --inner"

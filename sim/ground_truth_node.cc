@@ -53,7 +53,7 @@ void GroundTruthNode::Tick(int64_t now_utime) {
       msg.num_measurements = 0;
       msg.status = PoseStatus::kOk;
       msg.latency_us = now_utime - utime;
-      if (bus_->Publish(kGroundTruthChannel, ToMessage(msg))) {
+      if (bus_->Publish(kGroundTruthPoseChannel, ToMessage(msg))) {
         status_.AddOutputs();
       } else {
         status_.AddDropped();

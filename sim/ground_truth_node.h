@@ -6,11 +6,10 @@
 
 #include "core/world/site.h"
 #include "msgio/bus.h"
+#include "msgio/channels.h"
 #include "msgio/process.h"
 
 namespace roomfix {
-
-inline constexpr char kGroundTruthChannel[] = "POSE_GROUND_TRUTH";
 
 struct GroundTruthNodeOptions {
   // Samples per second of every simulated robot's true pose.

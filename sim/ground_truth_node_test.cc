@@ -14,9 +14,9 @@ class GroundTruthNodeTest : public ::testing::Test {
   void SetUp() override {
     std::string error;
     ASSERT_TRUE(LoadSite(testing::DemoSitePath(), &site_, &error)) << error;
-    bus_.Subscribe<pose2d_t>(kGroundTruthChannel, [this](const pose2d_t& p, const MessageInfo&) {
-      poses_.push_back(p);
-    });
+    bus_.Subscribe<pose2d_t>(
+        kGroundTruthPoseChannel,
+        [this](const pose2d_t& p, const MessageInfo&) { poses_.push_back(p); });
   }
   Site site_;
   LoopbackBus bus_;

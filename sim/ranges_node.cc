@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "msgio/channels.h"
 #include "msgio/radio_conversions.h"
 
 namespace roomfix {
@@ -90,7 +91,7 @@ void SimRangesNode::Tick(int64_t now_utime) {
       out.arrival_utime = fire_utime + static_cast<int64_t>(out.time_of_flight_us) + 5000;
       set.ranges.push_back(out);
     }
-    bus_->Publish("RANGES", RangeSetFromAssembled(set));
+    bus_->Publish(kRangesChannel, RangeSetFromAssembled(set));
     ++f.next_seq;
     ++firings_;
   }

@@ -73,7 +73,7 @@ bool ParseSimScenario(const std::string& text, const Site& site, SimScenario* sc
 // off (no blur, vignetting, lens distortion, exposure, rolling shutter,
 // drift, shot or read noise, Bayer mosaic, tilt, wear, sheen, timestamp
 // delay); its tone curve (srgb_gamma) and MJPEG quality are kept. Tests and
-// `roomfix bench camera --error-budget` start from it and switch effects on
+// `roomfix_bench camera --error-budget` start from it and switch effects on
 // one at a time.
 WebcamSimulation WithoutWebcamEffects(WebcamSimulation w);
 

@@ -9,13 +9,13 @@ namespace roomfix {
 
 // Each subcommand of `roomfix` registers itself on the top-level app and sets
 // *exit_code from its callback (roomfix_main.cc adds them in this order;
-// docs/architecture.md lists what each does).
+// docs/architecture.md lists what each does). The benchmarks are a program
+// of their own, roomfix_bench (bench/commands.h).
 void AddVersionCommand(CLI::App* app, int* exit_code);
 void AddCheckConfigCommand(CLI::App* app, int* exit_code);
 void AddLogInfoCommand(CLI::App* app, int* exit_code);
 void AddListenCommand(CLI::App* app, int* exit_code);
 void AddSolveCommand(CLI::App* app, int* exit_code);
-void AddBenchCommand(CLI::App* app, int* exit_code);
 void AddCompareCommand(CLI::App* app, int* exit_code);
 void AddFramesCommand(CLI::App* app, int* exit_code);
 void AddAnalyzeCommand(CLI::App* app, int* exit_code);
@@ -37,26 +37,6 @@ void AddColoursCommand(CLI::App* app, int* exit_code);
 // roomfix grab: frames from a site camera's device, opened as camera_proc
 // opens it (tools/grab_command.cc, docs/camera.md "Grabbing frames").
 void AddGrabCommand(CLI::App* app, int* exit_code);
-// Adds `logger` under the `bench` subcommand.
-void AddBenchLoggerCommand(CLI::App* bench, int* exit_code);
-// Adds `radio` under the `bench` subcommand.
-void AddBenchRadioCommand(CLI::App* bench, int* exit_code);
-void AddBenchViewerCommand(CLI::App* bench, int* exit_code);
-// Adds `camera` under the `bench` subcommand.
-void AddBenchCameraCommand(CLI::App* bench, int* exit_code);
-// Adds `replay` under the `bench` subcommand.
-void AddBenchReplayCommand(CLI::App* bench, int* exit_code);
-// roomfix bench capacity: cameras, range sets, robots and messages per core
-// (tools/bench_capacity.cc).
-void AddBenchCapacityCommand(CLI::App* bench, int* exit_code);
-// roomfix bench micro (bench_micro.cc): Google Benchmark timings of the
-// camera path's kernels against baselines in the same run; without Google
-// Benchmark (bench_micro_absent.cc) a command that says it is missing.
-void AddBenchMicroCommand(CLI::App* bench, int* exit_code);
-// roomfix bench firmware (bench_firmware.cc): the firmware-in-the-loop
-// simulator's speed; without simavr (bench_firmware_absent.cc) a command
-// that says it is missing.
-void AddBenchFirmwareCommand(CLI::App* bench, int* exit_code);
 
 }  // namespace roomfix
 

@@ -7,7 +7,7 @@
 namespace roomfix {
 
 // CLI11 validators for numeric flags: a flag's value is refused while the
-// command line is parsed, as "--flag: expected <what>" (roomfix_main.cc
+// command line is parsed, as "--flag: expected <what>" (command_line.cc
 // prints it as the command's one-line refusal, exit 1). They exist beside
 // CLI11's own Range and PositiveNumber because those let NaN through (every
 // comparison with NaN is false) and take "inf"; these refuse both.

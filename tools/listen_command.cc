@@ -158,8 +158,10 @@ class LiveSiteWatch {
 // One message as one JSON line; a message refused before decoding is a line
 // with its reason, counted in *refused for the warning at exit. A channel
 // name is whatever a publisher chose (quotes, control bytes, bytes that are
-// not UTF-8): JsonLine escapes it like every other string, so each line
-// stays valid JSON.
+// not UTF-8): dump() escapes it like every other string, the bytes that are
+// not UTF-8 as U+FFFD (error_handler_t::replace; the default would throw),
+// so each line stays valid JSON. Doubles are nlohmann's shortest form that
+// reads back to the same bits; NaN and infinities are null.
 void PrintMessage(const std::string& channel, int64_t recv_utime, const void* data, int size,
                   std::map<std::string, int64_t>* refused) {
   nlohmann::ordered_json message;
@@ -174,7 +176,7 @@ void PrintMessage(const std::string& channel, int64_t recv_utime, const void* da
     line["refused"] = reason;
     line["error"] = why;
   }
-  fmt::print("{}\n", JsonLine(line));
+  fmt::print("{}\n", line.dump(-1, ' ', false, nlohmann::ordered_json::error_handler_t::replace));
   std::fflush(stdout);
 }
 

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "msgio/channels.h"
 #include "msgio/log.h"
 #include "msgio/message_json.h"
 #include "msgio/wire_check.h"
@@ -115,8 +116,8 @@ void CountCameraEvent(const LogEvent& event, LogSummary* s) {
   marker_pixels_t pixels;
   process_status_t status;
   std::string reason;
-  const bool is_status = event.channel == "STATUS";
-  const bool is_pixels = event.channel == "MARKER_PIXELS";
+  const bool is_status = event.channel == kStatusChannel;
+  const bool is_pixels = event.channel == kMarkerPixelsChannel;
   const int size = static_cast<int>(event.data.size());
   // A refused event is not a frame or a heartbeat: counted for the
   // warning, never read.

@@ -12,18 +12,13 @@
 #include "core/calib/calibration_file.h"
 #include "core/world/site.h"
 #include "fusion_proc/fusion_node.h"
+#include "msgio/channels.h"
 #include "msgio/log.h"
 #include "msgio/site_message.h"
 #include "roomfix/process_status_t.hpp"
 #include "trilat_proc/trilat_node.h"
 
 namespace roomfix {
-
-// The re-run nodes' heartbeats, with host "replay" and pid 0 (the live
-// STATUS names the replaying machine's pid, which would make two replays
-// differ), on a channel of their own so no tool takes them for a live
-// process.
-inline constexpr char kReplayStatusChannel[] = "REPLAY_STATUS";
 
 struct PipelineReplayOptions {
   // Which nodes run again. A re-run node's recorded outputs are left out of

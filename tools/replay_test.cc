@@ -167,15 +167,20 @@ TEST(PipelineReplay, ReproducesTheLiveUltrasonicPosesExactly) {
 // the replay it arrives at the range set's log time. So near a firing a
 // camera pose can be fused before the ultrasonic one in one run and after it
 // in the other: that order is the live run's own timing noise, and it
-// changes an estimate by at most one ultrasonic update. kFusedToleranceM
-// bounds that update: the filter moves by its gain times the innovation. Fed
-// by the camera at 30 Hz (sigma floor 0.5 mm), the estimate's variance is a
-// few (0.5 mm)^2, the ultrasonic fix's at least (20 mm)^2 (its sigma floor),
-// so the gain is under 4 x (0.5/20)^2 = 2.5e-3; the gate (chi-square 13.82)
-// passes an innovation of at most 3.7 x 20 mm = 74 mm: 0.19 mm, so 0.5 mm.
-// Most poses see the same order and must agree to rounding (kSameOrderM), so
-// the median separates a replay that follows the live order from one that
-// does not. (Measured: a median of 0 and a largest difference of 6 um.)
+// changes an estimate by at most one ultrasonic update: its gain times its
+// innovation. The camera's sigma floor (0.05 mm) does not bound that gain:
+// the demo site states the robot's tilt, so fusion carries a camera bias of
+// sigma_b 1.92 mm per axis (docs/fusion.md, "Correlated camera error") and
+// the position is that uncertain to an ultrasonic fix of about 20 mm: a
+// gain of about (1.92 / 20)^2 = 0.009, and the gate (chi-square 13.82)
+// passes innovations up to 3.7 x 20 mm = 74 mm, so one swap moves a pose
+// by 0.68 mm at the very most. Measured (2026-11-29, this log and three
+// re-recordings with scripts/record_test_logs.sh): the largest difference
+// 0 in all four with trilat and fusion re-run, and 0, 0, 0 and 0.36 mm with
+// the camera re-run too; kFusedToleranceM is 1.4x that 0.36 mm. Most poses
+// see the same order and must agree to rounding (kSameOrderM), so the
+// median separates a replay that follows the live order from one that does
+// not (measured: 0 in all four).
 constexpr double kFusedToleranceM = 5e-4;
 constexpr double kSameOrderM = 1e-9;
 
@@ -315,14 +320,19 @@ TEST(PipelineReplay, FusionOnTheReplayedCameraPosesStaysWithinTheLiveTimingNoise
   const std::map<FusedKey, pose2d_t> live = LiveFusedPoses(&ambiguous);
   EXPECT_LE(ambiguous, kMaxAmbiguousFusedKeys);
   ASSERT_GE(live.size(), 100u);
-  size_t compared = 0;
+  std::vector<double> errors_m;
   for (const pose2d_t& p : Poses(dir.File("new.lcm"), "POSE_FUSED")) {
     auto it = live.find({p.robot_id, p.utime, p.measurement_seq});
     if (it == live.end() || p.status == pose2d_t::STATUS_LOST) continue;
-    EXPECT_LE(std::hypot(p.x_m - it->second.x_m, p.y_m - it->second.y_m), kFusedToleranceM);
-    ++compared;
+    const double error_m = std::hypot(p.x_m - it->second.x_m, p.y_m - it->second.y_m);
+    EXPECT_LE(error_m, kFusedToleranceM) << "robot " << p.robot_id << " at " << p.utime;
+    errors_m.push_back(error_m);
   }
-  EXPECT_GE(compared, live.size());
+  EXPECT_GE(errors_m.size(), live.size());
+  std::sort(errors_m.begin(), errors_m.end());
+  std::printf(
+      "fused on replayed camera poses: %zu compared; replay - live: median %.3g m, max %.3g m\n",
+      errors_m.size(), errors_m[errors_m.size() / 2], errors_m.back());
 }
 
 TEST(PipelineReplay, TheCameraNeedsACalibratedCamera) {

@@ -23,6 +23,7 @@
 #include "core/survey/receiver_survey.h"
 #include "core/world/file_io.h"
 #include "core/world/site.h"
+#include "msgio/channels.h"
 #include "msgio/log.h"
 #include "msgio/pose_tracks.h"
 #include "msgio/wire_check.h"
@@ -147,7 +148,7 @@ bool ReadFirings(const std::string& log, const Site& site, const Beacon& beacon,
   if (!reader) return false;
   LogEvent event;
   while (reader->Next(&event)) {
-    if (event.channel != "RANGES") continue;
+    if (event.channel != kRangesChannel) continue;
     range_set_t set;
     std::string reason;
     if (!DecodeChecked(event.data.data(), static_cast<int>(event.data.size()), &set, &reason)) {

@@ -5,6 +5,7 @@
 #include <iterator>
 #include <limits>
 
+#include "msgio/received.h"
 #include "msgio/time_limits.h"
 #include "msgio/trilat_conversions.h"
 #include "roomfix/pose2d_t.hpp"
@@ -106,33 +107,13 @@ RangeSetMergerOptions TrilatNode::MergerOptions(const Site& site,
 }
 
 bool TrilatNode::Admissible(const range_set_t& set, const MessageInfo& info) {
-  auto refuse = [&](const char* reason, const std::string& why) {
-    status_.Reject(reason);
-    status_.SetError("range set from beacon " + std::to_string(set.beacon_id) + ": " + why,
-                     info.recv_utime);
-    return false;
-  };
-  if (!UtimeNear(set.utime, info.recv_utime)) {
-    return refuse("utime_out_of_range",
-                  "firing time " + std::to_string(set.utime) +
-                      " us is more than an hour before or 0.1 s after its receive time " +
-                      std::to_string(info.recv_utime) + " us");
-  }
-  if (!std::isfinite(set.speed_of_sound_mps) || !std::isfinite(set.temperature_c)) {
-    return refuse("non_finite", "speed of sound or temperature is not a finite number");
-  }
-  // One range per receiver at most: more than the site has receivers is a
-  // corrupt or hostile set, refused before any work is spent on it.
-  if (set.ranges.size() > site_.receivers.size()) {
-    return refuse("too_many_ranges", std::to_string(set.ranges.size()) +
-                                         " ranges, but the site has " +
-                                         std::to_string(site_.receivers.size()) + " receivers");
-  }
-  if (set.num_expected < 0) {
-    return refuse("negative_expected",
-                  "num_expected " + std::to_string(set.num_expected) + " is negative");
-  }
-  return true;
+  std::string why;
+  InputProblem problem = InputProblem::kNone;
+  if (CheckRangeSet(set, site_, info.recv_utime, &why, &problem)) return true;
+  status_.Reject(InputProblemCounter(problem));
+  status_.SetError("range set from beacon " + std::to_string(set.beacon_id) + ": " + why,
+                   info.recv_utime);
+  return false;
 }
 
 void TrilatNode::SolveReady() {
@@ -150,67 +131,79 @@ void TrilatNode::SolveReady() {
   status_.SetCounter("merge_open", static_cast<int64_t>(merger_.open()));
 }
 
-void TrilatNode::Solve(const range_set_t& set, const MessageInfo& info) {
-  if (!Admissible(set, info)) return;
-  trilat::SolverOptions solver = options_.solver;
-  int32_t robot_id = set.beacon_id;
-  trilat::BeaconPriorOptions prior_options = options_.prior;
+bool TrilatNode::ResolveBeacon(const range_set_t& set, const MessageInfo& info, SolveSetup* setup) {
+  setup->solver = options_.solver;
+  setup->robot_id = set.beacon_id;
+  setup->prior = options_.prior;
   if (const Beacon* beacon = site_.FindBeacon(set.beacon_id)) {
-    solver.fixed_height_m = beacon->height_m;
+    setup->solver.fixed_height_m = beacon->height_m;
     for (const Robot& robot : site_.robots) {
       if (robot.beacon_id && *robot.beacon_id == set.beacon_id) {
-        robot_id = robot.id;
-        prior_options.max_speed_mps = robot.max_speed_mps;
+        setup->robot_id = robot.id;
+        setup->prior.max_speed_mps = robot.max_speed_mps;
       }
     }
-  } else if (std::isfinite(options_.unknown_beacon_height_m)) {
-    solver.fixed_height_m = options_.unknown_beacon_height_m;
-  } else {
-    status_.Reject("unknown_beacon");
-    status_.SetError("range set from beacon " + std::to_string(set.beacon_id) +
-                         ", which the site file does not list",
-                     info.recv_utime);
-    return;
+    return true;
   }
+  if (std::isfinite(options_.unknown_beacon_height_m)) {
+    setup->solver.fixed_height_m = options_.unknown_beacon_height_m;
+    return true;
+  }
+  status_.Reject("unknown_beacon");
+  status_.SetError("range set from beacon " + std::to_string(set.beacon_id) +
+                       ", which the site file does not list",
+                   info.recv_utime);
+  return false;
+}
+
+bool TrilatNode::KeepUsableRanges(const range_set_t& set, const MessageInfo& info) {
   RangesFromMessage(set, &ranges_);
   // Ranges the node drops itself; the solver sees only the rest and drops
   // (and counts) its own: negative, too long, duplicate receiver.
   bool dropped_range = false;
   size_t kept = 0;
   for (size_t i = 0; i < ranges_.size(); ++i) {
-    const range_t& r = set.ranges[i];
-    const trilat::RangeMeasurement& m = ranges_[i];
-    if (!m.receiver_m.allFinite() || !std::isfinite(m.range_m) ||
-        !std::isfinite(r.time_of_flight_us)) {
-      status_.Reject("non_finite");
-      dropped_range = true;
-    } else if (const Receiver* receiver = site_.FindReceiver(m.receiver_id)) {
-      // The site is the authority on where its receivers are; the message's
-      // copy is only checked.
-      const Eigen::Vector3d site_m(receiver->position_m[0], receiver->position_m[1],
-                                   receiver->position_m[2]);
-      if ((site_m - m.receiver_m).norm() > kReceiverPositionTolerance_m) {
-        status_.Count("receiver_position_mismatch");
+    std::string why;
+    InputProblem problem = InputProblem::kNone;
+    const Receiver* receiver = CheckRange(set.ranges[i], site_, &why, &problem);
+    if (receiver == nullptr) {
+      status_.Reject(InputProblemCounter(problem));
+      // A non-finite range is counted only; an unknown receiver is a site
+      // that differs from the bridge's, worth the last error.
+      if (problem == InputProblem::kUnknownReceiver) {
+        status_.SetError("range set from beacon " + std::to_string(set.beacon_id) + ": " + why,
+                         info.recv_utime);
       }
-      ranges_[kept] = m;
-      ranges_[kept++].receiver_m = site_m;
-    } else {
-      status_.Reject("unknown_receiver");
-      status_.SetError("range set from beacon " + std::to_string(set.beacon_id) + ": receiver " +
-                           std::to_string(m.receiver_id) + ", which the site file does not list",
-                       info.recv_utime);
       dropped_range = true;
+      continue;
     }
+    // The site is the authority on where its receivers are; the message's
+    // copy is only checked.
+    const Eigen::Vector3d site_m(receiver->position_m[0], receiver->position_m[1],
+                                 receiver->position_m[2]);
+    if ((site_m - ranges_[i].receiver_m).norm() > kReceiverPositionTolerance_m) {
+      status_.Count("receiver_position_mismatch");
+    }
+    ranges_[kept] = ranges_[i];
+    ranges_[kept++].receiver_m = site_m;
   }
   ranges_.resize(kept);
+  return dropped_range;
+}
 
-  auto found = tracks_.find(set.beacon_id);
+TrilatNode::BeaconTrack* TrilatNode::TrackOf(int beacon_id,
+                                             const trilat::BeaconPriorOptions& prior) {
+  auto found = tracks_.find(beacon_id);
   if (found == tracks_.end() && tracks_.size() < kMaxBeaconTracks) {
-    found = tracks_.emplace(set.beacon_id, BeaconTrack()).first;
-    found->second.prior = trilat::BeaconPrior(prior_options);
+    found = tracks_.emplace(beacon_id, BeaconTrack()).first;
+    found->second.prior = trilat::BeaconPrior(prior);
     found->second.belief = trilat::NlosBelief(options_.nlos_belief);
   }
-  BeaconTrack* track = found == tracks_.end() ? nullptr : &found->second;
+  return found == tracks_.end() ? nullptr : &found->second;
+}
+
+void TrilatNode::SolveWithTrack(const range_set_t& set, const trilat::SolverOptions& solver,
+                                BeaconTrack* track) {
   const bool warm = track != nullptr && track->has_fix && set.utime >= track->last_fix_utime &&
                     SaturatingDifferenceUs(set.utime, track->last_fix_utime) * 1e-6 <=
                         options_.warm_start_max_age_s;
@@ -227,12 +220,9 @@ void TrilatNode::Solve(const range_set_t& set, const MessageInfo& info) {
   }
   trilat::Solve(ranges_, solver, warm ? &track->last_position_m : nullptr, prior, suspected, &fix_);
   if (warm) status_.Count("warm_starts");
-  if (track != nullptr) track->last_recv_utime = info.recv_utime;
-  if (dropped_range && fix_.status == trilat::FixStatus::kOk) {
-    fix_.status = trilat::FixStatus::kDegraded;
-  }
-  if (dropped_range) fix_.flags |= trilat::kBadRangesDropped;
+}
 
+void TrilatNode::CountFix() {
   for (const trilat::RejectedRange& r : fix_.rejected) {
     status_.Reject(trilat::RangeRejectionName(r.reason));
   }
@@ -245,29 +235,50 @@ void TrilatNode::Solve(const range_set_t& set, const MessageInfo& info) {
       status_.Count(name);
     }
   }
+}
+
+const char* TrilatNode::LoseUnusableFix(const range_set_t& set, const MessageInfo& info) {
+  if (!fix_.has_position()) return nullptr;
+  const char* lost_reason = nullptr;
+  if (!fix_.position_m.allFinite() || !fix_.covariance_m2.topLeftCorner<2, 2>().allFinite()) {
+    lost_reason = "non_finite_fix";
+  } else if (OutsideRoom(fix_.position_m)) {
+    lost_reason = "outside_room";
+  }
+  if (lost_reason == nullptr) return nullptr;
+  status_.Reject(lost_reason);
+  status_.SetError(
+      "beacon " + std::to_string(set.beacon_id) + " firing " + std::to_string(set.firing_seq) +
+          ": fix at (" + std::to_string(fix_.position_m.x()) + ", " +
+          std::to_string(fix_.position_m.y()) + ") published lost (" + lost_reason + ")",
+      info.recv_utime);
+  fix_.status = trilat::FixStatus::kFailed;
+  fix_.position_m.setConstant(std::numeric_limits<double>::quiet_NaN());
+  fix_.covariance_m2.setConstant(std::numeric_limits<double>::quiet_NaN());
+  fix_.residual_rms_m = std::numeric_limits<double>::quiet_NaN();
+  fix_.used.clear();
+  return lost_reason;
+}
+
+void TrilatNode::Solve(const range_set_t& set, const MessageInfo& info) {
+  // The merger released a set of parts that each passed; the merged set is
+  // checked again as a whole (its count of ranges above all).
+  if (!Admissible(set, info)) return;
+  SolveSetup setup;
+  if (!ResolveBeacon(set, info, &setup)) return;
+  const bool dropped_range = KeepUsableRanges(set, info);
+  BeaconTrack* track = TrackOf(set.beacon_id, setup.prior);
+  SolveWithTrack(set, setup.solver, track);
+  if (track != nullptr) track->last_recv_utime = info.recv_utime;
+  if (dropped_range && fix_.status == trilat::FixStatus::kOk) {
+    fix_.status = trilat::FixStatus::kDegraded;
+  }
+  if (dropped_range) fix_.flags |= trilat::kBadRangesDropped;
+  CountFix();
   // What is published must be a finite position inside the room: anything
   // else goes out LOST, with the reason counted and in words.
-  const char* lost_reason = nullptr;
-  if (fix_.has_position()) {
-    if (!fix_.position_m.allFinite() || !fix_.covariance_m2.topLeftCorner<2, 2>().allFinite()) {
-      lost_reason = "non_finite_fix";
-    } else if (OutsideRoom(fix_.position_m)) {
-      lost_reason = "outside_room";
-    }
-    if (lost_reason != nullptr) {
-      status_.Reject(lost_reason);
-      status_.SetError(
-          "beacon " + std::to_string(set.beacon_id) + " firing " + std::to_string(set.firing_seq) +
-              ": fix at (" + std::to_string(fix_.position_m.x()) + ", " +
-              std::to_string(fix_.position_m.y()) + ") published lost (" + lost_reason + ")",
-          info.recv_utime);
-      fix_.status = trilat::FixStatus::kFailed;
-      fix_.position_m.setConstant(std::numeric_limits<double>::quiet_NaN());
-      fix_.covariance_m2.setConstant(std::numeric_limits<double>::quiet_NaN());
-      fix_.residual_rms_m = std::numeric_limits<double>::quiet_NaN();
-      fix_.used.clear();
-    }
-  }
+  const char* lost_reason = LoseUnusableFix(set, info);
+  // The beacon's state learns from what is published, a lost fix included.
   if (track != nullptr && options_.use_nlos_belief) track->belief.Observe(set.utime, ranges_, fix_);
   if (track != nullptr && options_.use_prior) {
     const trilat::BeaconPrior::Outcome outcome = track->prior.Observe(set.utime, fix_);
@@ -293,7 +304,8 @@ void TrilatNode::Solve(const range_set_t& set, const MessageInfo& info) {
                          trilat::DescribeFlags(fix_.flags) + ")",
                      info.recv_utime);
   }
-  if (!bus_->Publish(kUltrasoundPoseChannel, PoseFromFix(fix_, set, robot_id, info.recv_utime))) {
+  if (!bus_->Publish(kUltrasoundPoseChannel,
+                     PoseFromFix(fix_, set, setup.robot_id, info.recv_utime))) {
     status_.AddDropped();
   }
 }

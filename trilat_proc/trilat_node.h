@@ -12,15 +12,13 @@
 #include "core/trilat/trilateration.h"
 #include "core/world/site.h"
 #include "msgio/bus.h"
+#include "msgio/channels.h"
 #include "msgio/lcm_types_fwd.h"
 #include "msgio/process.h"
 #include "msgio/subscriptions.h"
 #include "trilat_proc/range_set_merger.h"
 
 namespace roomfix {
-
-inline constexpr char kRangesChannel[] = "RANGES";
-inline constexpr char kUltrasoundPoseChannel[] = "POSE_ULTRASOUND";
 
 struct TrilatNodeOptions {
   // Method, dimension and noise model. In kFixedHeight2D the height of each
@@ -114,8 +112,35 @@ class TrilatNode {
     trilat::NlosBelief belief;
   };
 
+  // What a set is solved with: the solver's and the prior's options for its
+  // beacon, and the robot that carries it.
+  struct SolveSetup {
+    trilat::SolverOptions solver;
+    trilat::BeaconPriorOptions prior;
+    int32_t robot_id = -1;
+  };
+
   void OnRangeSet(const range_set_t& set, const MessageInfo& info);
+  // One set the merger released: checked, solved, counted and published.
   void Solve(const range_set_t& set, const MessageInfo& info);
+  // The steps of Solve. The beacon's height and robot from the site (or
+  // unknown_beacon_height_m); false, counted, when neither has it.
+  bool ResolveBeacon(const range_set_t& set, const MessageInfo& info, SolveSetup* setup);
+  // ranges_ = the set's usable ranges at the site's receiver positions;
+  // true when any was dropped (counted per range).
+  bool KeepUsableRanges(const range_set_t& set, const MessageInfo& info);
+  // The beacon's warm-start state, created on first use; nullptr once
+  // kMaxBeaconTracks beacons have one (the set is then solved cold).
+  BeaconTrack* TrackOf(int beacon_id, const trilat::BeaconPriorOptions& prior);
+  // fix_ = ranges_ solved, warm-started, with the track's prior and NLOS
+  // suspicions when it has them.
+  void SolveWithTrack(const range_set_t& set, const trilat::SolverOptions& solver,
+                      BeaconTrack* track);
+  // Counts the fix's rejected ranges and flags.
+  void CountFix();
+  // A fix that is not a finite position inside the room becomes LOST; the
+  // reason (counted, and in the last error), or nullptr when it is usable.
+  const char* LoseUnusableFix(const range_set_t& set, const MessageInfo& info);
   void SolveReady();
   // True when the fix is outside the room by more than the margin.
   bool OutsideRoom(const Eigen::Vector3d& position_m) const;

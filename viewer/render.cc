@@ -417,7 +417,7 @@ void DrawAxes(Canvas* c) {
 }
 
 void DrawCameras(Canvas* c, const Site& site, const std::vector<CameraFootprint>& footprints) {
-  const cv::Scalar colour = Blend(FloorColour(), SourceColour(Source::kCamera), 0.55);
+  const cv::Scalar colour = Blend(FloorColour(), SourceColour(PoseSource::kCamera), 0.55);
   for (const Camera& camera : site.cameras) {
     const CameraFootprint* footprint = nullptr;
     for (const CameraFootprint& f : footprints) {
@@ -441,7 +441,7 @@ void DrawCameras(Canvas* c, const Site& site, const std::vector<CameraFootprint>
         const cv::Point ic = Canvas::ToInt(centre);
         cv::rectangle(c->image, ic - cv::Point(5, 4), ic + cv::Point(5, 4), colour, 2, cv::LINE_AA);
         HaloText(c->image, fmt::format("cam {}", camera.id), ic + cv::Point(9, 15), kSmallFontScale,
-                 Blend(kTextColour, SourceColour(Source::kCamera), 0.5));
+                 Blend(kTextColour, SourceColour(PoseSource::kCamera), 0.5));
       }
       continue;
     }
@@ -460,7 +460,7 @@ void DrawCameras(Canvas* c, const Site& site, const std::vector<CameraFootprint>
       const cv::Point ic = Canvas::ToInt(centre);
       cv::rectangle(c->image, ic - cv::Point(5, 4), ic + cv::Point(5, 4), colour, 2, cv::LINE_AA);
       HaloText(c->image, fmt::format("cam {}", camera.id), ic + cv::Point(9, 15), kSmallFontScale,
-               Blend(kTextColour, SourceColour(Source::kCamera), 0.5));
+               Blend(kTextColour, SourceColour(PoseSource::kCamera), 0.5));
     }
   }
 }
@@ -530,7 +530,7 @@ void DrawLegend(cv::Mat& panel, int top) {
   const int x = kPanelPadPx;
   const int column = (panel.cols - 2 * kPanelPadPx) / 4;
   for (int i = 0; i < kNumSources; ++i) {
-    const auto s = static_cast<Source>(i);
+    const PoseSource s = kSources[i];
     const cv::Point at(x + i * column, top);
     cv::circle(panel, at + cv::Point(6, -4), kDiscRadiusPx - 1, SourceColour(s), cv::FILLED,
                cv::LINE_AA);
@@ -540,7 +540,8 @@ void DrawLegend(cv::Mat& panel, int top) {
   cv::rectangle(panel, {x + 2, y - 8}, {x + 10, y}, ReceiverColour(), cv::FILLED);
   Text(panel, "receiver", {x + 15, y}, kSmallFontScale, kTextColour);
   const int x2 = x + column;
-  cv::line(panel, {x2, y - 4}, {x2 + 14, y - 4}, SourceColour(Source::kUltrasound), 2, cv::LINE_AA);
+  cv::line(panel, {x2, y - 4}, {x2 + 14, y - 4}, SourceColour(PoseSource::kUltrasound), 2,
+           cv::LINE_AA);
   Text(panel, "range", {x2 + 18, y}, kSmallFontScale, kTextColour);
   const int x3 = x + 2 * column;
   cv::line(panel, {x3, y - 4}, {x3 + 5, y - 4}, WarningColour(), 2, cv::LINE_AA);
@@ -636,7 +637,7 @@ void DrawRangeSet(Canvas* c, const RangeSetView& set, bool stale) {
     // Where the sphere of this range about the receiver cuts the beacon's
     // height plane.
     const double radius_m = std::sqrt(r.range_m * r.range_m - dz * dz);
-    cv::Scalar colour = r.rejected ? WarningColour() : SourceColour(Source::kUltrasound);
+    cv::Scalar colour = r.rejected ? WarningColour() : SourceColour(PoseSource::kUltrasound);
     // An old firing stays, faded, so a silent beacon is noticed.
     if (stale) colour = Blend(colour, FloorColour(), 0.6);
     Circle(c, c->map.ToPixel(r.receiver_m[0], r.receiver_m[1]), radius_m * c->map.scale_px_per_m,
@@ -740,15 +741,12 @@ std::string RobotName(const Site& site, int robot_id) {
 }
 
 void DrawTracks(Canvas* c, const ViewState& state) {
-  auto visible = [&](Source s) {
-    const int i = static_cast<int>(s);
-    return i >= 0 && i < kNumSources && state.visible[static_cast<size_t>(i)];
-  };
+  auto visible = [&](PoseSource s) { return Drawn(s) && state.visible[static_cast<size_t>(s)]; };
   // Ground truth at the bottom, the fused estimate on top.
-  constexpr std::array<Source, kNumSources> kOrder = {Source::kGroundTruth, Source::kCamera,
-                                                      Source::kUltrasound, Source::kFused};
+  constexpr std::array<PoseSource, kNumSources> kOrder = {
+      PoseSource::kGroundTruth, PoseSource::kCamera, PoseSource::kUltrasound, PoseSource::kFused};
   for (int pass = 0; pass < 2; ++pass) {
-    for (Source s : kOrder) {
+    for (PoseSource s : kOrder) {
       if (!visible(s)) continue;
       for (const TrackView& t : state.tracks) {
         if (t.source != s) continue;
@@ -767,9 +765,9 @@ void DrawTracks(Canvas* c, const ViewState& state) {
   // of the robot is fresh to the camera track's position, and the cameras'
   // ids under the robot's name.
   std::map<int, std::string> seen_by;
-  if (visible(Source::kCamera)) {
+  if (visible(PoseSource::kCamera)) {
     for (const TrackView& t : state.tracks) {
-      if (t.source != Source::kCamera || t.lost) continue;
+      if (t.source != PoseSource::kCamera || t.lost) continue;
       const cv::Point2d robot = c->map.ToPixel(t.x_m, t.y_m);
       if (!Finite(robot.x, robot.y) || !c->Inside(robot)) continue;
       for (const auto& [camera_id, recv_utime] : t.camera_seen_recv_utime) {
@@ -779,7 +777,7 @@ void DrawTracks(Canvas* c, const ViewState& state) {
           const cv::Point2d lens = c->map.ToPixel(f.lens_m[0], f.lens_m[1]);
           if (Finite(lens.x, lens.y) && c->Inside(lens)) {
             cv::line(c->image, Canvas::ToInt(lens), Canvas::ToInt(robot),
-                     Blend(FloorColour(), SourceColour(Source::kCamera), 0.7), 1, cv::LINE_AA);
+                     Blend(FloorColour(), SourceColour(PoseSource::kCamera), 0.7), 1, cv::LINE_AA);
           }
         }
         std::string& text = seen_by[t.robot_id];
@@ -789,7 +787,7 @@ void DrawTracks(Canvas* c, const ViewState& state) {
   }
   // One name per robot, next to the source drawn on top.
   std::map<int, cv::Point2d> label_at;
-  for (Source s : kOrder) {
+  for (PoseSource s : kOrder) {
     if (!visible(s)) continue;
     for (const TrackView& t : state.tracks) {
       const cv::Point2d p = c->map.ToPixel(t.x_m, t.y_m);
@@ -805,7 +803,7 @@ void DrawTracks(Canvas* c, const ViewState& state) {
     if (seen != seen_by.end()) {
       HaloText(c->image, seen->second,
                Canvas::ToInt(p + cv::Point2d(kDiscRadiusPx + 4, kDiscRadiusPx + 10)),
-               kSmallFontScale, Blend(kTextColour, SourceColour(Source::kCamera), 0.5));
+               kSmallFontScale, Blend(kTextColour, SourceColour(PoseSource::kCamera), 0.5));
     }
   }
 }
@@ -852,16 +850,18 @@ ProcessStateText StateText(int state) {
   }
 }
 
-const char* ShortSourceName(Source s) {
+const char* ShortSourceName(PoseSource s) {
   switch (s) {
-    case Source::kCamera:
+    case PoseSource::kCamera:
       return "camera";
-    case Source::kUltrasound:
+    case PoseSource::kUltrasound:
       return "ultra";
-    case Source::kFused:
+    case PoseSource::kFused:
       return "fused";
-    case Source::kGroundTruth:
+    case PoseSource::kGroundTruth:
       return "truth";
+    case PoseSource::kUnknown:
+      break;
   }
   return "?";
 }
@@ -905,20 +905,19 @@ class PanelWriter {
 
 void DrawSourceTable(PanelWriter* w, const ViewState& state) {
   // Robots in id order; a (source, robot) listed twice shows its first.
-  std::map<int, std::array<const TrackView*, kNumSources>> rows;
+  std::map<int, std::array<const TrackView*, kNumPoseSources>> rows;
   for (const TrackView& t : state.tracks) {
-    const int s = static_cast<int>(t.source);
-    if (s < 0 || s >= kNumSources) continue;
+    if (!Drawn(t.source)) continue;
+    const auto s = static_cast<size_t>(t.source);
     auto& row = rows[t.robot_id];
-    if (row[static_cast<size_t>(s)] == nullptr) row[static_cast<size_t>(s)] = &t;
+    if (row[s] == nullptr) row[s] = &t;
   }
   w->Heading(fmt::format("Sources ({} robot{})", rows.size(), rows.size() == 1 ? "" : "s"));
   // Hidden sources are still listed, and named hidden on the heading line.
   std::string hidden;
-  for (int i = 0; i < kNumSources; ++i) {
-    if (state.visible[static_cast<size_t>(i)]) continue;
-    hidden +=
-        (hidden.empty() ? "hidden: " : ", ") + std::string(ShortSourceName(static_cast<Source>(i)));
+  for (PoseSource s : kSources) {
+    if (state.visible[static_cast<size_t>(s)]) continue;
+    hidden += (hidden.empty() ? "hidden: " : ", ") + std::string(ShortSourceName(s));
   }
   if (!hidden.empty()) {
     Text(w->panel(), hidden,
@@ -929,8 +928,8 @@ void DrawSourceTable(PanelWriter* w, const ViewState& state) {
   const int column = (w->width() - 2 * kPanelPadPx - name_px) / kNumSources;
   if (!w->Next()) return;
   for (int i = 0; i < kNumSources; ++i) {
-    const auto s = static_cast<Source>(i);
-    const bool shown = state.visible[static_cast<size_t>(i)];
+    const PoseSource s = kSources[i];
+    const bool shown = state.visible[static_cast<size_t>(s)];
     const int x = kPanelPadPx + name_px + i * column;
     Text(w->panel(), ShortSourceName(s), {x, w->y()}, kSmallFontScale,
          shown ? Blend(SourceColour(s), kTextColour, 0.25) : kMutedTextColour);
@@ -947,9 +946,10 @@ void DrawSourceTable(PanelWriter* w, const ViewState& state) {
     Text(w->panel(), Fit(RobotName(state.site, robot_id), kSmallFontScale, name_px - 4),
          {kPanelPadPx, w->y()}, kSmallFontScale, kTextColour);
     for (int i = 0; i < kNumSources; ++i) {
-      const TrackView* t = row[static_cast<size_t>(i)];
+      const auto s = static_cast<size_t>(kSources[i]);
+      const TrackView* t = row[s];
       if (t == nullptr) continue;
-      const bool shown = state.visible[static_cast<size_t>(i)];
+      const bool shown = state.visible[s];
       const double age_s = AgeS(state.now_utime, t->recv_utime);
       std::string text;
       cv::Scalar colour = kTextColour;
@@ -1192,18 +1192,9 @@ struct RenderCache {
 
 }  // namespace
 
-const char* SourceName(Source source) {
-  switch (source) {
-    case Source::kCamera:
-      return "camera";
-    case Source::kUltrasound:
-      return "ultrasound";
-    case Source::kFused:
-      return "fused";
-    case Source::kGroundTruth:
-      return "ground truth";
-  }
-  return "unknown";
+const char* SourceName(PoseSource source) {
+  // PoseSourceName's identifiers, but "ground truth" in words.
+  return source == PoseSource::kGroundTruth ? "ground truth" : PoseSourceName(source);
 }
 
 bool RenderOptions::IsValid(std::string* error) const {
@@ -1262,16 +1253,18 @@ FloorMapping MakeFloorMapping(const Site& site, const RenderOptions& options) {
   return m;
 }
 
-cv::Scalar SourceColour(Source source) {
+cv::Scalar SourceColour(PoseSource source) {
   switch (source) {
-    case Source::kCamera:
+    case PoseSource::kCamera:
       return {0, 130, 245};  // orange
-    case Source::kUltrasound:
+    case PoseSource::kUltrasound:
       return {205, 105, 20};  // blue
-    case Source::kFused:
+    case PoseSource::kFused:
       return {50, 165, 30};  // green
-    case Source::kGroundTruth:
+    case PoseSource::kGroundTruth:
       return {35, 35, 35};  // near-black
+    case PoseSource::kUnknown:
+      break;
   }
   return {255, 0, 255};
 }
@@ -1299,7 +1292,7 @@ void Render(const ViewState& state, const RenderOptions& options, cv::Mat* image
   Canvas canvas((*image)(cv::Rect(0, 0, floor_w, o.height_px)), mapping);
   // Range circles belong to the ultrasound view: hiding ultrasound hides
   // them too, which is the way to see the other sources in a busy room.
-  if (state.visible[static_cast<int>(Source::kUltrasound)]) {
+  if (state.visible[static_cast<size_t>(PoseSource::kUltrasound)]) {
     for (const RangeSetView& set : state.range_sets) {
       DrawRangeSet(&canvas, set, IsStale(state, set.recv_utime));
     }

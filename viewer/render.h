@@ -36,7 +36,7 @@ FloorMapping MakeFloorMapping(const Site& site, const RenderOptions& options);
 // Colours, BGR. Sources: camera orange, ultrasound blue, fused green, ground
 // truth near-black; chosen apart in hue and lightness so that each stays
 // recognisable on the light floor and when faded along a trail.
-cv::Scalar SourceColour(Source source);
+cv::Scalar SourceColour(PoseSource source);
 // Rejected ranges, lost tracks and failed processes (red).
 cv::Scalar WarningColour();
 // Receivers (dark purple squares): apart from every source colour, so that a

@@ -131,7 +131,7 @@ double OnCircle(const cv::Mat& image, const cv::Mat& reference, cv::Point2d cent
   return best;
 }
 
-TrackView Track(Source source, int robot_id, double x_m, double y_m) {
+TrackView Track(PoseSource source, int robot_id, double x_m, double y_m) {
   TrackView t;
   t.source = source;
   t.robot_id = robot_id;
@@ -160,17 +160,18 @@ RangeSetView OneRange(const Site& site, int receiver_id, double range_m, bool re
 }
 
 TEST(SourceName, NamesEverySource) {
-  EXPECT_STREQ(SourceName(Source::kCamera), "camera");
-  EXPECT_STREQ(SourceName(Source::kUltrasound), "ultrasound");
-  EXPECT_STREQ(SourceName(Source::kFused), "fused");
-  EXPECT_STREQ(SourceName(Source::kGroundTruth), "ground truth");
-  EXPECT_STREQ(SourceName(static_cast<Source>(17)), "unknown");
+  EXPECT_STREQ(SourceName(PoseSource::kCamera), "camera");
+  EXPECT_STREQ(SourceName(PoseSource::kUltrasound), "ultrasound");
+  EXPECT_STREQ(SourceName(PoseSource::kFused), "fused");
+  EXPECT_STREQ(SourceName(PoseSource::kGroundTruth), "ground truth");
+  EXPECT_STREQ(SourceName(PoseSource::kUnknown), "unknown");
+  EXPECT_STREQ(SourceName(static_cast<PoseSource>(17)), "unknown");
 }
 
 TEST(SourceColour, TellsSourcesWarningsReceiversAndStaleApart) {
   std::vector<cv::Scalar> colours = {WarningColour(), ReceiverColour(), StaleColour(),
                                      FloorColour()};
-  for (int i = 0; i < kNumSources; ++i) colours.push_back(SourceColour(static_cast<Source>(i)));
+  for (PoseSource s : kSources) colours.push_back(SourceColour(s));
   for (size_t i = 0; i < colours.size(); ++i) {
     for (size_t j = i + 1; j < colours.size(); ++j) {
       // 60 levels in some channel: apart at a glance, and far beyond the
@@ -353,7 +354,7 @@ TEST(Render, DrawsEachVisibleSourceAsADiscInItsColourAtThePose) {
   const double xs[kNumSources] = {1.0, 2.0, 3.0, 1.0};
   const double ys[kNumSources] = {1.0, 1.0, 1.0, 2.2};
   for (int i = 0; i < kNumSources; ++i) {
-    state.tracks.push_back(Track(static_cast<Source>(i), 1, xs[i], ys[i]));
+    state.tracks.push_back(Track(kSources[i], 1, xs[i], ys[i]));
     state.tracks.back().heading_rad = 0.5;
   }
   const RenderOptions o;
@@ -361,7 +362,7 @@ TEST(Render, DrawsEachVisibleSourceAsADiscInItsColourAtThePose) {
   cv::Mat image;
   Render(state, o, &image);
   for (int i = 0; i < kNumSources; ++i) {
-    const auto s = static_cast<Source>(i);
+    const PoseSource s = kSources[i];
     EXPECT_LE(Distance(At(image, m.ToPixel(xs[i], ys[i])), SourceColour(s)), kExact)
         << SourceName(s);
   }
@@ -369,8 +370,8 @@ TEST(Render, DrawsEachVisibleSourceAsADiscInItsColourAtThePose) {
 
 TEST(Render, LeavesAHiddenSourceOutOfTheFloor) {
   ViewState with = DemoState();
-  with.tracks.push_back(Track(Source::kFused, 1, 2.0, 1.5));
-  TrackView camera = Track(Source::kCamera, 1, 1.0, 1.0);
+  with.tracks.push_back(Track(PoseSource::kFused, 1, 2.0, 1.5));
+  TrackView camera = Track(PoseSource::kCamera, 1, 1.0, 1.0);
   camera.heading_rad = 1.0;
   camera.cov_xx_m2 = 0.01;
   camera.cov_yy_m2 = 0.02;
@@ -379,7 +380,7 @@ TEST(Render, LeavesAHiddenSourceOutOfTheFloor) {
     camera.trail.push_back({kNowUtime - (100 - k) * 50'000, 0.5 + 0.01 * k, 1.0});
   }
   with.tracks.push_back(camera);
-  with.visible[static_cast<size_t>(Source::kCamera)] = false;
+  with.visible[static_cast<size_t>(PoseSource::kCamera)] = false;
   ViewState without = with;
   without.tracks.pop_back();
 
@@ -389,7 +390,7 @@ TEST(Render, LeavesAHiddenSourceOutOfTheFloor) {
   cv::Mat b;
   Render(with, o, &a);
   Render(without, o, &b);
-  EXPECT_GT(Distance(At(a, m.ToPixel(1.0, 1.0)), SourceColour(Source::kCamera)), 60);
+  EXPECT_GT(Distance(At(a, m.ToPixel(1.0, 1.0)), SourceColour(PoseSource::kCamera)), 60);
   // The floor area is exactly as if the track were not there (the panel
   // still lists it, marked hidden).
   const cv::Rect floor(0, 0, o.width_px - o.panel_px, o.height_px);
@@ -411,7 +412,7 @@ TEST(Render, DrawsARangeAsItsCircleInTheBeaconsHeightPlane) {
   // sqrt(2.0^2 - 1.2^2) = 1.6 m, not 2.0 m.
   const double radius_m = std::sqrt(range_m * range_m - 1.2 * 1.2);
   const cv::Point2d centre = m.ToPixel(0, 0);
-  const cv::Scalar colour = SourceColour(Source::kUltrasound);
+  const cv::Scalar colour = SourceColour(PoseSource::kUltrasound);
   double worst = 1.0;
   for (double deg = 1; deg < 90; deg += 1) {
     const double a = deg * M_PI / 180.0;
@@ -428,7 +429,7 @@ TEST(Render, DrawsARangeAsItsCircleInTheBeaconsHeightPlane) {
   EXPECT_LT(LineNear(image, reference, centre, colour), kNoLine);
   EXPECT_LT(LineNear(image, reference, m.ToPixel(0.5 * radius_m, 0.5 * radius_m), colour), kNoLine);
   // Hiding ultrasound hides its range circles.
-  state.visible[static_cast<int>(Source::kUltrasound)] = false;
+  state.visible[static_cast<size_t>(PoseSource::kUltrasound)] = false;
   Render(state, o, &image);
   const double a = 45 * M_PI / 180.0;
   EXPECT_LT(
@@ -455,8 +456,9 @@ TEST(Render, DrawsARejectedRangeDashedInTheWarningColour) {
     const double a = deg * M_PI / 180.0;
     warning +=
         OnCircle(image, reference, centre, radius_px, a, WarningColour()) >= kMinLineCoverage;
-    EXPECT_LT(OnCircle(image, reference, centre, radius_px, a, SourceColour(Source::kUltrasound)),
-              kNoLine);
+    EXPECT_LT(
+        OnCircle(image, reference, centre, radius_px, a, SourceColour(PoseSource::kUltrasound)),
+        kNoLine);
   }
   // Dashed: there at about half the samples, not everywhere.
   EXPECT_GT(warning, samples / 4);
@@ -480,7 +482,7 @@ TEST(Render, SkipsARangeShorterThanTheHeightDifference) {
 TEST(Render, GreysAndMarksAStaleTrack) {
   ViewState state = DemoState();
   state.stale_after_s = 2.0;
-  TrackView t = Track(Source::kFused, 1, 2.0, 1.5);
+  TrackView t = Track(PoseSource::kFused, 1, 2.0, 1.5);
   t.recv_utime = kNowUtime - 3'000'000;
   state.tracks.push_back(t);
   const RenderOptions o;
@@ -489,18 +491,18 @@ TEST(Render, GreysAndMarksAStaleTrack) {
   Render(state, o, &image);
   const cv::Point2d centre = m.ToPixel(2.0, 1.5);
   // The 'X' crosses the centre; the disc around it is grey.
-  EXPECT_GT(Distance(At(image, centre), SourceColour(Source::kFused)), 60);
+  EXPECT_GT(Distance(At(image, centre), SourceColour(PoseSource::kFused)), 60);
   EXPECT_LE(Distance(At(image, centre + cv::Point2d(4, 0)), StaleColour()), kExact);
   EXPECT_GT(Distance(At(image, centre), StaleColour()), 60) << "the X mark";
   // A second later than the limit it is not stale.
   state.tracks[0].recv_utime = kNowUtime - 1'000'000;
   Render(state, o, &image);
-  EXPECT_LE(Distance(At(image, centre), SourceColour(Source::kFused)), kExact);
+  EXPECT_LE(Distance(At(image, centre), SourceColour(PoseSource::kFused)), kExact);
 }
 
 TEST(Render, FadesATrailTowardsTheFloorWithAge) {
   ViewState state = DemoState();
-  TrackView t = Track(Source::kUltrasound, 1, 3.6, 1.1);
+  TrackView t = Track(PoseSource::kUltrasound, 1, 3.6, 1.1);
   // 10 s from x = 0.4 (oldest) to x = 3.4 (newest), at 10 Hz.
   for (int k = 0; k <= 100; ++k) {
     t.trail.push_back({kNowUtime - (100 - k) * 100'000, 0.4 + 0.03 * k, 1.1});
@@ -510,7 +512,7 @@ TEST(Render, FadesATrailTowardsTheFloorWithAge) {
   const FloorMapping m = MakeFloorMapping(state.site, o);
   cv::Mat image;
   Render(state, o, &image);
-  const cv::Scalar colour = SourceColour(Source::kUltrasound);
+  const cv::Scalar colour = SourceColour(PoseSource::kUltrasound);
   const int newest = Distance(At(image, m.ToPixel(3.3, 1.1)), colour);
   const int middle = Distance(At(image, m.ToPixel(1.9, 1.1)), colour);
   // (Not x = 0.5: a grid line.)
@@ -528,7 +530,7 @@ TEST(Render, FadesATrailTowardsTheFloorWithAge) {
 
 TEST(Render, ZoomAndPanMoveTheDrawing) {
   ViewState state = DemoState();
-  state.tracks.push_back(Track(Source::kFused, 1, 3.0, 2.0));
+  state.tracks.push_back(Track(PoseSource::kFused, 1, 3.0, 2.0));
   RenderOptions o;
   o.zoom = 2.0;
   o.pan_x_m = 1.0;
@@ -536,7 +538,7 @@ TEST(Render, ZoomAndPanMoveTheDrawing) {
   const FloorMapping m = MakeFloorMapping(state.site, o);
   cv::Mat image;
   Render(state, o, &image);
-  EXPECT_LE(Distance(At(image, {450, 400}), SourceColour(Source::kFused)), kExact);
+  EXPECT_LE(Distance(At(image, {450, 400}), SourceColour(PoseSource::kFused)), kExact);
   // Receiver 3 at (4, 3) is 1 m right and 1 m up of the centre.
   const cv::Point2d r3 = m.ToPixel(4.0, 3.0);
   EXPECT_NEAR(r3.x, 450 + 1.0 * m.scale_px_per_m, kAffineRoundOffPx);
@@ -544,7 +546,7 @@ TEST(Render, ZoomAndPanMoveTheDrawing) {
   EXPECT_LE(Distance(At(image, r3), ReceiverColour()), kExact);
   // Where the robot was at zoom 1 it is not.
   const FloorMapping before = MakeFloorMapping(state.site, RenderOptions{});
-  EXPECT_GT(Distance(At(image, before.ToPixel(3.0, 2.0)), SourceColour(Source::kFused)), 60);
+  EXPECT_GT(Distance(At(image, before.ToPixel(3.0, 2.0)), SourceColour(PoseSource::kFused)), 60);
 }
 
 TEST(Render, ShowsTheSameBackgroundWhenTheSiteChangesAndComesBack) {
@@ -628,7 +630,7 @@ TEST(Render, SurvivesNaNsHugeValuesAndGarbage) {
     s.stale_after_s = value();
     for (int i = 0; i < 6; ++i) {
       TrackView t;
-      t.source = static_cast<Source>(i % 5);  // 4 is out of range
+      t.source = static_cast<PoseSource>(i);  // 0 (unknown) and 5 are no drawn source
       t.robot_id = static_cast<int>(rng() % 4) - 1;
       t.x_m = value();
       t.y_m = value();

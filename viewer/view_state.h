@@ -10,6 +10,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/world/pose_source.h"
 #include "core/world/site.h"
 
 namespace roomfix::viewer {
@@ -19,9 +20,20 @@ namespace roomfix::viewer {
 // microseconds since the Unix epoch; "now" is the state's own now_utime, so
 // a replayed log renders the same picture whatever the wall clock says.
 
-enum class Source : int { kCamera = 0, kUltrasound = 1, kFused = 2, kGroundTruth = 3 };
+// The sources the viewer draws (core/world/pose_source.h), in the order of
+// the legend, of the panel's columns and of the keys 1 to 4 that show or
+// hide them (each key is its source's number).
 inline constexpr int kNumSources = 4;
-const char* SourceName(Source source);
+inline constexpr std::array<PoseSource, kNumSources> kSources = {
+    PoseSource::kCamera, PoseSource::kUltrasound, PoseSource::kFused, PoseSource::kGroundTruth};
+// True for a source of kSources.
+inline bool Drawn(PoseSource source) {
+  return source == PoseSource::kCamera || source == PoseSource::kUltrasound ||
+         source == PoseSource::kFused || source == PoseSource::kGroundTruth;
+}
+// For people: "camera", "ultrasound", "fused", "ground truth"; "unknown" for
+// any other.
+const char* SourceName(PoseSource source);
 
 inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
@@ -33,7 +45,7 @@ struct TrailPoint {
 
 // One robot as one source sees it.
 struct TrackView {
-  Source source = Source::kCamera;
+  PoseSource source = PoseSource::kCamera;
   int robot_id = 0;
   // Latest pose; NaN heading when unknown; covariance of (x, y) in m^2, NaN
   // when unknown.
@@ -170,9 +182,9 @@ struct ViewState {
   // Set (by the 'd' key) to ask the cameras for their detector view; the
   // viewer node sends the request and clears it.
   bool detector_view_wanted = false;
-  // Sources shown (index: Source); hidden ones are still listed in the
-  // panel, marked hidden.
-  std::array<bool, kNumSources> visible{true, true, true, true};
+  // Sources shown (index: the source's number, kUnknown's entry unused);
+  // hidden ones are still listed in the panel, marked hidden.
+  std::array<bool, kNumPoseSources> visible{true, true, true, true, true};
   // Trails cover this many seconds.
   double trail_s = 10.0;
   // A track or process is stale (marked in the picture and the panel) when

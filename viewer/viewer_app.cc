@@ -163,7 +163,8 @@ KeyAction ApplyKey(int key, RenderOptions* render, ViewState* view) {
     case '2':
     case '3':
     case '4': {
-      const int source = (key & 0xFF) - '1';
+      // Each key is its source's number (kSources).
+      const auto source = static_cast<size_t>((key & 0xFF) - '0');
       view->visible[source] = !view->visible[source];
       break;
     }

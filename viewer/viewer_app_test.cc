@@ -64,9 +64,10 @@ TEST(ApplyKey, ZoomsPansTogglesAndAsksToQuitOrSave) {
   EXPECT_EQ(ApplyKey('r', &render, &view), KeyAction::kNone);
   EXPECT_DOUBLE_EQ(render.zoom, 1.0);
   EXPECT_DOUBLE_EQ(render.pan_x_m, 0.0);
-  ASSERT_TRUE(view.visible[1]);
+  const auto ultrasound = static_cast<size_t>(PoseSource::kUltrasound);
+  ASSERT_TRUE(view.visible[ultrasound]);
   ApplyKey('2', &render, &view);
-  EXPECT_FALSE(view.visible[1]);
+  EXPECT_FALSE(view.visible[ultrasound]);
   EXPECT_EQ(ApplyKey('q', &render, &view), KeyAction::kQuit);
   EXPECT_EQ(ApplyKey(27, &render, &view), KeyAction::kQuit);
   EXPECT_EQ(ApplyKey('s', &render, &view), KeyAction::kScreenshot);

@@ -7,6 +7,7 @@
 
 #include "core/analysis/track_error.h"
 #include "msgio/message_conversions.h"
+#include "msgio/received.h"
 #include "msgio/time_limits.h"
 #include "roomfix/detector_view_request_t.hpp"
 #include "roomfix/detector_view_t.hpp"
@@ -30,25 +31,6 @@ constexpr size_t kLatencySamples = 30;
 // newest samples) and a frame's drawing bounded.
 constexpr size_t kMaxRateSamples = 1000;
 constexpr size_t kMaxTrailPoints = 2000;
-
-bool ToSource(int8_t source, viewer::Source* out) {
-  switch (source) {
-    case pose2d_t::SOURCE_CAMERA:
-      *out = viewer::Source::kCamera;
-      return true;
-    case pose2d_t::SOURCE_ULTRASOUND:
-      *out = viewer::Source::kUltrasound;
-      return true;
-    case pose2d_t::SOURCE_FUSED:
-      *out = viewer::Source::kFused;
-      return true;
-    case pose2d_t::SOURCE_GROUND_TRUTH:
-      *out = viewer::Source::kGroundTruth;
-      return true;
-    default:
-      return false;
-  }
-}
 
 }  // namespace
 
@@ -106,166 +88,172 @@ ViewerNode::ViewerNode(const Site& site, Bus* bus, const ViewerNodeOptions& opti
   state_.detector_view_wanted = options.detector_view_at_start;  // sent by the first Tick
   status_.SetState(process_status_t::STATE_RUNNING);
 
-  subscriptions_.Add(bus_->Subscribe<pose2d_t>("POSE_.*", [this](const pose2d_t& p,
-                                                                 const MessageInfo& info) {
-    status_.AddInputs();
-    ++messages_;
-    viewer::Source source;
-    if (!ToSource(p.source, &source)) {
-      status_.Reject("unknown_source");
-      return;
-    }
-    if (!UtimeNear(p.utime, info.recv_utime)) {
-      status_.Reject("utime_out_of_range");
-      return;
-    }
-    if (state_.site.FindRobot(p.robot_id) == nullptr) {
-      status_.Reject("unknown_robot");
-      return;
-    }
-    // NaN means "unknown" or "lost" in a pose; an infinity is never valid,
-    // and would reach the drawing code as a coordinate.
-    bool infinite = std::isinf(p.x_m) || std::isinf(p.y_m) || std::isinf(p.heading_rad);
-    for (const auto& row : p.covariance) {
-      for (double v : row) infinite = infinite || std::isinf(v);
-    }
-    if (infinite) {
-      status_.Reject("non_finite");
-      return;
-    }
-    viewer::TrackView* t = FindTrack(source, p.robot_id);
-    t->recv_utime = info.recv_utime;
-    t->lost = p.status == pose2d_t::STATUS_LOST || !std::isfinite(p.x_m) || !std::isfinite(p.y_m);
-    TrackHistory& h = history_[{static_cast<int>(source), p.robot_id}];
-    if (h.recv_utimes.empty() && h.first_recv_utime == 0) h.first_recv_utime = info.recv_utime;
-    h.recv_utimes.push_back(info.recv_utime);
-    if (h.recv_utimes.size() > kMaxRateSamples) h.recv_utimes.pop_front();
-    if (p.latency_us > 0 || source != viewer::Source::kGroundTruth) {
-      h.latencies_ms.push_back(p.latency_us * 1e-3);
-      if (h.latencies_ms.size() > kLatencySamples) h.latencies_ms.pop_front();
-    }
-    if (t->lost) return;
-    t->utime = p.utime;
-    t->x_m = p.x_m;
-    t->y_m = p.y_m;
-    t->heading_rad = p.heading_rad;
-    t->cov_xx_m2 = p.covariance[0][0];
-    t->cov_xy_m2 = p.covariance[0][1];
-    t->cov_yy_m2 = p.covariance[1][1];
-    t->degraded = p.status == pose2d_t::STATUS_DEGRADED;
-    // Which camera: only the site's ids (a sender can invent them).
-    if (source == viewer::Source::kCamera && state_.site.FindCamera(p.camera_id) != nullptr) {
-      t->camera_seen_recv_utime[p.camera_id] = info.recv_utime;
-    }
-    t->trail.push_back({p.utime, p.x_m, p.y_m});
-    if (t->trail.size() > kMaxTrailPoints) t->trail.pop_front();
-  }));
-  subscriptions_.Add(bus_->Subscribe<range_set_t>("RANGES", [this](const range_set_t& s,
-                                                                   const MessageInfo& info) {
-    status_.AddInputs();
-    ++messages_;
-    if (!UtimeNear(s.utime, info.recv_utime)) {
-      status_.Reject("utime_out_of_range");
-      return;
-    }
-    const Beacon* beacon = state_.site.FindBeacon(s.beacon_id);
-    if (beacon == nullptr) {
-      status_.Reject("unknown_beacon");
-      return;
-    }
-    if (s.ranges.size() > state_.site.receivers.size()) {
-      status_.Reject("too_many_ranges");
-      return;
-    }
-    for (const range_t& r : s.ranges) {
-      if (!std::isfinite(r.range_m) || !std::isfinite(r.receiver_position_m[0]) ||
-          !std::isfinite(r.receiver_position_m[1]) || !std::isfinite(r.receiver_position_m[2])) {
-        status_.Reject("non_finite");
-        return;
-      }
-    }
-    viewer::RangeSetView view;
-    view.beacon_id = s.beacon_id;
-    view.beacon_height_m = beacon->height_m;
-    view.utime = s.utime;
-    view.recv_utime = info.recv_utime;
-    for (const range_t& r : s.ranges) {
-      if (state_.site.FindReceiver(r.receiver_id) == nullptr) {
-        status_.Reject("unknown_receiver");
-        continue;
-      }
-      viewer::RangeView rv;
-      rv.receiver_id = r.receiver_id;
-      rv.receiver_m = {r.receiver_position_m[0], r.receiver_position_m[1],
-                       r.receiver_position_m[2]};
-      rv.range_m = r.range_m;
-      view.ranges.push_back(rv);
-    }
-    auto it =
-        std::find_if(state_.range_sets.begin(), state_.range_sets.end(),
-                     [&](const viewer::RangeSetView& v) { return v.beacon_id == s.beacon_id; });
-    if (it == state_.range_sets.end()) {
-      state_.range_sets.push_back(std::move(view));
-    } else {
-      *it = std::move(view);
-    }
-  }));
+  subscriptions_.Add(bus_->Subscribe<pose2d_t>(
+      kPoseChannelPattern,
+      [this](const pose2d_t& p, const MessageInfo& info) { OnPose(p, info); }));
+  subscriptions_.Add(bus_->Subscribe<range_set_t>(
+      kRangesChannel,
+      [this](const range_set_t& s, const MessageInfo& info) { OnRangeSet(s, info); }));
   subscriptions_.Add(bus_->Subscribe<process_status_t>(
-      "STATUS", [this](const process_status_t& s, const MessageInfo& info) {
-        ++messages_;
-        // The output rate divides by the difference of two heartbeats'
-        // utimes, which must be sane to be subtracted at all.
-        if (!UtimeNear(s.utime, info.recv_utime)) {
-          status_.Reject("utime_out_of_range");
-          return;
-        }
-        // One row per process name and host: a restarted process (new pid)
-        // takes over its row instead of leaving a stale one behind.
-        const std::string key = s.process + "@" + s.host;
-        auto it = std::find_if(
-            state_.processes.begin(), state_.processes.end(),
-            [&](const viewer::ProcessView& p) { return p.name + "@" + p.host == key; });
-        if (it == state_.processes.end()) {
-          Expire(info.recv_utime);
-          if (static_cast<int>(state_.processes.size()) >= options_.max_processes) {
-            status_.Reject("too_many_processes");
-            return;
-          }
-          state_.processes.emplace_back();
-          it = state_.processes.end() - 1;
-        }
-        StatusHistory& h = status_history_[key];
-        it->output_rate_hz = h.prev_utime > 0 && s.utime > h.prev_utime
-                                 ? (s.outputs - h.prev_outputs) / ((s.utime - h.prev_utime) * 1e-6)
-                                 : 0.0;
-        h.prev_utime = s.utime;
-        h.prev_outputs = s.outputs;
-        it->name = s.process;
-        it->host = s.host;
-        it->pid = s.pid;
-        it->state = s.state;
-        it->inputs = s.inputs;
-        it->outputs = s.outputs;
-        it->dropped = s.dropped;
-        it->rejected.clear();
-        for (const counter_t& c : s.rejected) it->rejected.push_back({c.name, c.count});
-        it->losses.clear();
-        for (const counter_t& c : s.counters) {
-          if (c.name.rfind("dropped_", 0) == 0 || c.name.rfind("fragments_", 0) == 0) {
-            it->losses.push_back({c.name, c.count});
-          }
-        }
-        std::sort(it->rejected.begin(), it->rejected.end(),
-                  [](const auto& a, const auto& b) { return a.second > b.second; });
-        it->last_error = s.last_error;
-        it->recv_utime = info.recv_utime;
-        NoteSites(s.utime, [&] { site_hashes_.ObserveStatus(s, info.recv_utime); });
-      }));
+      kStatusChannel,
+      [this](const process_status_t& s, const MessageInfo& info) { OnStatus(s, info); }));
   subscriptions_.Add(
       bus_->Subscribe<site_t>(kSiteChannel, [this](const site_t& m, const MessageInfo& info) {
         ++messages_;
         NoteSites(m.utime, [&] { site_hashes_.ObserveSite(m, info.recv_utime); });
       }));
+  SubscribeCamera();
+}
+
+void ViewerNode::OnPose(const pose2d_t& msg, const MessageInfo& info) {
+  status_.AddInputs();
+  ++messages_;
+  // Drawn by the source the pose states, whatever its channel.
+  const auto source = static_cast<PoseSource>(msg.source);
+  if (!viewer::Drawn(source)) {
+    status_.Reject("unknown_source");
+    return;
+  }
+  Pose2d p;
+  std::string why;
+  InputProblem problem = InputProblem::kNone;
+  if (!ReceivePose(msg, state_.site, info.recv_utime, &p, &why, &problem)) {
+    status_.Reject(InputProblemCounter(problem));
+    return;
+  }
+  viewer::TrackView* t = FindTrack(source, p.robot_id);
+  t->recv_utime = info.recv_utime;
+  // ReceivePose let NaN through only in a LOST pose.
+  t->lost = p.status == PoseStatus::kLost;
+  TrackHistory& h = history_[{static_cast<int>(source), p.robot_id}];
+  if (h.recv_utimes.empty() && h.first_recv_utime == 0) h.first_recv_utime = info.recv_utime;
+  h.recv_utimes.push_back(info.recv_utime);
+  if (h.recv_utimes.size() > kMaxRateSamples) h.recv_utimes.pop_front();
+  if (p.latency_us > 0 || source != PoseSource::kGroundTruth) {
+    h.latencies_ms.push_back(p.latency_us * 1e-3);
+    if (h.latencies_ms.size() > kLatencySamples) h.latencies_ms.pop_front();
+  }
+  if (t->lost) return;
+  t->utime = p.utime;
+  t->x_m = p.x_m;
+  t->y_m = p.y_m;
+  t->heading_rad = p.heading_rad;
+  t->cov_xx_m2 = p.covariance[0][0];
+  t->cov_xy_m2 = p.covariance[0][1];
+  t->cov_yy_m2 = p.covariance[1][1];
+  t->degraded = p.status == PoseStatus::kDegraded;
+  // Which camera: only the site's ids (a sender can invent them).
+  if (source == PoseSource::kCamera && state_.site.FindCamera(p.camera_id) != nullptr) {
+    t->camera_seen_recv_utime[p.camera_id] = info.recv_utime;
+  }
+  t->trail.push_back({p.utime, p.x_m, p.y_m});
+  if (t->trail.size() > kMaxTrailPoints) t->trail.pop_front();
+}
+
+void ViewerNode::OnRangeSet(const range_set_t& s, const MessageInfo& info) {
+  status_.AddInputs();
+  ++messages_;
+  std::string why;
+  InputProblem problem = InputProblem::kNone;
+  if (!CheckRangeSet(s, state_.site, info.recv_utime, &why, &problem)) {
+    status_.Reject(InputProblemCounter(problem));
+    return;
+  }
+  const Beacon* beacon = state_.site.FindBeacon(s.beacon_id);
+  if (beacon == nullptr) {
+    status_.Reject("unknown_beacon");
+    return;
+  }
+  // A range that is not a finite number refuses the whole set (the beacon's
+  // last picture stays); a range from a receiver the site does not list is
+  // left out of it.
+  std::vector<const Receiver*> receivers(s.ranges.size());
+  std::vector<InputProblem> problems(s.ranges.size());
+  for (size_t i = 0; i < s.ranges.size(); ++i) {
+    receivers[i] = CheckRange(s.ranges[i], state_.site, &why, &problems[i]);
+    if (problems[i] == InputProblem::kNonFinite) {
+      status_.Reject(InputProblemCounter(problems[i]));
+      return;
+    }
+  }
+  viewer::RangeSetView view;
+  view.beacon_id = s.beacon_id;
+  view.beacon_height_m = beacon->height_m;
+  view.utime = s.utime;
+  view.recv_utime = info.recv_utime;
+  for (size_t i = 0; i < s.ranges.size(); ++i) {
+    if (receivers[i] == nullptr) {
+      status_.Reject(InputProblemCounter(problems[i]));
+      continue;
+    }
+    const range_t& r = s.ranges[i];
+    viewer::RangeView rv;
+    rv.receiver_id = r.receiver_id;
+    rv.receiver_m = {r.receiver_position_m[0], r.receiver_position_m[1], r.receiver_position_m[2]};
+    rv.range_m = r.range_m;
+    view.ranges.push_back(rv);
+  }
+  auto it = std::find_if(state_.range_sets.begin(), state_.range_sets.end(),
+                         [&](const viewer::RangeSetView& v) { return v.beacon_id == s.beacon_id; });
+  if (it == state_.range_sets.end()) {
+    state_.range_sets.push_back(std::move(view));
+  } else {
+    *it = std::move(view);
+  }
+}
+
+void ViewerNode::OnStatus(const process_status_t& s, const MessageInfo& info) {
+  ++messages_;
+  // The output rate divides by the difference of two heartbeats' utimes,
+  // which must be sane to be subtracted at all.
+  if (!UtimeNear(s.utime, info.recv_utime)) {
+    status_.Reject("utime_out_of_range");
+    return;
+  }
+  // One row per process name and host: a restarted process (new pid) takes
+  // over its row instead of leaving a stale one behind.
+  const std::string key = s.process + "@" + s.host;
+  auto it =
+      std::find_if(state_.processes.begin(), state_.processes.end(),
+                   [&](const viewer::ProcessView& p) { return p.name + "@" + p.host == key; });
+  if (it == state_.processes.end()) {
+    Expire(info.recv_utime);
+    if (static_cast<int>(state_.processes.size()) >= options_.max_processes) {
+      status_.Reject("too_many_processes");
+      return;
+    }
+    state_.processes.emplace_back();
+    it = state_.processes.end() - 1;
+  }
+  StatusHistory& h = status_history_[key];
+  it->output_rate_hz = h.prev_utime > 0 && s.utime > h.prev_utime
+                           ? (s.outputs - h.prev_outputs) / ((s.utime - h.prev_utime) * 1e-6)
+                           : 0.0;
+  h.prev_utime = s.utime;
+  h.prev_outputs = s.outputs;
+  it->name = s.process;
+  it->host = s.host;
+  it->pid = s.pid;
+  it->state = s.state;
+  it->inputs = s.inputs;
+  it->outputs = s.outputs;
+  it->dropped = s.dropped;
+  it->rejected.clear();
+  for (const counter_t& c : s.rejected) it->rejected.push_back({c.name, c.count});
+  it->losses.clear();
+  for (const counter_t& c : s.counters) {
+    if (c.name.rfind("dropped_", 0) == 0 || c.name.rfind("fragments_", 0) == 0) {
+      it->losses.push_back({c.name, c.count});
+    }
+  }
+  std::sort(it->rejected.begin(), it->rejected.end(),
+            [](const auto& a, const auto& b) { return a.second > b.second; });
+  it->last_error = s.last_error;
+  it->recv_utime = info.recv_utime;
+  NoteSites(s.utime, [&] { site_hashes_.ObserveStatus(s, info.recv_utime); });
+}
+
+void ViewerNode::SubscribeCamera() {
   subscriptions_.Add(
       bus_->Subscribe<image_t>(kCameraPreviewChannel, [this](const image_t& m, const MessageInfo&) {
         ++messages_;
@@ -280,7 +268,7 @@ ViewerNode::ViewerNode(const Site& site, Bus* bus, const ViewerNodeOptions& opti
       }));
   SubscribeDetectorView();
   subscriptions_.Add(bus_->Subscribe<marker_pixels_t>(
-      "MARKER_PIXELS", [this](const marker_pixels_t& m, const MessageInfo&) {
+      kMarkerPixelsChannel, [this](const marker_pixels_t& m, const MessageInfo&) {
         ++messages_;
         // The markers of the newest frame, in the preview's pixels.
         if (!state_.has_preview || m.camera_id != state_.preview.camera_id) return;
@@ -335,7 +323,7 @@ void ViewerNode::RequestDetectorView(int64_t now_utime) {
   }
 }
 
-viewer::TrackView* ViewerNode::FindTrack(viewer::Source source, int robot_id) {
+viewer::TrackView* ViewerNode::FindTrack(PoseSource source, int robot_id) {
   for (viewer::TrackView& t : state_.tracks) {
     if (t.source == source && t.robot_id == robot_id) return &t;
   }
@@ -363,8 +351,8 @@ void ViewerNode::MarkRejectedRanges() {
     }
     const viewer::TrackView* fix = nullptr;
     for (const viewer::TrackView& t : state_.tracks) {
-      if (t.source == viewer::Source::kUltrasound && t.robot_id == robot_id &&
-          t.utime == set.utime && !t.lost) {
+      if (t.source == PoseSource::kUltrasound && t.robot_id == robot_id && t.utime == set.utime &&
+          !t.lost) {
         fix = &t;
       }
     }

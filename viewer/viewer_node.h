@@ -10,16 +10,14 @@
 
 #include "core/world/site.h"
 #include "msgio/bus.h"
+#include "msgio/channels.h"
+#include "msgio/lcm_types_fwd.h"
 #include "msgio/process.h"
 #include "msgio/site_message.h"
 #include "msgio/subscriptions.h"
 #include "viewer/view_state.h"
 
 namespace roomfix {
-
-inline constexpr char kCameraPreviewChannel[] = "CAMERA_PREVIEW";
-inline constexpr char kDetectorViewChannel[] = "CAMERA_DETECTOR_VIEW";
-inline constexpr char kDetectorViewRequestChannel[] = "CAMERA_DETECTOR_VIEW_REQUEST";
 
 struct ViewerNodeOptions {
   // Seconds of trail behind each pose.
@@ -99,7 +97,13 @@ class ViewerNode {
     int64_t prev_utime = 0;
     int64_t prev_outputs = 0;
   };
-  viewer::TrackView* FindTrack(viewer::Source source, int robot_id);
+  // Each input, checked (msgio/received.h) and entered into the state.
+  void OnPose(const pose2d_t& msg, const MessageInfo& info);
+  void OnRangeSet(const range_set_t& set, const MessageInfo& info);
+  void OnStatus(const process_status_t& status, const MessageInfo& info);
+  // The camera's pictures: previews, their markers, detector views.
+  void SubscribeCamera();
+  viewer::TrackView* FindTrack(PoseSource source, int robot_id);
   void MarkRejectedRanges();
   // Runs `observe` on the site tracker and, when it saw a new hash, updates
   // the warning (logged, counted as site_disagreements, and in STATUS).

@@ -75,7 +75,7 @@ TEST(ViewerNode, KeepsEachSourcesTrackWithItsRateLatencyAndTrail) {
   const viewer::ViewState& s = node.StateAt(kT0 + 2'900'000);
   ASSERT_EQ(s.tracks.size(), 1u);
   const viewer::TrackView& t = s.tracks[0];
-  EXPECT_EQ(t.source, viewer::Source::kUltrasound);
+  EXPECT_EQ(t.source, PoseSource::kUltrasound);
   EXPECT_DOUBLE_EQ(t.x_m, 1.29);
   // 30 poses exactly 100 ms apart: 10 Hz but for the division's rounding.
   constexpr double kExactRateHz = 1e-6;

@@ -104,7 +104,7 @@ void BridgeNode::OnFrameError(const radio::FrameErrorInfo& error) {
 void BridgeNode::PublishClosed(int64_t now_utime) {
   for (const radio::AssembledSet& set : closed_) {
     const range_set_t msg = RangeSetFromAssembled(set);
-    if (bus_->Publish(kBridgeRangesChannel, msg)) {
+    if (bus_->Publish(kRangesChannel, msg)) {
       status_.AddOutputs();
       ++sets_published_;
     } else {

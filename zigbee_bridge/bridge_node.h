@@ -9,11 +9,10 @@
 #include "core/radio/xbee_frame.h"
 #include "core/world/site.h"
 #include "msgio/bus.h"
+#include "msgio/channels.h"
 #include "msgio/process.h"
 
 namespace roomfix {
-
-inline constexpr char kBridgeRangesChannel[] = "RANGES";
 
 struct BridgeNodeOptions {
   radio::ApiMode api_mode = radio::ApiMode::kEscaped;

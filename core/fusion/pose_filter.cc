@@ -59,10 +59,6 @@ double WrapAngle(double angle_rad) {
   return a;
 }
 
-const char* SourceName(Source source) {
-  return source == Source::kCamera ? "camera" : "ultrasound";
-}
-
 const char* OutcomeName(Outcome outcome) {
   switch (outcome) {
     case Outcome::kAccepted:
@@ -161,6 +157,11 @@ const PoseFilter::State& PoseFilter::Newest() const {
 }
 
 Outcome PoseFilter::Add(const Measurement& measurement, int64_t now_utime, Estimate* after) {
+  // The filter models two sensors; a fused or ground-truth pose is no
+  // measurement of it.
+  if (measurement.source != PoseSource::kCamera && measurement.source != PoseSource::kUltrasound) {
+    return Outcome::kInvalid;
+  }
   if (!measurement.position_m.allFinite() || !IsPositiveDefinite(measurement.position_cov_m2)) {
     return Outcome::kInvalid;
   }
@@ -172,7 +173,7 @@ Outcome PoseFilter::Add(const Measurement& measurement, int64_t now_utime, Estim
 
   // Condition the measurement once; the history keeps it conditioned.
   Measurement m = measurement;
-  const bool camera = m.source == Source::kCamera;
+  const bool camera = m.source == PoseSource::kCamera;
   if (camera) {
     // The correlated part goes into the bias state, so it leaves the white
     // noise: at most what the bias models (none when it is off), and the
@@ -234,7 +235,7 @@ Outcome PoseFilter::Add(const Measurement& measurement, int64_t now_utime, Estim
 }
 
 void PoseFilter::Initialise(const Measurement& m, State* state) const {
-  const bool camera = m.source == Source::kCamera;
+  const bool camera = m.source == PoseSource::kCamera;
   State s;
   s.initialised = true;
   s.utime = m.utime;
@@ -389,7 +390,7 @@ bool Update(const Eigen::Matrix<double, N, 1>& z, const Eigen::Matrix<double, N,
 }  // namespace
 
 Outcome PoseFilter::Apply(const Measurement& m, State* state) const {
-  const bool camera = m.source == Source::kCamera;
+  const bool camera = m.source == PoseSource::kCamera;
   const int src = static_cast<int>(m.source);
   // Whether the ultrasound may reopen the gate: only when the camera, which
   // is preferred, has not spoken for lost_after_s.

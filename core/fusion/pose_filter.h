@@ -9,20 +9,17 @@
 #include <string>
 #include <vector>
 
+#include "core/world/pose_source.h"
+
 namespace roomfix {
 namespace fusion {
-
-// Which sensor a measurement came from.
-enum class Source { kCamera = 0, kUltrasound = 1 };
-inline constexpr int kNumSources = 2;
-// "camera", "ultrasound": for counter names and logs.
-const char* SourceName(Source source);
 
 // One pose measurement as the filter takes it.
 struct Measurement {
   // When the measurement is valid (frame capture, beacon firing), microseconds.
   int64_t utime = 0;
-  Source source = Source::kCamera;
+  // Which sensor: kCamera or kUltrasound (any other is kInvalid).
+  PoseSource source = PoseSource::kCamera;
   // Which camera measured it (the site's camera id; -1 for ultrasound).
   // Several cameras each count as their own measurement; when two see the
   // robot at the same instant (synchronised frames) the id orders them, so
@@ -166,7 +163,8 @@ enum class Outcome {
   kTooLate,
   // Further ahead of the clock than max_future_s: dropped.
   kFromFuture,
-  // Non-finite position or covariance: dropped.
+  // Non-finite position or covariance, or a source that is neither the
+  // camera nor the ultrasound: dropped.
   kInvalid,
 };
 const char* OutcomeName(Outcome outcome);
@@ -260,9 +258,9 @@ class PoseFilter {
     int64_t last_camera_seen_utime = 0;
     bool camera_seen = false;
     bool camera_accepted = false;
-    std::array<int, kNumSources> consecutive_rejections{};
+    std::array<int, kNumPoseSources> consecutive_rejections{};
     // Measurement time of the first of those rejections.
-    std::array<int64_t, kNumSources> first_rejection_utime{};
+    std::array<int64_t, kNumPoseSources> first_rejection_utime{};
     int heading_rejections = 0;
     double innovation_m = std::numeric_limits<double>::quiet_NaN();
     int64_t seq = -1;

@@ -79,7 +79,7 @@ FilterRun RunFilter(PoseFilter* filter, const std::vector<StreamItem>& stream) {
     const double t = SecondsSinceStart(item.measurement.utime);
     if (t < kSettle_s) continue;
     run.fused_errors.push_back(PositionError(e, item.truth_x_m, item.truth_y_m));
-    if (item.measurement.source == Source::kCamera) {
+    if (item.measurement.source == PoseSource::kCamera) {
       run.camera_errors.push_back(std::hypot(item.measurement.position_m.x() - item.truth_x_m,
                                              item.measurement.position_m.y() - item.truth_y_m));
     }
@@ -103,7 +103,7 @@ std::vector<double> ErrorsBetween(const FilterRun& run, double from_s, double to
 Measurement CameraAt(double t_s, double x, double y) {
   Measurement m;
   m.utime = UtimeAt(t_s);
-  m.source = Source::kCamera;
+  m.source = PoseSource::kCamera;
   m.position_m = {x, y};
   m.position_cov_m2 = Eigen::Matrix2d::Identity() * 1e-6;
   return m;
@@ -111,7 +111,7 @@ Measurement CameraAt(double t_s, double x, double y) {
 
 Measurement UltrasoundAt(double t_s, double x, double y) {
   Measurement m = CameraAt(t_s, x, y);
-  m.source = Source::kUltrasound;
+  m.source = PoseSource::kUltrasound;
   m.position_cov_m2 = Eigen::Matrix2d::Identity() * 4e-4;
   return m;
 }

@@ -35,7 +35,7 @@ mkdir -p "$elsewhere"
 cd "$elsewhere" || exit 1
 
 programs=(camera_proc trilat_proc fusion_proc zigbee_bridge roomfix_logger roomfix_viewer
-  roomfix_sim roomfix)
+  roomfix_sim roomfix roomfix_bench)
 for p in "${programs[@]}"; do
   bin=$prefix/bin/$p
   if [[ ! -x "$bin" ]]; then fail "$p is not in the package"; continue; fi
@@ -83,11 +83,11 @@ site=$prefix/share/roomfix/config/sites/demo_room.yaml
 if ! out=$("$prefix/bin/roomfix" check-config "$site" 2>&1); then
   fail "roomfix check-config on the packaged demo site: $out"
 fi
-# The default site of `roomfix bench camera` is the packaged one, whatever
+# The default site of `roomfix_bench camera` is the packaged one, whatever
 # the current folder (CLI11 prints the default in --help).
-bench_help=$("$prefix/bin/roomfix" bench camera --help)
+bench_help=$("$prefix/bin/roomfix_bench" camera --help)
 if ! grep -qF "$site" <<<"$bench_help"; then
-  fail "roomfix bench camera does not default to $site: $(grep -- --site <<<"$bench_help")"
+  fail "roomfix_bench camera does not default to $site: $(grep -- --site <<<"$bench_help")"
 fi
 
 for f in include/roomfix/pose2d_t.hpp share/roomfix/lcmtypes/pose2d_t.lcm \

@@ -32,7 +32,21 @@ using testing::DemoSitePath;
 using testing::SourceDir;
 
 constexpr int64_t kStartUtime = 1'700'000'000'000'000;
-constexpr double kRmseTargetM = 0.005;
+// The camera issue's target was 5 mm; each bound here is what its test
+// measures (printed by it) with a named margin, so a regression shows.
+// A folder of rendered frames read from files: deterministic (fixed scene,
+// noise seed and start time), measured 0.25 mm in five runs; 1.5x for
+// another compiler's or libjpeg's rounding.
+constexpr double kFolderRmseM = 0.00025 * 1.5;
+// The live synthetic camera (sim:reference_circle, real time, its t = 0
+// from roomfix_sim's heartbeat): measured 0.19 to 0.20 mm in five runs on a
+// shared 2-core machine (load 3 to 13); 2x for the frames a busier machine
+// skips and a heartbeat heard late.
+constexpr double kLiveRmseM = 0.00020 * 2.0;
+// The simulated webcam of sim_demo.pmd (the robot leans and rocks, 1.9 mm
+// per axis): measured 2.32 to 2.43 mm in five runs; 1.5x as above, still a
+// sixth of the 23 mm that the nominal lens's calibration gave (issue #32).
+constexpr double kWebcamRmseM = 0.0024 * 1.5;
 // Peak memory of any child in the oversize-image test: a 1920 x 1080 camera
 // pipeline needs well under this; one decode of the 20000 x 20000 PNG would
 // need 1200 MB.
@@ -179,7 +193,7 @@ TEST_F(CameraProcess, AFolderOfFramesBecomesPosesAndBadFilesAreCounted) {
   }
   const double rmse = std::sqrt(sum2 / poses_.size());
   std::printf("folder of 60 frames under changing light: %.2f mm RMS\n", rmse * 1e3);
-  EXPECT_LT(rmse, kRmseTargetM);
+  EXPECT_LT(rmse, kFolderRmseM);
 }
 
 // Issue #15: a 57-byte PNG whose header claims 100000 x 100000 px killed
@@ -259,7 +273,7 @@ TEST_F(CameraProcess, TheLiveSyntheticCameraAgreesWithTheSimulatorsGroundTruth) 
   const double rmse = e.rmse_m;
   std::printf("live synthetic camera: %zu poses at %.1f Hz, %.2f mm RMS against ground truth\n",
               poses_.size(), rate_hz, rmse * 1e3);
-  EXPECT_LT(rmse, kRmseTargetM);
+  EXPECT_LT(rmse, kLiveRmseM);
   // 30 fps on a quiet machine; a loaded 2-core CI machine drops some.
   EXPECT_GT(rate_hz, 10.0);
   camera.Signal(SIGINT);
@@ -304,10 +318,9 @@ TEST_F(CameraProcess, TheSimDemoPmdsCameraAgreesWithItsSimulatorsGroundTruth) {
       "sim_demo.pmd's camera_proc and roomfix_sim: %d poses, %.2f mm RMS, %.2f mm max "
       "against ground truth\n",
       e.compared, e.rmse_m * 1e3, e.max_m * 1e3);
-  // make demo's figure for the webcam on the circle is 2.9 mm (the robot's
-  // lean and rocking, README); kRmseTargetM leaves room for a loaded machine
-  // and is a fifth of the 23 mm the nominal lens's calibration gave.
-  EXPECT_LT(e.rmse_m, kRmseTargetM);
+  // make demo's figure for the webcam on the circle is 3.0 mm (the robot's
+  // lean and rocking, README); here 3 s of it.
+  EXPECT_LT(e.rmse_m, kWebcamRmseM);
   camera.Signal(SIGINT);
   sim.Signal(SIGINT);
   EXPECT_EQ(camera.Wait(10), 0);

@@ -1,6 +1,6 @@
 // The fusion issue's targets on the simulator, with the real processes over
 // multicast in a private network namespace: roomfix_sim (ground truth and
-// range sets), camera_proc on the synthetic camera, trilat_proc and
+// range sets), camera_proc on the demo's simulated webcam, trilat_proc and
 // fusion_proc. The fused track must be no worse than the camera's alone at
 // the combined rate, and keep a bounded error through a 5 s camera outage
 // and a 5 s radio outage (each process frozen with SIGSTOP, as a hung
@@ -26,13 +26,20 @@ using testing::BinDir;
 using testing::ChildProcess;
 using testing::DemoSitePath;
 
-// A 5 s outage of the camera leaves the ultrasound (about 1 cm) to carry
-// the track; of the radio, the camera (sub-millimetre).
-constexpr double kCameraOutageRmseM = 0.03;
-constexpr double kRadioOutageRmseM = 0.002;
-// "No worse than the camera alone", with room for the two estimates'
-// sampling noise over the same stretch.
-constexpr double kFusedOverCameraMax = 1.2;
+// Measured in three runs (2026-11-29, a shared 2-core machine at load 12
+// to 13, where the simulated webcam kept 26 to 28 frames/s): camera 2.72 to
+// 2.79 mm and fused 2.65 to 2.72 mm RMSE in the normal stretch (the robot's
+// lean and rocking, as in make demo); through a 5 s camera outage, the
+// ultrasound carrying the track, 6.77 to 6.94 mm; through a 5 s radio
+// outage, the camera alone, 2.48 to 2.54 mm. Each bound is 1.5x the
+// figure: the runs spread by 3 %, and a busier machine skips more frames.
+constexpr double kMargin = 1.5;
+constexpr double kCameraOutageRmseM = 0.0069 * kMargin;
+constexpr double kRadioOutageRmseM = 0.0025 * kMargin;
+// "No worse than the camera alone": measured 0.97 to 0.99 of the camera's
+// RMSE; 1.1 for the two estimates' sampling noise over the same 6 s (the
+// lean changes over about a second, so a few independent samples).
+constexpr double kFusedOverCameraMax = 1.1;
 
 // Ground truth comes at 30 Hz; a longer gap is a stall, not a sample.
 constexpr int64_t kMaxTruthGapUs = 200'000;
@@ -84,17 +91,17 @@ TEST_F(FusionProcess, FusedIsNoWorseThanTheCameraAndRidesOutEachSensorsOutage) {
                     "--range-noise", "0.01", "--log-level", "warn"});
   ChildProcess trilat({BinDir() + "/trilat_proc", "--config", DemoSitePath(), "--method", "robust",
                        "--log-level", "warn"});
-  // The idealised camera (sim:reference_circle) renders no tilt, while the
-  // demo site states the webcam robot's 0.55 degrees: with its bias model
-  // fusion would rightly let the ultrasound move the track by that much
-  // (0.3 mm against the camera's 0.13), so this test, which compares the
-  // fused track with an ideal camera's, tells fusion the camera's errors
-  // are white, as they are here (docs/fusion.md, "Correlated camera error").
-  ChildProcess fusion({BinDir() + "/fusion_proc", "--config", DemoSitePath(), "--camera-bias-time",
-                       "0", "--log-level", "warn"});
+  // fusion_proc and camera_proc as `make demo` runs them (scripts/demo.sh):
+  // fusion with its default flags, so the robot's tilt the site states is a
+  // bias state (docs/fusion.md, "Correlated camera error"), and camera_proc
+  // on the site's own device, the simulated webcam that renders that tilt,
+  // with the calibration of the lens it renders through.
+  ChildProcess fusion(
+      {BinDir() + "/fusion_proc", "--config", DemoSitePath(), "--log-level", "warn"});
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
-  ChildProcess camera({BinDir() + "/camera_proc", "--config", DemoSitePath(), "--device",
-                       "sim:reference_circle", "--log-level", "warn"});
+  ChildProcess camera({BinDir() + "/camera_proc", "--config", DemoSitePath(), "--calibration",
+                       testing::SourceDir() + "/config/calibration/demo_room_webcam.yaml",
+                       "--log-level", "warn"});
   Listen(3.0);  // start-up and the filter's first second
   auto now = [] { return NowUtime(); };
 

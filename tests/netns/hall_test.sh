@@ -20,7 +20,7 @@
 #
 # The cameras run at ROOMFIX_HALL_FPS (default 10): four renderers at 30 fps
 # do not fit a 2-core CI machine beside the rest (docs/operations.md,
-# "A hall"; `roomfix bench capacity` has what full rate needs).
+# "A hall"; `roomfix_bench capacity` has what full rate needs).
 #
 #   hall_test.sh BIN_DIR SOURCE_DIR
 #
@@ -196,6 +196,6 @@ python3 "$src/tests/netns/hall_handover.py" "$work/log.jsonl" --warmup-s 2 --max
   fail "a handover moved a fused pose 1 cm or more, the cameras missed a robot on more than $max_missed frames in a row, or a robot was never handed over"
 grep '"process":"fusion_proc"' "$work/log.jsonl" | tail -1 |
   grep -o '"rejected":{[^}]*},"counters":{[^}]*}' | sed 's/^/  fusion_proc: /'
-"$bin/roomfix" bench capacity --latency-only \
+"$bin/roomfix_bench" capacity --latency-only \
   --log "$log" | grep 'POSE_FUSED' | sed 's/^/ /'
 echo "hall_test: passed"

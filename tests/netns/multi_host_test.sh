@@ -120,18 +120,32 @@ expect_host zigbee_bridge roomfix-radio
 expect_host trilat_proc roomfix-solver
 expect_host roomfix_logger roomfix-solver
 # The control: at ttl=0 nothing crosses from one host to another, so what
-# arrived above really went over the "LAN".
+# arrived above really went over the "LAN". A listener on the camera host
+# itself must hear the control's simulator (it started and published), while
+# the solver host's must time out (listen exits 3); a listener that timed out
+# because nothing was published at all proves nothing.
 local_url='udpm://239.255.76.67:7667?ttl=0'
 on_host solver "$bin/roomfix" listen --lcm-url "$local_url" --channel POSE_GROUND_TRUTH \
   --count 1 --timeout 3 >/dev/null 2>&1 &
 listener=$!
 pids+=("$listener")
+on_host camera "$bin/roomfix" listen --lcm-url "$local_url" --channel POSE_GROUND_TRUTH \
+  --count 1 --timeout 3 >"$work/control_same_host.out" 2>&1 &
+same_host=$!
+pids+=("$same_host")
 sleep 0.3
 on_host camera "$bin/roomfix_sim" --config "$site" --lcm-url "$local_url" --duration 2 \
-  --log-level error >/dev/null 2>&1 &
-pids+=($!)
+  --log-level error >/dev/null 2>"$work/control_sim.err" &
+control_sim=$!
+pids+=("$control_sim")
+rc=0
+wait "$control_sim" || rc=$?
+((rc == 0)) || fail "the control's roomfix_sim on the camera host failed (exit $rc): $(cat "$work/control_sim.err")"
+rc=0
+wait "$same_host" || rc=$?
+((rc == 0)) || fail "at ttl=0 the camera host did not hear its own roomfix_sim (listen exit $rc), so the control proves nothing: $(cat "$work/control_same_host.out")"
 rc=0
 wait "$listener" || rc=$?
 ((rc == 3)) || fail "at ttl=0 a message crossed from the camera host to the solver host (listen exit $rc)"
-echo "  control: nothing crossed at ttl=0"
+echo "  control: the camera host heard its own simulator at ttl=0; nothing crossed to the solver host"
 echo "multi_host_test: passed"

@@ -10,8 +10,9 @@
 //
 // "fields" is written here field by field from the .lcm files, completely
 // (no summary, unlike `roomfix listen`'s JSON): the Python test fails when a
-// type gains a field this file does not write. Doubles are printed to 17
-// digits (JsonLine), so they read back to the same bits; NaN is null.
+// type gains a field this file does not write. The line is nlohmann's
+// dump(): doubles in the shortest form that reads back to the same bits
+// (-0.0 keeps its sign), NaN and infinities as null.
 #include <fmt/format.h>
 
 #include <cmath>
@@ -209,7 +210,7 @@ void Print(const std::string& origin, const std::string& channel, const Msg& msg
                              {"fingerprint", FingerprintHex(hash)},
                              {"hex", Hex(bytes, size)},
                              {"fields", Fields(msg)}};
-  std::printf("%s\n", JsonLine(line).c_str());
+  std::printf("%s\n", line.dump(-1, ' ', false, ordered_json::error_handler_t::replace).c_str());
 }
 
 template <class Msg>

@@ -44,9 +44,9 @@ def compare(py, want, path, errors):
         for i, (a, b) in enumerate(zip(py, want)):
             compare(a, b, f"{path}[{i}]", errors)
     elif isinstance(py, float):
-        # C++ printed 17 digits, which read back to the same double; NaN
-        # and infinities as null. (JSON's "-0" reads as the integer 0: the
-        # sign of a zero is checked by the re-encoding, bit for bit.)
+        # C++ printed the shortest form that reads back to the same double
+        # (nlohmann's dump()); NaN and infinities as null. (-0.0 == 0.0 here:
+        # the sign of a zero is checked by the re-encoding, bit for bit.)
         same = not math.isfinite(py) if want is None else (
             isinstance(want, (int, float)) and not isinstance(want, bool) and py == want)
         if not same:

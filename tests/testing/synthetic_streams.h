@@ -134,7 +134,7 @@ inline std::vector<StreamItem> MakeStream(const Trajectory& trajectory, const St
     item.robot_id = o.robot_id;
     Measurement& m = item.measurement;
     m.utime = UtimeAt(t);
-    m.source = Source::kCamera;
+    m.source = PoseSource::kCamera;
     m.seq = k;
     m.position_m = {truth.x_m + o.camera_sigma_m * cam_n1, truth.y_m + o.camera_sigma_m * cam_n2};
     m.position_cov_m2 = Eigen::Matrix2d::Identity() * o.camera_sigma_m * o.camera_sigma_m;
@@ -163,7 +163,7 @@ inline std::vector<StreamItem> MakeStream(const Trajectory& trajectory, const St
     item.robot_id = o.robot_id;
     Measurement& m = item.measurement;
     m.utime = UtimeAt(t);
-    m.source = Source::kUltrasound;
+    m.source = PoseSource::kUltrasound;
     m.seq = k;
     m.position_m = {truth.x_m + o.ultrasound_sigma_m * n1, truth.y_m + o.ultrasound_sigma_m * n2};
     if (u1 < o.outlier_fraction) {

@@ -109,10 +109,10 @@ expect "grab (frames.csv)" "roomfix grab: $tmp/grab_csv/frames.csv: cannot write
 mkdir "$tmp/analysis" && ln -s /dev/full "$tmp/analysis/report.md"
 expect "analyze report.md" "roomfix analyze: $tmp/analysis/report.md: cannot write: $full" \
   "$bin/roomfix" analyze "$gt_log" --out "$tmp/analysis" --no-figures
-expect "bench viewer --png" "roomfix bench viewer: /dev/full: cannot write: $full" \
-  "$bin/roomfix" bench viewer --frames 3 --png /dev/full
+expect "roomfix_bench viewer --png" "roomfix_bench viewer: /dev/full: cannot write: $full" \
+  "$bin/roomfix_bench" viewer --frames 3 --png /dev/full
 
-# Standard output: every command's JSON or table (bench --json, frames, map).
+# Standard output: every command's JSON or table (roomfix_bench --json, frames, map).
 err=$("$bin/roomfix" version 2>&1 >/dev/full)
 rc=$?
 if ((rc != 1)) || [[ "$err" != "roomfix: standard output: cannot write: $full" ]]; then
@@ -120,12 +120,12 @@ if ((rc != 1)) || [[ "$err" != "roomfix: standard output: cannot write: $full" ]
 else
   echo "ok: version >/dev/full: $err"
 fi
-err=$("$bin/roomfix" bench trilat --trials 10 --node-sets 10 --json 2>&1 >/dev/full)
+err=$("$bin/roomfix_bench" trilat --trials 10 --node-sets 10 --json 2>&1 >/dev/full)
 rc=$?
-if ((rc != 1)) || [[ "$err" != "roomfix: standard output: cannot write"* ]]; then
-  echo "FAIL: bench trilat --json >/dev/full: exit $rc, stderr '$err'"; failures=$((failures + 1))
+if ((rc != 1)) || [[ "$err" != "roomfix_bench: standard output: cannot write"* ]]; then
+  echo "FAIL: roomfix_bench trilat --json >/dev/full: exit $rc, stderr '$err'"; failures=$((failures + 1))
 else
-  echo "ok: bench trilat --json >/dev/full: $err"
+  echo "ok: roomfix_bench trilat --json >/dev/full: $err"
 fi
 
 if unshare -rm true 2>/dev/null; then

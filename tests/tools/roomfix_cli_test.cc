@@ -1,4 +1,5 @@
-// The `roomfix` command's solve and bench subcommands, run as a user would.
+// The `roomfix` command's solve subcommand and other commands, and the
+// `roomfix_bench` benchmarks, run as a user would.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -26,20 +27,32 @@ using testing::ReadFile;
 using testing::TempDir;
 using testing::WriteFile;
 
-// Runs `roomfix ARGS...` and returns its standard output.
-std::string RunRoomfix(const std::vector<std::string>& args, int* exit_code) {
+// Runs `PROGRAM ARGS...` (a program of the build's bin/) and returns its
+// standard output.
+std::string RunProgram(const std::string& program, const std::vector<std::string>& args,
+                       int* exit_code) {
   TempDir dir;
-  std::vector<std::string> argv = {BinDir() + "/roomfix"};
+  std::vector<std::string> argv = {BinDir() + "/" + program};
   argv.insert(argv.end(), args.begin(), args.end());
   ChildProcess p(argv, dir.File("out.txt"));
   *exit_code = p.Wait(120);
   return ReadFile(dir.File("out.txt"));
 }
 
-// As RunRoomfix, with every line of the output parsed as JSON.
-std::vector<json> RunJsonLines(const std::vector<std::string>& args, int* exit_code) {
+// Runs `roomfix ARGS...` and returns its standard output.
+std::string RunRoomfix(const std::vector<std::string>& args, int* exit_code) {
+  return RunProgram("roomfix", args, exit_code);
+}
+
+// Runs `roomfix_bench ARGS...` (bench/) and returns its standard output.
+std::string RunRoomfixBench(const std::vector<std::string>& args, int* exit_code) {
+  return RunProgram("roomfix_bench", args, exit_code);
+}
+
+// Every line of a command's output parsed as JSON.
+std::vector<json> ParseJsonLines(const std::string& output) {
   std::vector<json> out;
-  std::istringstream lines(RunRoomfix(args, exit_code));
+  std::istringstream lines(output);
   std::string line;
   while (std::getline(lines, line)) {
     json j = json::parse(line, nullptr, false);
@@ -47,6 +60,11 @@ std::vector<json> RunJsonLines(const std::vector<std::string>& args, int* exit_c
     out.push_back(j);
   }
   return out;
+}
+
+// As RunRoomfix, with every line of the output parsed as JSON.
+std::vector<json> RunJsonLines(const std::vector<std::string>& args, int* exit_code) {
+  return ParseJsonLines(RunRoomfix(args, exit_code));
 }
 
 // roomfix detect (docs/camera.md, "What the detector sees") on a frame
@@ -168,8 +186,8 @@ TEST(RoomfixSolve, AnswersEachLineAndReportsMalformedOnesWithoutStopping) {
 // timings are printed, never asserted (the machine is shared).
 TEST(RoomfixBenchTrilat, PrintsEveryMethodForEveryScenarioAsJson) {
   int rc = 0;
-  const auto out =
-      RunJsonLines({"bench", "trilat", "--trials", "2000", "--node-sets", "2000", "--json"}, &rc);
+  const auto out = ParseJsonLines(
+      RunRoomfixBench({"trilat", "--trials", "2000", "--node-sets", "2000", "--json"}, &rc));
   ASSERT_EQ(rc, 0);
   ASSERT_EQ(out.size(), 1u);
   const json& b = out[0];
@@ -443,9 +461,9 @@ TEST(RoomfixFrames, RefusesHexTextThatIsNotHex) {
 TEST(RoomfixBenchRadio, PrintsThroughputLatencyAndTheGroupingComparisonAsJson) {
   int rc = -1;
   const std::string out =
-      RunRoomfix({"bench", "radio", "--json", "--site", testing::DemoSitePath(), "--stream-mb", "2",
-                  "--repeats", "2", "--latency-firings", "50", "--compare-seconds", "60"},
-                 &rc);
+      RunRoomfixBench({"radio", "--json", "--site", testing::DemoSitePath(), "--stream-mb", "2",
+                       "--repeats", "2", "--latency-firings", "50", "--compare-seconds", "60"},
+                      &rc);
   ASSERT_EQ(rc, 0) << out;
   const json j = json::parse(out);
   for (const char* mode : {"api_mode_1", "api_mode_2"}) {
@@ -460,19 +478,19 @@ TEST(RoomfixBenchRadio, PrintsThroughputLatencyAndTheGroupingComparisonAsJson) {
   EXPECT_GT(j["grouping"]["reference_mixed_sets"].get<int>(), 50);
 }
 
-// bench micro prints Google Benchmark's table and each benchmark's CPU time
+// roomfix_bench micro prints Google Benchmark's table and each benchmark's CPU time
 // against its group's baseline. Only that it runs and compares is asserted
 // here: a timing is a figure to read, never a test's verdict.
 TEST(RoomfixBenchMicro, PrintsEachKernelAgainstItsGroupsBaseline) {
   int rc = -1;
-  const std::string help = RunRoomfix({"bench", "--help"}, &rc);
-  if (help.find("micro") == std::string::npos) {
-    GTEST_SKIP() << "roomfix was built without Google Benchmark (libbenchmark-dev)";
+  // Without the library, `micro` is a command that says so (bench_micro_absent.cc).
+  const std::string help = RunRoomfixBench({"--help"}, &rc);
+  if (help.find("kernels (not in this build)") != std::string::npos) {
+    GTEST_SKIP() << "roomfix_bench was built without Google Benchmark (libbenchmark-dev)";
   }
-  const std::string out =
-      RunRoomfix({"bench", "micro", "--site", testing::DemoSitePath(), "--filter",
-                  "detect/(reference|window)", "--min-time", "0.01"},
-                 &rc);
+  const std::string out = RunRoomfixBench({"micro", "--site", testing::DemoSitePath(), "--filter",
+                                           "detect/(reference|window)", "--min-time", "0.01"},
+                                          &rc);
   ASSERT_EQ(rc, 0) << out;
   EXPECT_NE(out.find("detect/window_120px_one_class"), std::string::npos) << out;
   // The baseline against itself is exactly 1.
@@ -480,8 +498,8 @@ TEST(RoomfixBenchMicro, PrintsEachKernelAgainstItsGroupsBaseline) {
       << out;
   EXPECT_NE(out.find("baseline of detect: detect/reference"), std::string::npos) << out;
   // A filter that matches nothing is an error, not an empty table.
-  RunRoomfix({"bench", "micro", "--site", testing::DemoSitePath(), "--filter", "no_such_benchmark"},
-             &rc);
+  RunRoomfixBench({"micro", "--site", testing::DemoSitePath(), "--filter", "no_such_benchmark"},
+                  &rc);
   EXPECT_EQ(rc, 1);
 }
 

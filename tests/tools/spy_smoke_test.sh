@@ -21,4 +21,13 @@ if grep -E 'Exception|Error:' "$log"; then
   echo "FAIL: lcm-spy printed an error"
   exit 1
 fi
-echo "ok: lcm-spy ran for 8 s with the roomfix jar on its class path"
+# Still running at the time-out proves nothing by itself (a wrapper that
+# hangs before lcm-spy starts runs out the clock too): lcm-spy must have
+# started and found every roomfix type on its class path, one per .lcm file.
+types=$(find "$source/lcmtypes" -name '*.lcm' | wc -l)
+if ! grep -qx "Found $types LCM types" "$log"; then
+  echo "FAIL: lcm-spy did not say 'Found $types LCM types' (the roomfix jar's types):"
+  cat "$log"
+  exit 1
+fi
+echo "ok: lcm-spy ran for 8 s and found the $types roomfix types on its class path"

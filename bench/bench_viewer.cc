@@ -1,4 +1,4 @@
-// roomfix bench viewer: how long the viewer takes to draw one frame of a busy
+// roomfix_bench viewer: how long the viewer takes to draw one frame of a busy
 // installation (10 robots seen by 4 sources with 10 s trails, 12 receivers,
 // a range set per beacon, 6 processes, a camera preview) at 1280 x 800, and
 // whether that leaves 30 fps.
@@ -15,16 +15,16 @@
 #include <string>
 #include <vector>
 
+#include "bench/commands.h"
 #include "camera_io/image_file.h"
 #include "core/analysis/track_error.h"
-#include "tools/commands.h"
 #include "viewer/render.h"
 
 namespace roomfix {
 namespace {
 
 using json = nlohmann::ordered_json;
-using viewer::Source;
+using Source = PoseSource;
 
 struct BenchViewerOptions {
   int frames = 300;
@@ -115,7 +115,7 @@ void MakeState(const Site& site, double t_s, const std::vector<std::vector<uint8
   for (int k = 0; k < kRobots; ++k) {
     for (int s = 0; s < viewer::kNumSources; ++s) {
       viewer::TrackView t;
-      t.source = static_cast<Source>(s);
+      t.source = viewer::kSources[s];
       t.robot_id = k + 1;
       const double period_s = 1.0 / kSourceRateHz[s];
       const auto samples = static_cast<int>(state->trail_s * kSourceRateHz[s]);
@@ -207,7 +207,7 @@ void MakeState(const Site& site, double t_s, const std::vector<std::vector<uint8
 
 int RunViewerBench(const BenchViewerOptions& options) {
   if (options.frames < 1) {
-    std::cerr << "roomfix bench viewer: --frames must be at least 1\n";
+    std::cerr << "roomfix_bench viewer: --frames must be at least 1\n";
     return 1;
   }
   const Site site = MakeSite();
@@ -215,7 +215,7 @@ int RunViewerBench(const BenchViewerOptions& options) {
   viewer::RenderOptions render_options;  // 1280 x 800, 380 px panel
   std::string error;
   if (!render_options.IsValid(&error)) {
-    std::cerr << "roomfix bench viewer: " << error << "\n";
+    std::cerr << "roomfix_bench viewer: " << error << "\n";
     return 1;
   }
   viewer::ViewState state;
@@ -243,7 +243,7 @@ int RunViewerBench(const BenchViewerOptions& options) {
   }
   std::string png_error;
   if (!options.png.empty() && !camera::WriteImageChecked(options.png, image, &png_error)) {
-    std::cerr << "roomfix bench viewer: " << png_error << "\n";
+    std::cerr << "roomfix_bench viewer: " << png_error << "\n";
     return 1;
   }
   const double median = analysis::Percentile(frame_ms, 0.5);

@@ -1,4 +1,4 @@
-// roomfix bench replay: how many times faster than real time `roomfix
+// roomfix_bench replay: how many times faster than real time `roomfix
 // replay` re-runs trilat and fusion over a recorded log, on one core.
 #include <time.h>
 #include <unistd.h>
@@ -13,8 +13,8 @@
 #include <string>
 #include <vector>
 
+#include "bench/commands.h"
 #include "core/world/site.h"
-#include "tools/commands.h"
 #include "tools/replay.h"
 
 namespace roomfix {
@@ -44,19 +44,19 @@ int RunBenchReplay(const BenchReplayArgs& args) {
   ReplaySite replay_site;
   std::string error;
   if (!ResolveReplaySite(args.log_path, args.site_path, "", &replay_site, &error)) {
-    std::cerr << "roomfix bench replay: " << error << "\n";
+    std::cerr << "roomfix_bench replay: " << error << "\n";
     return 1;
   }
   const Site& site = replay_site.loaded.site;
   if (args.repeat < 1) {
-    std::cerr << "roomfix bench replay: --repeat must be at least 1\n";
+    std::cerr << "roomfix_bench replay: --repeat must be at least 1\n";
     return 1;
   }
   // The new log goes to a scratch file, so writing it is part of the cost.
   char scratch[] = "/tmp/roomfix_bench_replay_XXXXXX";
   const int fd = ::mkstemp(scratch);
   if (fd < 0) {
-    std::cerr << "roomfix bench replay: cannot make a scratch file in /tmp\n";
+    std::cerr << "roomfix_bench replay: cannot make a scratch file in /tmp\n";
     return 1;
   }
   ::close(fd);
@@ -98,7 +98,7 @@ int RunBenchReplay(const BenchReplayArgs& args) {
       if (!s.ok) break;
     }
     if (!s.ok) {
-      std::cerr << "roomfix bench replay: " << s.error << "\n";
+      std::cerr << "roomfix_bench replay: " << s.error << "\n";
       rc = 1;
       break;
     }

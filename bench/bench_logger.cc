@@ -1,11 +1,11 @@
-// roomfix bench logger: how many small messages per second roomfix_logger
+// roomfix_bench logger: how many small messages per second roomfix_logger
 // writes with none lost, and its peak memory, for each receiver in the same
 // run: roomfix's own (UdpmBus, what every process uses), liblcm tuned as
 // LcmBus tunes it (queue capacity kLcmQueueCapacity, recv_buf_size) through
 // roomfix_logger --via-liblcm, and stock lcm-logger (liblcm's default queue
 // of 30). Runs the loggers as child processes on the default multicast URL,
 // so run it inside a private network namespace:
-//   scripts/netns_run build/bin/roomfix bench logger
+//   scripts/netns_run build/bin/roomfix_bench logger
 #include <signal.h>
 #include <spawn.h>
 #include <sys/wait.h>
@@ -22,10 +22,10 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "bench/commands.h"
 #include "msgio/bus.h"
 #include "msgio/log.h"
 #include "msgio/process.h"
-#include "tools/commands.h"
 
 extern char** environ;
 
@@ -145,8 +145,8 @@ void PrintLadder(const char* name, const LadderResult& r, int payload_bytes) {
 
 int Run(const BenchLoggerOptions& o) {
   if (std::getenv("ROOMFIX_IN_NETNS") == nullptr) {
-    std::cerr << "roomfix bench logger: run it in a private network namespace: "
-                 "scripts/netns_run build/bin/roomfix bench logger\n";
+    std::cerr << "roomfix_bench logger: run it in a private network namespace: "
+                 "scripts/netns_run build/bin/roomfix_bench logger\n";
     return 1;
   }
   char dir_template[] = "/tmp/roomfix_bench_logger_XXXXXX";
@@ -156,7 +156,7 @@ int Run(const BenchLoggerOptions& o) {
   std::string error;
   auto bus = LcmBus::Create(kDefaultLcmUrl, &error);
   if (bus == nullptr) {
-    std::cerr << "roomfix bench logger: " << error << "\n";
+    std::cerr << "roomfix_bench logger: " << error << "\n";
     return 1;
   }
   std::string url = kDefaultLcmUrl;
@@ -179,7 +179,7 @@ int Run(const BenchLoggerOptions& o) {
                 log_path, &stock, &error);
   ::rmdir(dir);
   if (!ok) {
-    std::cerr << "roomfix bench logger: " << error << "\n";
+    std::cerr << "roomfix_bench logger: " << error << "\n";
     return 1;
   }
   const std::pair<const char*, LadderResult*> ladders[] = {

@@ -1,5 +1,5 @@
-#ifndef ROOMFIX_TOOLS_BENCH_TRILAT_H_
-#define ROOMFIX_TOOLS_BENCH_TRILAT_H_
+#ifndef ROOMFIX_BENCH_BENCH_TRILAT_H_
+#define ROOMFIX_BENCH_BENCH_TRILAT_H_
 
 #include <cstdint>
 
@@ -18,4 +18,4 @@ int RunTrilatBench(const BenchTrilatOptions& options);
 
 }  // namespace roomfix
 
-#endif  // ROOMFIX_TOOLS_BENCH_TRILAT_H_
+#endif  // ROOMFIX_BENCH_BENCH_TRILAT_H_

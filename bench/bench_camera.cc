@@ -1,4 +1,4 @@
-// roomfix bench camera: per-frame cost of camera_proc's pipeline on 1080p
+// roomfix_bench camera: per-frame cost of camera_proc's pipeline on 1080p
 // MJPEG frames against the reference pipeline, measured on the same frames
 // in the same run, and the centroid accuracy on the same synthetic frames.
 #include <CLI/CLI.hpp>
@@ -16,6 +16,7 @@
 #include <random>
 #include <vector>
 
+#include "bench/commands.h"
 #include "camera_io/frame_source.h"
 #include "camera_proc/camera_node.h"
 #include "core/analysis/fix_quality.h"
@@ -25,7 +26,6 @@
 #include "msgio/install_paths.h"
 #include "roomfix/pose2d_t.hpp"
 #include "sim/synthetic_camera.h"
-#include "tools/commands.h"
 
 namespace roomfix {
 namespace {
@@ -267,6 +267,274 @@ int RunErrorBudget(const BenchCameraOptions& o) {
   return 0;
 }
 
+// Dots of the site's classes' colours (the middle of each HSV range), 3 to
+// 5 px in radius, drawn on frame `index`: each passes the area filter as a
+// blob.
+void DrawClutter(const Camera& cam, int index, int dots, cv::Mat* bgr) {
+  std::mt19937 rng(static_cast<uint32_t>(index));
+  std::vector<cv::Scalar> colours;
+  for (const MarkerClass& mc : cam.marker_classes) {
+    const int h = mc.hsv_min[0] <= mc.hsv_max[0]
+                      ? (mc.hsv_min[0] + mc.hsv_max[0]) / 2
+                      : ((mc.hsv_min[0] + mc.hsv_max[0] + 180) / 2) % 180;
+    cv::Mat3b hsv(1, 1, cv::Vec3b(static_cast<uchar>(h), 200, 200)), bgr_px;
+    cv::cvtColor(hsv, bgr_px, cv::COLOR_HSV2BGR);
+    const cv::Vec3b c = bgr_px(0, 0);
+    colours.emplace_back(c[0], c[1], c[2]);
+  }
+  for (int k = 0; k < dots && !colours.empty(); ++k) {
+    const cv::Point centre(static_cast<int>(rng() % static_cast<uint32_t>(cam.width_px)),
+                           static_cast<int>(rng() % static_cast<uint32_t>(cam.height_px)));
+    cv::circle(*bgr, centre, 3 + static_cast<int>(rng() % 3), colours[k % colours.size()],
+               cv::FILLED, cv::LINE_AA);
+  }
+}
+
+constexpr int64_t kBenchStartUtime = 1'700'000'000'000'000;
+
+// Renders o.frames frames of `synth` as the camera encodes them, with
+// o.clutter dots on each; false (said on stderr) when one cannot be encoded.
+bool RenderFrames(const Camera& cam, const sim::SyntheticCamera& synth, const BenchCameraOptions& o,
+                  Rendered* r) {
+  for (int i = 0; i < o.frames; ++i) {
+    const double t_s = i / cam.fps;
+    cv::Mat bgr;
+    std::vector<sim::MarkerTruth> truth;
+    synth.Render(t_s, i, synth.SimulatedRobots(t_s), &bgr, &truth);
+    if (o.clutter > 0) DrawClutter(cam, i, o.clutter, &bgr);
+    // The camera's own encoding (the webcam's MJPEG quality overrides
+    // --quality) and its timestamp (readout, latency, jitter: 0 otherwise).
+    std::vector<uint8_t> bytes;
+    if (!synth.Encode(bgr, o.quality, &bytes) || bytes.empty()) {
+      std::cerr << "bench camera: cannot encode a frame as JPEG\n";
+      return false;
+    }
+    r->jpeg.push_back(std::move(bytes));
+    r->truth.push_back(std::move(truth));
+    r->utime.push_back(kBenchStartUtime +
+                       static_cast<int64_t>(std::llround((t_s + synth.TimestampDelayS(i)) * 1e6)));
+  }
+  return true;
+}
+
+// Wall time per frame, ms, of each way of decoding.
+struct DecodeTimes {
+  std::vector<double> full, half, window;
+};
+
+// Decoding alone: the whole frame (what OpenCV's capture does for every
+// frame), half size by DCT scaling (the full-frame search), one window.
+bool TimeDecoding(const Rendered& r, DecodeTimes* d, std::string* error) {
+  for (size_t i = 0; i < r.jpeg.size(); ++i) {
+    double t0 = NowMs();
+    cv::Mat full = cv::imdecode(r.jpeg[i], cv::IMREAD_COLOR);
+    d->full.push_back(NowMs() - t0);
+    t0 = NowMs();
+    auto image = camera::MakeJpegImage(r.jpeg[i], error);
+    cv::Mat half;
+    if (image == nullptr || !image->DecodeReduced(2, &half, error)) return false;
+    d->half.push_back(NowMs() - t0);
+    const sim::MarkerTruth& m = r.truth[i].front();
+    t0 = NowMs();
+    auto image2 = camera::MakeJpegImage(r.jpeg[i], error);
+    cv::Mat window;
+    image2->DecodeRegion(
+        cv::Rect(static_cast<int>(m.u_px) - 80, static_cast<int>(m.v_px) - 80, 160, 160), &window,
+        error);
+    d->window.push_back(NowMs() - t0);
+  }
+  return true;
+}
+
+// The reference, ms per frame: decode everything, HSV, inRange, blur,
+// SimpleBlobDetector.
+std::vector<double> TimeReference(const Camera& cam, const Rendered& r) {
+  std::vector<vision::ColourClass> classes;
+  for (const MarkerClass& mc : cam.marker_classes) {
+    vision::ColourClass c;
+    c.name = mc.name;
+    c.hsv_min = mc.hsv_min;
+    c.hsv_max = mc.hsv_max;
+    c.min_area_px = 30;
+    c.max_area_px = 20000;
+    classes.push_back(c);
+  }
+  std::vector<double> reference;
+  for (const std::vector<uint8_t>& jpeg : r.jpeg) {
+    const double t0 = NowMs();
+    cv::Mat full = cv::imdecode(jpeg, cv::IMREAD_COLOR);
+    const std::vector<vision::Blob> blobs = vision::DetectReference(full, classes);
+    reference.push_back(NowMs() - t0);
+  }
+  return reference;
+}
+
+// One run of camera_proc's node over the frames.
+struct NodeRun {
+  // Per frame: wall time (`ms`) and this thread's CPU time (`cpu_ms`, what
+  // sizes a core).
+  std::vector<double> ms, cpu_ms;
+  // Each found robot's centroid error against the rendered truth, px.
+  std::vector<double> err_px;
+  int found = 0;
+  int64_t too_many_blobs = 0;
+};
+
+// camera_proc's node, whole frames in: decode what it needs, detect, track,
+// publish MARKER_PIXELS and POSE_CAMERA.
+NodeRun RunNode(const Site& site, const Camera& cam, const calib::Calibration& calibration,
+                const Rendered& r, bool always_full, int absent_period, int max_blobs) {
+  NodeRun run;
+  LoopbackBus bus;
+  CameraNodeOptions options;
+  options.always_full_search = always_full;
+  options.absent_search_period_frames = absent_period;
+  options.max_blobs_per_frame = max_blobs;
+  CameraNode node(site, cam, calibration, &bus, options, kBenchStartUtime);
+  std::string error;
+  for (size_t i = 0; i < r.jpeg.size(); ++i) {
+    camera::Frame frame;
+    frame.seq = static_cast<int64_t>(i);
+    frame.capture_utime = r.utime[i];
+    const double t0 = NowMs(), c0 = ThreadCpuMs();
+    frame.image = camera::MakeJpegImage(r.jpeg[i], &error);
+    node.OnFrame(&frame, frame.capture_utime);
+    // The first frame of the tracking run is its full-frame search.
+    if (always_full || i > 0) {
+      run.ms.push_back(NowMs() - t0);
+      run.cpu_ms.push_back(ThreadCpuMs() - c0);
+    }
+    for (const vision::RobotObservation& obs : node.last_observations()) {
+      if (!obs.found) continue;
+      ++run.found;
+      for (const sim::MarkerTruth& t : r.truth[i]) {
+        if (t.robot_id == obs.robot_id && !t.is_heading_marker) {
+          run.err_px.push_back(
+              std::hypot(obs.position.u_px - t.centroid_u_px, obs.position.v_px - t.centroid_v_px));
+        }
+      }
+    }
+  }
+  run.too_many_blobs = node.status().counter("too_many_blobs");
+  return run;
+}
+
+// What the camera bench measured on its frames.
+struct CameraTimings {
+  DecodeTimes decode;
+  std::vector<double> reference;
+  // Tracking as camera_proc runs (robots out of view searched for every
+  // absent_search_period_frames), as it ran before that option (a full-frame
+  // search in every frame while any robot is out of view), and a full-frame
+  // search in every frame; with clutter, also without the blob cap.
+  NodeRun tracking, every_frame, full_search, uncapped;
+  int period = 0;
+  int cap = 0;
+  // Frames of the first second, left out of the means: the adaptive
+  // lighting's look-up tables are rebuilt while each class's colour
+  // statistics settle (a few ms each, docs/camera.md), a start-up cost, not
+  // the rate a core must carry.
+  size_t settle = 0;
+};
+
+// Mean of `v` after its first `settle` values (all of them when `v` holds
+// no more than twice that).
+double MeanAfter(size_t settle, const std::vector<double>& v) {
+  double s = 0;
+  size_t n = 0;
+  for (size_t k = v.size() > 2 * settle ? settle : 0; k < v.size(); ++k, ++n) s += v[k];
+  return n == 0 ? NAN : s / n;
+}
+
+double Median(std::vector<double> v) { return analysis::Percentile(v, 0.5); }
+
+double Rms(const std::vector<double>& v) {
+  double s = 0;
+  for (double x : v) s += x * x;
+  return v.empty() ? NAN : std::sqrt(s / v.size());
+}
+
+// The figures as one JSON object (--json), in the order the bench prints.
+json CameraFigures(const BenchCameraOptions& o, const Camera& cam,
+                   const sim::SyntheticCamera& synth, const std::string& scenario,
+                   const CameraTimings& t) {
+  auto mean = [&t](const std::vector<double>& v) { return MeanAfter(t.settle, v); };
+  const double tracking_ms = Median(t.tracking.ms);
+  const double full_ms = Median(t.full_search.ms);
+  const double reference_ms = Median(t.reference);
+  const double robots = static_cast<double>(cam.robots.size()) * o.frames;
+  json out;
+  out["frames"] = o.frames;
+  out["width_px"] = cam.width_px;
+  out["height_px"] = cam.height_px;
+  out["jpeg_quality"] = synth.JpegQuality(o.quality);
+  out["scenario"] = scenario;
+  out["tracking_median_ms"] = tracking_ms;
+  // The mean is what sizes a core: with robots out of view one frame in
+  // absent_search_period_frames carries a full-frame search.
+  out["tracking_mean_ms"] = mean(t.tracking.ms);
+  out["absent_search_period_frames"] = t.period;
+  out["tracking_every_frame_median_ms"] = Median(t.every_frame.ms);
+  out["tracking_every_frame_mean_ms"] = mean(t.every_frame.ms);
+  // CPU time per frame (this thread): the figures that size a core.
+  out["tracking_cpu_mean_ms"] = mean(t.tracking.cpu_ms);
+  out["tracking_every_frame_cpu_mean_ms"] = mean(t.every_frame.cpu_ms);
+  out["full_search_cpu_median_ms"] = Median(t.full_search.cpu_ms);
+  out["clutter_dots"] = o.clutter;
+  out["too_many_blobs"] = t.tracking.too_many_blobs;
+  if (!t.uncapped.ms.empty()) out["uncapped_cpu_mean_ms"] = mean(t.uncapped.cpu_ms);
+  out["full_search_median_ms"] = full_ms;
+  out["reference_median_ms"] = reference_ms;
+  out["speedup_vs_reference"] = reference_ms / tracking_ms;
+  out["full_search_speedup_vs_reference"] = reference_ms / full_ms;
+  out["decode_median_ms"] = Median(t.decode.full);
+  out["decode_half_median_ms"] = Median(t.decode.half);
+  out["decode_window_median_ms"] = Median(t.decode.window);
+  out["tracking_p99_ms"] = analysis::Percentile(t.tracking.ms, 0.99);
+  out["centroid_rms_px"] = Rms(t.tracking.err_px);
+  out["full_search_centroid_rms_px"] = Rms(t.full_search.err_px);
+  out["detection_rate"] = t.tracking.found / robots;
+  return out;
+}
+
+// The figures as the bench's table.
+void PrintCameraTable(const BenchCameraOptions& o, const Camera& cam, const CameraTimings& t,
+                      double tracking_p99_ms) {
+  auto mean = [&t](const std::vector<double>& v) { return MeanAfter(t.settle, v); };
+  const double tracking_ms = Median(t.tracking.ms);
+  const double full_ms = Median(t.full_search.ms);
+  const double reference_ms = Median(t.reference);
+  const double robots = static_cast<double>(cam.robots.size()) * o.frames;
+  const DecodeTimes& d = t.decode;
+  std::printf(
+      "  per frame (median)              ms    vs reference\n"
+      "  reference (decode+HSV+blob)  %6.2f        1.0x\n"
+      "  camera_proc tracking         %6.2f   %7.1fx   (p99 %.2f ms)\n"
+      "  camera_proc full search      %6.2f   %7.1fx\n"
+      "  decoding alone: full frame %.2f ms, half size %.2f ms (%.1fx less), a 160 px window "
+      "%.2f ms (%.1fx less)\n"
+      "  centroid error %.3f px RMS tracking, %.3f px full search; detection rate %.4f\n",
+      reference_ms, tracking_ms, reference_ms / tracking_ms, tracking_p99_ms, full_ms,
+      reference_ms / full_ms, Median(d.full), Median(d.half), Median(d.full) / Median(d.half),
+      Median(d.window), Median(d.full) / Median(d.window), Rms(t.tracking.err_px),
+      Rms(t.full_search.err_px), t.tracking.found / robots);
+  const std::vector<double>& tracking_cpu = t.tracking.cpu_ms;
+  const std::vector<double>& every_frame_cpu = t.every_frame.cpu_ms;
+  std::printf(
+      "  CPU per frame (mean after the first second): robots out of view searched in full every "
+      "%d frames %.2f ms; every frame (before) %.2f ms (%.1fx); full search every frame "
+      "(median) %.2f ms\n",
+      t.period, mean(tracking_cpu), mean(every_frame_cpu),
+      mean(every_frame_cpu) / mean(tracking_cpu), Median(t.full_search.cpu_ms));
+  if (o.clutter > 0) {
+    std::printf(
+        "  %d coloured dots per frame, CPU per frame (mean): %.2f ms with the blob cap (%d; "
+        "%lld robot-frames too_many_blobs), %.2f ms without (%.1fx)\n",
+        o.clutter, mean(tracking_cpu), t.cap, static_cast<long long>(t.tracking.too_many_blobs),
+        mean(t.uncapped.cpu_ms), mean(t.uncapped.cpu_ms) / mean(tracking_cpu));
+  }
+}
+
 int RunCameraBench(const BenchCameraOptions& o) {
   Site site;
   std::string error;
@@ -288,247 +556,40 @@ int RunCameraBench(const BenchCameraOptions& o) {
   calib::CameraModel lens = calib::NominalCamera(cam.mount_position_m, cam.field_of_view_deg,
                                                  cam.width_px, cam.height_px);
   const sim::SyntheticCamera synth(site, cam, lens, scenario);
-  constexpr int64_t kStart = 1'700'000'000'000'000;
   Rendered r;
-  for (int i = 0; i < o.frames; ++i) {
-    const double t_s = i / cam.fps;
-    cv::Mat bgr;
-    std::vector<sim::MarkerTruth> truth;
-    synth.Render(t_s, i, synth.SimulatedRobots(t_s), &bgr, &truth);
-    if (o.clutter > 0) {
-      // Dots of the site's classes' colours (the middle of each HSV range),
-      // 3 to 5 px in radius: each passes the area filter as a blob.
-      std::mt19937 rng(static_cast<uint32_t>(i));
-      std::vector<cv::Scalar> colours;
-      for (const MarkerClass& mc : cam.marker_classes) {
-        const int h = mc.hsv_min[0] <= mc.hsv_max[0]
-                          ? (mc.hsv_min[0] + mc.hsv_max[0]) / 2
-                          : ((mc.hsv_min[0] + mc.hsv_max[0] + 180) / 2) % 180;
-        cv::Mat3b hsv(1, 1, cv::Vec3b(static_cast<uchar>(h), 200, 200)), bgr_px;
-        cv::cvtColor(hsv, bgr_px, cv::COLOR_HSV2BGR);
-        const cv::Vec3b c = bgr_px(0, 0);
-        colours.emplace_back(c[0], c[1], c[2]);
-      }
-      for (int k = 0; k < o.clutter && !colours.empty(); ++k) {
-        const cv::Point centre(static_cast<int>(rng() % static_cast<uint32_t>(cam.width_px)),
-                               static_cast<int>(rng() % static_cast<uint32_t>(cam.height_px)));
-        cv::circle(bgr, centre, 3 + static_cast<int>(rng() % 3), colours[k % colours.size()],
-                   cv::FILLED, cv::LINE_AA);
-      }
-    }
-    // The camera's own encoding (the webcam's MJPEG quality overrides
-    // --quality) and its timestamp (readout, latency, jitter: 0 otherwise).
-    std::vector<uint8_t> bytes;
-    if (!synth.Encode(bgr, o.quality, &bytes) || bytes.empty()) {
-      std::cerr << "bench camera: cannot encode a frame as JPEG\n";
-      return 1;
-    }
-    r.jpeg.push_back(std::move(bytes));
-    r.truth.push_back(std::move(truth));
-    r.utime.push_back(kStart +
-                      static_cast<int64_t>(std::llround((t_s + synth.TimestampDelayS(i)) * 1e6)));
-  }
+  if (!RenderFrames(cam, synth, o, &r)) return 1;
   if (!o.json) {
     std::printf("camera bench: %d frames %dx%d, JPEG quality %d (%.0f kB each), scenario %s\n",
                 o.frames, cam.width_px, cam.height_px, synth.JpegQuality(o.quality),
                 r.jpeg.front().size() / 1024.0, scenario.name.c_str());
   }
-
-  // Decoding alone: the whole frame (what OpenCV's capture does for every
-  // frame), half size by DCT scaling (the full-frame search), one window.
-  std::vector<double> decode_full, decode_half, decode_window;
-  for (int i = 0; i < o.frames; ++i) {
-    double t0 = NowMs();
-    cv::Mat full = cv::imdecode(r.jpeg[static_cast<size_t>(i)], cv::IMREAD_COLOR);
-    decode_full.push_back(NowMs() - t0);
-    t0 = NowMs();
-    auto image = camera::MakeJpegImage(r.jpeg[static_cast<size_t>(i)], &error);
-    cv::Mat half;
-    if (image == nullptr || !image->DecodeReduced(2, &half, &error)) {
-      std::cerr << "bench camera: " << error << "\n";
-      return 1;
-    }
-    decode_half.push_back(NowMs() - t0);
-    const sim::MarkerTruth& m = r.truth[static_cast<size_t>(i)].front();
-    t0 = NowMs();
-    auto image2 = camera::MakeJpegImage(r.jpeg[static_cast<size_t>(i)], &error);
-    cv::Mat window;
-    image2->DecodeRegion(
-        cv::Rect(static_cast<int>(m.u_px) - 80, static_cast<int>(m.v_px) - 80, 160, 160), &window,
-        &error);
-    decode_window.push_back(NowMs() - t0);
+  CameraTimings t;
+  if (!TimeDecoding(r, &t.decode, &error)) {
+    std::cerr << "bench camera: " << error << "\n";
+    return 1;
   }
-
-  // The reference: decode everything, HSV, inRange, blur, SimpleBlobDetector.
-  std::vector<vision::ColourClass> classes;
-  for (const MarkerClass& mc : cam.marker_classes) {
-    vision::ColourClass c;
-    c.name = mc.name;
-    c.hsv_min = mc.hsv_min;
-    c.hsv_max = mc.hsv_max;
-    c.min_area_px = 30;
-    c.max_area_px = 20000;
-    classes.push_back(c);
-  }
-  std::vector<double> reference;
-  for (int i = 0; i < o.frames; ++i) {
-    const double t0 = NowMs();
-    cv::Mat full = cv::imdecode(r.jpeg[static_cast<size_t>(i)], cv::IMREAD_COLOR);
-    const std::vector<vision::Blob> blobs = vision::DetectReference(full, classes);
-    reference.push_back(NowMs() - t0);
-  }
-
-  // camera_proc's node, whole frames in: decode what it needs, detect,
-  // track, publish MARKER_PIXELS and POSE_CAMERA.
+  t.reference = TimeReference(cam, r);
   calib::Calibration calibration;
   calibration.model = calib::Calibration::Model::kFull;
   // The lens the frames were rendered through (the webcam's includes its
   // own distortion): the centroid error is the detector's alone.
   calibration.camera = synth.model();
-  int64_t too_many_blobs = 0;
-  // Per run: wall time per frame (`ms`) and this thread's CPU time per
-  // frame (`cpu_ms`, what sizes a core).
-  std::vector<double> cpu_ms;
-  auto run_node = [&](bool always_full, int absent_period, int max_blobs, std::vector<double>* ms,
-                      std::vector<double>* err_px, int* found) {
-    cpu_ms.clear();
-    LoopbackBus bus;
-    CameraNodeOptions options;
-    options.always_full_search = always_full;
-    options.absent_search_period_frames = absent_period;
-    options.max_blobs_per_frame = max_blobs;
-    CameraNode node(site, cam, calibration, &bus, options, kStart);
-    *found = 0;
-    for (int i = 0; i < o.frames; ++i) {
-      camera::Frame frame;
-      frame.seq = i;
-      frame.capture_utime = r.utime[static_cast<size_t>(i)];
-      const double t0 = NowMs(), c0 = ThreadCpuMs();
-      frame.image = camera::MakeJpegImage(r.jpeg[static_cast<size_t>(i)], &error);
-      node.OnFrame(&frame, frame.capture_utime);
-      // The first frame of the tracking run is its full-frame search.
-      if (always_full || i > 0) {
-        ms->push_back(NowMs() - t0);
-        cpu_ms.push_back(ThreadCpuMs() - c0);
-      }
-      for (const vision::RobotObservation& obs : node.last_observations()) {
-        if (!obs.found) continue;
-        ++*found;
-        for (const sim::MarkerTruth& t : r.truth[static_cast<size_t>(i)]) {
-          if (t.robot_id == obs.robot_id && !t.is_heading_marker) {
-            err_px->push_back(std::hypot(obs.position.u_px - t.centroid_u_px,
-                                         obs.position.v_px - t.centroid_v_px));
-          }
-        }
-      }
-    }
-    too_many_blobs = node.status().counter("too_many_blobs");
-  };
-  // Tracking as camera_proc runs (robots out of view searched for every
-  // absent_search_period_frames), as it ran before that option (a full-frame
-  // search in every frame while any robot is out of view), and a full-frame
-  // search in every frame; with clutter, also without the blob cap.
-  const int period = CameraNodeOptions{}.absent_search_period_frames;
-  const int cap = CameraNodeOptions{}.max_blobs_per_frame;
-  std::vector<double> tracking, every_frame, full_search, centroid_err, full_err, unused_err;
-  int found_tracking = 0, found_full = 0, found_every = 0;
-  run_node(false, period, cap, &tracking, &centroid_err, &found_tracking);
-  const std::vector<double> tracking_cpu = cpu_ms;
-  const int64_t capped_robot_frames = too_many_blobs;
-  run_node(false, 1, cap, &every_frame, &unused_err, &found_every);
-  const std::vector<double> every_frame_cpu = cpu_ms;
-  run_node(true, period, cap, &full_search, &full_err, &found_full);
-  const std::vector<double> full_search_cpu = cpu_ms;
-  std::vector<double> uncapped, uncapped_cpu;
+  t.period = CameraNodeOptions{}.absent_search_period_frames;
+  t.cap = CameraNodeOptions{}.max_blobs_per_frame;
+  t.tracking = RunNode(site, cam, calibration, r, false, t.period, t.cap);
+  t.every_frame = RunNode(site, cam, calibration, r, false, 1, t.cap);
+  t.full_search = RunNode(site, cam, calibration, r, true, t.period, t.cap);
   if (o.clutter > 0) {
-    int found_uncapped = 0;
-    run_node(false, period, std::numeric_limits<int>::max(), &uncapped, &unused_err,
-             &found_uncapped);
-    uncapped_cpu = cpu_ms;
+    t.uncapped =
+        RunNode(site, cam, calibration, r, false, t.period, std::numeric_limits<int>::max());
   }
-  // Means over the frames after the first second: the adaptive lighting's
-  // look-up tables are rebuilt while each class's colour statistics settle
-  // (a few ms each, docs/camera.md), a start-up cost, not the rate a core
-  // must carry.
-  const size_t settle = static_cast<size_t>(std::lround(cam.fps));
-  auto mean = [settle](const std::vector<double>& v) {
-    double s = 0;
-    size_t n = 0;
-    for (size_t k = v.size() > 2 * settle ? settle : 0; k < v.size(); ++k, ++n) s += v[k];
-    return n == 0 ? NAN : s / n;
-  };
-
-  auto median = [](std::vector<double> v) { return analysis::Percentile(v, 0.5); };
-  auto rms = [](const std::vector<double>& v) {
-    double s = 0;
-    for (double x : v) s += x * x;
-    return v.empty() ? NAN : std::sqrt(s / v.size());
-  };
-  const double tracking_ms = median(tracking);
-  const double full_ms = median(full_search);
-  const double reference_ms = median(reference);
-  const double robots = static_cast<double>(cam.robots.size()) * o.frames;
-  json out;
-  out["frames"] = o.frames;
-  out["width_px"] = cam.width_px;
-  out["height_px"] = cam.height_px;
-  out["jpeg_quality"] = synth.JpegQuality(o.quality);
-  out["scenario"] = scenario.name;
-  out["tracking_median_ms"] = tracking_ms;
-  // The mean is what sizes a core: with robots out of view one frame in
-  // absent_search_period_frames carries a full-frame search.
-  out["tracking_mean_ms"] = mean(tracking);
-  out["absent_search_period_frames"] = period;
-  out["tracking_every_frame_median_ms"] = median(every_frame);
-  out["tracking_every_frame_mean_ms"] = mean(every_frame);
-  // CPU time per frame (this thread): the figures that size a core.
-  out["tracking_cpu_mean_ms"] = mean(tracking_cpu);
-  out["tracking_every_frame_cpu_mean_ms"] = mean(every_frame_cpu);
-  out["full_search_cpu_median_ms"] = median(full_search_cpu);
-  out["clutter_dots"] = o.clutter;
-  out["too_many_blobs"] = capped_robot_frames;
-  if (!uncapped.empty()) out["uncapped_cpu_mean_ms"] = mean(uncapped_cpu);
-  out["full_search_median_ms"] = full_ms;
-  out["reference_median_ms"] = reference_ms;
-  out["speedup_vs_reference"] = reference_ms / tracking_ms;
-  out["full_search_speedup_vs_reference"] = reference_ms / full_ms;
-  out["decode_median_ms"] = median(decode_full);
-  out["decode_half_median_ms"] = median(decode_half);
-  out["decode_window_median_ms"] = median(decode_window);
-  out["tracking_p99_ms"] = analysis::Percentile(tracking, 0.99);
-  out["centroid_rms_px"] = rms(centroid_err);
-  out["full_search_centroid_rms_px"] = rms(full_err);
-  out["detection_rate"] = found_tracking / robots;
+  t.settle = static_cast<size_t>(std::lround(cam.fps));
+  const json out = CameraFigures(o, cam, synth, scenario.name, t);
   if (o.json) {
     std::cout << out.dump() << "\n";
     return 0;
   }
-  std::printf(
-      "  per frame (median)              ms    vs reference\n"
-      "  reference (decode+HSV+blob)  %6.2f        1.0x\n"
-      "  camera_proc tracking         %6.2f   %7.1fx   (p99 %.2f ms)\n"
-      "  camera_proc full search      %6.2f   %7.1fx\n"
-      "  decoding alone: full frame %.2f ms, half size %.2f ms (%.1fx less), a 160 px window "
-      "%.2f ms (%.1fx less)\n"
-      "  centroid error %.3f px RMS tracking, %.3f px full search; detection rate %.4f\n",
-      reference_ms, tracking_ms, reference_ms / tracking_ms, out["tracking_p99_ms"].get<double>(),
-      full_ms, reference_ms / full_ms, median(decode_full), median(decode_half),
-      median(decode_full) / median(decode_half), median(decode_window),
-      median(decode_full) / median(decode_window), rms(centroid_err), rms(full_err),
-      found_tracking / robots);
-  std::printf(
-      "  CPU per frame (mean after the first second): robots out of view searched in full every "
-      "%d frames %.2f ms; every frame (before) %.2f ms (%.1fx); full search every frame "
-      "(median) %.2f ms\n",
-      period, mean(tracking_cpu), mean(every_frame_cpu), mean(every_frame_cpu) / mean(tracking_cpu),
-      median(full_search_cpu));
-  if (o.clutter > 0) {
-    std::printf(
-        "  %d coloured dots per frame, CPU per frame (mean): %.2f ms with the blob cap (%d; "
-        "%lld robot-frames too_many_blobs), %.2f ms without (%.1fx)\n",
-        o.clutter, mean(tracking_cpu), cap, static_cast<long long>(capped_robot_frames),
-        mean(uncapped_cpu), mean(uncapped_cpu) / mean(tracking_cpu));
-  }
+  PrintCameraTable(o, cam, t, out["tracking_p99_ms"].get<double>());
   return 0;
 }
 

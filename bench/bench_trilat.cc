@@ -1,4 +1,4 @@
-#include "tools/bench_trilat.h"
+#include "bench/bench_trilat.h"
 
 #include <Eigen/LU>
 #include <algorithm>
@@ -97,7 +97,7 @@ Site PillarSite() {
   Site site;
   std::string error;
   if (!ParseSite(text, "bench_pillar.yaml", "", &site, &error)) {
-    std::fprintf(stderr, "roomfix bench trilat: pillar site: %s\n", error.c_str());
+    std::fprintf(stderr, "roomfix_bench trilat: pillar site: %s\n", error.c_str());
   }
   return site;
 }

@@ -1,13 +1,11 @@
 #include <CLI/CLI.hpp>
 
-#include "tools/bench_trilat.h"
-#include "tools/commands.h"
+#include "bench/bench_trilat.h"
+#include "bench/commands.h"
 
 namespace roomfix {
 
-void AddBenchCommand(CLI::App* app, int* exit_code) {
-  auto* bench = app->add_subcommand("bench", "Benchmarks that print figures");
-  bench->require_subcommand(1);
+void AddBenchCommands(CLI::App* bench, int* exit_code) {
   auto* trilat = bench->add_subcommand(
       "trilat",
       "The reference paper's Monte Carlo experiment for Nelder-Mead, the default and the robust "

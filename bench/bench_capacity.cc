@@ -1,8 +1,8 @@
-// roomfix bench capacity: what one core, one process and one host carry
+// roomfix_bench capacity: what one core, one process and one host carry
 // (issue 19, "Capacity, measured"), for the sizing table in
 // docs/operations.md, "Sizing a lab". Every figure is measured in this run:
 //
-// - camera_proc: `roomfix bench camera --json` (the real node on rendered
+// - camera_proc: `roomfix_bench camera --json` (the real node on rendered
 //   JPEG frames, rendering not timed) at 1080p on the demo room's webcam and
 //   on the hall's 1280 x 960 camera with its eight robots; cameras per core
 //   at 30 fps = 1000 ms / (30 x the median frame time), tracking and full
@@ -12,7 +12,7 @@
 // - fusion_proc: its node with the hall's eight robots, camera poses at
 //   30 Hz and ultrasonic fixes at the TDMA rate, driven on a simulated
 //   receive clock.
-// - roomfix_logger: `roomfix bench logger --json` (multicast: run under
+// - roomfix_logger: `roomfix_bench logger --json` (multicast: run under
 //   scripts/netns_run), the highest rate it recorded without loss.
 // - latency: with --log, the p50 and p99 of POSE_FUSED latency_us (receive
 //   time at fusion_proc minus the measurement's time: capture to fused pose
@@ -34,6 +34,7 @@
 #include <string>
 #include <vector>
 
+#include "bench/commands.h"
 #include "core/analysis/track_error.h"
 #include "core/world/site.h"
 #include "core/world/ultrasound_model.h"
@@ -45,7 +46,6 @@
 #include "msgio/wire_check.h"
 #include "roomfix/pose2d_t.hpp"
 #include "roomfix/range_set_t.hpp"
-#include "tools/commands.h"
 #include "trilat_proc/trilat_node.h"
 
 namespace roomfix {
@@ -71,7 +71,7 @@ constexpr double kCameraFps = 30.0;
 std::string SelfExe() {
   char buffer[4096];
   const ssize_t n = ::readlink("/proc/self/exe", buffer, sizeof(buffer) - 1);
-  return n > 0 ? std::string(buffer, static_cast<size_t>(n)) : "roomfix";
+  return n > 0 ? std::string(buffer, static_cast<size_t>(n)) : "roomfix_bench";
 }
 
 // Runs this binary with `args` and parses the last line of its standard
@@ -96,8 +96,8 @@ json RunSelf(const std::string& args) {
 }
 
 json CameraRow(const std::string& site, const std::string& scenario, int frames) {
-  json r = RunSelf("bench camera --json --site '" + site + "' --scenario " + scenario +
-                   " --frames " + std::to_string(frames));
+  json r = RunSelf("camera --json --site '" + site + "' --scenario " + scenario + " --frames " +
+                   std::to_string(frames));
   if (r.contains("error")) return r;
   json row;
   row["site"] = site;
@@ -340,7 +340,7 @@ int RunCapacityBench(const BenchCapacityOptions& o) {
   Site hall;
   std::string error;
   if (!LoadSite(o.hall_site, &hall, &error)) {
-    std::cerr << "roomfix bench capacity: " << error << "\n";
+    std::cerr << "roomfix_bench capacity: " << error << "\n";
     return 1;
   }
   json out;
@@ -352,7 +352,7 @@ int RunCapacityBench(const BenchCapacityOptions& o) {
     out["fusion"] = FusionRow(hall, o.fusion_seconds, 1.0);
   }
   if (o.logger && !o.latency_only) {
-    json r = RunSelf("bench logger --json --seconds 2 --rates 20000 50000 100000 150000");
+    json r = RunSelf("logger --json --seconds 2 --rates 20000 50000 100000 150000");
     out["logger"] =
         r.contains("error")
             ? r
@@ -366,7 +366,7 @@ int RunCapacityBench(const BenchCapacityOptions& o) {
   }
   if (o.latency_only) {
     if (!out.contains("latency")) {
-      std::cerr << "roomfix bench capacity: --latency-only needs --log\n";
+      std::cerr << "roomfix_bench capacity: --latency-only needs --log\n";
       return 1;
     }
   } else {

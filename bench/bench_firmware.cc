@@ -1,4 +1,4 @@
-// roomfix bench firmware: how fast the firmware-in-the-loop simulator runs
+// roomfix_bench firmware: how fast the firmware-in-the-loop simulator runs
 // (sim/firmware/firmware_world.h), in simulated seconds per wall-clock
 // second, for the demo room's devices (1 beacon, 4 receivers) and the
 // hall's. The baseline, measured in the same run: the same cores with the
@@ -13,12 +13,12 @@
 #include <string>
 #include <vector>
 
+#include "bench/commands.h"
 #include "core/radio/device_config.h"
 #include "core/world/site.h"
 #include "msgio/install_paths.h"
 #include "sim/firmware/firmware_world.h"
 #include "sim/firmware/site_devices.h"
-#include "tools/commands.h"
 
 namespace roomfix {
 
@@ -101,7 +101,7 @@ int RunFirmwareBench(const BenchFirmwareOptions& options) {
     Row row;
     std::string error;
     if (!MeasureSite(name, path, options, &row, &error)) {
-      std::fprintf(stderr, "roomfix bench firmware: %s: %s\n", name.c_str(), error.c_str());
+      std::fprintf(stderr, "roomfix_bench firmware: %s: %s\n", name.c_str(), error.c_str());
       return 1;
     }
     rows.push_back(row);

@@ -1,4 +1,4 @@
-// roomfix bench radio: how fast the bridge decodes the coordinator's bytes,
+// roomfix_bench radio: how fast the bridge decodes the coordinator's bytes,
 // how soon a completed firing is published, and how the reference's way of
 // grouping reports (by arrival, with no firing number) fares on the same
 // faulty radio as roomfix's (by beacon and firing number).
@@ -16,15 +16,16 @@
 #include <nlohmann/json.hpp>
 #include <thread>
 
+#include "bench/commands.h"
 #include "core/analysis/track_error.h"
 #include "core/radio/wall_payload.h"
 #include "core/radio/xbee_frame.h"
+#include "msgio/channels.h"
 #include "msgio/install_paths.h"
 #include "msgio/process.h"
 #include "roomfix/range_set_t.hpp"
 #include "sim/pseudo_terminal.h"
 #include "sim/wall_devices.h"
-#include "tools/commands.h"
 #include "zigbee_bridge/bridge_node.h"
 #include "zigbee_bridge/serial_link.h"
 
@@ -111,7 +112,7 @@ json DecodeThroughput(const Site& site, const BenchRadioOptions& options) {
       }
       const double s = Seconds(std::chrono::steady_clock::now() - t0);
       if (sink.frames != frames || sink.errors != 0) {
-        std::cerr << "roomfix bench radio: decoder lost frames (" << sink.frames << " of " << frames
+        std::cerr << "roomfix_bench radio: decoder lost frames (" << sink.frames << " of " << frames
                   << ", " << sink.errors << " errors)\n";
         return nullptr;
       }
@@ -122,7 +123,8 @@ json DecodeThroughput(const Site& site, const BenchRadioOptions& options) {
     for (int r = 0; r < std::max(1, options.repeats / 2); ++r) {
       LoopbackBus bus;
       int64_t sets = 0;
-      bus.Subscribe<range_set_t>("RANGES", [&](const range_set_t&, const MessageInfo&) { ++sets; });
+      bus.Subscribe<range_set_t>(kRangesChannel,
+                                 [&](const range_set_t&, const MessageInfo&) { ++sets; });
       BridgeNodeOptions node_options;
       node_options.api_mode = mode;
       BridgeNode node(site, &bus, node_options, 0);
@@ -135,7 +137,7 @@ json DecodeThroughput(const Site& site, const BenchRadioOptions& options) {
       const double s = Seconds(std::chrono::steady_clock::now() - t0);
       node_fps.push_back(frames / s);
       if (sets < frames / 5 - 1) {
-        std::cerr << "roomfix bench radio: the node published " << sets << " sets of " << frames / 5
+        std::cerr << "roomfix_bench radio: the node published " << sets << " sets of " << frames / 5
                   << "\n";
         return nullptr;
       }
@@ -207,7 +209,7 @@ json PublishLatency(const Site& site, const BenchRadioOptions& options, std::str
     SerialLink link_port(SerialLinkOptions{link, 115200, 0.01, 0.1});
     BridgeNode node(site, &bus, {}, NowUtime());
     int64_t last_read = 0;
-    bus.Subscribe<range_set_t>("RANGES", [&](const range_set_t& s, const MessageInfo&) {
+    bus.Subscribe<range_set_t>(kRangesChannel, [&](const range_set_t& s, const MessageInfo&) {
       const auto k = static_cast<size_t>(s.firing_seq);
       if (k < publish_utime.size()) {
         publish_utime[k] = NowUtime();
@@ -328,7 +330,7 @@ json CompareGrouping(const Site& site, const BenchRadioOptions& options) {
   radio::FrameDecoder reference_decoder;
   LoopbackBus bus;
   std::vector<range_set_t> sets;
-  bus.Subscribe<range_set_t>("RANGES",
+  bus.Subscribe<range_set_t>(kRangesChannel,
                              [&](const range_set_t& s, const MessageInfo&) { sets.push_back(s); });
   BridgeNode node(site, &bus, {}, 0);
   node.OnLinkUp("simulated", 0);
@@ -393,11 +395,11 @@ int RunRadioBench(const BenchRadioOptions& options) {
   Site site;
   std::string error;
   if (!LoadSite(options.site, &site, &error)) {
-    std::cerr << "roomfix bench radio: " << error << "\n";
+    std::cerr << "roomfix_bench radio: " << error << "\n";
     return 1;
   }
   if (site.beacons.empty() || site.simulation.robots.empty()) {
-    std::cerr << "roomfix bench radio: " << options.site
+    std::cerr << "roomfix_bench radio: " << options.site
               << ": needs a beacon and a simulated robot carrying it\n";
     return 1;
   }
@@ -406,7 +408,7 @@ int RunRadioBench(const BenchRadioOptions& options) {
   if (result["decode"].is_null()) return 1;
   result["latency"] = PublishLatency(site, options, &error);
   if (result["latency"].is_null()) {
-    std::cerr << "roomfix bench radio: latency: " << error << "\n";
+    std::cerr << "roomfix_bench radio: latency: " << error << "\n";
     return 1;
   }
   result["grouping"] = CompareGrouping(site, options);

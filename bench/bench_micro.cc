@@ -1,4 +1,4 @@
-// roomfix bench micro: Google Benchmark timings of the camera path's kernels
+// roomfix_bench micro: Google Benchmark timings of the camera path's kernels
 // (marker detection, JPEG decoding, the synthetic camera), each group against
 // its baseline measured in the same run. These were timing loops in the unit
 // tests that asserted nothing; a timing belongs here, where it is printed and
@@ -16,12 +16,12 @@
 #include <string>
 #include <vector>
 
+#include "bench/commands.h"
 #include "camera_io/frame_source.h"
 #include "camera_io/jpeg_image.h"
 #include "core/vision/marker_detector.h"
 #include "msgio/install_paths.h"
 #include "sim/synthetic_camera.h"
-#include "tools/commands.h"
 
 namespace roomfix {
 namespace {
@@ -65,7 +65,7 @@ bool MakeScene(const std::string& site_path, Scene* s, std::string* error) {
     *error = "cannot encode the frame as JPEG";
     return false;
   }
-  // The reference pipeline's classes, as `roomfix bench camera` builds them.
+  // The reference pipeline's classes, as `roomfix_bench camera` builds them.
   for (const MarkerClass& mc : s->camera.marker_classes) {
     vision::ColourClass c;
     c.name = mc.name;
@@ -245,7 +245,7 @@ int RunMicroBench(const BenchMicroOptions& o) {
   Register(scene);
   std::string filter = "--benchmark_filter=" + o.filter;
   std::string min_time = "--benchmark_min_time=" + std::to_string(o.min_time_s);
-  std::string program = "roomfix bench micro";
+  std::string program = "roomfix_bench micro";
   char* argv[] = {program.data(), filter.data(), min_time.data(), nullptr};
   int argc = 3;
   benchmark::Initialize(&argc, argv);

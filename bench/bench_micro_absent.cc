@@ -1,13 +1,13 @@
-// roomfix bench micro in a build without Google Benchmark (libbenchmark-dev
+// roomfix_bench micro in a build without Google Benchmark (libbenchmark-dev
 // is a test package: `make demo` builds without it). The command still
-// exists, so `roomfix bench micro` says what is missing instead of CLI11's
+// exists, so `roomfix_bench micro` says what is missing instead of CLI11's
 // "unexpected argument", and the tool's other files compile with the same
 // flags whether or not the library is installed: installing it later (as
 // `make test` does after `make demo`) rebuilds this library alone.
 #include <CLI/CLI.hpp>
 #include <iostream>
 
-#include "tools/commands.h"
+#include "bench/commands.h"
 
 namespace roomfix {
 
@@ -16,7 +16,7 @@ void AddBenchMicroCommand(CLI::App* bench, int* exit_code) {
       "micro", "Google Benchmark timings of the camera path's kernels (not in this build)");
   cmd->allow_extras();
   cmd->callback([exit_code] {
-    std::cerr << "roomfix bench micro: this roomfix was built without Google Benchmark; "
+    std::cerr << "roomfix_bench micro: this roomfix_bench was built without Google Benchmark; "
                  "apt-get install libbenchmark-dev, then rebuild (cmake picks it up)\n";
     *exit_code = 1;
   });
