@@ -26,7 +26,7 @@ double Seconds(clockid_t clock) {
   return static_cast<double>(ts.tv_sec) + ts.tv_nsec * 1e-9;
 }
 
-struct BenchReplayArgs {
+struct BenchReplayOptions {
   std::string log_path;
   std::string site_path;
   int repeat = 20;
@@ -40,7 +40,7 @@ struct Case {
   bool camera = false;
 };
 
-int RunBenchReplay(const BenchReplayArgs& args) {
+int RunBenchReplay(const BenchReplayOptions& args) {
   ReplaySite replay_site;
   std::string error;
   if (!ResolveReplaySite(args.log_path, args.site_path, "", &replay_site, &error)) {
@@ -134,7 +134,7 @@ int RunBenchReplay(const BenchReplayArgs& args) {
 void AddBenchReplayCommand(CLI::App* bench, int* exit_code) {
   auto* cmd = bench->add_subcommand(
       "replay", "How many times faster than real time `roomfix replay` runs trilat and fusion");
-  auto args = std::make_shared<BenchReplayArgs>();
+  auto args = std::make_shared<BenchReplayOptions>();
   cmd->add_option("LOG", args->log_path, "Recorded log with RANGES, POSE_CAMERA, POSE_ULTRASOUND")
       ->required();
   cmd->add_option("--config", args->site_path,

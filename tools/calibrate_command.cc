@@ -47,7 +47,7 @@ using calib::CameraFitSummary;
 using calib::Correspondence;
 using calib::RegionFitSummary;
 
-struct Flags {
+struct CalibrateOptions {
   std::string points;
   // --shared-images, --neighbour: tools/calibrate_neighbour.h.
   std::string shared_images;
@@ -324,8 +324,8 @@ bool ParsePair(const std::string& text, const std::string& flag, std::array<doub
 // Detects every --chessboard and appends its corners to `points` as room
 // correspondences (and, with --corners-csv, writes them). `lines` gets 0
 // for each: the corners have no CSV line.
-bool AddChessboards(const Flags& f, std::vector<Correspondence>* points, std::vector<int>* lines,
-                    std::string* error) {
+bool AddChessboards(const CalibrateOptions& f, std::vector<Correspondence>* points,
+                    std::vector<int>* lines, std::string* error) {
   if (f.chessboards.empty()) return true;
   BoardSize board;
   if (!ParseBoard(f.board, &board, error)) return false;
@@ -427,8 +427,8 @@ const MarkerClass* FindClass(const roomfix::Camera& camera, const std::string& n
   return nullptr;
 }
 
-bool AddMarkerImages(const Flags& f, std::vector<Correspondence>* points, std::vector<int>* lines,
-                     std::string* error) {
+bool AddMarkerImages(const CalibrateOptions& f, std::vector<Correspondence>* points,
+                     std::vector<int>* lines, std::string* error) {
   if (f.marker_images.empty()) return true;
   if (f.site.empty())
     return Refuse(error, "--marker-images needs --site (the marker's colour class)");
@@ -495,7 +495,7 @@ bool AddMarkerImages(const Flags& f, std::vector<Correspondence>* points, std::v
 
 // Marker images shared with an already calibrated neighbour camera
 // (tools/calibrate_neighbour.h); the marker class as for --marker-images.
-bool AddNeighbourPoints(const Flags& f, std::vector<Correspondence>* points,
+bool AddNeighbourPoints(const CalibrateOptions& f, std::vector<Correspondence>* points,
                         std::vector<int>* lines, std::string* error) {
   if (f.shared_images.empty() != f.neighbour.empty()) {
     return Refuse(error, "--shared-images and --neighbour go together");
@@ -530,7 +530,7 @@ bool AddNeighbourPoints(const Flags& f, std::vector<Correspondence>* points,
 // it will be in operation. A robot needs kMinRobotImages images.
 constexpr int kMinRobotImages = 5;
 
-bool RobotPixelSigmas(const Flags& f, const calib::CameraModel& lens,
+bool RobotPixelSigmas(const CalibrateOptions& f, const calib::CameraModel& lens,
                       std::map<int, double>* sigmas_out, std::string* error) {
   std::map<int, double>& sigmas = *sigmas_out;
   if (f.robot_images.empty()) return true;
@@ -624,9 +624,9 @@ struct Stats {
   int worst = -1;
 };
 
-bool Render(const Flags& f, const Calibration& c, const std::vector<Correspondence>& points,
-            const std::vector<bool>& outlier, const std::array<double, 4>& room_xy_m, double grid_m,
-            std::string* error) {
+bool Render(const CalibrateOptions& f, const Calibration& c,
+            const std::vector<Correspondence>& points, const std::vector<bool>& outlier,
+            const std::array<double, 4>& room_xy_m, double grid_m, std::string* error) {
   cv::Mat image;
   if (!f.image.empty()) {
     if (!ReadImage(f.image, cv::IMREAD_COLOR, &image, error)) return false;
@@ -725,7 +725,7 @@ std::string WorstPoint(const CameraFitSummary& fit, const std::vector<int>& line
 }
 
 // Which inputs were given, and whether they make a run.
-bool CheckSources(const Flags& f, std::string* error) {
+bool CheckSources(const CalibrateOptions& f, std::string* error) {
   if (f.points.empty() && f.chessboards.empty() && f.marker_images.empty() &&
       f.shared_images.empty()) {
     return Refuse(error,
@@ -744,8 +744,8 @@ bool CheckSources(const Flags& f, std::string* error) {
 
 // Every point of every source, each with its CSV line (`lines`, 0 where
 // there is none).
-bool ReadAllPoints(const Flags& f, std::vector<Correspondence>* points, std::vector<int>* lines,
-                   std::string* error) {
+bool ReadAllPoints(const CalibrateOptions& f, std::vector<Correspondence>* points,
+                   std::vector<int>* lines, std::string* error) {
   if (!f.points.empty()) {
     if (!ReadPoints(f.points, points, lines, error)) return false;
     if (points->empty()) return Refuse(error, f.points + ": no points");
@@ -765,7 +765,7 @@ struct CameraGeometry {
   double grid_m = 0.5;
 };
 
-bool FindCameraGeometry(const Flags& f, const std::vector<Correspondence>& points,
+bool FindCameraGeometry(const CalibrateOptions& f, const std::vector<Correspondence>& points,
                         CameraGeometry* g, std::string* error) {
   bool have_room = false;
   if (!f.site.empty()) {
@@ -829,7 +829,7 @@ struct ModelFits {
   RegionFitSummary regions;
 };
 
-ModelFits FitModels(const Flags& f, const std::vector<Correspondence>& points,
+ModelFits FitModels(const CalibrateOptions& f, const std::vector<Correspondence>& points,
                     const CameraGeometry& g) {
   // The full model, started from the points alone (camera_start.h: the
   // nominal lens's undistorted pixels through a planar pose solver); a
@@ -930,7 +930,7 @@ Residuals PrintResidualTable(const std::vector<Correspondence>& points,
 }
 
 // Each model's RMS and worst point, and the outliers left out.
-void PrintFitSummaries(const Flags& f, const std::vector<Correspondence>& points,
+void PrintFitSummaries(const CalibrateOptions& f, const std::vector<Correspondence>& points,
                        const std::vector<int>& lines, const ModelFits& fits, const Residuals& r,
                        const std::vector<bool>& outlier) {
   const Stats& fs = r.full;
@@ -966,7 +966,7 @@ void PrintFitSummaries(const Flags& f, const std::vector<Correspondence>& points
 
 // The calibration file's header: where the points came from and how well
 // the chosen model fits them.
-std::string CalibrationHeader(const Flags& f, size_t n_points, const ModelFits& fits,
+std::string CalibrationHeader(const CalibrateOptions& f, size_t n_points, const ModelFits& fits,
                               const Residuals& r) {
   std::ostringstream header;
   std::vector<std::string> sources;
@@ -995,7 +995,7 @@ std::string CalibrationHeader(const Flags& f, size_t n_points, const ModelFits& 
 
 // parse (CLI11, CheckSources) -> load (the points, the camera) -> compute
 // (both fits, their residuals) -> report (the table, the PNG, the YAML).
-bool Run(const Flags& f, std::string* error) {
+bool Run(const CalibrateOptions& f, std::string* error) {
   std::vector<int> lines;
   std::vector<Correspondence> points;
   if (!CheckSources(f, error) || !ReadAllPoints(f, &points, &lines, error)) return false;
@@ -1071,7 +1071,7 @@ void AddCalibrateCommand(CLI::App* app, int* exit_code) {
       "the floor, from the points and the image size alone (the start is found from them; a "
       "measured mount is an optional prior); print residuals; write the calibration YAML and a "
       "PNG of the fit");
-  auto f = std::make_shared<Flags>();
+  auto f = std::make_shared<CalibrateOptions>();
   cmd->add_option("--points", f->points, "CSV with header u,v,x_m,y_m,height_m");
   cmd->add_option("--chessboard", f->chessboards,
                   "Image of one chessboard lying flat on the floor (repeatable)");

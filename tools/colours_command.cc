@@ -32,7 +32,7 @@ namespace {
 namespace fs = std::filesystem;
 constexpr char kName[] = "roomfix colours: ";
 
-struct ColoursFlags {
+struct ColoursOptions {
   std::string site;
   std::optional<int> camera_id;
   std::vector<std::string> frames;
@@ -369,7 +369,7 @@ void PrintClasses(const vision::ColourLearning& learned, const std::string& titl
   }
 }
 
-bool ReadSet(const ColoursFlags& f, const std::vector<std::string>& paths, const Camera& camera,
+bool ReadSet(const ColoursOptions& f, const std::vector<std::string>& paths, const Camera& camera,
              const Projector& p, bool with_known_pixels, FrameSet* set,
              std::vector<vision::KnownMarker>* known, std::string* error) {
   if (!ReadFrameSet(paths, camera, set, error)) return false;
@@ -395,7 +395,7 @@ std::string CheckLine(const vision::ClassCheck& c) {
 // which were not seen there (so not checked). A set's markers at no known
 // place are named by the nearest learned colour, for the boxes of every
 // light. False only on unreadable input.
-bool CheckSets(const ColoursFlags& f, const Camera& camera, const Projector& p,
+bool CheckSets(const ColoursOptions& f, const Camera& camera, const Projector& p,
                const std::vector<vision::LearnedClass>& classes, std::vector<FrameSet>* sets,
                std::vector<std::vector<vision::KnownMarker>>* known, std::string* error) {
   bool all_hold = true;
@@ -430,7 +430,7 @@ bool CheckSets(const ColoursFlags& f, const Camera& camera, const Projector& p,
 // --check: boxes learned from the frames of every light together, each
 // cluster named as in the first set (the sets' markers are labelled); a
 // colour that is none of the learned classes is left out, said.
-bool LearnForEveryLight(const ColoursFlags& f, const FrameSet& base,
+bool LearnForEveryLight(const ColoursOptions& f, const FrameSet& base,
                         const std::vector<vision::KnownMarker>& known,
                         const std::vector<FrameSet>& sets,
                         const std::vector<std::vector<vision::KnownMarker>>& set_known,
@@ -471,7 +471,7 @@ bool LearnForEveryLight(const ColoursFlags& f, const FrameSet& base,
   return true;
 }
 
-int RunColours(const ColoursFlags& f) {
+int RunColours(const ColoursOptions& f) {
   std::string error;
   if (!f.learning.IsValid(&error)) {
     std::cerr << kName << error << "\n";
@@ -534,7 +534,7 @@ void AddColoursCommand(CLI::App* app, int* exit_code) {
       "Learn a camera's colour classes from its own frames: find the marker discs, cluster their "
       "colours, propose HSV boxes with margins for white balance, exposure and wear, and write "
       "them into a copy of the site file (docs/camera.md, \"Colours from frames\")");
-  auto f = std::make_shared<ColoursFlags>();
+  auto f = std::make_shared<ColoursOptions>();
   cmd->add_option("--site", f->site, "Site file")->required()->check(CLI::ExistingFile);
   cmd->add_option("--camera", f->camera_id, "Camera id in the site file (default: the first)");
   cmd->add_option("--frames", f->frames,

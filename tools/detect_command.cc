@@ -23,7 +23,7 @@ namespace {
 
 constexpr char kName[] = "roomfix detect: ";
 
-struct DetectFlags {
+struct DetectOptions {
   std::string image;
   std::string site;
   std::optional<int> camera_id;
@@ -39,7 +39,7 @@ struct DetectFlags {
 // flag's, else the site camera's) when it is a full model, else the nominal
 // lens. A calibration that cannot be read is an error only when asked for
 // by the flag; the site's own is then a warning (the sizes are nominal).
-bool ChooseLens(const DetectFlags& f, const Camera& camera, calib::CameraModel* lens) {
+bool ChooseLens(const DetectOptions& f, const Camera& camera, calib::CameraModel* lens) {
   *lens = calib::NominalCamera(camera.mount_position_m, camera.field_of_view_deg, camera.width_px,
                                camera.height_px);
   const std::string& path = f.calibration.empty() ? camera.calibration_file : f.calibration;
@@ -66,7 +66,7 @@ bool ParseLighting(const std::string& name, vision::LightingMode* mode) {
 }
 
 nlohmann::ordered_json ToJson(const vision::DetectorView& view, const CameraSetup& setup,
-                              const Camera& camera, const DetectFlags& f) {
+                              const Camera& camera, const DetectOptions& f) {
   nlohmann::ordered_json robots = nlohmann::ordered_json::array();
   for (const vision::RobotDiagnosis& d : view.robots) {
     robots.push_back(
@@ -103,7 +103,7 @@ nlohmann::ordered_json ToJson(const vision::DetectorView& view, const CameraSetu
           {"rejected_not_listed", view.diagnostics.rejected_not_listed}};
 }
 
-int RunDetect(const DetectFlags& f) {
+int RunDetect(const DetectOptions& f) {
   Site site;
   std::string error;
   if (!LoadSite(f.site, &site, &error)) {
@@ -194,7 +194,7 @@ void AddDetectCommand(CLI::App* app, int* exit_code) {
       "What the camera's detector sees in a saved frame: its class masks and blobs over the "
       "dimmed frame as a PNG, and per robot why it is or is not found (as camera_proc's "
       "CAMERA_DETECTOR_VIEW)");
-  auto f = std::make_shared<DetectFlags>();
+  auto f = std::make_shared<DetectOptions>();
   cmd->add_option("image", f->image, "A frame of the camera (PNG, JPEG, BMP or PNM)")->required();
   cmd->add_option("--site", f->site, "Site file")->required();
   cmd->add_option("--camera", f->camera_id, "Camera id in the site file (default: the first)");

@@ -24,7 +24,7 @@
 namespace roomfix {
 namespace {
 
-struct DevicesArgs {
+struct DevicesOptions {
   std::string site;
   std::string out;
   std::string coordinator = "0x000000000000FFFF";
@@ -61,7 +61,7 @@ void PrintConfig(const radio::DeviceConfig& c) {
       c.max_range_cm / 100.0, c.sound_speed_mm_s / 1000.0);
 }
 
-int RunShow(const DevicesArgs& a) {
+int RunShow(const DevicesOptions& a) {
   // An EEPROM image's hex is under 300 bytes; 64 kB refuses a wrong file
   // (a log, /dev/zero) at once.
   constexpr size_t kImageFileCapBytes = 64 * 1024;
@@ -89,7 +89,7 @@ int RunShow(const DevicesArgs& a) {
   return 0;
 }
 
-int RunWrite(const DevicesArgs& a) {
+int RunWrite(const DevicesOptions& a) {
   Site site;
   std::string error;
   if (!LoadSite(a.site, &site, &error)) {
@@ -164,7 +164,7 @@ void AddDevicesCommand(CLI::App* app, int* exit_code) {
       "devices",
       "Write each beacon's and wall receiver's EEPROM configuration from the site file "
       "(Intel hex for avrdude: docs/devices.md)");
-  auto a = std::make_shared<DevicesArgs>();
+  auto a = std::make_shared<DevicesOptions>();
   devices->add_option("--config", a->site, "Site file")->check(CLI::ExistingFile);
   devices->add_option("--out", a->out, "Folder for the images, one DEVICE.eep.hex each");
   devices

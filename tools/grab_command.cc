@@ -37,7 +37,7 @@ namespace {
 
 constexpr char kName[] = "roomfix grab: ";
 
-struct GrabFlags {
+struct GrabOptions {
   std::string site;
   std::optional<int> camera_id;
   std::string out;
@@ -59,7 +59,7 @@ struct TripodPoint {
   const CameraRobot* robot = nullptr;
 };
 
-bool ParseTripod(const GrabFlags& f, const Site& site, const Camera& camera, TripodPoint* p,
+bool ParseTripod(const GrabOptions& f, const Site& site, const Camera& camera, TripodPoint* p,
                  std::string* error) {
   // The whole text one finite number, in range (what std::stod accepts).
   const auto number = [](const std::string& text, double* value) {
@@ -92,7 +92,7 @@ bool ParseTripod(const GrabFlags& f, const Site& site, const Camera& camera, Tri
 
 // The frame's file name without its extension: frame_NNNN, or with
 // --tripod tripod_X_Y (the point as typed; _N after it when several).
-std::string FrameStem(const GrabFlags& f, int index) {
+std::string FrameStem(const GrabOptions& f, int index) {
   if (f.tripod.empty()) {
     return fmt::format("frame_{:04d}", index);
   }
@@ -105,7 +105,7 @@ std::string FrameStem(const GrabFlags& f, int index) {
 // tripod's marker at its height, as `roomfix calibrate --marker-images` and
 // `roomfix colours` read it), with the header when the file is new; a row
 // for a file already listed is replaced (the point grabbed again).
-bool RecordTripod(const GrabFlags& f, const TripodPoint& p, const std::vector<std::string>& files,
+bool RecordTripod(const GrabOptions& f, const TripodPoint& p, const std::vector<std::string>& files,
                   std::string* error) {
   const std::string path = f.out + "/points.csv";
   std::vector<std::string> lines;
@@ -291,7 +291,7 @@ struct GrabLoopResult {
 // its capture time is `every` past the last written one's: a live camera is
 // read all the while (a driver's queued frames are not minutes old), and a
 // file's virtual clock (seq / fps) spaces its frames as the camera would.
-GrabLoopResult GrabLoop(const GrabFlags& f, int skip, camera::FrameSource* source,
+GrabLoopResult GrabLoop(const GrabOptions& f, int skip, camera::FrameSource* source,
                         const std::string& device) {
   GrabLoopResult result;
   const auto timeout =
@@ -353,7 +353,7 @@ GrabLoopResult GrabLoop(const GrabFlags& f, int skip, camera::FrameSource* sourc
   return result;
 }
 
-int RunGrab(const GrabFlags& f) {
+int RunGrab(const GrabOptions& f) {
   if (f.count <= 0) {
     std::cerr << kName << "--count must be at least 1, not " << f.count << "\n";
     return 1;
@@ -459,7 +459,7 @@ void AddGrabCommand(CLI::App* app, int* exit_code) {
       "Save frames from a site camera's device, opened as camera_proc opens it (size, format, "
       "rate and properties from the site file): JPEG frames as the camera sent them, raw ones "
       "as PNG, and frames.csv");
-  auto f = std::make_shared<GrabFlags>();
+  auto f = std::make_shared<GrabOptions>();
   cmd->add_option("--site", f->site, "Site file")->required();
   cmd->add_option("--camera", f->camera_id, "Camera id in the site file (default: the first)");
   cmd->add_option("--out", f->out, "Folder for frame_NNNN.jpg/.png and frames.csv")->required();

@@ -27,7 +27,7 @@
 namespace roomfix {
 namespace {
 
-struct RenderCameraFlags {
+struct RenderCameraOptions {
   std::string site;
   std::optional<int> camera_id;
   std::string scenario;
@@ -52,7 +52,7 @@ struct RenderCameraFlags {
 // the points half a step off that grid (places the fit does not see), each
 // at its own heading, and robots.csv (image,x_m,y_m,height_m,robot_id) for
 // `roomfix calibrate --robot-images`: each robot's held-out pixel noise.
-int WriteTripodImages(const RenderCameraFlags& f, const Site& site, const Camera& camera,
+int WriteTripodImages(const RenderCameraOptions& f, const Site& site, const Camera& camera,
                       const sim::SyntheticCamera& synthetic) {
   const char* kName = "roomfix render-camera: ";
   if (camera.robots.empty()) {
@@ -169,7 +169,7 @@ int WriteTripodImages(const RenderCameraFlags& f, const Site& site, const Camera
   return 0;
 }
 
-int RunRenderCamera(const RenderCameraFlags& f) {
+int RunRenderCamera(const RenderCameraOptions& f) {
   const char* kName = "roomfix render-camera: ";
   Site site;
   std::string error;
@@ -278,7 +278,7 @@ void AddRenderCameraCommand(CLI::App* app, int* exit_code) {
       "Render synthetic ceiling-camera frames of a site (floor, grid, robots' markers, lighting, "
       "noise) with ground truth: a sequence (folder of JPEGs or .avi/.mp4, plus truth CSV) or one "
       "PNG");
-  auto f = std::make_shared<RenderCameraFlags>();
+  auto f = std::make_shared<RenderCameraOptions>();
   cmd->add_option("--site", f->site, "Site file")->required();
   cmd->add_option("--camera", f->camera_id, "Camera id in the site file (default: the first)");
   cmd->add_option("--scenario", f->scenario,

@@ -21,7 +21,7 @@
 namespace roomfix {
 namespace {
 
-struct ReplayCommandArgs {
+struct ReplayCommandOptions {
   std::string log_path;
   std::string out_path;
   std::string nodes = "trilat,fusion";
@@ -87,7 +87,7 @@ nlohmann::json StatusJson(const process_status_t& s) {
 
 // The nodes, their options and the site of the replay, from the flags and
 // the log; says on stderr which site is used. False with the reason.
-bool PrepareReplay(const ReplayCommandArgs& args, PipelineReplayOptions* options,
+bool PrepareReplay(const ReplayCommandOptions& args, PipelineReplayOptions* options,
                    ReplaySite* replay_site, std::string* error) {
   if (!ParseNodes(args.nodes, options, error)) return false;
   options->trilat_options = args.trilat_options;
@@ -144,7 +144,7 @@ struct ReplayTiming {
   double speedup = 0.0;
 };
 
-void PrintSummaryJson(const ReplayCommandArgs& args, const std::string& site_line,
+void PrintSummaryJson(const ReplayCommandOptions& args, const std::string& site_line,
                       const PipelineReplayOptions& options, const PipelineReplaySummary& s,
                       const ReplayTiming& t) {
   nlohmann::json j = {{"log", args.log_path},
@@ -178,7 +178,7 @@ void PrintSummaryJson(const ReplayCommandArgs& args, const std::string& site_lin
   fmt::print("{}\n", j.dump(2));
 }
 
-void PrintSummaryText(const ReplayCommandArgs& args, const std::string& site_line,
+void PrintSummaryText(const ReplayCommandOptions& args, const std::string& site_line,
                       const PipelineReplayOptions& options, const PipelineReplaySummary& s,
                       const ReplayTiming& t) {
   fmt::print("{} -> {}: {} events, {:.2f} s of log, {}\n", args.log_path, args.out_path,
@@ -223,7 +223,7 @@ void WarnAboutInput(const std::string& log_path, const PipelineReplaySummary& s)
 
 // parse (CLI11, PrepareReplay) -> load and compute (ReplayPipelineFile) ->
 // report.
-int RunReplayCommand(const ReplayCommandArgs& args) {
+int RunReplayCommand(const ReplayCommandOptions& args) {
   PipelineReplayOptions options;
   ReplaySite replay_site;
   std::string error;
@@ -259,7 +259,7 @@ void AddReplayCommand(CLI::App* app, int* exit_code) {
                                   "Re-run trilat_proc's, fusion_proc's and camera_proc's nodes "
                                   "over a log, on its time, as fast as possible, "
                                   "into a new log (docs/replay.md)");
-  auto args = std::make_shared<ReplayCommandArgs>();
+  auto args = std::make_shared<ReplayCommandOptions>();
   cmd->add_option("LOG", args->log_path, "Recorded LCM log (roomfix_logger or lcm-logger)")
       ->required();
   cmd->add_option("--out", args->out_path,

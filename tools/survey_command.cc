@@ -41,7 +41,7 @@ using nlohmann::json;
 // running, and no firing there is aligned.
 constexpr int64_t kMaxReferenceGap_us = 200000;
 
-struct SurveyArgs {
+struct SurveyCommandOptions {
   std::string log;
   std::string site;
   std::string reference = "camera";
@@ -108,7 +108,7 @@ void EmitReceiver(const Receiver& r, const survey::ReceiverEstimate& e, YAML::Em
 
 // The robot to survey with (--robot, else the first with a beacon) and its
 // beacon; false with the reason.
-bool FindSurveyBeacon(const Site& site, const SurveyArgs& a, const Robot** robot,
+bool FindSurveyBeacon(const Site& site, const SurveyCommandOptions& a, const Robot** robot,
                       const Beacon** beacon, std::string* error) {
   *robot = nullptr;
   for (const Robot& r : site.robots) {
@@ -188,7 +188,7 @@ bool ReadFirings(const std::string& log, const Site& site, const Beacon& beacon,
 
 // The reference track (--reference) of the robot; empty without one, which
 // is an error unless --no-reference.
-bool ReadReference(const SurveyArgs& a, int robot_id,
+bool ReadReference(const SurveyCommandOptions& a, int robot_id,
                    std::vector<survey::ReferenceSample>* reference, std::string* error) {
   PoseLogs poses = ReadPoseLogs({a.log});
   auto track = poses.tracks.find({a.reference, robot_id});
@@ -220,7 +220,7 @@ struct SurveyFit {
   survey::TrilaterationError before, after;
 };
 
-bool FitSurvey(const SurveyArgs& a, const std::vector<int>& pins, const Site& site,
+bool FitSurvey(const SurveyCommandOptions& a, const std::vector<int>& pins, const Site& site,
                const std::vector<survey::Firing>& firings, bool have_reference, SurveyFit* fit,
                std::string* error) {
   // Only the receivers the beacon was heard by are unknowns: the normal
@@ -318,7 +318,7 @@ json PrintReceivers(const Site& site, const survey::SurveyResult& result) {
 }
 
 // The notes and the held-out trilateration error before and after.
-void PrintEvaluation(const SurveyArgs& a, int beacon_id, const SurveyFit& fit) {
+void PrintEvaluation(const SurveyCommandOptions& a, int beacon_id, const SurveyFit& fit) {
   if (!fit.not_heard.empty()) {
     std::string ids;
     for (size_t i = 0; i < fit.not_heard.size() && i < 16; ++i) {
@@ -346,8 +346,8 @@ void PrintEvaluation(const SurveyArgs& a, int beacon_id, const SurveyFit& fit) {
 
 // The receivers as a site-file fragment, written whole at the end with
 // every step checked (file_io.h).
-bool WriteFragment(const SurveyArgs& a, const Site& site, const survey::SurveyResult& result,
-                   std::string* error) {
+bool WriteFragment(const SurveyCommandOptions& a, const Site& site,
+                   const survey::SurveyResult& result, std::string* error) {
   std::ostringstream header;
   header << "roomfix survey of " << a.log << " ("
          << (a.no_reference ? "no reference, pinned " + a.pin : "reference " + a.reference) << ", "
@@ -364,7 +364,7 @@ bool WriteFragment(const SurveyArgs& a, const Site& site, const survey::SurveyRe
   return WriteOutputFile(a.out, std::string(fragment.c_str()) + "\n", error);
 }
 
-bool WriteJson(const SurveyArgs& a, size_t firings, const SurveyFit& fit, json receivers,
+bool WriteJson(const SurveyCommandOptions& a, size_t firings, const SurveyFit& fit, json receivers,
                std::string* error) {
   const survey::SurveyResult& result = fit.result;
   json out = {{"log", a.log},
@@ -386,7 +386,7 @@ bool WriteJson(const SurveyArgs& a, size_t firings, const SurveyFit& fit, json r
 
 // parse (CLI11) -> load (site, range sets, reference) -> compute (the fit)
 // -> report (stdout, --out, --json).
-int Run(const SurveyArgs& a) {
+int Run(const SurveyCommandOptions& a) {
   // The starting values: --site/--config, or the site the log carries
   // (SITE); needed either way, so a log without one is an error.
   const ToolSite resolved = ResolveToolSite(a.site, a.log);
@@ -450,7 +450,7 @@ int Run(const SurveyArgs& a) {
 void AddSurveyCommand(CLI::App* app, int* exit_code) {
   auto* cmd = app->add_subcommand(
       "survey", "Receiver positions and range offsets from a drive with a reference track");
-  auto a = std::make_shared<SurveyArgs>();
+  auto a = std::make_shared<SurveyCommandOptions>();
   cmd->add_option("LOG", a->log, "LCM log with RANGES and a POSE_* reference")->required();
   cmd->add_option("--site,--config", a->site,
                   "Site file: starting values and the 'before' (default: the site the log "

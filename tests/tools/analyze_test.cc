@@ -144,17 +144,17 @@ TEST(RoomfixAnalyze, RecoversTheStaticRepeatabilityAndTheCameraCycleOfTheReferen
   EXPECT_NE(md.find("0.38 cm, 0.49 cm"), std::string::npos) << "the reference beside ours";
 }
 
-TEST(RoomfixAnalyze, FitsTheReferenceCircleAndComparesEachSourceWithTruthAndCamera) {
-  // Ground truth at 30 Hz on the reference circle; the camera sees it 2 cm
-  // east and 1 cm south of the truth with 1 mm noise; ultrasound at 10 Hz
-  // with 1 cm noise.
-  constexpr double kSigmaUsM = 0.01;
+// The reference circle's log: ground truth at 30 Hz; the camera sees it 2 cm
+// east and 1 cm south of the truth with 1 mm noise; ultrasound at 10 Hz
+// with kSigmaUsM noise per axis, and one lost fix after the end.
+constexpr double kSigmaUsM = 0.01;
+
+void WriteCircleLog(const std::string& path) {
   constexpr double kSeconds = 60.0;
   std::string error;
   const std::unique_ptr<Trajectory> circle = MakeCircleTrajectory({}, &error);
   ASSERT_NE(circle, nullptr) << error;
-  TempDir dir;
-  LogBuilder log(dir.File("circle.lcm"));
+  LogBuilder log(path);
   std::mt19937_64 rng(5);
   std::normal_distribution<double> us(0.0, kSigmaUsM), cam(0.0, 0.001);
   for (int k = 0; k <= kSeconds * 30; ++k) {
@@ -170,14 +170,10 @@ TEST(RoomfixAnalyze, FitsTheReferenceCircleAndComparesEachSourceWithTruthAndCame
   log.Pose(pose2d_t::SOURCE_ULTRASOUND, kT0 + 61'000'000, std::nan(""), std::nan(""), 12000,
            pose2d_t::STATUS_LOST);
   log.Close();
+}
 
-  int rc = -1;
-  const json out = Analyze({dir.File("circle.lcm"), "--out", dir.File("report")}, &rc);
-  ASSERT_EQ(rc, 0);
-  const json& u = out["robots"]["1"]["ultrasound"];
-  EXPECT_EQ(u["fixes"], 601);
-  EXPECT_EQ(u["lost"], 1);
-  EXPECT_FALSE(u["static"].get<bool>());
+// The circle fitted to the ultrasound fixes of WriteCircleLog's log.
+void ExpectReferenceCircle(const json& u) {
   // 601 fixes with 1 cm noise: the radius to about 1 cm / sqrt(601) = 0.4 mm.
   constexpr double kRadiusTolM = 0.002;
   const json& a = u["circle"]["drifting_centre"];
@@ -206,6 +202,19 @@ TEST(RoomfixAnalyze, FitsTheReferenceCircleAndComparesEachSourceWithTruthAndCame
   const json& b = u["circle"]["circular_motion"];
   EXPECT_NEAR(b["angular_speed_radps"].get<double>(), -0.439, kAngularSpeedTolRadps);
   EXPECT_NEAR(b["phase_rad"].get<double>(), 3.163, kPhaseTolRad);
+}
+
+TEST(RoomfixAnalyze, FitsTheReferenceCircleAndComparesEachSourceWithTruthAndCamera) {
+  TempDir dir;
+  ASSERT_NO_FATAL_FAILURE(WriteCircleLog(dir.File("circle.lcm")));
+  int rc = -1;
+  const json out = Analyze({dir.File("circle.lcm"), "--out", dir.File("report")}, &rc);
+  ASSERT_EQ(rc, 0);
+  const json& u = out["robots"]["1"]["ultrasound"];
+  EXPECT_EQ(u["fixes"], 601);
+  EXPECT_EQ(u["lost"], 1);
+  EXPECT_FALSE(u["static"].get<bool>());
+  ExpectReferenceCircle(u);
   // A statistic of the 601 ultrasound fixes with 1 cm noise per axis: its
   // standard error is at most 1 cm / sqrt(601) = 0.4 mm; 2 mm is 5 of those.
   constexpr double kUltrasoundStatisticTolM = 0.002;
