@@ -337,7 +337,9 @@ void CameraNode::OnHint(const pose2d_t& msg, const MessageInfo& info) {
     // Radius on the floor: 3 sigma of the larger axis, clamped; in pixels
     // by the local scale (one floor step of 0.1 m imaged).
     double var = std::max(pose.covariance[0][0], pose.covariance[1][1]);
-    if (!std::isfinite(var) || var < 0.0) var = 0.0;
+    // ReceivePose has refused a non-finite covariance; a negative variance
+    // (a forged one) searches at the smallest radius.
+    if (var < 0.0) var = 0.0;
     const double radius_m =
         std::clamp(3.0 * std::sqrt(var), options_.hint_min_radius_m, options_.hint_max_radius_m);
     if (!calibration_->FloorToPixel(pose.x_m, pose.y_m, h, &u, &v, &error) ||

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "msgio/bus.h"
+#include "msgio/channels.h"
 #include "msgio/log.h"
 #include "msgio/message_json.h"
 #include "msgio/process.h"
@@ -285,9 +286,10 @@ void AddListenCommand(CLI::App* app, int* exit_code) {
       *exit_code = 1;
       return;
     }
-    bus->SubscribeRaw("SITE|STATUS", [&](const MessageInfo& info, const void* data, int size) {
-      sites.Observe(info, data, size);
-    });
+    bus->SubscribeRaw(std::string(kSiteChannel) + "|" + kStatusChannel,
+                      [&](const MessageInfo& info, const void* data, int size) {
+                        sites.Observe(info, data, size);
+                      });
     int64_t received = 0;
     std::map<std::string, int64_t> refused;
     bus->SubscribeRaw(o->channel, [&](const MessageInfo& info, const void* data, int size) {

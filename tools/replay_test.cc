@@ -173,8 +173,9 @@ TEST(PipelineReplay, ReproducesTheLiveUltrasonicPosesExactly) {
 // sigma_b 1.92 mm per axis (docs/fusion.md, "Correlated camera error") and
 // the position is that uncertain to an ultrasonic fix of about 20 mm: a
 // gain of about (1.92 / 20)^2 = 0.009, and the gate (chi-square 13.82)
-// passes innovations up to 3.7 x 20 mm = 74 mm, so one swap moves a pose
-// by 0.68 mm at the very most. Measured (2026-11-29, this log and three
+// passes innovations up to 3.7 x 20 mm = 74 mm, so one swap could move a
+// pose by 0.68 mm at the very most, more than the tolerance: the bound is
+// the measured figure with a margin, not that worst case. Measured (2026-11-29, this log and three
 // re-recordings with scripts/record_test_logs.sh): the largest difference
 // 0 in all four with trilat and fusion re-run, and 0, 0, 0 and 0.36 mm with
 // the camera re-run too; kFusedToleranceM is 1.4x that 0.36 mm. Most poses

@@ -44,4 +44,4 @@ if ((failures)); then
   echo "$failures of 4 groups linked into $(basename "$binary"): they belong to roomfix_bench (bench/)"
   exit 1
 fi
-echo "ok: $(basename "$binary") holds none of the bridge, the simulator, the viewer's renderer or Google Benchmark"
+echo "ok: $(basename "$binary") holds none of the bridge, the simulator's devices, the viewer's renderer or Google Benchmark"
