@@ -197,8 +197,8 @@ int RunErrorBudget(const BenchCameraOptions& o) {
   Site site;
   std::string error;
   if (!LoadSite(o.site, &site, &error) || site.cameras.empty() || site.simulation.robots.empty()) {
-    std::cerr << "bench camera: " << (error.empty() ? o.site + ": no camera or robot" : error)
-              << "\n";
+    std::cerr << "roomfix_bench camera: "
+              << (error.empty() ? o.site + ": no camera or robot" : error) << "\n";
     return 1;
   }
   const WebcamSimulation full = site.simulation.webcam;
@@ -308,7 +308,7 @@ bool RenderFrames(const Camera& cam, const sim::SyntheticCamera& synth, const Be
     // --quality) and its timestamp (readout, latency, jitter: 0 otherwise).
     std::vector<uint8_t> bytes;
     if (!synth.Encode(bgr, o.quality, &bytes) || bytes.empty()) {
-      std::cerr << "bench camera: cannot encode a frame as JPEG\n";
+      std::cerr << "roomfix_bench camera: cannot encode a frame as JPEG\n";
       return false;
     }
     r->jpeg.push_back(std::move(bytes));
@@ -541,18 +541,18 @@ int RunCameraBench(const BenchCameraOptions& o) {
   Site site;
   std::string error;
   if (!LoadSite(o.site, &site, &error)) {
-    std::cerr << "bench camera: " << error << "\n";
+    std::cerr << "roomfix_bench camera: " << error << "\n";
     return 1;
   }
   if (site.cameras.empty()) {
-    std::cerr << "bench camera: " << o.site << " has no camera\n";
+    std::cerr << "roomfix_bench camera: " << o.site << " has no camera\n";
     return 1;
   }
   const Camera& cam = site.cameras.front();
   sim::SimScenario scenario;
   // "webcam" renders with the site's simulation.webcam parameters.
   if (!sim::ParseSimScenario(o.scenario, site, &scenario, &error)) {
-    std::cerr << "bench camera: " << error << "\n";
+    std::cerr << "roomfix_bench camera: " << error << "\n";
     return 1;
   }
   calib::CameraModel lens = calib::NominalCamera(cam.mount_position_m, cam.field_of_view_deg,
@@ -567,7 +567,7 @@ int RunCameraBench(const BenchCameraOptions& o) {
   }
   CameraTimings t;
   if (!TimeDecoding(r, &t.decode, &error)) {
-    std::cerr << "bench camera: " << error << "\n";
+    std::cerr << "roomfix_bench camera: " << error << "\n";
     return 1;
   }
   t.reference = TimeReference(cam, r);
