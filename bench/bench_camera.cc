@@ -1,6 +1,8 @@
 // roomfix_bench camera: per-frame cost of camera_proc's pipeline on 1080p
 // MJPEG frames against the reference pipeline, measured on the same frames
 // in the same run, and the centroid accuracy on the same synthetic frames.
+#include <fmt/format.h>
+
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
@@ -195,8 +197,8 @@ int RunErrorBudget(const BenchCameraOptions& o) {
   Site site;
   std::string error;
   if (!LoadSite(o.site, &site, &error) || site.cameras.empty() || site.simulation.robots.empty()) {
-    std::cerr << "bench camera: " << (error.empty() ? o.site + ": no camera or robot" : error)
-              << "\n";
+    std::cerr << "roomfix_bench camera: "
+              << (error.empty() ? o.site + ": no camera or robot" : error) << "\n";
     return 1;
   }
   const WebcamSimulation full = site.simulation.webcam;
@@ -217,10 +219,10 @@ int RunErrorBudget(const BenchCameraOptions& o) {
                                             "all"};
   json rows = json::array();
   if (!o.json) {
-    std::printf(
-        "error budget: simulated webcam (%s), calibration = the rendered lens with pixel sigma "
-        "%.3f px; static: centre and corner, %d frames each; circle: %d frames\n"
-        "  %-30s %12s %10s %12s %10s %8s\n",
+    fmt::print(
+        "error budget: simulated webcam ({}), calibration = the rendered lens with pixel sigma "
+        "{:.3f} px; static: centre and corner, {} frames each; circle: {} frames\n"
+        "  {:<30} {:>12} {:>10} {:>12} {:>10} {:>8}\n",
         o.site.c_str(), o.pixel_sigma_px, std::max(1, o.frames / 4), o.frames, "effect",
         "static mm", "inside95", "circle mm", "inside95", "dropped");
   }
@@ -257,9 +259,9 @@ int RunErrorBudget(const BenchCameraOptions& o) {
     row["dropped"] = dropped;
     rows.push_back(row);
     if (!o.json) {
-      std::printf("  %-30s %12.2f %9.1f%% %12.2f %9.1f%% %8lld\n", effect.c_str(),
-                  std::sqrt(static2) * 1e3, static_in * 100.0, c.rms_m * 1e3, c.inside_95 * 100.0,
-                  static_cast<long long>(dropped));
+      fmt::print("  {:<30} {:12.2f} {:9.1f}% {:12.2f} {:9.1f}% {:8}\n", effect.c_str(),
+                 std::sqrt(static2) * 1e3, static_in * 100.0, c.rms_m * 1e3, c.inside_95 * 100.0,
+                 static_cast<long long>(dropped));
       std::fflush(stdout);
     }
   }
@@ -306,7 +308,7 @@ bool RenderFrames(const Camera& cam, const sim::SyntheticCamera& synth, const Be
     // --quality) and its timestamp (readout, latency, jitter: 0 otherwise).
     std::vector<uint8_t> bytes;
     if (!synth.Encode(bgr, o.quality, &bytes) || bytes.empty()) {
-      std::cerr << "bench camera: cannot encode a frame as JPEG\n";
+      std::cerr << "roomfix_bench camera: cannot encode a frame as JPEG\n";
       return false;
     }
     r->jpeg.push_back(std::move(bytes));
@@ -506,30 +508,30 @@ void PrintCameraTable(const BenchCameraOptions& o, const Camera& cam, const Came
   const double reference_ms = Median(t.reference);
   const double robots = static_cast<double>(cam.robots.size()) * o.frames;
   const DecodeTimes& d = t.decode;
-  std::printf(
+  fmt::print(
       "  per frame (median)              ms    vs reference\n"
-      "  reference (decode+HSV+blob)  %6.2f        1.0x\n"
-      "  camera_proc tracking         %6.2f   %7.1fx   (p99 %.2f ms)\n"
-      "  camera_proc full search      %6.2f   %7.1fx\n"
-      "  decoding alone: full frame %.2f ms, half size %.2f ms (%.1fx less), a 160 px window "
-      "%.2f ms (%.1fx less)\n"
-      "  centroid error %.3f px RMS tracking, %.3f px full search; detection rate %.4f\n",
+      "  reference (decode+HSV+blob)  {:6.2f}        1.0x\n"
+      "  camera_proc tracking         {:6.2f}   {:7.1f}x   (p99 {:.2f} ms)\n"
+      "  camera_proc full search      {:6.2f}   {:7.1f}x\n"
+      "  decoding alone: full frame {:.2f} ms, half size {:.2f} ms ({:.1f}x less), a 160 px window "
+      "{:.2f} ms ({:.1f}x less)\n"
+      "  centroid error {:.3f} px RMS tracking, {:.3f} px full search; detection rate {:.4f}\n",
       reference_ms, tracking_ms, reference_ms / tracking_ms, tracking_p99_ms, full_ms,
       reference_ms / full_ms, Median(d.full), Median(d.half), Median(d.full) / Median(d.half),
       Median(d.window), Median(d.full) / Median(d.window), Rms(t.tracking.err_px),
       Rms(t.full_search.err_px), t.tracking.found / robots);
   const std::vector<double>& tracking_cpu = t.tracking.cpu_ms;
   const std::vector<double>& every_frame_cpu = t.every_frame.cpu_ms;
-  std::printf(
+  fmt::print(
       "  CPU per frame (mean after the first second): robots out of view searched in full every "
-      "%d frames %.2f ms; every frame (before) %.2f ms (%.1fx); full search every frame "
-      "(median) %.2f ms\n",
+      "{} frames {:.2f} ms; every frame (before) {:.2f} ms ({:.1f}x); full search every frame "
+      "(median) {:.2f} ms\n",
       t.period, mean(tracking_cpu), mean(every_frame_cpu),
       mean(every_frame_cpu) / mean(tracking_cpu), Median(t.full_search.cpu_ms));
   if (o.clutter > 0) {
-    std::printf(
-        "  %d coloured dots per frame, CPU per frame (mean): %.2f ms with the blob cap (%d; "
-        "%lld robot-frames too_many_blobs), %.2f ms without (%.1fx)\n",
+    fmt::print(
+        "  {} coloured dots per frame, CPU per frame (mean): {:.2f} ms with the blob cap ({}; "
+        "{} robot-frames too_many_blobs), {:.2f} ms without ({:.1f}x)\n",
         o.clutter, mean(tracking_cpu), t.cap, static_cast<long long>(t.tracking.too_many_blobs),
         mean(t.uncapped.cpu_ms), mean(t.uncapped.cpu_ms) / mean(tracking_cpu));
   }
@@ -539,18 +541,18 @@ int RunCameraBench(const BenchCameraOptions& o) {
   Site site;
   std::string error;
   if (!LoadSite(o.site, &site, &error)) {
-    std::cerr << "bench camera: " << error << "\n";
+    std::cerr << "roomfix_bench camera: " << error << "\n";
     return 1;
   }
   if (site.cameras.empty()) {
-    std::cerr << "bench camera: " << o.site << " has no camera\n";
+    std::cerr << "roomfix_bench camera: " << o.site << " has no camera\n";
     return 1;
   }
   const Camera& cam = site.cameras.front();
   sim::SimScenario scenario;
   // "webcam" renders with the site's simulation.webcam parameters.
   if (!sim::ParseSimScenario(o.scenario, site, &scenario, &error)) {
-    std::cerr << "bench camera: " << error << "\n";
+    std::cerr << "roomfix_bench camera: " << error << "\n";
     return 1;
   }
   calib::CameraModel lens = calib::NominalCamera(cam.mount_position_m, cam.field_of_view_deg,
@@ -559,13 +561,13 @@ int RunCameraBench(const BenchCameraOptions& o) {
   Rendered r;
   if (!RenderFrames(cam, synth, o, &r)) return 1;
   if (!o.json) {
-    std::printf("camera bench: %d frames %dx%d, JPEG quality %d (%.0f kB each), scenario %s\n",
-                o.frames, cam.width_px, cam.height_px, synth.JpegQuality(o.quality),
-                r.jpeg.front().size() / 1024.0, scenario.name.c_str());
+    fmt::print("camera bench: {} frames {}x{}, JPEG quality {} ({:.0f} kB each), scenario {}\n",
+               o.frames, cam.width_px, cam.height_px, synth.JpegQuality(o.quality),
+               r.jpeg.front().size() / 1024.0, scenario.name.c_str());
   }
   CameraTimings t;
   if (!TimeDecoding(r, &t.decode, &error)) {
-    std::cerr << "bench camera: " << error << "\n";
+    std::cerr << "roomfix_bench camera: " << error << "\n";
     return 1;
   }
   t.reference = TimeReference(cam, r);

@@ -17,6 +17,7 @@
 // - latency: with --log, the p50 and p99 of POSE_FUSED latency_us (receive
 //   time at fusion_proc minus the measurement's time: capture to fused pose
 //   for a camera measurement) in a recorded run such as the hall test's.
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
@@ -331,7 +332,7 @@ json LatencyRow(const std::string& path) {
 }
 
 void PrintError(const char* what, const json& row) {
-  std::printf("  %s: not measured: %s\n", what, row["error"].get<std::string>().c_str());
+  fmt::print("  {}: not measured: {}\n", what, row["error"].get<std::string>().c_str());
 }
 
 void PrintCapacity(const json& out);
@@ -378,8 +379,9 @@ int RunCapacityBench(const BenchCapacityOptions& o) {
       PrintError("latency", l);
       return o.latency_only ? 1 : 0;
     }
-    std::printf(
-        "  capture to POSE_FUSED (%s, %d fused poses): p50 %.1f ms, p99 %.1f ms, max %.1f ms\n",
+    fmt::print(
+        "  capture to POSE_FUSED ({}, {} fused poses): p50 {:.1f} ms, p99 {:.1f} ms, max {:.1f} "
+        "ms\n",
         l["log"].get<std::string>().c_str(), l["fused_poses"].get<int>(), l["p50_ms"].get<double>(),
         l["p99_ms"].get<double>(), l["max_ms"].get<double>());
   }
@@ -387,8 +389,8 @@ int RunCapacityBench(const BenchCapacityOptions& o) {
 }
 
 void PrintCapacity(const json& out) {
-  std::printf("capacity (one core each unless said; %.0f fps cameras)\n", kCameraFps);
-  std::printf(
+  fmt::print("capacity (one core each unless said; {:.0f} fps cameras)\n", kCameraFps);
+  fmt::print(
       "  camera_proc, per frame (median)     tracking   full search   cameras/core at "
       "30 fps (tracking / full search)\n");
   for (const json& row : out["camera"]) {
@@ -396,19 +398,20 @@ void PrintCapacity(const json& out) {
       PrintError("camera_proc", row);
       continue;
     }
-    std::printf("    %-9s %-7s %-22s %6.2f ms  %8.2f ms     %5.1f / %4.1f\n",
-                row["resolution"].get<std::string>().c_str(),
-                row["scenario"].get<std::string>().c_str(),
-                row["site"]
-                    .get<std::string>()
-                    .substr(row["site"].get<std::string>().rfind('/') + 1)
-                    .c_str(),
-                row["tracking_ms"].get<double>(), row["full_search_ms"].get<double>(),
-                row["cameras_per_core_tracking"].get<double>(),
-                row["cameras_per_core_full_search"].get<double>());
-    std::printf(
-        "              in operation (CPU mean; robots out of view searched every %d frames): %.2f "
-        "ms, %.1f cameras/core; searched every frame (before): %.2f ms, %.1f cameras/core\n",
+    fmt::print("    {:<9} {:<7} {:<22} {:6.2f} ms  {:8.2f} ms     {:5.1f} / {:4.1f}\n",
+               row["resolution"].get<std::string>().c_str(),
+               row["scenario"].get<std::string>().c_str(),
+               row["site"]
+                   .get<std::string>()
+                   .substr(row["site"].get<std::string>().rfind('/') + 1)
+                   .c_str(),
+               row["tracking_ms"].get<double>(), row["full_search_ms"].get<double>(),
+               row["cameras_per_core_tracking"].get<double>(),
+               row["cameras_per_core_full_search"].get<double>());
+    fmt::print(
+        "              in operation (CPU mean; robots out of view searched every {} frames): "
+        "{:.2f} "
+        "ms, {:.1f} cameras/core; searched every frame (before): {:.2f} ms, {:.1f} cameras/core\n",
         row["absent_search_period_frames"].get<int>(), row["operating_ms"].get<double>(),
         row["cameras_per_core_operating"].get<double>(), row["every_frame_ms"].get<double>(),
         row["cameras_per_core_every_frame"].get<double>());
@@ -417,9 +420,10 @@ void PrintCapacity(const json& out) {
   if (t.contains("error")) {
     PrintError("trilat_proc", t);
   } else {
-    std::printf(
-        "  trilat_proc (hall: %d receivers on %d radios, merged parts): %.0f range sets/s = %.0f "
-        "firings/s (%d of %d poses from every receiver)\n",
+    fmt::print(
+        "  trilat_proc (hall: {} receivers on {} radios, merged parts): {:.0f} range sets/s = "
+        "{:.0f} "
+        "firings/s ({} of {} poses from every receiver)\n",
         t["receivers"].get<int>(), t["radios"].get<int>(), t["range_sets_per_s"].get<double>(),
         t["firings_per_s"].get<double>(), t["poses_from_every_receiver"].get<int>(),
         t["poses"].get<int>());
@@ -428,9 +432,9 @@ void PrintCapacity(const json& out) {
   if (f.contains("error")) {
     PrintError("fusion_proc", f);
   } else {
-    std::printf(
-        "  fusion_proc (%d robots, 30 Hz camera + 1 Hz ultrasound each): %.0f measurements/s = "
-        "%.0f robots/core with one camera each, %.0f in overlaps (two cameras)\n",
+    fmt::print(
+        "  fusion_proc ({} robots, 30 Hz camera + 1 Hz ultrasound each): {:.0f} measurements/s = "
+        "{:.0f} robots/core with one camera each, {:.0f} in overlaps (two cameras)\n",
         f["robots"].get<int>(), f["measurements_per_s"].get<double>(),
         f["robots_per_core_one_camera"].get<double>(),
         f["robots_per_core_two_cameras"].get<double>());
@@ -440,8 +444,8 @@ void PrintCapacity(const json& out) {
     if (l.contains("error")) {
       PrintError("roomfix_logger (multicast: run under scripts/netns_run)", l);
     } else {
-      std::printf("  roomfix_logger: %d messages/s recorded without loss (%d-byte payloads)\n",
-                  l["max_rate_without_loss_per_s"].get<int>(), l["payload_bytes"].get<int>());
+      fmt::print("  roomfix_logger: {} messages/s recorded without loss ({}-byte payloads)\n",
+                 l["max_rate_without_loss_per_s"].get<int>(), l["payload_bytes"].get<int>());
     }
   }
 }

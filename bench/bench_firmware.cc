@@ -5,6 +5,8 @@
 // same firmware and EEPROM images advanced by simavr alone, each to the same
 // simulated time in one call (no lockstep quanta, no radio, no sound), which
 // is as fast as simavr runs these images. The ratio is the world's cost.
+#include <fmt/format.h>
+
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <cstdio>
@@ -101,7 +103,7 @@ int RunFirmwareBench(const BenchFirmwareOptions& options) {
     Row row;
     std::string error;
     if (!MeasureSite(name, path, options, &row, &error)) {
-      std::fprintf(stderr, "roomfix_bench firmware: %s: %s\n", name.c_str(), error.c_str());
+      fmt::print(stderr, "roomfix_bench firmware: {}: {}\n", name.c_str(), error.c_str());
       return 1;
     }
     rows.push_back(row);
@@ -122,22 +124,22 @@ int RunFirmwareBench(const BenchFirmwareOptions& options) {
                      {"device_frames", r.frames},
                      {"late_events", r.late}});
     }
-    std::printf("%s\n", out.dump(2).c_str());
+    fmt::print("{}\n", out.dump(2).c_str());
     return 0;
   }
-  std::printf("Firmware in the loop: ATmega328P at 16 MHz per device, %.1f simulated s\n",
-              options.seconds);
-  std::printf("%-10s %8s %10s | %14s %14s %8s | %10s %8s %7s\n", "site", "beacons", "receivers",
-              "sim s / wall s", "simavr alone", "ratio", "MIPS", "pulses", "frames");
+  fmt::print("Firmware in the loop: ATmega328P at 16 MHz per device, {:.1f} simulated s\n",
+             options.seconds);
+  fmt::print("{:<10} {:>8} {:>10} | {:>14} {:>14} {:>8} | {:>10} {:>8} {:>7}\n", "site", "beacons",
+             "receivers", "sim s / wall s", "simavr alone", "ratio", "MIPS", "pulses", "frames");
   for (const Row& r : rows) {
     const double world_rate = r.sim_s / r.world_wall_s;
     const double base_rate = r.sim_s / r.baseline_wall_s;
-    std::printf("%-10s %8zu %10zu | %14.3f %14.3f %8.2f | %10.1f %8lld %7lld\n", r.name.c_str(),
-                r.beacons, r.receivers, world_rate, base_rate, base_rate / world_rate,
-                r.instructions / r.world_wall_s / 1e6, static_cast<long long>(r.pulses),
-                static_cast<long long>(r.frames));
+    fmt::print("{:<10} {:8} {:10} | {:14.3f} {:14.3f} {:8.2f} | {:10.1f} {:8} {:7}\n",
+               r.name.c_str(), r.beacons, r.receivers, world_rate, base_rate,
+               base_rate / world_rate, r.instructions / r.world_wall_s / 1e6,
+               static_cast<long long>(r.pulses), static_cast<long long>(r.frames));
   }
-  std::printf(
+  fmt::print(
       "sim s / wall s above 1: the simulator keeps up with real time (roomfix_sim --devices "
       "firmware); ratio: the world's time over simavr's alone on the same images\n");
   return 0;

@@ -6,6 +6,7 @@
 // of 30). Runs the loggers as child processes on the default multicast URL,
 // so run it inside a private network namespace:
 //   scripts/netns_run build/bin/roomfix_bench logger
+#include <fmt/format.h>
 #include <signal.h>
 #include <spawn.h>
 #include <sys/wait.h>
@@ -13,7 +14,6 @@
 
 #include <CLI/CLI.hpp>
 #include <chrono>
-#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
@@ -130,16 +130,16 @@ bool RunLadder(const BenchLoggerOptions& o, Bus* bus, std::vector<std::string> c
 }
 
 void PrintLadder(const char* name, const LadderResult& r, int payload_bytes) {
-  std::printf("\n%s\n%12s %14s %12s %12s %8s %10s\n", name, "target/s", "published/s", "published",
-              "written", "lost", "delivered");
+  fmt::print("\n{}\n{:>12} {:>14} {:>12} {:>12} {:>8} {:>10}\n", name, "target/s", "published/s",
+             "published", "written", "lost", "delivered");
   for (const auto& s : r.steps) {
-    std::printf("%12d %14.0f %12lld %12lld %8lld %9.2f%%\n", s["target_per_s"].get<int>(),
-                s["published_per_s"].get<double>(), s["published"].get<long long>(),
-                s["written"].get<long long>(), s["lost"].get<long long>(),
-                100.0 * s["delivered_ratio"].get<double>());
+    fmt::print("{:12} {:14.0f} {:12} {:12} {:8} {:9.2f}%\n", s["target_per_s"].get<int>(),
+               s["published_per_s"].get<double>(), s["published"].get<long long>(),
+               s["written"].get<long long>(), s["lost"].get<long long>(),
+               100.0 * s["delivered_ratio"].get<double>());
   }
-  std::printf(
-      "highest rate written with no loss: %d messages/s of %d bytes; peak memory %.1f MiB\n",
+  fmt::print(
+      "highest rate written with no loss: {} messages/s of {} bytes; peak memory {:.1f} MiB\n",
       r.max_rate_without_loss, payload_bytes, r.peak_rss_kb / 1024.0);
 }
 
@@ -197,20 +197,20 @@ int Run(const BenchLoggerOptions& o) {
     std::cout << out.dump() << "\n";
     return 0;
   }
-  std::printf("on %s, %d-byte payloads\n", url.c_str(), o.payload_bytes);
+  fmt::print("on {}, {}-byte payloads\n", url.c_str(), o.payload_bytes);
   PrintLadder("roomfix_logger, own receiver (UdpmBus)", ours, o.payload_bytes);
   PrintLadder(("roomfix_logger --via-liblcm (liblcm 1.3.1, queue capacity " +
                std::to_string(kLcmQueueCapacity) + ")")
                   .c_str(),
               tuned, o.payload_bytes);
   PrintLadder("lcm-logger (liblcm 1.3.1, default queue of 30)", stock, o.payload_bytes);
-  std::printf("\ndelivered, same run:\n%12s %12s %14s %12s\n", "target/s", "UdpmBus",
-              "liblcm tuned", "lcm-logger");
+  fmt::print("\ndelivered, same run:\n{:>12} {:>12} {:>14} {:>12}\n", "target/s", "UdpmBus",
+             "liblcm tuned", "lcm-logger");
   for (size_t k = 0; k < ours.steps.size(); ++k) {
-    std::printf("%12d %11.2f%% %13.2f%% %11.2f%%\n", ours.steps[k]["target_per_s"].get<int>(),
-                100.0 * ours.steps[k]["delivered_ratio"].get<double>(),
-                100.0 * tuned.steps[k]["delivered_ratio"].get<double>(),
-                100.0 * stock.steps[k]["delivered_ratio"].get<double>());
+    fmt::print("{:12} {:11.2f}% {:13.2f}% {:11.2f}%\n", ours.steps[k]["target_per_s"].get<int>(),
+               100.0 * ours.steps[k]["delivered_ratio"].get<double>(),
+               100.0 * tuned.steps[k]["delivered_ratio"].get<double>(),
+               100.0 * stock.steps[k]["delivered_ratio"].get<double>());
   }
   return 0;
 }

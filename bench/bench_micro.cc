@@ -4,6 +4,7 @@
 // tests that asserted nothing; a timing belongs here, where it is printed and
 // compared, and a test asserts values.
 #include <benchmark/benchmark.h>
+#include <fmt/format.h>
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
@@ -223,10 +224,10 @@ class RatioReporter : public benchmark::ConsoleReporter {
     }
   }
   void PrintRatios() const {
-    std::printf("\n%-40s %s\n", "benchmark", "CPU time / its group's baseline");
-    for (const auto& [name, ratio] : rows_) std::printf("%-40s %8.3f\n", name.c_str(), ratio);
+    fmt::print("\n{:<40} {}\n", "benchmark", "CPU time / its group's baseline");
+    for (const auto& [name, ratio] : rows_) fmt::print("{:<40} {:8.3f}\n", name.c_str(), ratio);
     for (const auto& [group, baseline] : baseline_ms_) {
-      std::printf("baseline of %s: %s\n", group.c_str(), baseline.first.c_str());
+      fmt::print("baseline of {}: {}\n", group.c_str(), baseline.first.c_str());
     }
   }
 

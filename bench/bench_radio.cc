@@ -2,6 +2,7 @@
 // how soon a completed firing is published, and how the reference's way of
 // grouping reports (by arrival, with no firing number) fares on the same
 // faulty radio as roomfix's (by beacon and firing number).
+#include <fmt/format.h>
 #include <poll.h>
 #include <spdlog/spdlog.h>
 #include <unistd.h>
@@ -10,7 +11,6 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
-#include <cstdio>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -417,27 +417,28 @@ int RunRadioBench(const BenchRadioOptions& options) {
     return 0;
   }
   const json& d = result["decode"];
-  std::printf("XBee API decoding (%.0f MB of 0x90 frames, 4 KiB reads, median of %d)\n",
-              d["api_mode_2"]["stream_mb"].get<double>(), options.repeats);
+  fmt::print("XBee API decoding ({:.0f} MB of 0x90 frames, 4 KiB reads, median of {})\n",
+             d["api_mode_2"]["stream_mb"].get<double>(), options.repeats);
   for (const char* mode : {"api_mode_1", "api_mode_2"}) {
-    std::printf("  %s: %8.1f MB/s decode (best %.1f), %10.0f frames/s through the whole bridge\n",
-                mode, d[mode]["decode_mb_per_s_median"].get<double>(),
-                d[mode]["decode_mb_per_s_best"].get<double>(),
-                d[mode]["bridge_frames_per_s_median"].get<double>());
+    fmt::print(
+        "  {}: {:8.1f} MB/s decode (best {:.1f}), {:10.0f} frames/s through the whole bridge\n",
+        mode, d[mode]["decode_mb_per_s_median"].get<double>(),
+        d[mode]["decode_mb_per_s_best"].get<double>(),
+        d[mode]["bridge_frames_per_s_median"].get<double>());
   }
   const json& l = result["latency"];
-  std::printf(
-      "Last report to RANGES, through a pseudo-terminal (%d firings)\n"
-      "  from the write:  median %.3f ms, p99 %.3f ms, max %.3f ms\n"
-      "  from the read:   median %.3f ms, p99 %.3f ms\n",
+  fmt::print(
+      "Last report to RANGES, through a pseudo-terminal ({} firings)\n"
+      "  from the write:  median {:.3f} ms, p99 {:.3f} ms, max {:.3f} ms\n"
+      "  from the read:   median {:.3f} ms, p99 {:.3f} ms\n",
       l["published"].get<int>(), l["from_write_ms_median"].get<double>(),
       l["from_write_ms_p99"].get<double>(), l["from_write_ms_max"].get<double>(),
       l["from_read_ms_median"].get<double>(), l["from_read_ms_p99"].get<double>());
   const json& g = result["grouping"];
-  std::printf(
-      "Grouping reports into firings on a faulty radio (%lld firings, every fault on)\n"
-      "  reference (latest announcement, any address): %5d of %5d sets mixed (%.1f%%)\n"
-      "  roomfix (beacon + firing number, allowlist):  %5d of %5d sets mixed (%.1f%%)\n",
+  fmt::print(
+      "Grouping reports into firings on a faulty radio ({} firings, every fault on)\n"
+      "  reference (latest announcement, any address): {:5} of {:5} sets mixed ({:.1f}%)\n"
+      "  roomfix (beacon + firing number, allowlist):  {:5} of {:5} sets mixed ({:.1f}%)\n",
       static_cast<long long>(g["firings"].get<int64_t>()), g["reference_mixed_sets"].get<int>(),
       g["reference_sets"].get<int>(), 100.0 * g["reference_mixed_share"].get<double>(),
       g["roomfix_mixed_sets"].get<int>(), g["roomfix_sets"].get<int>(),

@@ -1,11 +1,11 @@
 // roomfix_bench replay: how many times faster than real time `roomfix
 // replay` re-runs trilat and fusion over a recorded log, on one core.
+#include <fmt/format.h>
 #include <time.h>
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
-#include <cstdio>
 #include <cstdlib>
 #include <iostream>
 #include <map>
@@ -73,10 +73,10 @@ int RunBenchReplay(const BenchReplayOptions& args) {
   }
   nlohmann::json out = {{"log", args.log_path}, {"repeat", args.repeat}};
   if (!args.json) {
-    std::printf("replay of %s, %d runs each, single-threaded (one core); median per run\n",
-                args.log_path.c_str(), args.repeat);
-    std::printf("%-20s %8s %10s %10s %10s %12s %12s\n", "nodes", "events", "log_s", "wall_ms",
-                "cpu_ms", "x_real_time", "x_rt_by_cpu");
+    fmt::print("replay of {}, {} runs each, single-threaded (one core); median per run\n",
+               args.log_path.c_str(), args.repeat);
+    fmt::print("{:<20} {:>8} {:>10} {:>10} {:>10} {:>12} {:>12}\n", "nodes", "events", "log_s",
+               "wall_ms", "cpu_ms", "x_real_time", "x_rt_by_cpu");
   }
   int rc = 0;
   for (const Case& c : cases) {
@@ -119,13 +119,13 @@ int RunBenchReplay(const BenchReplayOptions& args) {
           {"wall_ms", wall * 1e3},      {"cpu_ms", cpu * 1e3},
           {"times_real_time", speedup}, {"times_real_time_by_cpu", cpu_speedup}};
     } else {
-      std::printf("%-20s %8lld %10.2f %10.3f %10.3f %11.0fx %11.0fx\n", c.name,
-                  static_cast<long long>(s.events_read), span_s, wall * 1e3, cpu * 1e3, speedup,
-                  cpu_speedup);
+      fmt::print("{:<20} {:8} {:10.2f} {:10.3f} {:10.3f} {:11.0f}x {:11.0f}x\n", c.name,
+                 static_cast<long long>(s.events_read), span_s, wall * 1e3, cpu * 1e3, speedup,
+                 cpu_speedup);
     }
   }
   ::unlink(scratch);
-  if (args.json && rc == 0) std::printf("%s\n", out.dump(2).c_str());
+  if (args.json && rc == 0) fmt::print("{}\n", out.dump(2).c_str());
   return rc;
 }
 

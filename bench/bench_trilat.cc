@@ -1,5 +1,7 @@
 #include "bench/bench_trilat.h"
 
+#include <fmt/format.h>
+
 #include <Eigen/LU>
 #include <algorithm>
 #include <chrono>
@@ -97,7 +99,7 @@ Site PillarSite() {
   Site site;
   std::string error;
   if (!ParseSite(text, "bench_pillar.yaml", "", &site, &error)) {
-    std::fprintf(stderr, "roomfix_bench trilat: pillar site: %s\n", error.c_str());
+    fmt::print(stderr, "roomfix_bench trilat: pillar site: {}\n", error.c_str());
   }
   return site;
 }
@@ -368,14 +370,15 @@ int RunTrilatBench(const BenchTrilatOptions& options) {
     out["scenarios"][s.name] = {
         {"description", s.description}, {"trials", options.trials}, {"methods", methods_json}};
     if (!options.json) {
-      std::printf("\n%s (%d trials)\n", s.description.c_str(), options.trials);
-      std::printf("  %-19s %10s %10s %9s %9s %9s %9s %9s %8s %11s %9s %6s\n", "method", "median_ns",
-                  "p99_ns", "p99/med", "rmse_m", "p95_m", "p99_m", "worst_ok", "in95", "rmse/crlb",
-                  "speedup", "lost");
+      fmt::print("\n{} ({} trials)\n", s.description.c_str(), options.trials);
+      fmt::print("  {:<19} {:>10} {:>10} {:>9} {:>9} {:>9} {:>9} {:>9} {:>8} {:>11} {:>9} {:>6}\n",
+                 "method", "median_ns", "p99_ns", "p99/med", "rmse_m", "p95_m", "p99_m", "worst_ok",
+                 "in95", "rmse/crlb", "speedup", "lost");
       for (size_t m = 0; m < methods.size(); ++m) {
         const MethodResult& r = results[m];
-        std::printf(
-            "  %-19s %10.0f %10.0f %9.2f %9.4f %9.4f %9.4f %9.4f %7.1f%% %11.3f %8.1fx %6d\n",
+        fmt::print(
+            "  {:<19} {:10.0f} {:10.0f} {:9.2f} {:9.4f} {:9.4f} {:9.4f} {:9.4f} {:7.1f}% {:11.3f} "
+            "{:8.1f}x {:6}\n",
             methods[m].key, r.median_ns, r.p99_ns, r.p99_ns / r.median_ns, r.rmse_m, r.p95_m,
             r.p99_m, r.worst_ok_m, 100.0 * r.inside_95, r.rmse_over_crlb, r.speedup, r.failures);
       }
@@ -392,18 +395,18 @@ int RunTrilatBench(const BenchTrilatOptions& options) {
   if (options.json) {
     std::cout << out.dump() << "\n";
   } else {
-    std::printf("\n95th-percentile error with 10%% outliers / without (6 receivers):\n");
+    fmt::print("\n95th-percentile error with 10% outliers / without (6 receivers):\n");
     for (const char* m : {"nelder_mead", "default", "robust", "cauchy"}) {
-      std::printf("  %-12s %.2f\n", m, outlier_ratio[m].get<double>());
+      fmt::print("  {:<12} {:.2f}\n", m, outlier_ratio[m].get<double>());
     }
     const json& node = out["node"];
     if (node.contains("error")) {
-      std::printf("\ntrilat_proc node: %s\n", node["error"].get<std::string>().c_str());
+      fmt::print("\ntrilat_proc node: {}\n", node["error"].get<std::string>().c_str());
       return 1;
     }
-    std::printf("\ntrilat_proc node on memq://: %.0f range sets/s (%d sets, %.3f s, %lld poses)\n",
-                node["range_sets_per_s"].get<double>(), node["range_sets"].get<int>(),
-                node["seconds"].get<double>(), node["poses"].get<long long>());
+    fmt::print("\ntrilat_proc node on memq://: {:.0f} range sets/s ({} sets, {:.3f} s, {} poses)\n",
+               node["range_sets_per_s"].get<double>(), node["range_sets"].get<int>(),
+               node["seconds"].get<double>(), node["poses"].get<long long>());
   }
   return 0;
 }

@@ -2,10 +2,11 @@
 // installation (10 robots seen by 4 sources with 10 s trails, 12 receivers,
 // a range set per beacon, 6 processes, a camera preview) at 1280 x 800, and
 // whether that leaves 30 fps.
+#include <fmt/format.h>
+
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -261,16 +262,16 @@ int RunViewerBench(const BenchViewerOptions& options) {
     std::cout << out.dump() << "\n";
     return 0;
   }
-  std::printf(
-      "Viewer frame at %d x %d: %d robots x 4 sources (10 s trails), %zu receivers, %d range "
-      "sets, %zu processes, a preview; %d frames\n"
-      "  frame time: median %.2f ms, p99 %.2f ms, max %.2f ms (%.0f fps at the median)\n"
-      "  30 fps (%.1f ms a frame, at p99): %s\n"
-      "  first frame, drawing the static background (as each frame of a zoom or pan): %.2f ms\n",
+  fmt::print(
+      "Viewer frame at {} x {}: {} robots x 4 sources (10 s trails), {} receivers, {} range "
+      "sets, {} processes, a preview; {} frames\n"
+      "  frame time: median {:.2f} ms, p99 {:.2f} ms, max {:.2f} ms ({:.0f} fps at the median)\n"
+      "  30 fps ({:.1f} ms a frame, at p99): {}\n"
+      "  first frame, drawing the static background (as each frame of a zoom or pan): {:.2f} ms\n",
       render_options.width_px, render_options.height_px, kRobots, site.receivers.size(), kRobots,
       state.processes.size(), options.frames, median, p99, max, median > 0 ? 1000.0 / median : 0.0,
       kFrameBudgetMs, meets ? "met" : "NOT met", first_ms);
-  if (!options.png.empty()) std::printf("  last frame written to %s\n", options.png.c_str());
+  if (!options.png.empty()) fmt::print("  last frame written to {}\n", options.png.c_str());
   return 0;
 }
 

@@ -66,7 +66,7 @@ class CalibratedPipelineTest : public ::testing::Test {
   // point_noise_px is added to each found pixel (0: the detector's own
   // noise only, as the demo's calibration was made).
   // as_frames: each image goes through the JPEG encoding the camera's
-  // frames get (camera::SimSourceOptions::jpeg_quality), as tripod images
+  // frames get (sim::SimSourceOptions::jpeg_quality), as tripod images
   // taken with the camera itself would.
   calib::Calibration CalibrateFromTripodImages(double point_noise_px = kPointNoisePx,
                                                bool as_frames = false,
@@ -99,7 +99,7 @@ class CalibratedPipelineTest : public ::testing::Test {
         if (as_frames) {
           // The camera's own JPEG (the webcam scenario's MJPEG quality).
           std::vector<uint8_t> jpeg;
-          EXPECT_TRUE(render.Encode(image, camera::SimSourceOptions{}.jpeg_quality, &jpeg));
+          EXPECT_TRUE(render.Encode(image, sim::SimSourceOptions{}.jpeg_quality, &jpeg));
           image = cv::imdecode(jpeg, cv::IMREAD_COLOR);
         }
         const std::vector<vision::Blob> blobs = detector.Detect(image, vision::ImageWindow{});
@@ -143,11 +143,11 @@ class CalibratedPipelineTest : public ::testing::Test {
     EXPECT_TRUE(sim::ParseSimScenario(scenario_name, site_, &scenario, &error));
     if (scenario_name == "clean") scenario.noise_sigma_dn = 2.0;
     auto render = std::make_shared<sim::SyntheticCamera>(site_, camera_, truth_, scenario);
-    camera::SimSourceOptions so;
+    sim::SimSourceOptions so;
     so.fps = camera_.fps;
     so.start_utime = kStartUtime;
     so.realtime = false;
-    camera::SimFrameSource source(render, so);
+    sim::SimFrameSource source(render, so);
     LoopbackBus bus;
     std::vector<pose2d_t> poses;
     bus.Subscribe<pose2d_t>(kCameraPoseChannel,

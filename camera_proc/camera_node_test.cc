@@ -102,12 +102,12 @@ class CameraNodeTest : public ::testing::Test {
     std::string error;
     EXPECT_TRUE(sim::ParseSimScenario(scenario_name, &scenario, &error)) << error;
     auto camera = std::make_shared<sim::SyntheticCamera>(site_, camera_, lens_, scenario);
-    camera::SimSourceOptions so;
+    sim::SimSourceOptions so;
     so.fps = camera_.fps;
     so.start_utime = kStartUtime;
     so.realtime = false;
     so.jpeg_quality = 90;
-    camera::SimFrameSource source(camera, so);
+    sim::SimFrameSource source(camera, so);
     EXPECT_TRUE(source.Open(&error));
     std::optional<calib::Calibration> calibration;
     if (calibrated) {

@@ -55,11 +55,11 @@ MeanPose SeenBy(const Site& site, const Camera& camera) {
       calib::NominalCamera(camera.mount_position_m, camera.field_of_view_deg, camera.width_px,
                            camera.height_px),
       scenario);
-  camera::SimSourceOptions so;
+  sim::SimSourceOptions so;
   so.fps = camera.fps;
   so.start_utime = kStartUtime;
   so.realtime = false;
-  camera::SimFrameSource source(render, so);
+  sim::SimFrameSource source(render, so);
   LoopbackBus bus;
   std::vector<pose2d_t> poses;
   bus.Subscribe<pose2d_t>(kCameraPoseChannel,

@@ -162,12 +162,12 @@ Tally Measure(const Site& site, const std::string& scenario_name, double seconds
   EXPECT_TRUE(sim::ParseSimScenario(scenario_name.substr(0, plus), site, &scenario, &error))
       << error;
   auto renderer = std::make_shared<sim::SyntheticCamera>(site, camera, lens, scenario);
-  camera::SimSourceOptions so;
+  sim::SimSourceOptions so;
   so.fps = camera.fps;
   so.start_utime = kStartUtime;
   so.realtime = false;
   so.jpeg_quality = 80;  // a webcam's MJPEG is nearer 80 than 90
-  camera::SimFrameSource source(renderer, so);
+  sim::SimFrameSource source(renderer, so);
   EXPECT_TRUE(source.Open(&error)) << error;
   // Calibrated with the lens the frames are rendered through (the webcam
   // scenario's distortion included): identity, not mapping, is judged.

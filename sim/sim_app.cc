@@ -1,8 +1,8 @@
 #include "sim/sim_app.h"
 
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
-#include <cstdio>
 #include <iostream>
 #include <memory>
 #include <vector>
@@ -218,23 +218,25 @@ int RunAirBench(const std::string& config_path, const SharedAirOptions& air, dou
     return 1;
   }
   const RoomDecay d = ComputeRoomDecay(site, site.simulation.temperature_c);
-  std::printf("Air of %s: %.1f x %.1f x %.1f m, %.1f degC, %.0f%% RH, walls absorb %.2f\n",
-              site.name.c_str(), site.room.size_x_m, site.room.size_y_m, site.room.height_m,
-              site.simulation.temperature_c, site.acoustics.humidity_percent,
-              site.acoustics.wall_absorption);
-  std::printf(
-      "  air absorption %.2f dB/m at %.0f kHz, T60 %.3f s, longest path %.2f m (%.1f ms)\n"
-      "  pulse at 1 m %.1f dB over threshold, tail starts %.1f dB over, decay %.1f ms%s\n"
-      "  slot = flight %.1f ms + decay %.1f ms + clock %.1f ms = %.1f ms\n",
+  fmt::print(
+      "Air of {}: {:.1f} x {:.1f} x {:.1f} m, {:.1f} degC, {:.0f}% RH, walls absorb {:.2f}\n",
+      site.name.c_str(), site.room.size_x_m, site.room.size_y_m, site.room.height_m,
+      site.simulation.temperature_c, site.acoustics.humidity_percent,
+      site.acoustics.wall_absorption);
+  fmt::print(
+      "  air absorption {:.2f} dB/m at {:.0f} kHz, T60 {:.3f} s, longest path {:.2f} m ({:.1f} "
+      "ms)\n"
+      "  pulse at 1 m {:.1f} dB over threshold, tail starts {:.1f} dB over, decay {:.1f} ms{}\n"
+      "  slot = flight {:.1f} ms + decay {:.1f} ms + clock {:.1f} ms = {:.1f} ms\n",
       d.air_absorption_db_per_m, site.acoustics.frequency_hz / 1000.0, d.reverberation_time_s,
       d.max_range_m, d.max_time_of_flight_s * 1e3, d.level_at_1m_db, d.tail_start_db,
       d.decay_s * 1e3, d.decay_from_site ? " (site's acoustics.decay_s)" : "",
       d.max_time_of_flight_s * 1e3, d.decay_s * 1e3, site.acoustics.clock_uncertainty_s * 1e3,
       d.slot_s * 1e3);
-  std::printf("%d s x %d seeds per row, beacons at random places, crystals +-%.0f ppm\n",
-              static_cast<int>(duration_s), seeds, air.clock_ppm);
-  std::printf("%8s | %-13s | %12s | %18s | %16s | %14s\n", "beacons", "schedule", "Hz/beacon",
-              "corrupted ranges", "corrupted sets", "clean Hz/beacon");
+  fmt::print("{} s x {} seeds per row, beacons at random places, crystals +-{:.0f} ppm\n",
+             static_cast<int>(duration_s), seeds, air.clock_ppm);
+  fmt::print("{:>8} | {:<13} | {:>12} | {:>18} | {:>16} | {:>14}\n", "beacons", "schedule",
+             "Hz/beacon", "corrupted ranges", "corrupted sets", "clean Hz/beacon");
   for (int n : {1, 2, 4, 8, 12}) {
     for (auto mode : {FiringPlanOptions::Mode::kTdma, FiringPlanOptions::Mode::kFreeRunning}) {
       int64_t corrupted = 0, pairs = 0, bad_sets = 0, firings = 0;
@@ -251,11 +253,11 @@ int RunAirBench(const std::string& config_path, const SharedAirOptions& air, dou
         rate = row.rate_per_beacon_hz;
         clean += row.clean_rate_per_beacon_hz / seeds;
       }
-      std::printf("%8d | %-13s | %12.2f | %9.1f%% %7lld | %7.1f%% %7lld | %14.2f\n", n,
-                  mode == FiringPlanOptions::Mode::kTdma ? "tdma" : "free-running", rate,
-                  pairs ? 100.0 * corrupted / pairs : 0.0, static_cast<long long>(corrupted),
-                  firings ? 100.0 * bad_sets / firings : 0.0, static_cast<long long>(bad_sets),
-                  clean);
+      fmt::print("{:8} | {:<13} | {:12.2f} | {:9.1f}% {:7} | {:7.1f}% {:7} | {:14.2f}\n", n,
+                 mode == FiringPlanOptions::Mode::kTdma ? "tdma" : "free-running", rate,
+                 pairs ? 100.0 * corrupted / pairs : 0.0, static_cast<long long>(corrupted),
+                 firings ? 100.0 * bad_sets / firings : 0.0, static_cast<long long>(bad_sets),
+                 clean);
     }
   }
   return 0;

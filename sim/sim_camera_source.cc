@@ -137,7 +137,7 @@ bool MakeSimCameraSource(const Site& site, const CameraChoice& choice,
   *summary = "camera " + std::to_string(camera.id) + ", synthetic " + scenario.name + ", " +
              RobotsAndCalibration(choice);
   if (check_only) return true;
-  camera::SimSourceOptions sim_options;
+  sim::SimSourceOptions sim_options;
   sim_options.fps = camera.fps;
   sim_options.start_utime = start_utime;
   sim_options.realtime = true;
@@ -145,7 +145,7 @@ bool MakeSimCameraSource(const Site& site, const CameraChoice& choice,
   for (const SimCameraOptions::ParkedRobot& p : options.parked_robots) {
     sim_options.parked_robots.push_back(sim::RobotState{p.robot_id, p.x_m, p.y_m, p.heading_rad});
   }
-  *source = std::make_unique<camera::SimFrameSource>(
+  *source = std::make_unique<sim::SimFrameSource>(
       std::make_shared<sim::SyntheticCamera>(site, camera, lens, scenario), sim_options);
   return true;
 }

@@ -6,7 +6,11 @@
 #include <opencv2/imgcodecs.hpp>
 #include <utility>
 
-namespace roomfix::camera {
+namespace roomfix::sim {
+
+using camera::Frame;
+using camera::ReadStatus;
+
 namespace {
 
 int64_t WallUtime() {
@@ -17,7 +21,7 @@ int64_t WallUtime() {
 
 }  // namespace
 
-calib::CameraTiming ScenarioTiming(const sim::SimScenario& scenario, int height_px) {
+calib::CameraTiming ScenarioTiming(const SimScenario& scenario, int height_px) {
   calib::CameraTiming timing;
   timing.height_px = height_px;
   // Only the webcam scenario renders rows at their own times, integrates
@@ -31,7 +35,7 @@ calib::CameraTiming ScenarioTiming(const sim::SimScenario& scenario, int height_
   return timing;
 }
 
-SimFrameSource::SimFrameSource(std::shared_ptr<const sim::SyntheticCamera> camera,
+SimFrameSource::SimFrameSource(std::shared_ptr<const SyntheticCamera> camera,
                                SimSourceOptions options)
     : camera_(std::move(camera)), options_(std::move(options)) {
   if (!options_.clock) options_.clock = WallUtime;
@@ -110,14 +114,14 @@ void SimFrameSource::Encode(Rendered* out) const {
     std::vector<uint8_t> bytes;
     if (!camera_->Encode(out->bgr, options_.jpeg_quality, &bytes)) {
       out->error = "cannot encode synthetic frame " + std::to_string(out->frame.seq);
-      out->frame.problem = FrameProblem::kUnreadable;
+      out->frame.problem = camera::FrameProblem::kUnreadable;
       out->status = ReadStatus::kBadFrame;
       return;
     }
-    out->frame.image = MakeJpegImage(std::move(bytes), &out->error, &out->frame.problem);
+    out->frame.image = camera::MakeJpegImage(std::move(bytes), &out->error, &out->frame.problem);
     if (out->frame.image == nullptr) out->status = ReadStatus::kBadFrame;
   } else {
-    out->frame.image = MakeDecodedImage(std::move(out->bgr));
+    out->frame.image = camera::MakeDecodedImage(std::move(out->bgr));
   }
   out->bgr.release();
 }
@@ -244,4 +248,4 @@ std::string SimFrameSource::Describe() const {
          (camera_->scenario().webcam_effects ? ", webcam effects" : "");
 }
 
-}  // namespace roomfix::camera
+}  // namespace roomfix::sim

@@ -15,7 +15,7 @@
 #include "core/calib/camera_timing.h"
 #include "sim/synthetic_camera.h"
 
-namespace roomfix::camera {
+namespace roomfix::sim {
 
 struct SimSourceOptions {
   // Frames per second of the simulated camera.
@@ -43,24 +43,24 @@ struct SimSourceOptions {
   // markers at a surveyed point, `roomfix grab --tripod`): every frame
   // shows these instead of the site's simulated robots. Empty: the
   // simulation's robots.
-  std::vector<sim::RobotState> parked_robots;
+  std::vector<RobotState> parked_robots;
   // Called from the producer thread when realtime: must be thread-safe.
-  Clock clock;
+  camera::Clock clock;
 };
 
 // The camera timing a synthetic scenario renders (the device is the
 // physics): the webcam scenario's simulation.webcam readout, exposure and
 // timestamp latency; every other scenario is a global shutter with exact
 // timestamps (all 0).
-calib::CameraTiming ScenarioTiming(const sim::SimScenario& scenario, int height_px);
+calib::CameraTiming ScenarioTiming(const SimScenario& scenario, int height_px);
 
 // The synthetic camera as a frame source: renders the site's simulated
 // robots (sim/synthetic_camera.h) at each frame's capture time. A frame is a
 // deterministic function of its seq, so which thread renders it changes
 // nothing in its bytes.
-class SimFrameSource final : public FrameSource {
+class SimFrameSource final : public camera::FrameSource {
  public:
-  SimFrameSource(std::shared_ptr<const sim::SyntheticCamera> camera, SimSourceOptions options);
+  SimFrameSource(std::shared_ptr<const SyntheticCamera> camera, SimSourceOptions options);
   // Stops and joins the producer threads.
   ~SimFrameSource() override;
   SimFrameSource(const SimFrameSource&) = delete;
@@ -72,22 +72,22 @@ class SimFrameSource final : public FrameSource {
   void Close() override;
   // Realtime: blocks until the producer has a frame (about one frame
   // interval while it keeps up).
-  ReadStatus Read(Frame* frame, std::string* error) override;
+  camera::ReadStatus Read(camera::Frame* frame, std::string* error) override;
   std::string Describe() const override;
   bool live() const override { return false; }
   std::optional<calib::CameraTiming> device_timing() const override;
 
   // Ground truth of the last frame read.
-  const std::vector<sim::MarkerTruth>& last_truth() const { return truth_; }
+  const std::vector<MarkerTruth>& last_truth() const { return truth_; }
   // Frames skipped because rendering fell behind real time (realtime only).
   int64_t render_skipped() const;
 
  private:
   struct Rendered {
-    ReadStatus status = ReadStatus::kFrame;
-    Frame frame;
+    camera::ReadStatus status = camera::ReadStatus::kFrame;
+    camera::Frame frame;
     std::string error;
-    std::vector<sim::MarkerTruth> truth;
+    std::vector<MarkerTruth> truth;
     // The rendered pixels until they are encoded.
     cv::Mat bgr;
   };
@@ -105,10 +105,10 @@ class SimFrameSource final : public FrameSource {
   // stopping.
   bool WaitUntil(int64_t utime, std::unique_lock<std::mutex>* lock);
 
-  std::shared_ptr<const sim::SyntheticCamera> camera_;
+  std::shared_ptr<const SyntheticCamera> camera_;
   SimSourceOptions options_;
   int64_t next_seq_ = 0;
-  std::vector<sim::MarkerTruth> truth_;
+  std::vector<MarkerTruth> truth_;
 
   // The producer (realtime): guarded by mutex_.
   std::thread producer_;
@@ -124,6 +124,6 @@ class SimFrameSource final : public FrameSource {
   int64_t render_skipped_ = 0;
 };
 
-}  // namespace roomfix::camera
+}  // namespace roomfix::sim
 
 #endif  // ROOMFIX_SIM_SIM_FRAME_SOURCE_H_

@@ -14,25 +14,28 @@
 #include "tests/testing/demo_site.h"
 #include "tests/testing/test_paths.h"
 
-namespace roomfix::camera {
+namespace roomfix::sim {
 namespace {
+
+using camera::Frame;
+using camera::ReadStatus;
 
 // A small webcam in the demo room (320 x 180, the same lens angle), so that
 // the frames are cheap.
-std::shared_ptr<const sim::SyntheticCamera> SmallWebcam(sim::SimScenario* scenario) {
+std::shared_ptr<const SyntheticCamera> SmallWebcam(SimScenario* scenario) {
   Site site;
   std::string error;
   EXPECT_TRUE(LoadSite(testing::DemoSitePath(), &site, &error)) << error;
   Camera camera = site.cameras.at(0);
   camera.width_px = 320;
   camera.height_px = 180;
-  EXPECT_TRUE(sim::ParseSimScenario("sim:webcam", site, scenario, &error)) << error;
-  return std::make_shared<const sim::SyntheticCamera>(
+  EXPECT_TRUE(ParseSimScenario("sim:webcam", site, scenario, &error)) << error;
+  return std::make_shared<const SyntheticCamera>(
       site, camera, calib::NominalCamera(camera.mount_position_m, 120, 320, 180), *scenario);
 }
 
 TEST(SimFrameSource, WebcamFramesAreStampedAtTheLastRowsReadPlusLatency) {
-  sim::SimScenario scenario;
+  SimScenario scenario;
   const auto webcam = SmallWebcam(&scenario);
   SimSourceOptions o;
   o.fps = 30.0;
@@ -77,7 +80,7 @@ cv::Mat Pixels(Frame* frame) {
 TEST(SimFrameSource, RealtimeFramesFromTheProducerThreadEqualTheVirtualClocksFrames) {
   // A frame is a function of its seq: rendered ahead on the producer thread
   // it is the same frame, stamp and pixels, as rendered in Read.
-  sim::SimScenario scenario;
+  SimScenario scenario;
   const auto webcam = SmallWebcam(&scenario);
   SimSourceOptions o;
   o.start_utime = WallUtime();
@@ -106,7 +109,7 @@ TEST(SimFrameSource, RealtimeFramesFromTheProducerThreadEqualTheVirtualClocksFra
 }
 
 TEST(SimFrameSource, RendererBehindRealTimeIsCountedApartFromFramesTheReaderMissed) {
-  sim::SimScenario scenario;
+  SimScenario scenario;
   const auto webcam = SmallWebcam(&scenario);
   SimSourceOptions o;
   o.fps = 30.0;
@@ -138,7 +141,7 @@ TEST(SimFrameSource, RendererBehindRealTimeIsCountedApartFromFramesTheReaderMiss
 }
 
 TEST(SimFrameSource, ClosingStopsTheProducerWhileItWaitsForAFrame) {
-  sim::SimScenario scenario;
+  SimScenario scenario;
   const auto webcam = SmallWebcam(&scenario);
   SimSourceOptions o;
   o.fps = 1.0;  // the producer sleeps most of a second between frames
@@ -160,7 +163,7 @@ TEST(SimFrameSource, ClosingStopsTheProducerWhileItWaitsForAFrame) {
 }
 
 TEST(SimFrameSource, DeviceTimingIsTheScenariosOwn) {
-  sim::SimScenario scenario;
+  SimScenario scenario;
   const auto webcam = SmallWebcam(&scenario);
   const std::optional<calib::CameraTiming> t = SimFrameSource(webcam, {}).device_timing();
   ASSERT_TRUE(t.has_value());
@@ -169,9 +172,9 @@ TEST(SimFrameSource, DeviceTimingIsTheScenariosOwn) {
   EXPECT_EQ(t->latency_s, scenario.webcam.timestamp_latency_s);
   EXPECT_EQ(t->height_px, 180);
   ASSERT_GT(scenario.webcam.readout_s, 0.0);
-  sim::SimScenario clean;
+  SimScenario clean;
   std::string error;
-  ASSERT_TRUE(sim::ParseSimScenario("sim:clean", &clean, &error)) << error;
+  ASSERT_TRUE(ParseSimScenario("sim:clean", &clean, &error)) << error;
   const calib::CameraTiming c = ScenarioTiming(clean, 180);
   EXPECT_EQ(c.readout_s, 0.0);
   EXPECT_EQ(c.exposure_s, 0.0);
@@ -179,4 +182,4 @@ TEST(SimFrameSource, DeviceTimingIsTheScenariosOwn) {
 }
 
 }  // namespace
-}  // namespace roomfix::camera
+}  // namespace roomfix::sim
