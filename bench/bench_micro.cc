@@ -240,7 +240,7 @@ int RunMicroBench(const BenchMicroOptions& o) {
   static Scene scene;  // the registered benchmarks refer to it
   std::string error;
   if (!MakeScene(o.site, &scene, &error)) {
-    std::cerr << "bench micro: " << error << "\n";
+    std::cerr << "roomfix_bench micro: " << error << "\n";
     return 1;
   }
   Register(scene);
@@ -254,7 +254,7 @@ int RunMicroBench(const BenchMicroOptions& o) {
   const size_t ran = benchmark::RunSpecifiedBenchmarks(&reporter);
   benchmark::Shutdown();
   if (ran == 0) {
-    std::cerr << "bench micro: no benchmark matches '" << o.filter << "'\n";
+    std::cerr << "roomfix_bench micro: no benchmark matches '" << o.filter << "'\n";
     return 1;
   }
   reporter.PrintRatios();
